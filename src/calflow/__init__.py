@@ -1,0 +1,14 @@
+"""calflow: reproducible calibration of micro- and nano-robotic positioning systems.
+
+The method follows Tan, *Calibration of micro and nanorobotic systems* (thesis); equation
+numbers in docstrings refer to it.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("calflow")
+except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0.0.0+unknown"
+
+__all__ = ["__version__"]
