@@ -1,0 +1,19 @@
+# calflow: calibration campaigns of micro- and nano-robotic positioning systems.
+# Config is validated against workflow/schemas before any rule runs.
+
+
+configfile: "config/config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/acquire.smk"
+include: "workflow/rules/identify.smk"
+include: "workflow/rules/validate.smk"
+include: "workflow/rules/report.smk"
+
+
+rule all:
+    input:
+        "reports/index.html",
+        expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
+        expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),

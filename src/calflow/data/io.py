@@ -1,0 +1,92 @@
+"""Atomic reading and writing of calflow files.
+
+Every output is written to a temporary name in the same directory and renamed when
+complete, so an interrupted job never leaves a half-written file under the final name.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterator
+
+import xarray as xr
+
+from calflow.errors import DataError
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+
+    On any exception the temporary file is removed and ``path`` is left untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp_path.unlink()
+        raise
+
+
+def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write ``ds`` as netCDF4 to ``path`` atomically and return the path."""
+    encoding = {
+        name: {"zlib": True, "complevel": 4}
+        for name, var in ds.data_vars.items()
+        if var.dtype.kind in "fiu" and var.ndim > 0
+    }
+    with atomic_path(path) as tmp:
+        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=encoding)
+    return Path(path)
+
+
+def write_json(obj: Any, path: str | os.PathLike) -> Path:
+    """Write ``obj`` as indented, key-sorted JSON to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2, sort_keys=True, allow_nan=True) + "\n")
+    return Path(path)
+
+
+def write_text(text: str, path: str | os.PathLike) -> Path:
+    """Write ``text`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_bytes(data: bytes, path: str | os.PathLike) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def open_dataset(path: str | os.PathLike, kind: str | None = None) -> xr.Dataset:
+    """Open a calflow netCDF file fully into memory.
+
+    Raises :class:`DataError` with one line naming the file and the problem when the file
+    is missing, not netCDF, or of another ``calflow_kind`` than ``kind``.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: file not found")
+    try:
+        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+            ds = ds.load()
+    except Exception as exc:  # netCDF4 raises OSError/RuntimeError/ValueError variously
+        raise DataError(f"{path}: not a readable netCDF4 file ({type(exc).__name__}: {exc})") from None
+    if kind is not None and ds.attrs.get("calflow_kind") != kind:
+        raise DataError(
+            f"{path}: attribute 'calflow_kind': expected {kind!r}, got {ds.attrs.get('calflow_kind')!r}"
+        )
+    return ds

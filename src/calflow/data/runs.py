@@ -1,0 +1,89 @@
+"""Building run datasets (``calflow_kind = "run"``) from acquired samples."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+import xarray as xr
+
+from calflow import __version__
+from calflow.data.conventions import CF_CONVENTIONS, RUN_VARIABLES, time_units, utc_now
+
+
+@dataclass
+class RunMetadata:
+    """Global attributes of a run dataset (DESIGN.md, "Data conventions")."""
+
+    campaign: str
+    robot: str
+    source: str
+    plan: str
+    config_sha256: str
+    start: str = "2026-01-01T00:00:00+00:00"
+    model: str | None = None
+    history: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def attrs(self, kind: str = "run") -> dict:
+        attrs = {
+            "Conventions": CF_CONVENTIONS,
+            "calflow_kind": kind,
+            "calflow_version": __version__,
+            "campaign": self.campaign,
+            "robot": self.robot,
+            "source": self.source,
+            "plan": self.plan,
+            "created": utc_now(),
+            "config_sha256": self.config_sha256,
+            "history": self.history or f"{utc_now()} calflow {__version__}",
+        }
+        if self.model:
+            attrs["model"] = self.model
+        attrs.update(self.extra)
+        return attrs
+
+
+def _var(values, name: str, dims=("sample",)) -> xr.Variable:
+    units, long_name = RUN_VARIABLES[name]
+    return xr.Variable(dims, values, attrs={"units": units, "long_name": long_name})
+
+
+def run_dataset(
+    readings: Sequence[Mapping[str, float]],
+    plan,
+    sensors: Sequence[str],
+    thermometers: Sequence[str],
+    meta: RunMetadata,
+) -> xr.Dataset:
+    """Assemble a run dataset from one reading per plan row.
+
+    ``readings[i]`` is what the rig's ``read()`` returned after row ``i`` settled.
+    """
+    n = len(readings)
+    data: dict[str, xr.Variable] = {}
+    data["time"] = xr.Variable(
+        ("sample",),
+        np.array([r["time"] for r in readings], dtype=float),
+        attrs={"units": time_units(meta.start), "long_name": "time of the reading", "standard_name": "time"},
+    )
+    for joint, values in plan.commands.items():
+        data[f"cmd_{joint}"] = _var(np.asarray(values[:n], dtype=float), f"cmd_{joint}")
+    for axis, values in plan.targets.items():
+        data[f"target_{axis}"] = _var(np.asarray(values[:n], dtype=float), f"target_{axis}")
+    for sensor in sensors:
+        data[sensor] = _var(np.array([r[sensor] for r in readings], dtype=float), sensor)
+    if thermometers:
+        temps = np.array([[r[t] for t in thermometers] for r in readings], dtype=float).reshape(n, len(thermometers))
+        data["temperature"] = _var(temps, "temperature", ("sample", "sensor"))
+    data["pose"] = _var(np.asarray(plan.pose[:n], dtype="int32"), "pose")
+    data["cycle"] = _var(np.asarray(plan.cycle[:n], dtype="int32"), "cycle")
+    data["direction"] = _var(np.asarray(plan.direction[:n], dtype="int8"), "direction")
+    coords = {}
+    if thermometers:
+        coords["sensor"] = xr.Variable(("sensor",), np.array(list(thermometers), dtype=object),
+                                       attrs={"long_name": "thermocouple name"})
+    ds = xr.Dataset(data, coords=coords, attrs=meta.attrs("run"))
+    ds.attrs["dwell_s"] = float(plan.dwell_s)
+    return ds

@@ -1,0 +1,119 @@
+"""Check a dataset against the calflow data contract (DESIGN.md, "Data conventions").
+
+:func:`validate_dataset` returns a list of problems, one line each, that name the
+variable or attribute and what was expected; an empty list means the dataset conforms.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from calflow.data.conventions import (
+    GLOBAL_ATTRS,
+    KINDS,
+    REQUIRED_RUN_VARIABLES,
+    ROBOT_JOINTS,
+    ROBOTS,
+    RUN_VARIABLES,
+    SOURCES,
+)
+from calflow.errors import DataError
+
+
+def _check_global(ds: xr.Dataset) -> list[str]:
+    problems = [f"global attribute '{a}': missing" for a in GLOBAL_ATTRS if a not in ds.attrs]
+    kind = ds.attrs.get("calflow_kind")
+    if kind is not None and kind not in KINDS:
+        problems.append(f"global attribute 'calflow_kind': expected one of {list(KINDS)}, got {kind!r}")
+    robot = ds.attrs.get("robot")
+    if robot is not None and robot not in ROBOTS:
+        problems.append(f"global attribute 'robot': expected one of {list(ROBOTS)}, got {robot!r}")
+    source = ds.attrs.get("source")
+    if source is not None and source not in SOURCES:
+        problems.append(f"global attribute 'source': expected one of {list(SOURCES)}, got {source!r}")
+    if "Conventions" in ds.attrs and not str(ds.attrs["Conventions"]).startswith("CF-"):
+        problems.append(f"global attribute 'Conventions': expected 'CF-1.11', got {ds.attrs['Conventions']!r}")
+    return problems
+
+
+def _check_cf_variables(ds: xr.Dataset) -> list[str]:
+    problems = []
+    for name, var in ds.variables.items():
+        if var.dtype.kind in "SUO":  # label coordinates (e.g. sensor names) carry no units
+            continue
+        for attr in ("units", "long_name"):
+            if attr not in var.attrs:
+                problems.append(f"variable '{name}': attribute '{attr}' missing")
+    return problems
+
+
+def _check_run(ds: xr.Dataset) -> list[str]:
+    problems = []
+    if "sample" not in ds.dims:
+        return ["dimension 'sample': missing (a run has one row per settled pose)"]
+    if ds.sizes["sample"] == 0:
+        problems.append("dimension 'sample': expected at least one sample, got 0")
+    for name in REQUIRED_RUN_VARIABLES:
+        if name not in ds.variables:
+            problems.append(f"variable '{name}': missing")
+    if "time" in ds.variables:
+        units = str(ds["time"].attrs.get("units", ""))
+        if not units.startswith("seconds since "):
+            problems.append(f"variable 'time': units expected 'seconds since <campaign start>', got {units!r}")
+        t = np.asarray(ds["time"].values, dtype=float)
+        if t.size and not np.all(np.isfinite(t)):
+            problems.append("variable 'time': expected finite values, found NaN or inf")
+        elif t.size > 1 and np.any(np.diff(t) < 0):
+            problems.append("variable 'time': expected non-decreasing values")
+    joints = ROBOT_JOINTS.get(ds.attrs.get("robot"), ())
+    for joint in joints:
+        for prefix in ("cmd", "meas"):
+            if f"{prefix}_{joint}" not in ds.variables:
+                problems.append(f"variable '{prefix}_{joint}': missing for robot {ds.attrs.get('robot')!r}")
+    for name, var in ds.data_vars.items():
+        if name in RUN_VARIABLES:
+            units, _ = RUN_VARIABLES[name]
+            got = var.attrs.get("units")
+            if got is not None and got != units:
+                problems.append(f"variable '{name}': units expected {units!r}, got {got!r}")
+            expected_dims = ("sample", "sensor") if name == "temperature" else ("sample",)
+            if var.dims != expected_dims:
+                problems.append(f"variable '{name}': dims expected {expected_dims}, got {var.dims}")
+    if "direction" in ds.variables:
+        bad = ~np.isin(ds["direction"].values, (-1, 0, 1))
+        if bad.any():
+            problems.append("variable 'direction': expected values in {-1, 0, +1}")
+    if "plan" not in ds.attrs:
+        problems.append("global attribute 'plan': missing")
+    return problems
+
+
+def validate_dataset(ds: xr.Dataset) -> list[str]:
+    """Return the list of contract violations of ``ds`` (empty when it conforms)."""
+    problems = _check_global(ds) + _check_cf_variables(ds)
+    if ds.attrs.get("calflow_kind") == "run":
+        problems += _check_run(ds)
+    return problems
+
+
+def validate_file(path: str | os.PathLike) -> list[str]:
+    """Validate a netCDF file; each problem is prefixed with the file name.
+
+    A file that cannot be opened yields a single problem naming the file and the reason.
+    """
+    path = Path(path)
+    if not path.exists():
+        return [f"{path}: file not found"]
+    try:
+        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+            ds.load()
+            return [f"{path}: {p}" for p in validate_dataset(ds)]
+    except DataError as exc:
+        return [str(exc)]
+    except Exception as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        return [f"{path}: not a readable netCDF4 file ({reason})"]

@@ -1,0 +1,1 @@
+"""Identification of model parameters: cost functions, least squares, diagnostics."""

@@ -1,0 +1,1 @@
+"""Calibration models: the five XYΘ models (Ch. 4) and the nanopositioning models (Ch. 5)."""

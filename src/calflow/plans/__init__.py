@@ -1,0 +1,38 @@
+"""Plans: what a run does — which poses, in which order, how many cycles, dwell times."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Plan:
+    """A sequence of settled poses to visit.
+
+    ``commands`` maps each joint to its command per row (µm or degree). ``targets``
+    maps axes to task-space targets per row (NaN where a row has none). ``pose``,
+    ``cycle`` and ``direction`` index the rows as in the run dataset.
+    """
+
+    name: str
+    commands: dict[str, np.ndarray]
+    pose: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    targets: dict[str, np.ndarray] = field(default_factory=dict)
+    dwell_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        n = len(self.pose)
+        for name, values in {**self.commands, **self.targets}.items():
+            if len(values) != n:
+                raise ValueError(f"plan {self.name!r}: {name} has {len(values)} rows, expected {n}")
+
+    def __len__(self) -> int:
+        return len(self.pose)
+
+    def row(self, i: int) -> dict[str, float]:
+        """The joint command of row ``i``."""
+        return {joint: float(values[i]) for joint, values in self.commands.items()}
