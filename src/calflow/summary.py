@@ -51,7 +51,7 @@ def xytheta_summary(campaign: dict, models: dict[str, xr.Dataset], metrics: dict
             "repeatability_um": float(m.attrs["repeatability_um"]),
             "free": [str(p) for p in model["parameter"].values],
             "parameters": {
-                parameter_key(p): {"value": float(model[p].values), "std": _clean(float(model[p].attrs.get("std", 0.0)))}
+                parameter_key(p): {"value": float(model[p].values), "std": _clean(float(model[p].attrs.get("std", np.nan)))}
                 for p in PARAMETER_NAMES
             },
             "identification": {k: _clean(v) for k, v in model.attrs.items()

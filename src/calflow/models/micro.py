@@ -52,7 +52,7 @@ class MicroModel:
                     "units": kin.PARAMETER_UNITS[name],
                     "long_name": _LONG[name],
                     "free": int(name in self.free),
-                    "std": self.std.get(name, 0.0 if name not in self.free else float("nan")),
+                    "std": self.std.get(name, float("nan")),  # fixed parameters are not estimated
                 },
             )
         data["correlation"] = xr.Variable(

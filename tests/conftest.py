@@ -1,0 +1,54 @@
+"""Shared fixtures: small campaigns in a scratch copy of the workflow."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+
+SMALL_XYTHETA = {
+    "description": "small test campaign",
+    "robot": "xytheta",
+    "seed": 7,
+    "rig": {"factory": "simulated", "options": {}},
+    "identification": {"poses": 60, "dwell_s": 0.5},
+    "models": {"I": {"free": ["x_R", "y_R"], "fixed": {"alpha": 180.0, "beta": 0.0}},
+               "II": {"free": ["x_R", "y_R", "alpha", "beta"]}},
+    "validation": {"cycles": 4, "dwell_s": 0.5},
+}
+
+
+def make_workdir(tmp: Path, campaigns: dict[str, dict]) -> Path:
+    """A scratch project: the repository's Snakefile and workflow with the given campaigns."""
+    work = tmp / "project"
+    work.mkdir()
+    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+    shutil.copytree(ROOT / "workflow", work / "workflow")
+    (work / "config" / "campaigns").mkdir(parents=True)
+    (work / "config" / "config.yaml").write_text(yaml.safe_dump({"campaigns": list(campaigns)}))
+    for name, body in campaigns.items():
+        text = body if isinstance(body, str) else yaml.safe_dump(body)
+        (work / "config" / "campaigns" / f"{name}.yaml").write_text(text)
+    return work
+
+
+def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subprocess.CompletedProcess:
+    """Run Snakemake of this environment in ``work``."""
+    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "tests"), env.get("PYTHONPATH")]))
+    env.update(env_extra or {})
+    return subprocess.run([str(BIN / "snakemake"), "--cores", "2", *args], cwd=work, env=env,
+                          capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture
+def small_campaign() -> dict:
+    return yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA))

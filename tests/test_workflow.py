@@ -1,0 +1,110 @@
+"""End to end: small campaigns through Snakemake, config errors, rerun semantics."""
+
+import json
+import re
+
+import pytest
+
+from conftest import make_workdir, snakemake
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A small simulated campaign run to the end once for the module."""
+    from conftest import SMALL_XYTHETA
+
+    work = make_workdir(tmp_path_factory.mktemp("wf"), {"small": SMALL_XYTHETA})
+    proc = snakemake(work)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return work
+
+
+def test_run_leaves_summary_and_reports(finished):
+    summary = json.loads((finished / "results/small/summary.json").read_text())
+    for name in ("I", "II"):
+        m = summary["models"][name]
+        assert m["accuracy_um"] > 0 and m["repeatability_um"] > 0
+        for key in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg"):
+            assert set(m["parameters"][key]) == {"value", "std"}
+    assert summary["models"]["II"]["accuracy_um"] < summary["models"]["I"]["accuracy_um"] / 3
+    assert summary["models"]["I"]["parameters"]["alpha_deg"] == {"value": 180.0, "std": None}
+    assert summary["reference"]["models"]["I"]["accuracy_um"] == pytest.approx(95.980)
+    assert set(summary["truth"]["parameters"]) == {"x_R_um", "y_R_um", "alpha_deg", "beta_deg"}
+    html = (finished / "reports/small/report.html").read_text()
+    assert (finished / "reports/small/report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert "95.980" in html and "Model II" in html
+    assert "small" in (finished / "reports/index.html").read_text()
+
+
+def test_report_headline_equals_summary(finished):
+    summary = json.loads((finished / "results/small/summary.json").read_text())
+    html = (finished / "reports/small/report.html").read_text()
+    cells = dict(re.findall(r'data-key="([^"]+)">([^<]+)<', html))
+    assert cells, "the headline table carries data-key cells"
+    for key, text in cells.items():
+        value = summary
+        for part in key.split("."):
+            value = value[part]
+        assert float(text) == pytest.approx(value, abs=5e-4), key
+
+
+def test_rerun_has_nothing_to_do(finished):
+    proc = snakemake(finished, "-n")
+    assert proc.returncode == 0
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+def test_validation_change_reruns_only_validation_metrics_and_report(finished, tmp_path):
+    import shutil
+
+    import yaml
+
+    work = tmp_path / "copy"
+    shutil.copytree(finished, work, symlinks=True)
+    path = work / "config/campaigns/small.yaml"
+    c = yaml.safe_load(path.read_text())
+    c["validation"]["cycles"] = 5
+    path.write_text(yaml.safe_dump(c))
+    proc = snakemake(work, "-n", "--quiet", "rules")
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout + proc.stderr
+    jobs = dict(re.findall(r"^(\w+)\s+(\d+)\s*$", out, re.M))
+    assert jobs.get("acquire_validation") == "2" and jobs.get("metrics") == "2"
+    assert "acquire_identification" not in jobs and "identify" not in jobs
+
+
+def test_plugin_rig_campaign_runs_end_to_end(tmp_path):
+    """A rig defined in the tests, named by rig.factory, runs through the whole workflow."""
+    from conftest import SMALL_XYTHETA
+
+    campaign = json.loads(json.dumps(SMALL_XYTHETA))
+    campaign["rig"] = {"factory": "toyrigs:open_toy",
+                       "options": {"x_R": 5000.0, "y_R": 3000.0, "alpha": 178.0, "beta": 0.2}}
+    campaign["identification"]["initial"] = {"x_R": 5500.0, "y_R": 2500.0}
+    work = make_workdir(tmp_path, {"toy": campaign})
+    proc = snakemake(work)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((work / "results/toy/summary.json").read_text())
+    p = summary["models"]["II"]["parameters"]
+    assert p["x_R_um"]["value"] == pytest.approx(5000.0, rel=1e-6)
+    assert p["alpha_deg"]["value"] == pytest.approx(178.0, rel=1e-6)
+    assert summary["models"]["II"]["accuracy_um"] < 1e-3
+    assert "truth" not in summary
+
+
+@pytest.mark.parametrize("edit,key", [
+    (lambda c: c["validation"].update(cyclez=3), "validation.cyclez"),
+    (lambda c: c["identification"].update(poses="many"), "identification.poses"),
+])
+def test_bad_campaign_stops_before_any_job(tmp_path, edit, key):
+    from conftest import SMALL_XYTHETA
+
+    campaign = json.loads(json.dumps(SMALL_XYTHETA))
+    edit(campaign)
+    work = make_workdir(tmp_path, {"broken": campaign})
+    proc = snakemake(work)
+    assert proc.returncode != 0
+    lines = [line for line in proc.stderr.splitlines() if "calflow: error" in line]
+    assert len(lines) == 1
+    assert "config/campaigns/broken.yaml" in lines[0] and key in lines[0]
+    assert not (work / "results").exists()
