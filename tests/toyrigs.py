@@ -49,3 +49,41 @@ class ToyXYTheta:
 
 def open_toy(**options):
     return ToyXYTheta(**options)
+
+
+class Slow:
+    """Wraps a rig and spends real time in every read, so a test can kill it mid-run."""
+
+    def __init__(self, inner, seconds):
+        self._inner, self._seconds = inner, seconds
+        self.joints, self.sensors, self.thermometers = inner.joints, inner.sensors, inner.thermometers
+        self.replayable = getattr(inner, "replayable", False)
+
+    def move(self, command):
+        self._inner.move(command)
+
+    def wait(self, seconds):
+        self._inner.wait(seconds)
+
+    def read(self):
+        import time
+
+        time.sleep(self._seconds)
+        return self._inner.read()
+
+    def close(self):
+        self._inner.close()
+
+
+def slow_simulated(seconds=0.004, **options):
+    """The simulated XYΘ rig, slowed down (replayable: resumed by replaying its rows)."""
+    from calflow.rigs.xytheta import simulated_xytheta
+
+    options.setdefault("seed", 11)
+    options.setdefault("stream", "identification")
+    return Slow(simulated_xytheta(**options), seconds)
+
+
+def slow_toy(seconds=0.004, **options):
+    """The noise-free toy rig, slowed down (not replayable: resumed by continuing)."""
+    return Slow(ToyXYTheta(**options), seconds)

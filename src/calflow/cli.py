@@ -46,7 +46,8 @@ def _open_rig(campaign: dict, run_id: str):
 
 
 def cmd_acquire(args) -> None:
-    from calflow.acquisition import acquire
+    from calflow.acquisition import acquire, terminal_progress
+    from calflow.checkpoint import Journal, plan_digest
     from calflow.data.io import open_dataset, write_dataset, write_json
     from calflow.plans import xytheta as plans
 
@@ -69,14 +70,17 @@ def cmd_acquire(args) -> None:
         raise CalflowError(f"calflow acquire: --plan: unknown plan {args.plan!r}")
     run_id = args.plan if model_name is None else f"{args.plan}_{model_name}"
     rig, source = _open_rig(campaign, run_id)
+    journal = Journal(f"{args.out}.journal", plan_digest(plan))
     try:
-        ds = acquire(plan, rig, _meta(campaign, source, args.plan, model_name))
+        ds = acquire(plan, rig, _meta(campaign, source, args.plan, model_name), journal,
+                     terminal_progress(f"{campaign['name']} {run_id}"))
         truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
     finally:
         rig.close()
-    write_dataset(ds, args.out)
     if args.truth:
         write_json(truth, args.truth)
+    write_dataset(ds, args.out)
+    journal.close(remove=True)
 
 
 def cmd_identify(args) -> None:

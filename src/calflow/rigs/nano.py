@@ -77,6 +77,7 @@ class _NanoRig:
     """Common machinery of the nano rigs: options, virtual clock, noise, thermal state."""
 
     joints: tuple[str, ...] = ()
+    replayable = True  # deterministic given its seeds: acquisition may replay it to resume
     sensors: tuple[str, ...] = ("meas_x", "meas_y")
     _NAME = ""
     _EXTRA: dict = {}

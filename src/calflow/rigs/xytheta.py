@@ -92,6 +92,7 @@ class SimulatedXYTheta:
     """The simulated XYΘ rig; implements the rig protocol (DESIGN.md)."""
 
     joints = ("x", "y", "theta")
+    replayable = True  # deterministic given its seed: acquisition may replay it to resume
     sensors = ("meas_x", "meas_y", "meas_theta")
     thermometers = ("T1",)
 
