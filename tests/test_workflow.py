@@ -108,3 +108,29 @@ def test_bad_campaign_stops_before_any_job(tmp_path, edit, key):
     assert len(lines) == 1
     assert "config/campaigns/broken.yaml" in lines[0] and key in lines[0]
     assert not (work / "results").exists()
+
+
+def test_replay_campaign_reproduces_the_recorded_analysis(finished):
+    """A campaign replaying another's recordings gets the same models and metrics."""
+    import shutil
+
+    import yaml
+
+    from conftest import SMALL_XYTHETA
+
+    recorded = finished / "results/small/runs"
+    campaign = json.loads(json.dumps(SMALL_XYTHETA))
+    campaign["rig"] = {"factory": "replay", "options": {"recordings": str(recorded)}}
+    path = finished / "config/campaigns/again.yaml"
+    path.write_text(yaml.safe_dump(campaign))
+    try:
+        proc = snakemake(finished, "--config", 'campaigns=["again"]')
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        a = json.loads((finished / "results/small/summary.json").read_text())
+        b = json.loads((finished / "results/again/summary.json").read_text())
+        assert a["models"] == b["models"]
+        assert a["truth"] == b["truth"]
+    finally:
+        path.unlink()
+        shutil.rmtree(finished / "results/again", ignore_errors=True)
+        shutil.rmtree(finished / "reports/again", ignore_errors=True)

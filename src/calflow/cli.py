@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import zlib
 import sys
 from pathlib import Path
 
@@ -39,8 +40,14 @@ def _open_rig(campaign: dict, run_id: str):
 
     rig_cfg = campaign["rig"]
     options = dict(rig_cfg.get("options", {}))
-    if rig_cfg["factory"] == "simulated":
+    if rig_cfg["factory"] == "simulated" and campaign["robot"] == "xytheta":
         options.setdefault("seed", campaign["seed"])
+        options["stream"] = run_id
+    elif rig_cfg["factory"] == "simulated":
+        # one world (room, slow drift) per campaign; independent noise per run
+        options.setdefault("world_seed", campaign["seed"])
+        options["seed"] = zlib.crc32(f"{campaign['seed']}:{run_id}".encode())
+    elif rig_cfg["factory"] == "replay":
         options["stream"] = run_id
     return load_rig(rig_cfg["factory"], campaign["robot"], options)
 
@@ -172,6 +179,16 @@ def cmd_index(args) -> None:
     write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
 
 
+def cmd_import_csv(args) -> None:
+    from calflow.data.io import write_dataset
+    from calflow.importing import import_csv, load_mapping
+
+    campaign = _campaign(args.campaign)
+    mapping = load_mapping(args.mapping)
+    meta = _meta(campaign, "replay", mapping["plan"], mapping.get("model"))
+    write_dataset(import_csv(args.csv, mapping, meta), args.out)
+
+
 def cmd_validate(args) -> int:
     from calflow.data.validate import validate_file
 
@@ -242,6 +259,13 @@ def parser() -> argparse.ArgumentParser:
     x.add_argument("--summaries", nargs="+", required=True)
     x.add_argument("--out", required=True)
     x.set_defaults(func=cmd_index)
+
+    ic = sub.add_parser("import-csv", help="turn a CSV recording into a run dataset with a column mapping")
+    ic.add_argument("csv")
+    ic.add_argument("--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)")
+    ic.add_argument("--campaign", required=True)
+    ic.add_argument("--out", required=True)
+    ic.set_defaults(func=cmd_import_csv)
 
     v = sub.add_parser("validate", help="check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")

@@ -22,6 +22,7 @@ BUILTIN = {
     ("simulated", "xytheta"): "calflow.rigs.xytheta:simulated_xytheta",
     ("simulated", "stage1d"): "calflow.rigs.nano:nano1d",
     ("simulated", "stage2d"): "calflow.rigs.nano:nano2d",
+    **{("replay", robot): "calflow.rigs.replay:replay" for robot in ("xytheta", "stage1d", "stage2d")},
 }
 
 

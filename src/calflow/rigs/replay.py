@@ -1,0 +1,193 @@
+"""Replay of recorded run files: a rig that serves what a run dataset recorded.
+
+A replay rig stands in for the rig that made a recording. It is given the run files
+of a campaign (a ``results/<campaign>/runs/`` folder of ``<run id>.nc`` files, or a
+mapping run id → file) and the run id to serve (``stream``). Acquisition drives it
+like any rig; each ``move`` advances to the next recorded sample and must command
+exactly the recorded joint positions (within ``tolerance_um``), otherwise the replay
+raises :class:`~calflow.errors.RigError` — a replay never serves the wrong pose.
+``read`` returns the recorded ``time`` (s since the campaign start), sensor readings
+(µm, degree; NaN preserved) and temperatures (degC) of the current sample. Time is
+that of the recording, so ``wait`` does not change it.
+
+A replay of a recorded campaign with the same plans reproduces its run datasets, and
+so its analysis, exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from calflow.data.conventions import ROBOT_JOINTS
+from calflow.data.io import open_dataset
+from calflow.errors import CalflowError, RigError
+
+
+def _resolve(recordings: str | os.PathLike | Mapping[str, str], stream: str) -> Path:
+    """The run file of run id ``stream`` among ``recordings``."""
+    if isinstance(recordings, Mapping):
+        files = {str(k): Path(v) for k, v in recordings.items()}
+        where = "replay recordings"
+    else:
+        folder = Path(recordings)
+        if not folder.is_dir():
+            raise RigError(f"{folder}: replay recordings: expected a folder of <run id>.nc run files")
+        files = {p.stem: p for p in sorted(folder.glob("*.nc"))}
+        where = str(folder)
+    if not stream:
+        if len(files) == 1:
+            return next(iter(files.values()))
+        raise RigError(f"{where}: replay stream: expected a run id, one of {sorted(files)}")
+    if stream not in files:
+        raise RigError(f"{where}: replay stream {stream!r}: no recording; recorded run ids are {sorted(files)}")
+    return files[stream]
+
+
+class ReplayRig:
+    """Serves one recorded run dataset through the rig protocol (DESIGN.md).
+
+    ``joints`` are the recorded ``cmd_*`` variables, ``sensors`` the ``meas_*``
+    variables, ``thermometers`` the ``sensor`` coordinate of ``temperature``.
+    Commands are compared with the recording within ``tolerance`` in each joint's
+    own unit (µm for translations, degree for rotations).
+    """
+
+    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6):
+        self.path = Path(path)
+        self.stream = stream or self.path.stem
+        self.tolerance = float(tolerance)
+        try:
+            ds = open_dataset(self.path, kind="run")
+        except CalflowError as exc:
+            raise RigError(f"replay: {exc}") from None
+        self.attrs = dict(ds.attrs)
+        self.units = {name: str(ds[name].attrs.get("units", "")) for name in ds.data_vars}
+        order = ROBOT_JOINTS.get(str(ds.attrs.get("robot")), ())
+        cmd = [n[4:] for n in ds.data_vars if n.startswith("cmd_")]
+        self.joints = tuple([j for j in order if j in cmd] + [j for j in cmd if j not in order])
+        meas = [n for n in ds.data_vars if n.startswith("meas_")]
+        ordered = [f"meas_{j}" for j in order if f"meas_{j}" in meas]
+        self.sensors = tuple(ordered + [m for m in meas if m not in ordered])
+        if "temperature" in ds.data_vars:
+            if ds["temperature"].dims != ("sample", "sensor") or "sensor" not in ds.coords:
+                raise RigError(f"{self.path}: variable 'temperature': expected dims ('sample', 'sensor') "
+                               f"with a 'sensor' coordinate, got {ds['temperature'].dims}")
+            self.thermometers = tuple(str(s) for s in ds["sensor"].values)
+            self._temps = np.asarray(ds["temperature"].values, dtype=float)
+        else:
+            self.thermometers = ()
+            self._temps = np.zeros((ds.sizes.get("sample", 0), 0))
+        if "time" not in ds.variables or "sample" not in ds.dims:
+            raise RigError(f"{self.path}: replay: expected a 'time' variable along dimension 'sample'")
+        if not self.joints:
+            raise RigError(f"{self.path}: replay: the recording has no cmd_* variables to replay")
+        self.n = int(ds.sizes["sample"])
+        self._time = np.asarray(ds["time"].values, dtype=float)
+        self._cmd = {j: np.asarray(ds[f"cmd_{j}"].values, dtype=float) for j in self.joints}
+        self._meas = {s: np.asarray(ds[s].values, dtype=float) for s in self.sensors}
+        self._i = -1  # index of the current sample; -1 before the first move
+        self._closed = False
+
+    @property
+    def served(self) -> int:
+        """Number of recorded samples moved to so far."""
+        return self._i + 1
+
+    @property
+    def exhausted(self) -> bool:
+        """True when every recorded sample has been served."""
+        return self._i + 1 >= self.n
+
+    def _check_open(self, what: str) -> None:
+        if self._closed:
+            raise RigError(f"{self.path}: replay: {what} after close()")
+
+    def move(self, command: Mapping[str, float]) -> None:
+        """Advance to the next recorded sample; its ``cmd_*`` must equal ``command``.
+
+        Raises :class:`RigError` naming the file, the sample index (0-based), the joint
+        and the recorded and requested values when they differ by more than the
+        tolerance, when ``command`` lacks a recorded joint or names another one, or when
+        the recording has no more samples.
+        """
+        self._check_open("move()")
+        i = self._i + 1
+        if i >= self.n:
+            raise RigError(f"{self.path}: replay: move() past the end of the recording "
+                           f"({self.n} samples); the plan has more rows than the recorded run")
+        unknown = sorted(set(command) - set(self.joints))
+        if unknown:
+            raise RigError(f"{self.path}: sample {i}: command names joint(s) {unknown} "
+                           f"the recording does not have {list(self.joints)}")
+        for joint in self.joints:
+            if joint not in command:
+                raise RigError(f"{self.path}: sample {i}: command lacks joint {joint!r}")
+            recorded = float(self._cmd[joint][i])
+            requested = float(command[joint])
+            same = (math.isnan(recorded) and math.isnan(requested)) or abs(recorded - requested) <= self.tolerance
+            if not same:
+                unit = self.units.get(f"cmd_{joint}", "")
+                raise RigError(
+                    f"{self.path}: sample {i}: joint {joint!r}: recorded command {recorded!r} {unit}, "
+                    f"requested {requested!r} {unit} (tolerance {self.tolerance:g}); "
+                    "the replayed plan differs from the recorded one")
+        self._i = i
+
+    def wait(self, seconds: float) -> None:
+        """No-op: time comes from the recording."""
+        self._check_open("wait()")
+
+    def read(self) -> dict[str, float]:
+        """The recorded ``time`` (s), sensors (µm, degree) and temperatures (degC) of the current sample."""
+        self._check_open("read()")
+        i = self._i
+        if i < 0:
+            raise RigError(f"{self.path}: replay: read() before the first move(); "
+                           "a recording has readings of settled poses only")
+        if i >= self.n:  # cannot happen through move(), kept as a guard
+            raise RigError(f"{self.path}: replay: read() past the end of the recording ({self.n} samples)")
+        reading = {"time": float(self._time[i])}
+        for sensor in self.sensors:
+            reading[sensor] = float(self._meas[sensor][i])
+        for k, name in enumerate(self.thermometers):
+            reading[name] = float(self._temps[i, k])
+        return reading
+
+    def close(self) -> None:
+        self._closed = True
+
+    def truth(self) -> dict:
+        """The truth recorded beside the runs (``../truth/<run id>.json``), else ``{"available": False}``."""
+        folder = self.path.parent.parent / "truth"
+        for name in dict.fromkeys((self.stream, self.path.stem)):
+            candidate = folder / f"{name}.json"
+            if candidate.is_file():
+                try:
+                    return json.loads(candidate.read_text(encoding="utf-8"))
+                except (OSError, ValueError) as exc:
+                    raise RigError(f"{candidate}: replay truth: not readable JSON ({exc})") from None
+        return {"available": False}
+
+
+def replay(recordings: str | os.PathLike | Mapping[str, str], stream: str = "",
+           tolerance_um: float = 1e-6, seed: int | None = None) -> ReplayRig:
+    """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
+
+    ``recordings`` is a folder of ``<run id>.nc`` run files (a campaign's
+    ``results/<campaign>/runs/``) or a mapping run id → file; ``stream`` is the run id
+    to serve (``identification``, ``validation_<model>``, …), optional when there is a
+    single recording. ``tolerance_um`` is the largest accepted difference between a
+    command and the recorded one, in each joint's unit (µm; degree for rotations).
+    ``seed`` is accepted and ignored: a recording has no randomness left.
+    """
+    del seed
+    tolerance = float(tolerance_um)
+    if not tolerance >= 0:
+        raise RigError(f"rig.options.tolerance_um: expected a number >= 0, got {tolerance_um!r}")
+    return ReplayRig(_resolve(recordings, stream), stream=stream, tolerance=tolerance)
