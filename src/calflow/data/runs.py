@@ -69,7 +69,9 @@ def run_dataset(
         attrs={"units": time_units(meta.start), "long_name": "time of the reading", "standard_name": "time"},
     )
     for joint, values in plan.commands.items():
-        data[f"cmd_{joint}"] = _var(np.asarray(values[:n], dtype=float), f"cmd_{joint}")
+        sent = [r.get(f"cmd_{joint}") for r in readings]
+        values = np.asarray(values[:n] if any(v is None for v in sent) else sent, dtype=float)
+        data[f"cmd_{joint}"] = _var(values, f"cmd_{joint}")
     for axis, values in plan.targets.items():
         data[f"target_{axis}"] = _var(np.asarray(values[:n], dtype=float), f"target_{axis}")
     for sensor in sensors:
@@ -80,6 +82,22 @@ def run_dataset(
     data["pose"] = _var(np.asarray(plan.pose[:n], dtype="int32"), "pose")
     data["cycle"] = _var(np.asarray(plan.cycle[:n], dtype="int32"), "cycle")
     data["direction"] = _var(np.asarray(plan.direction[:n], dtype="int8"), "direction")
+    if "test" in plan.extra:
+        data["test"] = xr.Variable(("sample",), np.asarray(plan.extra["test"][:n], dtype="int32"),
+                                   attrs={"units": "1", "long_name": "index of the validation test"})
+    if "mode" in plan.extra:
+        data["test_mode"] = xr.Variable(
+            ("sample",), np.asarray(plan.extra["mode"][:n], dtype="int8"),
+            attrs={"units": "1", "long_name": "calibration used by the test",
+                   "flag_values": np.arange(len(plan.modes), dtype="int8"), "flag_meanings": " ".join(plan.modes)},
+        )
+    visits = [r for r in readings if "kmz_time" in r]
+    if visits:
+        for key, units, long_name in (("kmz_time", None, "time of the kilometre-zero visit"),
+                                      ("kmz_command", "um", "joint command at the kilometre-zero visit"),
+                                      ("kmz_measured", "um", "sensor reading at the kilometre-zero visit")):
+            attrs = {"units": units or time_units(meta.start), "long_name": long_name}
+            data[key] = xr.Variable(("kmz_visit",), np.array([r[key] for r in visits], dtype=float), attrs=attrs)
     coords = {}
     if thermometers:
         coords["sensor"] = xr.Variable(("sensor",), np.array(list(thermometers), dtype=object),

@@ -23,10 +23,14 @@ class Plan:
     direction: np.ndarray
     targets: dict[str, np.ndarray] = field(default_factory=dict)
     dwell_s: float = 1.0
+    average_last_s: float | None = None  # reading = mean of the dwell's last seconds (streams)
+    start_s: float = 0.0  # campaign time at which the run starts (s)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)  # more per-row indices (test, mode)
+    modes: tuple[str, ...] = ()  # names of the values of extra["mode"]
 
     def __post_init__(self) -> None:
         n = len(self.pose)
-        for name, values in {**self.commands, **self.targets}.items():
+        for name, values in {**self.commands, **self.targets, **self.extra}.items():
             if len(values) != n:
                 raise ValueError(f"plan {self.name!r}: {name} has {len(values)} rows, expected {n}")
 
