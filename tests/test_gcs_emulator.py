@@ -1,0 +1,309 @@
+"""The GCS emulator at the byte level (raw sockets) and its axis motion model."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import pytest
+
+from calflow.gcs.axis import AxisConfig, SimAxis, profile_distance, profile_time
+from calflow.gcs.emulator import GARBAGE, EmulatedController, Faults, GCSEmulator, main, serve
+from calflow.gcs.protocol import ReplyFramer
+
+
+class Raw:
+    """A bare socket speaking bytes to the emulator, with bounded reads."""
+
+    def __init__(self, address: tuple[str, int]) -> None:
+        self.sock = socket.create_connection(address, timeout=2)
+        self.framer = ReplyFramer()
+
+    def send(self, data: bytes) -> None:
+        self.sock.sendall(data)
+
+    def reply(self, timeout: float = 2.0) -> list[str] | None:
+        deadline = time.monotonic() + timeout
+        while (r := self.framer.pop()) is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self.sock.settimeout(left)
+            try:
+                data = self.sock.recv(4096)
+            except (TimeoutError, socket.timeout):
+                return None
+            if not data:
+                raise ConnectionError("closed")
+            self.framer.feed(data)
+        return r
+
+    def ask(self, line: str) -> list[str] | None:
+        self.send(line.encode("latin-1") + b"\n")
+        return self.reply()
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.fixture
+def emu():
+    with GCSEmulator(axes="1,2", time_scale=10.0) as e:
+        yield e
+
+
+@pytest.fixture
+def raw(emu):
+    r = Raw(emu.address)
+    yield r
+    r.close()
+
+
+def ready_axes(raw: Raw) -> None:
+    raw.send(b"SVO 1 1 2 1\nFRF\n")
+    deadline = time.monotonic() + 5
+    while raw.ask("FRF? 1 2") != ["1=1", "2=1"]:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    assert raw.ask("ERR?") == ["0"]
+
+
+# ------------------------------------------------------------------ server basics
+@pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.10", "::", ""])
+def test_refuses_any_host_but_loopback(host):
+    with pytest.raises(ValueError, match="127.0.0.1"):
+        GCSEmulator(host=host)
+
+
+def test_port_zero_picks_a_free_loopback_port(emu):
+    host, port = emu.address
+    assert host == "127.0.0.1" and port > 0
+    assert emu._sock.getsockname()[0] == "127.0.0.1"
+
+
+def test_several_commands_in_one_segment(raw):
+    raw.send(b"*IDN?\nSAI?\nPOS? 1 2\nERR?\n")
+    assert "C-863" in raw.reply()[0]
+    assert raw.reply() == ["1", "2"]
+    assert raw.reply() == ["1=0.000000", "2=0.000000"]
+    assert raw.reply() == ["0"]
+
+
+def test_command_split_across_segments(raw):
+    raw.send(b"PO")
+    time.sleep(0.15)
+    raw.send(b"S? ")
+    time.sleep(0.15)
+    raw.send(b"2\n")
+    assert raw.reply() == ["2=0.000000"]
+
+
+def test_multiline_reply_uses_continuation_spaces(emu):
+    s = socket.create_connection(emu.address, timeout=2)
+    s.sendall(b"SAI?\n")
+    data = b""
+    while not data.endswith(b"2\n"):
+        data += s.recv(100)
+    s.close()
+    assert data == b"1 \n2\n"
+
+
+def test_mnemonic_case_insensitive_and_err_clears(raw):
+    assert raw.ask("csv?") == ["2.0"]
+    raw.send(b"\t\n\x00\xff\n")  # junk lines are unknown commands, not a crash
+    assert raw.ask("ERR?") == ["2"]
+    raw.send(b"XYZ 1\n")
+    assert raw.ask("ERR?") == ["2"]
+    assert raw.ask("ERR?") == ["0"]
+
+
+def test_failing_query_sends_nothing_and_sets_error_15(raw):
+    raw.send(b"POS? 9\n")
+    assert raw.reply(timeout=0.3) is None  # a real controller does not answer either
+    raw.send(b"ERR?\n")
+    assert raw.reply() == ["15"]
+
+
+def test_whole_line_rejected_when_one_part_fails(raw):
+    ready_axes(raw)
+    raw.send(b"MOV 1 2.0 2 99\n")
+    assert raw.ask("ERR?") == ["7"]
+    assert raw.ask("MOV? 1 2") == ["1=0.000000", "2=0.000000"]
+
+
+def test_mov_needs_servo_and_reference(raw):
+    raw.send(b"MOV 1 1\n")
+    assert raw.ask("ERR?") == ["5"]
+    raw.send(b"SVO 1 1\nMOV 1 1\n")
+    assert raw.ask("ERR?") == ["5"]  # servo on, but not referenced
+    raw.send(b"SVO 1 2\n")
+    assert raw.ask("ERR?") == ["1"]
+
+
+def test_motion_takes_time_then_on_target(raw, emu):
+    ready_axes(raw)
+    raw.send(b"VEL 1 2.0\nMOV 1 5\n")
+    t0 = time.monotonic()
+    assert raw.ask("ONT? 1") == ["1=0"]
+    raw.send(b"\x05")
+    assert raw.reply() == ["1"]  # axis 1 moving: bit 0
+    mid = float(raw.ask("POS? 1")[0].split("=")[1])
+    assert 0.0 <= mid < 5.0
+    while raw.ask("ONT? 1") != ["1=1"]:
+        assert time.monotonic() - t0 < 3
+    elapsed = time.monotonic() - t0
+    expected = profile_time(5.0, 2.0, AxisConfig().accel) / emu.controller.time_scale
+    assert expected * 0.8 <= elapsed <= expected + 0.2
+    assert raw.ask("POS? 1") == ["1=5.000000"]
+    raw.send(b"\x05")
+    assert raw.reply() == ["0"]
+
+
+def test_reference_not_ready_then_ready(raw):
+    raw.send(b"SVO 2 1\nFRF 2\n\x07")
+    assert raw.reply() == ["\xb0"]
+    deadline = time.monotonic() + 3
+    while raw.send(b"\x07") or raw.reply() != ["\xb1"]:
+        assert time.monotonic() < deadline
+    assert raw.ask("FRF?") == ["1=0", "2=1"]
+
+
+def test_stop_all_halts_motion_and_sets_error_10(raw):
+    ready_axes(raw)
+    raw.send(b"MOV 1 7\n")
+    time.sleep(0.1)
+    raw.send(b"\x18")
+    first = raw.ask("POS? 1")
+    time.sleep(0.1)
+    assert raw.ask("POS? 1") == first and raw.ask("ONT? 1") == ["1=1"]
+    assert 0.0 < float(first[0].split("=")[1]) < 7.0
+    assert raw.ask("ERR?") == ["10"]
+
+
+def test_velocity_limits_error_8(raw):
+    raw.send(b"VEL 1 0\n")
+    assert raw.ask("ERR?") == ["8"]
+    raw.send(b"VEL 1 1.25\n")
+    assert raw.ask("VEL? 1") == ["1=1.250000"] and raw.ask("ERR?") == ["0"]
+
+
+# ------------------------------------------------------------------ faults and hooks
+def test_true_position_hook_backs_pos():
+    hook = lambda axis, commanded: commanded * 1.001 + 0.002  # noqa: E731
+    with GCSEmulator(time_scale=50, true_position=hook) as e:
+        r = Raw(e.address)
+        assert r.ask("POS? 1") == ["1=0.002000"]
+        r.close()
+
+
+def test_garbage_fault_replaces_next_replies(raw, emu):
+    emu.faults.garbage = 2
+    raw.send(b"ERR?\n")
+    raw.sock.settimeout(2)
+    data = b""
+    while not data.endswith(b"\n"):
+        data += raw.sock.recv(100)
+    assert data == GARBAGE and emu.faults.garbage == 1
+    raw.send(b"ERR?\nERR?\n")  # one more garbage reply, then normal again
+    assert raw.reply() == [GARBAGE[:-1].decode("latin-1")]
+    assert raw.reply() == ["0"] and emu.faults.garbage == 0
+
+
+def test_delay_fault_delays_replies(raw, emu):
+    emu.faults.delay = 0.3
+    t0 = time.monotonic()
+    assert raw.ask("ERR?") == ["0"]
+    assert time.monotonic() - t0 >= 0.28
+
+
+def test_drop_after_n_commands(raw, emu):
+    emu.faults.drop_after = 2
+    assert raw.ask("ERR?") == ["0"] and raw.ask("ERR?") == ["0"]
+    with pytest.raises(ConnectionError):
+        raw.ask("ERR?")
+    assert emu.faults.drop_after is None  # one-shot; new connections work
+    again = Raw(emu.address)
+    assert again.ask("ERR?") == ["0"]
+    again.close()
+
+
+def test_drop_on_demand_and_refuse(emu):
+    r = Raw(emu.address)
+    assert r.ask("ERR?") == ["0"]
+    emu.drop_connections()
+    with pytest.raises((ConnectionError, OSError)):
+        r.ask("ERR?")
+    emu.faults.refuse = 1
+    refused = Raw(emu.address)
+    with pytest.raises((ConnectionError, OSError)):
+        refused.ask("ERR?")
+    ok = Raw(emu.address)
+    assert ok.ask("ERR?") == ["0"]
+    for s in (r, refused, ok):
+        s.close()
+
+
+def test_address_prefix_in_first_line():
+    with GCSEmulator(axes="1,2", address_prefix=1) as e:
+        r = Raw(e.address)
+        assert r.ask("ONT?") == ["0 1 1=1", "2=1"]
+        r.close()
+
+
+def test_serve_runs_for_duration_and_main_parses(capsys):
+    t0 = time.monotonic()
+    serve({"port": 0, "axes": "A,B", "duration": 0.3})
+    assert 0.25 <= time.monotonic() - t0 < 3
+    out = capsys.readouterr().out
+    assert "127.0.0.1:" in out and "axes A, B" in out
+    stop = threading.Event()
+    th = threading.Thread(target=serve, args=({"port": 0},), kwargs={"stop_event": stop})
+    th.start()
+    stop.set()
+    th.join(3)
+    assert not th.is_alive()
+    assert main(["--port", "0", "--axes", "1,2", "--duration", "0.1"]) == 0
+
+
+# ------------------------------------------------------------------ motion model
+def test_profile_is_continuous_and_ends_at_target():
+    d, v, a = 4.0, 1.5, 10.0
+    total = profile_time(d, v, a)
+    assert total == pytest.approx(d / v + v / a)
+    ts = [total * i / 200 for i in range(201)]
+    s = [profile_distance(t, d, v, a) for t in ts]
+    assert s[0] == 0.0 and s[-1] == d
+    assert all(b >= x for x, b in zip(s, s[1:]))
+    assert max(abs(b - x) for x, b in zip(s, s[1:])) <= v * total / 200 + 1e-9
+    assert profile_time(0.01, v, a) == pytest.approx(2 * (0.01 / a) ** 0.5)
+    assert profile_distance(total / 2, -d, v, a) == pytest.approx(-d / 2)
+
+
+def test_sim_axis_stop_and_reference_abort():
+    ax = SimAxis("1", AxisConfig(start_position=2.0))
+    ax.servo = True
+    ax.reference(0.0)
+    assert ax.referencing(0.1) and not ax.referenced
+    ax.stop(0.1)
+    assert not ax.referencing(0.2) and not ax.referenced  # aborted reference
+    ax.reference(1.0)
+    assert ax.referencing(1.0) and ax.moving(1.0)
+    assert not ax.referencing(10.0) and ax.referenced and ax.position(10.0) == 0.0
+
+
+@pytest.mark.parametrize("kwargs", [{"tmn": 1, "tmx": 0}, {"velocity": 0},
+                                    {"velocity": 3, "max_velocity": 2}, {"ref_position": 99}])
+def test_axis_config_validation(kwargs):
+    with pytest.raises(ValueError):
+        AxisConfig(**kwargs)
+    with pytest.raises(ValueError, match="unknown axis setting"):
+        AxisConfig.from_mapping({"speed": 1})
+
+
+def test_piezo_axis_needs_no_reference_and_faults_default():
+    c = EmulatedController({"A": AxisConfig(tmn=0, tmx=100, velocity=1000, max_velocity=1e4,
+                                            accel=1e6, needs_reference=False, servo=True)})
+    assert c.handle("FRF? A") == ["A=1"]
+    assert c.handle("MOV A 50") is None and c.handle("ERR?") == ["0"]
+    assert Faults() == Faults(drop_after=None, delay=0.0, garbage=0, refuse=0)
