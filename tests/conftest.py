@@ -19,10 +19,35 @@ SMALL_XYTHETA = {
     "robot": "xytheta",
     "seed": 7,
     "rig": {"factory": "simulated", "options": {}},
+    "characterisation": {"x_stop_um": 4000, "y_stop_um": 2800, "step_um": 25, "cycles": 2, "dwell_s": 0.2},
+    "xy_tests": {"compensation": ["none", "linear"], "square": {"side_um": 1000, "points_per_segment": 4, "cycles": 2},
+                 "random_points": {"cycles": 2, "targets": [[500, 300], [1500, 900], [2500, 1200]]}},
     "identification": {"poses": 60, "dwell_s": 0.5},
+    "observability": {"max_poses": 200, "steps": 5, "repeats": 1},
+    "angle_residuals": {"cycles": 2},
     "models": {"I": {"free": ["x_R", "y_R"], "fixed": {"alpha": 180.0, "beta": 0.0}},
-               "II": {"free": ["x_R", "y_R", "alpha", "beta"]}},
+               "II": {"free": ["x_R", "y_R", "alpha", "beta"]},
+               "III": {"free": ["x_R", "y_R", "alpha", "beta"], "position_table": True},
+               "IV": {"base": "II", "angle_table": True}},
     "validation": {"cycles": 4, "dwell_s": 0.5},
+}
+
+SMALL_NANO1D = {
+    "robot": "stage1d",
+    "seed": 3,
+    "rig": {"factory": "simulated", "options": {"profile": "lab5day"},
+            "runs": {"metrology": {"profile": "metrology"}}},
+    "training": {"step_um": 60, "cycles": 6, "dwell_s": 10.0},
+    "metrology": {"cycles": 3, "step_um": 160, "dwell_s": 8.0},
+    "validation": {"step_um": 160, "cycles": 3, "tests": 6, "dwell_s": 8.0, "start_h": 2.0},
+}
+
+SMALL_NANO2D = {
+    "robot": "stage2d",
+    "seed": 4,
+    "rig": {"factory": "simulated", "options": {"profile": "lab5day"}},
+    "training": {"step_um": 20, "cycles": 3, "dwell_s": 6.0},
+    "validation": {"cycles": 3, "tests": 4, "dwell_s": 6.0, "start_h": 1.0},
 }
 
 

@@ -122,8 +122,8 @@ def test_dataset_is_cf_luts(runs):
 
 
 def test_nan_readings_are_skipped_and_counted():
-    """The rig's camera leaves the pattern near Y ≈ 2700 µm: those readings are NaN."""
-    run, _ = sweep("y", stop=3000, cycles=1, step=20)
+    """With the camera at y = 1500 µm it leaves the 4.2 mm pattern near Y ≈ 2700 µm: NaN readings."""
+    run, _ = sweep("y", stop=3000, cycles=1, step=20, camera_x_um=1000.0, camera_y_um=1500.0)
     ds = characterise_axis(run)
     pos, err = ds["y_position"].values, ds["err_yy"].sel(direction=1).values
     assert ds.attrs["nan_readings_y"] > 0

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
-import zlib
 import sys
 from pathlib import Path
 
@@ -18,154 +16,67 @@ from calflow import __version__
 from calflow.errors import CalflowError
 
 
-def _campaign(path: str) -> dict:
-    from calflow.config import load_campaign
-
-    return load_campaign(path)
-
-
-def _meta(campaign: dict, source: str, plan: str, model: str | None = None):
-    from calflow.config import campaign_digest
-    from calflow.data.runs import RunMetadata
-
-    return RunMetadata(
-        campaign=campaign["name"], robot=campaign["robot"], source=source, plan=plan,
-        config_sha256=campaign_digest(campaign), start=campaign["start"], model=model,
-        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in sys.argv[1:])}",
-    )
-
-
-def _open_rig(campaign: dict, run_id: str):
-    from calflow.rigs import load_rig
-
-    rig_cfg = campaign["rig"]
-    options = dict(rig_cfg.get("options", {}))
-    if rig_cfg["factory"] == "simulated" and campaign["robot"] == "xytheta":
-        options.setdefault("seed", campaign["seed"])
-        options["stream"] = run_id
-    elif rig_cfg["factory"] == "simulated":
-        # one world (room, slow drift) per campaign; independent noise per run
-        options.setdefault("world_seed", campaign["seed"])
-        options["seed"] = zlib.crc32(f"{campaign['seed']}:{run_id}".encode())
-    elif rig_cfg["factory"] == "replay":
-        options["stream"] = run_id
-    return load_rig(rig_cfg["factory"], campaign["robot"], options)
-
-
 def cmd_acquire(args) -> None:
-    from calflow.acquisition import acquire, terminal_progress
-    from calflow.checkpoint import Journal, plan_digest
-    from calflow.data.io import open_dataset, write_dataset, write_json
-    from calflow.plans import xytheta as plans
+    from calflow.commands import acquire
 
-    campaign = _campaign(args.campaign)
-    model_name = None
-    if args.plan == "identification":
-        c = campaign["identification"]
-        plan = plans.identification(c["poses"], c["x_um"], c["y_um"], c["theta_deg"],
-                                    seed=campaign["seed"], dwell_s=c["dwell_s"])
-    elif args.plan == "validation":
-        from calflow.models.micro import MicroModel
+    acquire.run(args)
 
-        if not args.model:
-            raise CalflowError("calflow acquire --plan validation: --model MODEL.nc is required")
-        model = MicroModel.from_dataset(open_dataset(args.model, kind="model"))
-        model_name = model.name
-        c = campaign["validation"]
-        plan = plans.validation(model.inverse, c.get("targets"), c["cycles"], c["dwell_s"])
-    else:
-        raise CalflowError(f"calflow acquire: --plan: unknown plan {args.plan!r}")
-    run_id = args.plan if model_name is None else f"{args.plan}_{model_name}"
-    rig, source = _open_rig(campaign, run_id)
-    journal = Journal(f"{args.out}.journal", plan_digest(plan))
-    try:
-        ds = acquire(plan, rig, _meta(campaign, source, args.plan, model_name), journal,
-                     terminal_progress(f"{campaign['name']} {run_id}"))
-        truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
-    finally:
-        rig.close()
-    if args.truth:
-        write_json(truth, args.truth)
-    write_dataset(ds, args.out)
-    journal.close(remove=True)
+
+def cmd_characterise(args) -> None:
+    from calflow.commands import xytheta
+
+    xytheta.characterise(args)
 
 
 def cmd_identify(args) -> None:
-    import numpy as np
+    from calflow.commands import nano, xytheta
+    from calflow.config import load_campaign
 
-    from calflow.data.io import open_dataset, write_dataset
-    from calflow.identification import cost, diagnostics
-    from calflow.identification.least_squares import identify
-    from calflow.kinematics.xytheta import Parameters
-    from calflow.models.micro import MicroModel
-
-    campaign = _campaign(args.campaign)
-    spec = campaign["models"].get(args.model_name)
-    if spec is None:
-        raise CalflowError(f"{args.campaign}: key 'models.{args.model_name}': missing")
-    run = open_dataset(args.run, kind="run")
-    initial = {**campaign["identification"]["initial"], **spec.get("fixed", {})}
-    theta = run["meas_theta"].values - run["meas_theta"].values[0]
-    P_mx, P_my = cost.measured_points(run["meas_x"].values, run["meas_y"].values, theta)
-    result = identify(run["cmd_x"].values, run["cmd_y"].values, theta, P_mx, P_my,
-                      free=tuple(spec["free"]), initial=Parameters(**initial))
-    r_diag, not_identifiable = diagnostics.identifiability(result.jacobian, result.free)
-    diag = {
-        "r_diag": r_diag,
-        "not_identifiable": ", ".join(not_identifiable),
-        "residual_rms_um": result.residual_rms_um,
-        "n_poses": result.n_poses,
-        "dof": result.dof,
-        "optimizer": f"scipy.optimize.least_squares(method='lm'), nfev={result.nfev}: {result.message}",
-        **diagnostics.observability(result.jacobian),
-    }
-    if not result.success or not np.all(np.isfinite(result.parameters.as_array())):
-        raise CalflowError(f"{args.run}: identification of model {args.model_name} failed ({result.message})")
-    model = MicroModel(args.model_name, result.parameters, result.free, result.std, result.correlation, diag)
-    write_dataset(model.to_dataset(_meta(campaign, run.attrs["source"], "identification", args.model_name)), args.out)
+    robot = load_campaign(args.campaign)["robot"]
+    (xytheta if robot == "xytheta" else nano).identify(args)
 
 
 def cmd_metrics(args) -> None:
-    from calflow.data.io import open_dataset, write_dataset
-    from calflow.evaluation import xytheta_validation_metrics
+    from calflow.commands import nano, xytheta
+    from calflow.config import load_campaign
 
-    campaign = _campaign(args.campaign)
-    run = open_dataset(args.run, kind="run")
-    meta = _meta(campaign, run.attrs["source"], run.attrs["plan"], run.attrs.get("model"))
-    write_dataset(xytheta_validation_metrics(run, meta), args.out)
+    robot = load_campaign(args.campaign)["robot"]
+    (xytheta if robot == "xytheta" else nano).metrics(args)
 
 
-def _pairs(items: list[str], flag: str) -> dict[str, str]:
-    out = {}
-    for item in items:
-        name, sep, path = item.partition("=")
-        if not sep:
-            raise CalflowError(f"calflow: {flag}: expected NAME=PATH, got {item!r}")
-        out[name] = path
-    return out
+def cmd_observability(args) -> None:
+    from calflow.commands import xytheta
+
+    xytheta.observability(args)
 
 
 def cmd_summarise(args) -> None:
-    from calflow.data.io import open_dataset, write_json
-    from calflow.summary import xytheta_summary
+    from calflow.config import load_campaign
+    from calflow.data.io import write_json
 
-    campaign = _campaign(args.campaign)
-    models = {k: open_dataset(v, kind="model") for k, v in _pairs(args.models, "--models").items()}
-    metrics = {k: open_dataset(v, kind="metrics") for k, v in _pairs(args.metrics, "--metrics").items()}
-    truth = json.loads(Path(args.truth).read_text()) if args.truth else None
-    inputs = [*_pairs(args.models, "--models").values(), *_pairs(args.metrics, "--metrics").values()]
-    write_json(xytheta_summary(campaign, models, metrics, truth, inputs), args.out)
+    campaign = load_campaign(args.campaign)
+    if campaign["robot"] == "xytheta":
+        from calflow.summary import xytheta_summary
+
+        truth = json.loads(Path(args.truth).read_text()) if args.truth else None
+        summary = xytheta_summary(campaign, args.files, truth)
+    else:
+        from calflow.commands.nano import summarise
+
+        summary = summarise(campaign, args.files)
+    write_json(summary, args.out)
 
 
 def cmd_report(args) -> None:
+    from calflow.config import load_campaign
     from calflow.data.io import write_bytes, write_text
     from calflow.report import render_campaign, write_pdf
     from calflow.summary import load_summary
 
-    campaign = _campaign(args.campaign)
+    campaign = load_campaign(args.campaign)
     summary = load_summary(args.summary)
     command = f"snakemake --cores 2 --config 'campaigns=[\"{campaign['name']}\"]'"
-    html = render_campaign(summary, campaign, command)
+    html = render_campaign(summary, campaign, command, args.files or [])
     write_text(html, args.html)
     if args.pdf:
         write_bytes(write_pdf(html, Path(args.html).parent), args.pdf)
@@ -180,13 +91,13 @@ def cmd_index(args) -> None:
 
 
 def cmd_import_csv(args) -> None:
+    from calflow.commands.common import campaign, meta
     from calflow.data.io import write_dataset
     from calflow.importing import import_csv, load_mapping
 
-    campaign = _campaign(args.campaign)
+    c = campaign(args.campaign)
     mapping = load_mapping(args.mapping)
-    meta = _meta(campaign, "replay", mapping["plan"], mapping.get("model"))
-    write_dataset(import_csv(args.csv, mapping, meta), args.out)
+    write_dataset(import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out)
 
 
 def cmd_validate(args) -> int:
@@ -214,67 +125,79 @@ def cmd_check_config(args) -> None:
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
+def _sub(sub, name, func, help_):
+    p = sub.add_parser(name, help=help_)
+    p.set_defaults(func=func)
+    return p
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calflow", description=__doc__.splitlines()[0])
     p.add_argument("--version", action="version", version=f"calflow {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
-    a = sub.add_parser("acquire", help="run a plan on the campaign's rig and write the run dataset")
+    a = _sub(sub, "acquire", cmd_acquire, "run a plan on the campaign's rig and write the run dataset")
     a.add_argument("--campaign", required=True)
-    a.add_argument("--plan", required=True, choices=["identification", "validation"])
-    a.add_argument("--model", help="model file whose inverse commands the validation")
+    a.add_argument("--plan", required=True)
+    a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
+    a.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
+    a.add_argument("--compensation", choices=["none", "linear", "cubic"], default="none")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
-    a.set_defaults(func=cmd_acquire)
 
-    i = sub.add_parser("identify", help="identify one calibration model from an identification run")
+    c = _sub(sub, "characterise", cmd_characterise, "XY error tables from the characterisation sweeps")
+    c.add_argument("--campaign", required=True)
+    c.add_argument("--x", required=True)
+    c.add_argument("--y", required=True)
+    c.add_argument("--out", required=True)
+
+    i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
     i.add_argument("--model-name", required=True)
-    i.add_argument("--run", required=True)
+    i.add_argument("--run", help="identification (XYΘ) or training (nano) run")
+    i.add_argument("--luts", help="XY error tables (models with position_table)")
+    i.add_argument("--base", help="base model (models with angle_table)")
+    i.add_argument("--residuals", help="angle-residual run commanded through the base model")
     i.add_argument("--out", required=True)
-    i.set_defaults(func=cmd_identify)
 
-    m = sub.add_parser("metrics", help="ISO 9283 accuracy and repeatability of a validation run")
+    m = _sub(sub, "metrics", cmd_metrics, "ISO 9283 accuracy and repeatability of a run")
     m.add_argument("--campaign", required=True)
     m.add_argument("--run", required=True)
     m.add_argument("--out", required=True)
-    m.set_defaults(func=cmd_metrics)
 
-    s = sub.add_parser("summarise", help="write the campaign's summary.json")
+    o = _sub(sub, "observability", cmd_observability, "observability indices against the number of poses")
+    o.add_argument("--campaign", required=True)
+    o.add_argument("--out", required=True)
+
+    s = _sub(sub, "summarise", cmd_summarise, "write the campaign's summary.json")
     s.add_argument("--campaign", required=True)
-    s.add_argument("--models", nargs="+", required=True, metavar="NAME=MODEL.nc")
-    s.add_argument("--metrics", nargs="+", required=True, metavar="NAME=METRICS.nc")
+    s.add_argument("--files", nargs="+", required=True, help="the campaign's model, metrics and table files")
     s.add_argument("--truth")
     s.add_argument("--out", required=True)
-    s.set_defaults(func=cmd_summarise)
 
-    r = sub.add_parser("report", help="render the campaign report (HTML and PDF)")
+    r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
     r.add_argument("--campaign", required=True)
     r.add_argument("--summary", required=True)
+    r.add_argument("--files", nargs="*", help="run, table and metrics files the figures draw on")
     r.add_argument("--html", required=True)
     r.add_argument("--pdf")
-    r.set_defaults(func=cmd_report)
 
-    x = sub.add_parser("index", help="render reports/index.html over all campaigns")
+    x = _sub(sub, "index", cmd_index, "render reports/index.html over all campaigns")
     x.add_argument("--summaries", nargs="+", required=True)
     x.add_argument("--out", required=True)
-    x.set_defaults(func=cmd_index)
 
-    ic = sub.add_parser("import-csv", help="turn a CSV recording into a run dataset with a column mapping")
+    ic = _sub(sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping")
     ic.add_argument("csv")
     ic.add_argument("--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)")
     ic.add_argument("--campaign", required=True)
     ic.add_argument("--out", required=True)
-    ic.set_defaults(func=cmd_import_csv)
 
-    v = sub.add_parser("validate", help="check netCDF files against the calflow data contract")
+    v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")
-    v.set_defaults(func=cmd_validate)
 
-    c = sub.add_parser("check-config", help="validate config/config.yaml and its campaign files")
-    c.add_argument("config", nargs="?", default="config/config.yaml")
-    c.add_argument("--campaign-dir")
-    c.set_defaults(func=cmd_check_config)
+    k = _sub(sub, "check-config", cmd_check_config, "validate config/config.yaml and its campaign files")
+    k.add_argument("config", nargs="?", default="config/config.yaml")
+    k.add_argument("--campaign-dir")
     return p
 
 
@@ -282,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         status = args.func(args)
-    except CalflowError as exc:
+    except (CalflowError, ValueError) as exc:  # library ValueErrors are worded for users
         print(f"calflow: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

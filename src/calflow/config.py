@@ -27,8 +27,17 @@ _TYPE_NAMES = {"integer": "an integer", "number": "a number", "string": "a strin
 
 @lru_cache(maxsize=None)
 def schema(name: str) -> dict:
-    """The JSON Schema ``workflow/schemas/<name>.schema.yaml``."""
-    return yaml.safe_load((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
+    """The JSON Schema ``workflow/schemas/<name>.schema.yaml``.
+
+    ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in.
+    """
+    sch = yaml.safe_load((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
+    if name.startswith("campaign-") and name != "campaign-common":
+        common = yaml.safe_load((SCHEMA_DIR / "campaign-common.schema.yaml").read_text())
+        sch["properties"] = {**common["properties"], **sch.get("properties", {})}
+        sch["$defs"] = {**common.get("$defs", {}), **sch.get("$defs", {})}
+        sch["required"] = sorted(set(common.get("required", [])) | set(sch.get("required", [])))
+    return sch
 
 
 def _key(path) -> str:
@@ -117,13 +126,54 @@ def check_campaign_name(name: str) -> str:
     return name
 
 
+ROBOTS = ("xytheta", "stage1d", "stage2d")
+
+
 def load_campaign(path: str | Path) -> dict:
-    """Load and validate a campaign file; the campaign's name is the file's stem."""
+    """Load and validate a campaign file; the campaign's name is the file's stem.
+
+    The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``).
+    """
     path = Path(path)
     check_campaign_name(path.stem)
-    campaign = validate(load_yaml(path), "campaign", path)
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: <top level>: expected a mapping of keys, got {type(data).__name__}")
+    robot = data.get("robot")
+    if robot is None:
+        raise ConfigError(f"{path}: key 'robot': missing, it is required (one of {list(ROBOTS)})")
+    if robot not in ROBOTS:
+        raise ConfigError(f"{path}: key 'robot': expected one of {list(ROBOTS)}, got {robot!r}")
+    campaign = validate(data, f"campaign-{robot}", path)
+    if robot == "xytheta":
+        _check_models(campaign["models"], path)
+        if any(spec.get("position_table") for spec in campaign["models"].values()):
+            ident, char = campaign["identification"], campaign["characterisation"]
+            for axis in ("x", "y"):
+                if ident[f"{axis}_um"][1] > char[f"{axis}_stop_um"]:
+                    raise ConfigError(
+                        f"{path}: key 'identification.{axis}_um': expected poses within the characterised stroke "
+                        f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
+                        f"got up to {ident[f'{axis}_um'][1]}")
     campaign["name"] = path.stem
     return campaign
+
+
+def _check_models(models: dict, path: Path) -> None:
+    """Each model is identified (``free``) or built on another (``base`` + ``angle_table``)."""
+    for name, spec in models.items():
+        if ("free" in spec) == ("base" in spec):
+            raise ConfigError(f"{path}: key 'models.{name}': expected either 'free' (identified) or "
+                              "'base' with 'angle_table: true' (post-calibration), not both or neither")
+        if "base" in spec:
+            base = spec["base"]
+            if base not in models:
+                raise ConfigError(f"{path}: key 'models.{name}.base': expected one of {sorted(models)}, got {base!r}")
+            if "base" in models[base]:
+                raise ConfigError(f"{path}: key 'models.{name}.base': model {base!r} has a base itself; "
+                                  "expected an identified model")
+            if not spec.get("angle_table"):
+                raise ConfigError(f"{path}: key 'models.{name}.angle_table': expected true for a model with a base")
 
 
 def load_workflow_config(data: dict, file: str = "config/config.yaml") -> dict:

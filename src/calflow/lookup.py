@@ -194,16 +194,23 @@ class PositionLUT:
             res[bwd] = out[1](q[bwd])
         return res
 
-    def errors(self, x, y, dir_x, dir_y, method: str = "linear") -> tuple[np.ndarray, np.ndarray]:
-        """ex, ey (µm) at joint positions x, y (µm) approached in dir_x, dir_y (±1), Eq. (4.14)/(4.15)."""
+    def errors(self, x, y, dir_x, dir_y, method: str = "linear",
+               trends: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """ex, ey (µm) at joint positions x, y (µm) approached in dir_x, dir_y (±1), Eq. (4.14)/(4.15).
+
+        ``trends=False`` leaves out the straight lines δx(y), δy(x): inside a kinematic model
+        (Models III, V) the perpendicularity and the stage alignment are the parameters β
+        and α, identified with the tables applied, and must not be counted twice.
+        """
         x, y, dx, dy = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float),
                                            _check_directions(dir_x, "dir_x"), _check_directions(dir_y, "dir_y"))
-        ex = self._table("xx", x, dx, method) + self.delta_x[0] + self.delta_x[1] * y + self._table("yx", y, dy, method)
-        ey = self._table("xy", x, dx, method) + self.delta_y[0] + self.delta_y[1] * x + self._table("yy", y, dy, method)
+        k = 1.0 if trends else 0.0
+        ex = self._table("xx", x, dx, method) + k * (self.delta_x[0] + self.delta_x[1] * y) + self._table("yx", y, dy, method)
+        ey = self._table("xy", x, dx, method) + k * (self.delta_y[0] + self.delta_y[1] * x) + self._table("yy", y, dy, method)
         return ex, ey
 
     def compensate(self, x_T, y_T, dir_x, dir_y, method: str = "linear",
-                   iterations: int = 6) -> tuple[np.ndarray, np.ndarray]:
+                   iterations: int = 6, trends: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Joint commands X, Y (µm) that bring the stage onto targets x_T, y_T (Fig. 4.11).
 
         Fixed point of X = x_T + ex(X, Y), Y = y_T + ey(X, Y) (see module docstring);
@@ -212,7 +219,7 @@ class PositionLUT:
         x_T, y_T = np.asarray(x_T, dtype=float), np.asarray(y_T, dtype=float)
         X, Y = x_T, y_T
         for _ in range(max(1, int(iterations))):
-            ex, ey = self.errors(X, Y, dir_x, dir_y, method)
+            ex, ey = self.errors(X, Y, dir_x, dir_y, method, trends)
             X, Y = x_T + ex, y_T + ey
         return X, Y
 

@@ -1,4 +1,9 @@
-"""The campaign summary (``results/<campaign>/summary.json``, DESIGN.md)."""
+"""The campaign summary (``results/<campaign>/summary.json``, DESIGN.md).
+
+The summary is assembled from the campaign's result files, recognised by their
+attributes (``calflow_kind``, ``plan``, ``model``), so a rule hands over its inputs as a
+list. XYΘ here; the nanopositioning summaries are in :mod:`calflow.summary_nano`.
+"""
 
 from __future__ import annotations
 
@@ -40,34 +45,72 @@ def sha256_file(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def xytheta_summary(campaign: dict, models: dict[str, xr.Dataset], metrics: dict[str, xr.Dataset],
-                    truth: dict | None, inputs: list[str]) -> dict:
-    """Assemble the summary of an XYΘ campaign from its model and metrics datasets."""
-    out_models = {}
-    for name, model in models.items():
-        m = metrics[name]
-        out_models[name] = {
-            "accuracy_um": float(m.attrs["accuracy_um"]),
-            "repeatability_um": float(m.attrs["repeatability_um"]),
-            "free": [str(p) for p in model["parameter"].values],
-            "parameters": {
-                parameter_key(p): {"value": float(model[p].values), "std": _clean(float(model[p].attrs.get("std", np.nan)))}
-                for p in PARAMETER_NAMES
-            },
-            "identification": {k: _clean(v) for k, v in model.attrs.items()
-                               if k in ("residual_rms_um", "n_poses", "dof", "O1", "O2", "O3", "O4")},
-            "per_target": [
-                {
-                    "target": int(t),
-                    "x_um": float(m["target_x"].sel(target=t)),
-                    "y_um": float(m["target_y"].sel(target=t)),
-                    "theta_deg": float(m["target_theta"].sel(target=t)),
-                    "ap_um": float(m["ap"].sel(target=t)),
-                    "rp_um": float(m["rp"].sel(target=t)),
-                }
-                for t in m["target"].values
-            ],
-        }
+def _model_entry(model: xr.Dataset, m: xr.Dataset) -> dict:
+    corr = model["correlation"].values
+    return {
+        "accuracy_um": float(m.attrs["accuracy_um"]),
+        "repeatability_um": float(m.attrs["repeatability_um"]),
+        "free": [str(p) for p in model["parameter"].values],
+        "position_table": bool(model.attrs.get("position_table", 0)),
+        "angle_table": bool(model.attrs.get("angle_table", 0)),
+        "parameters": {
+            parameter_key(p): {"value": float(model[p].values), "std": _clean(float(model[p].attrs.get("std", np.nan)))}
+            for p in PARAMETER_NAMES
+        },
+        "correlation": [[_clean(v) for v in row] for row in corr],
+        "identifiability": {"r_diag": [_clean(v) for v in model["r_diag"].values] if "r_diag" in model else [],
+                            "not_identifiable": model.attrs.get("not_identifiable", "")},
+        "identification": {k: _clean(v) for k, v in model.attrs.items()
+                           if k in ("residual_rms_um", "n_poses", "dof", "condition_number", "O1", "O2", "O3", "O4")},
+        "per_target": [
+            {"target": int(t), "x_um": float(m["target_x"].sel(target=t)), "y_um": float(m["target_y"].sel(target=t)),
+             "theta_deg": float(m["target_theta"].sel(target=t)), "ap_um": float(m["ap"].sel(target=t)),
+             "rp_um": float(m["rp"].sel(target=t))}
+            for t in m["target"].values
+        ],
+    }
+
+
+def _characterisation(luts: xr.Dataset) -> dict:
+    out = {name: _clean(float(luts[name])) for name in ("x_stage_angle", "perpendicularity") if name in luts}
+    out["periods_um"] = {k[len("period_"):]: _clean(float(luts[k])) for k in luts.data_vars if k.startswith("period_")}
+    out["repeatability_um"] = {
+        k[len("rep_"):]: {"median": _clean(float(np.nanmedian(luts[k].values))), "max": _clean(float(np.nanmax(luts[k].values)))}
+        for k in luts.data_vars if k.startswith("rep_")
+    }
+    out["peak_to_valley_um"] = {
+        k[len("err_"):]: _clean(float(np.nanmax(luts[k].values) - np.nanmin(luts[k].values)))
+        for k in luts.data_vars if k.startswith("err_")
+    }
+    return out
+
+
+def _xy_test(m: xr.Dataset) -> dict:
+    return {
+        "accuracy_um": _clean(float(m.attrs["accuracy_um"])),
+        "repeatability_um": _clean(float(m.attrs["repeatability_um"])),
+        "per_target": [{"target": int(t), "ap_um": _clean(float(m["ap"].sel(target=t)))} for t in m["target"].values],
+    }
+
+
+def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
+    """Assemble the summary of an XYΘ campaign from its result files."""
+    models, validation, xy, luts, obs = {}, {}, {}, None, None
+    for path in files:
+        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+            ds = ds.load()
+        kind, plan = ds.attrs.get("calflow_kind"), ds.attrs.get("plan")
+        if kind == "model":
+            models[ds.attrs["model"]] = ds
+        elif kind == "metrics" and plan == "validation":
+            validation[ds.attrs["model"]] = ds
+        elif kind == "metrics" and plan in ("square", "random_points"):
+            xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
+        elif kind == "metrics" and plan == "observability":
+            obs = ds
+        elif kind == "luts":
+            luts = ds
+    order = [name for name in campaign["models"] if name in models]
     summary = {
         "campaign": campaign["name"],
         "robot": campaign["robot"],
@@ -75,19 +118,22 @@ def xytheta_summary(campaign: dict, models: dict[str, xr.Dataset], metrics: dict
         "calflow_version": __version__,
         "seed": campaign.get("seed"),
         "rig": campaign.get("rig", {}).get("factory"),
-        "models": out_models,
+        "models": {name: _model_entry(models[name], validation[name]) for name in order},
         "reference": reference.BY_ROBOT["xytheta"],
-        "inputs": {str(p): sha256_file(p) for p in inputs},
+        "inputs": {str(p): sha256_file(p) for p in files},
     }
-    if truth and truth.get("available", True):
-        summary["truth"] = {
-            "parameters": {
-                "x_R_um": truth["x_R_um"],
-                "y_R_um": truth["y_R_um"],
-                "alpha_deg": truth["alpha_deg"],
-                "beta_deg": truth["beta_deg"],
-            }
+    if luts is not None:
+        summary["characterisation"] = _characterisation(luts)
+    if xy:
+        summary["xy_tests"] = xy
+    if obs is not None:
+        summary["observability"] = {
+            "poses": [int(v) for v in obs["poses"].values],
+            **{k: [_clean(v) for v in obs[k].values] for k in ("O1", "O2", "O3", "O4")},
+            "O2_plateau_poses": int(obs.attrs["O2_plateau_poses"]),
         }
+    if truth and truth.get("available", True):
+        summary["truth"] = {"parameters": {k: truth[k] for k in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")}}
     return summary
 
 

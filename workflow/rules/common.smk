@@ -1,9 +1,11 @@
-# Helpers shared by the rules: config validation, campaign look-up, rerun digests.
+# Helpers shared by the rules: config validation, campaign look-up, rerun digests, and
+# the list of files each campaign produces.
 import os
 import sys
 
 from calflow import __version__ as CALFLOW_VERSION
 from calflow.config import check_campaign_name, digest, load_campaign, load_workflow_config
+from calflow.provenance import code_digest
 from calflow.errors import ConfigError
 
 # Rules call the `calflow` of the Python that runs Snakemake.
@@ -18,29 +20,86 @@ except ConfigError as exc:
     sys.stderr.write(f"calflow: error: {exc}\n")
     sys.exit(2)
 
+OPEN_LOOP_RUNS = "identification|characterisation_x|characterisation_y|training|metrology"
+
 
 wildcard_constraints:
     campaign="[A-Za-z0-9][A-Za-z0-9_-]*",
     model="[A-Za-z0-9_]+",
+    run=OPEN_LOOP_RUNS,
+    test="square|random_points",
+    comp="none|linear|cubic",
 
 
 def campaign_file(wildcards):
     return f"{CAMPAIGN_DIR}/{wildcards.campaign}.yaml"
 
 
-def section(*keys):
-    """A params function: digest of the campaign sections a rule depends on.
+def robot(wildcards):
+    return CAMPAIGN[wildcards.campaign]["robot"]
+
+
+def section(step, *keys):
+    """A params function: digest of the code of ``step`` and the campaign sections it reads.
 
     Snakemake reruns a job when its params change, so each rule reruns exactly when a
-    section it reads changes, or when calflow itself changes version.
+    section it reads changes, or when the calflow code it runs changes.
     """
 
     def _digest(wildcards):
         c = CAMPAIGN[wildcards.campaign]
-        return digest([CALFLOW_VERSION] + [c.get(k) for k in keys])
+        return digest([code_digest(step)] + [c.get(k) for k in keys])
 
     return _digest
 
 
-def models_of(wildcards):
-    return list(CAMPAIGN[wildcards.campaign]["models"])
+def rig_digest(run_id):
+    """Digest of what a run's acquisition depends on: the rig, the campaign's clock, the code."""
+
+    def _digest(wildcards):
+        c = CAMPAIGN[wildcards.campaign]
+        rid = run_id(wildcards) if callable(run_id) else run_id
+        rig = {**c["rig"], "runs": c["rig"].get("runs", {}).get(rid)}
+        return digest([code_digest("acquire"), c["robot"], c["seed"], c["start"], rig])
+
+    return _digest
+
+
+def xytheta_models(c):
+    return list(c["models"])
+
+
+def nano_models(c):
+    return ["single", "adaptive_kmz"] if c["robot"] == "stage1d" else ["two_dof"]
+
+
+def results_of(name):
+    """Every result file of campaign ``name`` that its summary and report draw on."""
+    c = CAMPAIGN[name]
+    base = f"results/{name}"
+    if c["robot"] == "xytheta":
+        models = xytheta_models(c)
+        files = [f"{base}/models/{m}.nc" for m in models]
+        files += [f"{base}/metrics/validation_{m}.nc" for m in models]
+        files.append(f"{base}/metrics/observability.nc")
+        tests = c["xy_tests"]["compensation"]
+        if tests or any(spec.get("position_table") for spec in c["models"].values()):
+            files.append(f"{base}/luts/position.nc")
+        files += [f"{base}/metrics/{t}_{k}.nc" for t in ("square", "random_points") for k in tests]
+        return files
+    files = [f"{base}/models/{m}.nc" for m in nano_models(c)]
+    files += [f"{base}/metrics/training.nc", f"{base}/metrics/validation.nc", f"{base}/runs/training.nc"]
+    if c["robot"] == "stage1d":
+        files.append(f"{base}/metrics/metrology.nc")
+    return files
+
+
+def plan_section(run):
+    """The campaign section that defines an open-loop run's plan."""
+    return {
+        "identification": "identification",
+        "characterisation_x": "characterisation",
+        "characterisation_y": "characterisation",
+        "training": "training",
+        "metrology": "metrology",
+    }[run]

@@ -3,39 +3,48 @@
 
 rule summarise:
     input:
-        models=lambda w: expand("results/{c}/models/{m}.nc", c=w.campaign, m=models_of(w)),
-        metrics=lambda w: expand("results/{c}/metrics/validation_{m}.nc", c=w.campaign, m=models_of(w)),
-        truth="results/{campaign}/truth/identification.json",
+        files=lambda w: results_of(w.campaign),
+        truth=lambda w: (
+            f"results/{w.campaign}/truth/identification.json"
+            if CAMPAIGN[w.campaign]["robot"] == "xytheta"
+            else []
+        ),
     output:
         summary="results/{campaign}/summary.json",
     params:
         campaign=campaign_file,
-        models=lambda w: " ".join(f"{m}=results/{w.campaign}/models/{m}.nc" for m in models_of(w)),
-        metrics=lambda w: " ".join(
-            f"{m}=results/{w.campaign}/metrics/validation_{m}.nc" for m in models_of(w)
-        ),
-        digest=section("description", "robot", "seed", "rig", "models"),
+        truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
+        digest=section("summarise", "description", "robot", "seed", "rig", "uncertainty"),
     log:
         "results/{campaign}/logs/summarise.log",
+    benchmark:
+        "results/{campaign}/benchmarks/summarise.tsv"
+    resources:
+        mem_mb=2000,
     shell:
-        "calflow summarise --campaign {params.campaign} --models {params.models}"
-        " --metrics {params.metrics} --truth {input.truth} --out {output.summary} > {log} 2>&1"
+        "calflow summarise --campaign {params.campaign} --files {input.files}"
+        " {params.truth} --out {output.summary} > {log} 2>&1"
 
 
 rule report:
     input:
         summary="results/{campaign}/summary.json",
+        files=lambda w: results_of(w.campaign),
     output:
         html="reports/{campaign}/report.html",
         pdf="reports/{campaign}/report.pdf",
     params:
         campaign=campaign_file,
-        digest=lambda w: digest([CALFLOW_VERSION, CAMPAIGN[w.campaign]]),
+        digest=lambda w: digest([code_digest("report"), CAMPAIGN[w.campaign]]),
     log:
         "results/{campaign}/logs/report.log",
+    benchmark:
+        "results/{campaign}/benchmarks/report.tsv"
+    resources:
+        mem_mb=2000,
     shell:
         "calflow report --campaign {params.campaign} --summary {input.summary}"
-        " --html {output.html} --pdf {output.pdf} > {log} 2>&1"
+        " --files {input.files} --html {output.html} --pdf {output.pdf} > {log} 2>&1"
 
 
 rule index:
@@ -45,5 +54,7 @@ rule index:
         "reports/index.html",
     log:
         "results/logs/index.log",
+    benchmark:
+        "results/benchmarks/index.tsv"
     shell:
         "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"

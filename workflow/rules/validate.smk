@@ -1,16 +1,18 @@
-# Validation on the rig through each model's inverse, and its ISO 9283 metrics.
+# Validation on the rig through the models' inverse kinematics, and the metrics of each run.
 
 
-rule acquire_validation:
+rule acquire_validation_model:
     input:
         model="results/{campaign}/models/{model}.nc",
     output:
         run="results/{campaign}/runs/validation_{model}.nc",
     params:
         campaign=campaign_file,
-        digest=section("robot", "seed", "start", "rig", "validation"),
+        digest=lambda w: digest([rig_digest(f"validation_{w.model}")(w), CAMPAIGN[w.campaign]["validation"]]),
     log:
         "results/{campaign}/logs/acquire_validation_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
     resources:
         mem_mb=1000,
     shell:
@@ -18,18 +20,44 @@ rule acquire_validation:
         " --model {input.model} --out {output.run} > {log} 2>&1"
 
 
-rule metrics:
+rule acquire_validation_tests:
     input:
-        run="results/{campaign}/runs/validation_{model}.nc",
+        models=lambda w: expand(
+            "results/{c}/models/{m}.nc", c=w.campaign, m=nano_models(CAMPAIGN[w.campaign])
+        ),
     output:
-        metrics="results/{campaign}/metrics/validation_{model}.nc",
+        run="results/{campaign}/runs/validation.nc",
     params:
         campaign=campaign_file,
-        digest=section("validation"),
+        models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
+        digest=lambda w: digest([rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]),
     log:
-        "results/{campaign}/logs/metrics_{model}.log",
+        "results/{campaign}/logs/acquire_validation.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_validation.tsv"
     resources:
-        mem_mb=1000,
+        mem_mb=2000,
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation"
+        " {params.models} --out {output.run} > {log} 2>&1"
+
+
+rule metrics:
+    input:
+        run="results/{campaign}/runs/{name}.nc",
+    output:
+        metrics="results/{campaign}/metrics/{name}.nc",
+    wildcard_constraints:
+        name="validation|validation_[A-Za-z0-9_]+|training|metrology|(square|random_points)_(none|linear|cubic)",
+    params:
+        campaign=campaign_file,
+        digest=section("metrics"),
+    log:
+        "results/{campaign}/logs/metrics_{name}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/metrics_{name}.tsv"
+    resources:
+        mem_mb=2000,
     shell:
         "calflow metrics --campaign {params.campaign} --run {input.run}"
         " --out {output.metrics} > {log} 2>&1"

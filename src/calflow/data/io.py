@@ -38,16 +38,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
-def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
-    """Write ``ds`` as netCDF4 to ``path`` atomically and return the path."""
-    encoding = {
-        name: {"zlib": True, "complevel": 4}
-        for name, var in ds.data_vars.items()
-        if var.dtype.kind in "fiu" and var.ndim > 0
-    }
+def _encoding(ds: xr.Dataset) -> dict:
+    return {name: {"zlib": True, "complevel": 4}
+            for name, var in ds.data_vars.items() if var.dtype.kind in "fiu" and var.ndim > 0}
+
+
+def write_dataset(ds: xr.Dataset, path: str | os.PathLike, groups: dict[str, xr.Dataset] | None = None) -> Path:
+    """Write ``ds`` as netCDF4 to ``path`` atomically and return the path.
+
+    ``groups`` are written as netCDF groups of the same file (e.g. a model's lookup tables).
+    """
     with atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=encoding)
+        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
+        for name, group in (groups or {}).items():
+            group.to_netcdf(tmp, mode="a", group=name, engine="netcdf4", format="NETCDF4", encoding=_encoding(group))
     return Path(path)
+
+
+def group_names(path: str | os.PathLike) -> list[str]:
+    """Names of the netCDF groups of a file."""
+    import netCDF4
+
+    with netCDF4.Dataset(path) as nc:
+        return list(nc.groups)
 
 
 def write_json(obj: Any, path: str | os.PathLike) -> Path:
@@ -71,7 +84,7 @@ def write_bytes(data: bytes, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
-def open_dataset(path: str | os.PathLike, kind: str | None = None) -> xr.Dataset:
+def open_dataset(path: str | os.PathLike, kind: str | None = None, group: str | None = None) -> xr.Dataset:
     """Open a calflow netCDF file fully into memory.
 
     Raises :class:`DataError` with one line naming the file and the problem when the file
@@ -81,11 +94,11 @@ def open_dataset(path: str | os.PathLike, kind: str | None = None) -> xr.Dataset
     if not path.exists():
         raise DataError(f"{path}: file not found")
     try:
-        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+        with xr.open_dataset(path, engine="netcdf4", decode_times=False, group=group) as ds:
             ds = ds.load()
     except Exception as exc:  # netCDF4 raises OSError/RuntimeError/ValueError variously
         raise DataError(f"{path}: not a readable netCDF4 file ({type(exc).__name__}: {exc})") from None
-    if kind is not None and ds.attrs.get("calflow_kind") != kind:
+    if kind is not None and group is None and ds.attrs.get("calflow_kind") != kind:
         raise DataError(
             f"{path}: attribute 'calflow_kind': expected {kind!r}, got {ds.attrs.get('calflow_kind')!r}"
         )

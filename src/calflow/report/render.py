@@ -37,8 +37,8 @@ def _versions() -> dict[str, str]:
     return out
 
 
-def render_campaign(summary: dict, campaign: dict, command: str) -> str:
-    """The HTML report of one campaign."""
+def render_campaign(summary: dict, campaign: dict, command: str, files: list[str] | None = None) -> str:
+    """The HTML report of one campaign; ``files`` are the result files its figures draw on."""
     template = environment().get_template(f"{summary['robot']}.html.j2")
     return template.render(
         s=summary,

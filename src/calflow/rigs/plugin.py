@@ -52,7 +52,7 @@ def load_rig(name: str, robot: str, options: Mapping[str, Any]) -> tuple[Rig, st
     factory, source = resolve_factory(name, robot)
     try:
         rig = factory(**dict(options))
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise RigError(f"rig.options: factory {name!r} rejected the options ({exc})") from None
     missing = missing_members(rig)
     if missing:

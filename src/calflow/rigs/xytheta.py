@@ -41,8 +41,8 @@ class XYThetaTruth:
     f_ax_cubic_um: float = 0.16  # angle-dependent error f_ax = c Θ³ + runout, µm/deg³
     f_ay_cubic_um: float = -0.12
     runout_um: float = 0.6  # stick-slip runout amplitude, period 2.5°
-    camera_x_um: float = 1000.0  # camera point M in the world frame
-    camera_y_um: float = 1500.0
+    camera_x_um: float = 20.0  # camera point M in the world frame: the pattern origin corner,
+    camera_y_um: float = 400.0  # so the X stroke and 3.8 mm of Y are in reach despite α (Sec. 4.4.1)
     pattern_range_um: tuple[float, float] = (9500.0, 4200.0)
     sensor_noise_um: float = 0.05
     sensor_resolution_um: float = 0.01

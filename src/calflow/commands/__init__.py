@@ -1,0 +1,1 @@
+"""Implementations of the ``calflow`` subcommands, one module per concern."""

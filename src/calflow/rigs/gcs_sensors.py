@@ -1,0 +1,121 @@
+"""Sensor plug-ins of the ``gcs`` rig (docs/gcs.md, "Sensor drivers").
+
+The ``gcs`` rig moves PI stages; what it measures comes from a *sensor*: any object with
+
+* ``sensors: tuple[str, ...]`` and ``thermometers: tuple[str, ...]`` (the rig's own),
+* ``read(positions: Mapping[str, float], time_s: float) -> Mapping[str, float]``: one
+  value per sensor and thermometer; ``positions`` are the stages' actual positions
+  (``POS?``) per joint in rig units (µm, degree), ``time_s`` the rig's time,
+* optionally ``close()``.
+
+A sensor is named in the rig options as ``sensor: {factory: "module:callable", options:
+{...}}``; ``factory(**options)`` returns it. The built-in ``simulated_vision`` is the
+vision sensor of the simulated XYΘ physics (:mod:`calflow.rigs.xytheta`, Table 3.3,
+Eq. 4.26), read at the attained stage positions, which is how the GCS emulator of a
+campaign (:mod:`calflow.gcs.serve_campaign`) stands in for the thesis hardware.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import zlib
+from typing import Any, Mapping
+
+import numpy as np
+
+from calflow.errors import RigError
+from calflow.kinematics.xytheta import forward, pattern_from_world
+from calflow.rigs.xytheta import XYThetaTruth
+
+BUILTIN_SENSORS = {"simulated_vision": "calflow.rigs.gcs_sensors:simulated_vision"}
+_FACTORY_RE = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
+
+
+class SimulatedVision:
+    """The simulated XYΘ vision sensor read at given joint positions.
+
+    ``positions["x"]``, ``["y"]`` are the *attained* X/Y joint positions (µm; the campaign
+    emulator's ``POS?`` includes the lead-screw errors, Fig. 4.8, 4.9), ``["theta"]`` the
+    rotation (degree). Adds the Θ-dependent errors (Sec. 4.5.5), stage repeatability,
+    the sensor's noise, resolution and thermal drift (Table 3.3); mirrors
+    :meth:`calflow.rigs.xytheta.SimulatedXYTheta.read`.
+    """
+
+    sensors = ("meas_x", "meas_y", "meas_theta")
+    thermometers = ("T1",)
+
+    def __init__(self, truth: XYThetaTruth, seed: int = 0, stream: str = "") -> None:
+        self.truth_model = truth
+        self._rng = np.random.default_rng(np.random.SeedSequence(
+            [int(seed), zlib.crc32(f"gcs-vision:{stream}".encode())]))
+
+    def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
+        t = self.truth_model
+        try:
+            X, Y, theta = (float(positions[j]) for j in ("x", "y", "theta"))
+        except KeyError as exc:
+            raise RigError(f"simulated_vision sensor: no position of joint {exc.args[0]!r}") from None
+        f_ax, f_ay = t.angle_error(theta)
+        x_P, y_P = forward(X, Y, theta, t.parameters, f_ax=f_ax, f_ay=f_ay)
+        jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
+        temperature = float(t.room_temperature(time_s))
+        x_m, y_m = pattern_from_world(float(x_P) + jitter[0], float(y_P) + jitter[1], theta,
+                                      t.camera_x_um, t.camera_y_um)
+        drift = (temperature - t.room_temperature_degC) * np.asarray(t.drift_um_per_degC)
+        noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
+        res = t.sensor_resolution_um
+        x_m = np.round((x_m + drift[0] + noise[0]) / res) * res
+        y_m = np.round((y_m + drift[1] + noise[1]) / res) * res
+        if not (0 <= x_m <= t.pattern_range_um[0] and 0 <= y_m <= t.pattern_range_um[1]):
+            x_m = y_m = float("nan")  # the camera sees no pattern
+        return {
+            "meas_x": float(x_m),
+            "meas_y": float(y_m),
+            "meas_theta": theta + float(self._rng.normal(0.0, t.sensor_theta_noise_deg)),
+            "T1": round(temperature + float(self._rng.normal(0.0, 0.005)), 3),
+        }
+
+    def close(self) -> None:
+        pass
+
+
+def truth_from_options(physics: Mapping[str, Any]) -> XYThetaTruth:
+    """An :class:`XYThetaTruth` with ``physics`` overrides (lists become tuples)."""
+    fields = XYThetaTruth.__dataclass_fields__
+    unknown = sorted(set(physics) - set(fields))
+    if unknown:
+        raise TypeError(f"unknown option(s) {unknown}; expected some of {sorted(fields)}")
+    return XYThetaTruth(**{k: tuple(v) if isinstance(v, list) else v for k, v in physics.items()})
+
+
+def simulated_vision(seed: int = 0, stream: str = "", **physics) -> SimulatedVision:
+    """Built-in sensor ``simulated_vision``; ``physics`` overrides :class:`XYThetaTruth`."""
+    return SimulatedVision(truth_from_options(physics), seed=seed, stream=stream)
+
+
+def load_sensor(spec: Mapping[str, Any] | None) -> Any:
+    """Build the sensor named by ``{factory, options}`` and check its interface."""
+    if not isinstance(spec, Mapping) or "factory" not in spec:
+        raise RigError("gcs rig: option 'sensor' is required: {factory: 'simulated_vision' or "
+                       "'package.module:callable', options: {...}}")
+    name, options = str(spec["factory"]), dict(spec.get("options") or {})
+    target = BUILTIN_SENSORS.get(name, name)
+    if not _FACTORY_RE.match(target):
+        raise RigError(f"gcs rig: sensor.factory: expected 'simulated_vision' or "
+                       f"'package.module:callable', got {name!r}")
+    module_name, attr = target.split(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attr, None)
+    except ImportError as exc:
+        raise RigError(f"gcs rig: sensor.factory: cannot import module {module_name!r} ({exc})") from None
+    if not callable(factory):
+        raise RigError(f"gcs rig: sensor.factory: module {module_name!r} has no callable {attr!r}")
+    try:
+        sensor = factory(**options)
+    except TypeError as exc:
+        raise RigError(f"gcs rig: sensor.options: {name!r} rejected the options ({exc})") from None
+    missing = [m for m in ("sensors", "thermometers", "read") if not hasattr(sensor, m)]
+    if missing:
+        raise RigError(f"gcs rig: sensor {name!r} returned an object without {', '.join(missing)}")
+    return sensor

@@ -1,0 +1,37 @@
+# Error characterisation of the XY stages (Sec. 4.4.1) and the observability study (Fig. 4.21).
+
+
+rule characterise:
+    input:
+        x="results/{campaign}/runs/characterisation_x.nc",
+        y="results/{campaign}/runs/characterisation_y.nc",
+    output:
+        luts="results/{campaign}/luts/position.nc",
+    params:
+        campaign=campaign_file,
+        digest=section("characterise"),
+    log:
+        "results/{campaign}/logs/characterise.log",
+    benchmark:
+        "results/{campaign}/benchmarks/characterise.tsv"
+    resources:
+        mem_mb=1000,
+    shell:
+        "calflow characterise --campaign {params.campaign} --x {input.x} --y {input.y}"
+        " --out {output.luts} > {log} 2>&1"
+
+
+rule observability:
+    output:
+        "results/{campaign}/metrics/observability.nc",
+    params:
+        campaign=campaign_file,
+        digest=section("identify", "seed", "identification", "observability"),
+    log:
+        "results/{campaign}/logs/observability.log",
+    benchmark:
+        "results/{campaign}/benchmarks/observability.tsv"
+    resources:
+        mem_mb=1000,
+    shell:
+        "calflow observability --campaign {params.campaign} --out {output} > {log} 2>&1"
