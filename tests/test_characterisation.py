@@ -70,9 +70,12 @@ def test_tables_match_rig_truth(runs):
             got_couple = ds[f"err_{axis}{other}"].values[:, j] + ds[f"delta_{other}"].values
             for got, want in ((got_drive, drive), (got_couple, couple)):
                 diff = got - want
-                # mean of 2 cycles minus one home reading: a few sensor sigmas at most
-                assert np.max(np.abs(diff)) < 5 * sigma, (axis, d, np.max(np.abs(diff)))
-                assert np.sqrt(np.mean(diff**2)) < 1.5 * sigma
+                # every table point is relative to the single home reading: its noise is a
+                # common offset (a few sigma at most); around it, the mean of the cycles
+                offset = np.mean(diff)
+                assert abs(offset) < 4 * sigma, (axis, d, offset)
+                assert np.max(np.abs(diff - offset)) < 5 * sigma, (axis, d, np.max(np.abs(diff - offset)))
+                assert np.sqrt(np.mean((diff - offset) ** 2)) < 1.5 * sigma
 
 
 def test_fft_finds_the_thread_pitch(runs):
@@ -104,10 +107,11 @@ def test_perpendicularity_and_alignment(runs):
 
 
 def test_repeatability_is_range_over_cycles(runs):
-    _, _, _, ds = runs
+    _, _, truth, ds = runs
     rep = ds["rep_xx"].values
     assert np.all(rep[np.isfinite(rep)] >= 0) and np.all(ds["cycles_x"].values == CYCLES)
-    assert 0.03 < np.median(rep) < 0.4  # range of 2 readings with σ ≈ 0.094 µm
+    sigma = np.hypot(truth.sensor_noise_um, truth.stage_repeatability_um)
+    assert 0.3 * sigma < np.median(rep) < 2 * sigma  # range of 2 readings: median ≈ 0.95 σ
     quiet, _ = sweep("x", stop=400, sensor_noise_um=0.0, stage_repeatability_um=0.0, room_swing_degC=0.0)
     assert np.nanmax(characterise_axis(quiet)["rep_xx"].values) <= 0.011  # sensor resolution only
     assert np.all(np.isnan(characterise_axis(sweep("x", stop=100, cycles=1)[0])["rep_xx"].values))

@@ -52,7 +52,7 @@ def test_reading_is_the_pattern_frame_view_of_the_tool_point():
     rig = simulated_xytheta(seed=0, sensor_noise_um=0.0, stage_repeatability_um=0.0, sensor_resolution_um=1e-9,
                             lead_fwd_um=[0, 0], lead_bwd_um=[0, 0], coupling_um=[0, 0], backlash_um=0.0,
                             f_ax_cubic_um=0.0, f_ay_cubic_um=0.0, runout_um=0.0, room_swing_degC=0.0,
-                            sensor_theta_noise_deg=0.0)
+                            sensor_theta_noise_deg=0.0, tilt_coupling_um_per_deg=0.0)
     from calflow.kinematics.xytheta import forward, world_from_pattern
     home = rig.read()
     rig.move({"x": 1500.0, "y": 700.0, "theta": 3.0})

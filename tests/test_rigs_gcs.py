@@ -36,6 +36,9 @@ from calflow.rigs.gcs import gcs
 from calflow.rigs.xytheta import simulated_xytheta
 from conftest import ROOT, SMALL_XYTHETA
 
+_T = __import__("calflow.rigs.xytheta", fromlist=["XYThetaTruth"]).XYThetaTruth()
+NOISE_UM = float(np.hypot(_T.sensor_noise_um, _T.stage_repeatability_um))  # one reading's noise, µm
+
 META = RunMetadata(campaign="gcs-test", robot="xytheta", source="gcs", plan="identification",
                    config_sha256="0" * 64)
 PLAN = plans.identification(40, seed=7, dwell_s=0.5)
@@ -89,11 +92,12 @@ def test_identification_through_the_emulator_agrees_with_the_simulated_rig(emula
     assert time.monotonic() - start < 30
     _check_intact(ds)
     sim = _acquire(simulated_xytheta(seed=7, stream="identification"))
-    # same physics, same commands: readings differ by noise only (0.05 um sensor, 0.08 um stage)
+    # same physics, same commands: readings differ by noise (sensor and stage repeatability)
     for name in ("meas_x", "meas_y"):
         a, b = ds[name].values, sim[name].values
         assert np.array_equal(np.isnan(a), np.isnan(b))
-        assert np.nanmax(np.abs(a - b)) < 1.0, name
+        assert np.nanmedian(np.abs(a - b)) < 1.5 * NOISE_UM, name
+        assert np.nanmax(np.abs(a - b)) < 10 * NOISE_UM, name
     assert np.max(np.abs(ds["meas_theta"].values - sim["meas_theta"].values)) < 0.01
     r_gcs, r_sim = _identify(ds), _identify(sim)
     assert r_gcs.success and r_sim.success
@@ -218,19 +222,20 @@ class EchoSensor:
         return {"meas_x": positions["x"] + self.offset, "meas_y": positions["y"] + self.offset}
 
 
-def test_one_controller_per_joint_and_a_plugin_sensor():
+def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor():
     a = GCSEmulator(axes={"1": {"tmn": 0, "tmx": 25}}, time_scale=100.0).start()
     b = GCSEmulator(axes={"A": {"needs_reference": False}}, time_scale=100.0).start()
     try:
         rig = gcs(axes={"x": {"axis": "1", "host": "127.0.0.1", "port": a.address[1]},
-                        "y": {"axis": "A", "host": "127.0.0.1", "port": b.address[1]}},
+                        "y": {"axis": "A", "serial": b.serve_pty()}},
                   scale={"x": 1000.0}, timeout=0.5, time_scale=100.0, poll_s=0.005,
                   sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {"offset": 0.5}},
                   reconnect={"tries": 3, "backoff_s": 0.01})
         assert rig.joints == ("x", "y") and len(rig.controllers) == 2
         rig.move({"x": 1500.0, "y": 2.0})
         assert rig.read()["meas_x"] == pytest.approx(1500.5)
-        b.drop_connections()
+        assert rig.read()["meas_y"] == pytest.approx(2.5)
+        a.drop_connections()
         rig.move({"x": 1000.0, "y": -1.0})
         r = rig.read()
         assert (r["meas_x"], r["meas_y"]) == (pytest.approx(1000.5), pytest.approx(-0.5))
@@ -309,4 +314,6 @@ def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     assert ds.attrs["source"] in ("plugin", "gcs")
     # the continued run sees the same physics as an uninterrupted simulated one
     sim = acquire(plan, simulated_xytheta(seed=7, stream="identification"), META)
-    assert np.nanmax(np.abs(ds["meas_x"].values - sim["meas_x"].values)) < 1.0
+    for name in ("meas_x", "meas_y"):
+        diff = np.abs(ds[name].values - sim[name].values)
+        assert np.nanmax(diff) < 10 * NOISE_UM, (name, done, np.nanargmax(diff), np.nanmax(diff))

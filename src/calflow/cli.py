@@ -100,6 +100,12 @@ def cmd_import_csv(args) -> None:
     write_dataset(import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out)
 
 
+def cmd_emulate(args) -> int:
+    from calflow.gcs.serve_campaign import emulate_main
+
+    return emulate_main(args.rest)
+
+
 def cmd_validate(args) -> int:
     from calflow.data.validate import validate_file
 
@@ -191,6 +197,10 @@ def parser() -> argparse.ArgumentParser:
     ic.add_argument("--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)")
     ic.add_argument("--campaign", required=True)
     ic.add_argument("--out", required=True)
+
+    e = _sub(sub, "emulate", cmd_emulate, "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1")
+    e.add_argument("kind", choices=["gcs"])
+    e.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] [--duration S]")
 
     v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")

@@ -279,6 +279,8 @@ class AngleResiduals(NamedTuple):
     f_ax: np.ndarray
     f_ay: np.ndarray
     nan_readings: int
+    x_T: np.ndarray | None = None  # target positions (µm), for tables over position and angle
+    y_T: np.ndarray | None = None
 
 
 def angle_residuals_from_run(run: xr.Dataset) -> AngleResiduals:
@@ -287,7 +289,8 @@ def angle_residuals_from_run(run: xr.Dataset) -> AngleResiduals:
     visit = run["pose"].values > 0
     ok = visit & np.isfinite(x) & np.isfinite(y)
     return AngleResiduals(run["target_theta"].values[ok].astype(float), x[ok] - run["target_x"].values[ok],
-                          y[ok] - run["target_y"].values[ok], int((visit & ~ok).sum()))
+                          y[ok] - run["target_y"].values[ok], int((visit & ~ok).sum()),
+                          run["target_x"].values[ok].astype(float), run["target_y"].values[ok].astype(float))
 
 
 @dataclass(frozen=True, eq=False)

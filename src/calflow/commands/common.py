@@ -39,6 +39,11 @@ def open_rig(c: dict, run_id: str, start_s: float = 0.0):
         options["start_offset_s"] = start_s
     elif rig_cfg["factory"] == "replay":
         options["stream"] = run_id
+    elif rig_cfg["factory"] == "gcs":  # real stages; a simulated sensor gets its own noise per run
+        sensor = dict(options.get("sensor") or {})
+        if sensor.get("factory") == "simulated_vision":
+            sensor["options"] = {"seed": c["seed"], **sensor.get("options", {}), "stream": run_id}
+            options["sensor"] = sensor
     return load_rig(rig_cfg["factory"], c["robot"], options)
 
 

@@ -41,6 +41,7 @@ def identify(args) -> None:
     from calflow.identification.least_squares import identify as fit
     from calflow.kinematics.xytheta import Parameters
     from calflow.lookup import AngleLUT, PositionLUT, angle_residuals_from_run
+    from calflow.lookup_pose import PoseAngleLUT
     from calflow.models.micro import MicroModel, joint_directions
 
     c = load(args.campaign)
@@ -50,8 +51,12 @@ def identify(args) -> None:
     if "base" in spec:
         base = MicroModel.read(args.base)
         residuals = angle_residuals_from_run(open_dataset(args.residuals, kind="run"))
-        angle = AngleLUT.from_residuals(residuals.theta, residuals.f_ax, residuals.f_ay,
-                                        base.parameters.alpha, base.parameters.beta)
+        if c["angle_residuals"]["table"] == "position_angle":
+            angle = PoseAngleLUT.from_residuals(residuals.x_T, residuals.y_T, residuals.theta, residuals.f_ax,
+                                                residuals.f_ay, base.parameters.alpha, base.parameters.beta)
+        else:
+            angle = AngleLUT.from_residuals(residuals.theta, residuals.f_ax, residuals.f_ay,
+                                            base.parameters.alpha, base.parameters.beta)
         model = MicroModel(args.model_name, base.parameters, base.free, base.std, base.correlation,
                            dict(base.diagnostics), base.position, angle, base.method)
         model.diagnostics["angle_residual_nan"] = int(residuals.nan_readings)

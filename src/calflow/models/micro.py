@@ -19,7 +19,8 @@ import xarray as xr
 from calflow.data.io import group_names, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.kinematics import xytheta as kin
-from calflow.lookup import AngleLUT, PositionLUT, infer_directions
+from calflow.lookup import AngleLUT, PositionLUT, infer_directions, joint_increments
+from calflow.lookup_pose import PoseAngleLUT
 
 _LONG = {
     "x_R": "x coordinate of the rotation centre in the world frame",
@@ -45,7 +46,7 @@ class MicroModel:
     correlation: np.ndarray
     diagnostics: dict = field(default_factory=dict)
     position: PositionLUT | None = None  # ex, ey (Models III, V)
-    angle: AngleLUT | None = None  # f_ax, f_ay and g_ax, g_ay (Models IV, V)
+    angle: AngleLUT | PoseAngleLUT | None = None  # f_ax, f_ay and g_ax, g_ay (Models IV, V)
     method: str = "linear"  # interpolation in the tables
 
     def position_errors(self, X, Y, dir_x, dir_y):
@@ -54,12 +55,21 @@ class MicroModel:
             return np.zeros(np.shape(X)), np.zeros(np.shape(Y))
         return self.position.errors(X, Y, dir_x, dir_y, self.method, trends=False)
 
+    def angle_errors(self, x, y, theta):
+        """f_ax, f_ay (µm) at tool points x, y (µm) and angles Θ; zero without an angle table."""
+        if self.angle is None:
+            return 0.0, 0.0
+        if isinstance(self.angle, PoseAngleLUT):
+            return self.angle.f(x, y, theta, self.method)
+        return self.angle.f(theta, self.method)
+
     def forward(self, X, Y, theta, dir_x=1, dir_y=1):
         """Tool point (µm) from joints, Eq. (4.18) with this model's parameters and tables."""
         X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
         ex, ey = self.position_errors(X, Y, np.broadcast_to(dir_x, X.shape), np.broadcast_to(dir_y, Y.shape))
-        f_ax, f_ay = self.angle.f(theta, self.method) if self.angle is not None else (0.0, 0.0)
-        return kin.forward(X, Y, theta, self.parameters, ex=ex, ey=ey, f_ax=f_ax, f_ay=f_ay)
+        x0, y0 = kin.forward(X, Y, theta, self.parameters, ex=ex, ey=ey)
+        f_ax, f_ay = self.angle_errors(x0, y0, theta)
+        return x0 + f_ax, y0 + f_ay
 
     def inverse(self, x_T, y_T, theta_T, start=(0.0, 0.0)):
         """Joint inputs (µm) for a sequence of task-space targets, Eq. (4.19) with g and ex, ey.
@@ -68,7 +78,8 @@ class MicroModel:
         values themselves (X = X₀ + ex(X, Y)), solved by fixed-point iteration, with
         approach directions taken from the command sequence starting at ``start``.
         """
-        g_ax, g_ay = self.angle.g(theta_T, self.method) if self.angle is not None else (0.0, 0.0)
+        g_ax, g_ay = (joint_increments(*self.angle_errors(x_T, y_T, theta_T), self.angle.alpha, self.angle.beta)
+                      if self.angle is not None else (0.0, 0.0))
         X0, Y0 = kin.inverse(x_T, y_T, theta_T, self.parameters, g_ax=g_ax, g_ay=g_ay)
         if self.position is None:
             return X0, Y0
@@ -132,7 +143,10 @@ class MicroModel:
         groups = group_names(path)
         position = PositionLUT.from_dataset(open_dataset(path, group="position_table")) \
             if "position_table" in groups else None
-        angle = AngleLUT.from_dataset(open_dataset(path, group="angle_table")) if "angle_table" in groups else None
+        angle = None
+        if "angle_table" in groups:
+            table = open_dataset(path, group="angle_table")
+            angle = (PoseAngleLUT if table.attrs.get("table") == "position_angle" else AngleLUT).from_dataset(table)
         return cls.from_dataset(ds, position, angle)
 
     @classmethod

@@ -40,7 +40,8 @@ _COMMON = {
     "world_seed": 0,  # fixes the room profile's phases and the slow random walk
     "profile": "metrology",  # "constant" | "metrology" | "lab5day"
     "profile_params": {},  # overrides, see calflow.rigs.thermal
-    "base_temperature_c": 20.5,  # room temperature the profile starts from = T_ref
+    "base_temperature_c": 20.5,  # room temperature the profile starts from
+    "reference_offset_c": 0.0,  # T_ref - base: the structure's drift-free temperature
     "start_offset_s": 0.0,  # campaign time (s) of the rig's time 0
     "rise_time_s": 4.0,  # virtual time taken by a move (Fig. 5.8)
     "stream_rate_hz": 10.0,  # default rate of stream()
@@ -272,8 +273,9 @@ class _NanoRig:
         tc = o["start_offset_s"] + t_rig
         if lags is None:
             lags = self._lags(tc)
-        d_stage = lags[..., 0] - o["base_temperature_c"]
-        d_frame = lags[..., 1] - o["base_temperature_c"]
+        t_ref = o["base_temperature_c"] + o["reference_offset_c"]
+        d_stage = lags[..., 0] - t_ref
+        d_frame = lags[..., 1] - t_ref
         geo = self._geometry(cmds, dirs)
         spos = self._thermal_positions(cmds)
         walk = self._walk(tc)

@@ -23,6 +23,7 @@ BUILTIN = {
     ("simulated", "stage1d"): "calflow.rigs.nano:nano1d",
     ("simulated", "stage2d"): "calflow.rigs.nano:nano2d",
     **{("replay", robot): "calflow.rigs.replay:replay" for robot in ("xytheta", "stage1d", "stage2d")},
+    **{("gcs", robot): "calflow.rigs.gcs:gcs" for robot in ("xytheta", "stage1d", "stage2d")},
 }
 
 
@@ -34,7 +35,7 @@ def resolve_factory(name: str, robot: str) -> tuple[Callable[..., Any], str]:
         target, source = name, "plugin"
     else:
         raise RigError(
-            f"rig.factory: expected 'simulated' or 'package.module:callable', got {name!r}"
+            f"rig.factory: expected 'simulated', 'replay', 'gcs' or 'package.module:callable', got {name!r}"
         )
     module_name, attr = target.split(":")
     try:

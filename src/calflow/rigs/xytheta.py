@@ -32,15 +32,17 @@ class XYThetaTruth:
     alpha_deg: float = 177.69
     beta_deg: float = -0.11
     thread_pitch_um: float = 400.0
-    lead_fwd_um: tuple[float, float] = (2.1, 1.4)  # X, Y lead-screw error amplitude, forward
-    lead_bwd_um: tuple[float, float] = (3.4, 2.2)  # backward (Fig. 4.8: same period, other size)
+    lead_fwd_um: tuple[float, float] = (4.0, 3.0)  # X, Y lead-screw error amplitude, forward
+    lead_bwd_um: tuple[float, float] = (6.0, 4.5)  # backward (Fig. 4.8: same period, other size)
     lead_phase_rad: tuple[float, float] = (0.6, 2.1)
-    coupling_um: tuple[float, float] = (0.9, 0.7)  # X motion into y, Y motion into x
+    coupling_um: tuple[float, float] = (1.5, 1.2)  # X motion into y, Y motion into x
     backlash_um: float = 2.0
-    stage_repeatability_um: float = 0.08  # 1 sigma per move and axis
-    f_ax_cubic_um: float = 0.16  # angle-dependent error f_ax = c Θ³ + runout, µm/deg³
-    f_ay_cubic_um: float = -0.12
-    runout_um: float = 0.6  # stick-slip runout amplitude, period 2.5°
+    stage_repeatability_um: float = 0.5  # 1 sigma per move and axis (Fig. 4.7: ~1 µm over 3 cycles)
+    f_ax_cubic_um: float = 0.2  # angle-dependent error f_ax = c Θ³ + runout, µm/deg³ (~20 µm at 5°)
+    f_ay_cubic_um: float = -0.15
+    runout_um: float = 12.0  # stick-slip runout amplitude of the Θ stage, period 2.5°
+    tilt_coupling_um_per_deg: float = 0.5  # rotation × XY-stage tilt (pitch/roll along the strokes)
+    tilt_period_um: tuple[float, float] = (1600.0, 1300.0)
     camera_x_um: float = 20.0  # camera point M in the world frame: the pattern origin corner,
     camera_y_um: float = 400.0  # so the X stroke and 3.8 mm of Y are in reach despite α (Sec. 4.4.1)
     pattern_range_um: tuple[float, float] = (9500.0, 4200.0)
@@ -70,18 +72,53 @@ class XYThetaTruth:
         phase = 2 * np.pi * np.asarray(q) / self.thread_pitch_um + self.lead_phase_rad[axis] + 0.8
         return self.coupling_um[axis] * np.sin(phase)
 
-    def angle_error(self, theta):
-        """Angle-dependent displacement (f_ax, f_ay) of the pattern point, µm."""
+    def angle_error(self, theta, X=0.0, Y=0.0):
+        """Angle-dependent displacement (f_ax, f_ay) of the pattern point, µm.
+
+        A cubic and a stick-slip runout of the Θ stage, plus the rotation's coupling with
+        the tilt of the XY stages under it (which varies along X and Y): the part of the
+        angle-dependent error that depends on position, so a table in Θ alone (Models
+        IV, V) cannot hold all of it — "angle-dependent errors include a part of
+        position-dependent errors" (Sec. 4.5.5).
+        """
         theta = np.asarray(theta, dtype=float)
         runout = self.runout_um * np.sin(2 * np.pi * theta / 2.5)
-        return self.f_ax_cubic_um * theta**3 + runout, self.f_ay_cubic_um * theta**3 - runout
+        c = self.tilt_coupling_um_per_deg * theta
+        tilt_x = c * np.sin(2 * np.pi * np.asarray(X) / self.tilt_period_um[0] + 0.4)
+        tilt_y = c * np.cos(2 * np.pi * np.asarray(Y) / self.tilt_period_um[1] + 1.1)
+        return self.f_ax_cubic_um * theta**3 + runout + tilt_x, self.f_ay_cubic_um * theta**3 - runout + tilt_y
 
     def tool_point(self, X, Y, theta, dir_x=1, dir_y=1):
         """Noise-free tool point (µm) reached for joint commands approached in ``dir_*``."""
         Xa = np.asarray(X) + self.lead_error(0, X, dir_x) + self.coupling_error(1, Y)
         Ya = np.asarray(Y) + self.lead_error(1, Y, dir_y) + self.coupling_error(0, X)
-        f_ax, f_ay = self.angle_error(theta)
+        f_ax, f_ay = self.angle_error(theta, X, Y)
         return forward(Xa, Ya, theta, self.parameters, f_ax=f_ax, f_ay=f_ay)
+
+    def exact_inverse(self, x_T, y_T, theta, dir_x, dir_y, iterations: int = 50):
+        """Joint commands that put the noise-free tool point exactly on the targets.
+
+        For tests only (the oracle validation of issue 4): it uses the rig's truth.
+        Solved by Newton iteration on the truth's forward map with the given approach
+        directions.
+        """
+        from calflow.kinematics.xytheta import inverse
+
+        x_T, y_T = np.asarray(x_T, dtype=float), np.asarray(y_T, dtype=float)
+        X, Y = inverse(x_T, y_T, theta, self.parameters)
+        for _ in range(iterations):
+            px, py = self.tool_point(X, Y, theta, dir_x, dir_y)
+            rx, ry = x_T - px, y_T - py
+            h = 1e-3
+            jxx = (self.tool_point(X + h, Y, theta, dir_x, dir_y)[0] - px) / h
+            jyx = (self.tool_point(X + h, Y, theta, dir_x, dir_y)[1] - py) / h
+            jxy = (self.tool_point(X, Y + h, theta, dir_x, dir_y)[0] - px) / h
+            jyy = (self.tool_point(X, Y + h, theta, dir_x, dir_y)[1] - py) / h
+            det = jxx * jyy - jxy * jyx
+            X, Y = X + (jyy * rx - jxy * ry) / det, Y + (-jyx * rx + jxx * ry) / det
+            if np.max(np.abs(rx)) < 1e-9 and np.max(np.abs(ry)) < 1e-9:
+                break
+        return X, Y
 
     def room_temperature(self, t_s):
         """Room temperature (degC) at virtual time ``t_s``: a daily swing."""
