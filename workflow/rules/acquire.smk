@@ -5,17 +5,19 @@ rule acquire:
     output:
         run="results/{campaign}/runs/{run}.nc",
         truth="results/{campaign}/truth/{run}.json",
+    log:
+        "results/{campaign}/logs/acquire_{run}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_{run}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=2000,
     params:
         campaign=campaign_file,
         digest=lambda w: digest(
             [rig_digest(w.run)(w), CAMPAIGN[w.campaign].get(plan_section(w.run))]
         ),
-    log:
-        "results/{campaign}/logs/acquire_{run}.log",
-    benchmark:
-        "results/{campaign}/benchmarks/acquire_{run}.tsv"
-    resources:
-        mem_mb=2000,
     shell:
         "calflow acquire --campaign {params.campaign} --plan {wildcards.run}"
         " --out {output.run} --truth {output.truth} > {log} 2>&1"
@@ -23,19 +25,25 @@ rule acquire:
 
 rule acquire_xy_test:
     input:
-        luts=lambda w: [] if w.comp == "none" else f"results/{w.campaign}/luts/position.nc",
+        luts=lambda w: (
+            [] if w.comp == "none" else f"results/{w.campaign}/luts/position.nc"
+        ),
     output:
         run="results/{campaign}/runs/{test}_{comp}.nc",
-    params:
-        campaign=campaign_file,
-        luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
-        digest=lambda w: digest([rig_digest(f"{w.test}_{w.comp}")(w), CAMPAIGN[w.campaign]["xy_tests"]]),
     log:
         "results/{campaign}/logs/acquire_{test}_{comp}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_{test}_{comp}.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
+        digest=lambda w: digest(
+            [rig_digest(f"{w.test}_{w.comp}")(w), CAMPAIGN[w.campaign]["xy_tests"]]
+        ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan {wildcards.test}"
         " --compensation {wildcards.comp} {params.luts} --out {output.run} > {log} 2>&1"
@@ -46,17 +54,22 @@ rule acquire_angle_residuals:
         model="results/{campaign}/models/{model}.nc",
     output:
         run="results/{campaign}/runs/angle_residuals_{model}.nc",
-    params:
-        campaign=campaign_file,
-        digest=lambda w: digest(
-            [rig_digest(f"angle_residuals_{w.model}")(w), CAMPAIGN[w.campaign]["angle_residuals"]]
-        ),
     log:
         "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_angle_residuals_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [
+                rig_digest(f"angle_residuals_{w.model}")(w),
+                CAMPAIGN[w.campaign]["angle_residuals"],
+            ]
+        ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan angle_residuals"
         " --model {input.model} --out {output.run} > {log} 2>&1"

@@ -7,15 +7,17 @@ rule characterise:
         y="results/{campaign}/runs/characterisation_y.nc",
     output:
         luts="results/{campaign}/luts/position.nc",
-    params:
-        campaign=campaign_file,
-        digest=section("characterise"),
     log:
         "results/{campaign}/logs/characterise.log",
     benchmark:
         "results/{campaign}/benchmarks/characterise.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=section("characterise"),
     shell:
         "calflow characterise --campaign {params.campaign} --x {input.x} --y {input.y}"
         " --out {output.luts} > {log} 2>&1"
@@ -24,14 +26,16 @@ rule characterise:
 rule observability:
     output:
         "results/{campaign}/metrics/observability.nc",
-    params:
-        campaign=campaign_file,
-        digest=section("identify", "seed", "identification", "observability"),
     log:
         "results/{campaign}/logs/observability.log",
     benchmark:
         "results/{campaign}/benchmarks/observability.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=section("identify", "seed", "identification", "observability"),
     shell:
         "calflow observability --campaign {params.campaign} --out {output} > {log} 2>&1"

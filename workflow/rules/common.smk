@@ -4,23 +4,32 @@ import os
 import sys
 
 from calflow import __version__ as CALFLOW_VERSION
-from calflow.config import check_campaign_name, digest, load_campaign, load_workflow_config
+from calflow.config import (
+    check_campaign_name,
+    digest,
+    load_campaign,
+    load_workflow_config,
+)
 from calflow.provenance import code_digest
 from calflow.errors import ConfigError
 
-# Rules call the `calflow` of the Python that runs Snakemake.
-os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+# Rules call the `calflow` installed beside the Python that runs Snakemake.
+shell.prefix(f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; ")
 
 try:
     config.update(load_workflow_config(config))
     CAMPAIGN_DIR = config["campaign_dir"]
     CAMPAIGNS = [check_campaign_name(name) for name in config["campaigns"]]
-    CAMPAIGN = {name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml") for name in CAMPAIGNS}
+    CAMPAIGN = {
+        name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml") for name in CAMPAIGNS
+    }
 except ConfigError as exc:
     sys.stderr.write(f"calflow: error: {exc}\n")
     sys.exit(2)
 
-OPEN_LOOP_RUNS = "identification|characterisation_x|characterisation_y|training|metrology"
+OPEN_LOOP_RUNS = (
+    "identification|characterisation_x|characterisation_y|training|metrology"
+)
 
 
 wildcard_constraints:
@@ -85,10 +94,18 @@ def results_of(name):
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
             files.append(f"{base}/luts/position.nc")
-        files += [f"{base}/metrics/{t}_{k}.nc" for t in ("square", "random_points") for k in tests]
+        files += [
+            f"{base}/metrics/{t}_{k}.nc"
+            for t in ("square", "random_points")
+            for k in tests
+        ]
         return files
     files = [f"{base}/models/{m}.nc" for m in nano_models(c)]
-    files += [f"{base}/metrics/training.nc", f"{base}/metrics/validation.nc", f"{base}/runs/training.nc"]
+    files += [
+        f"{base}/metrics/training.nc",
+        f"{base}/metrics/validation.nc",
+        f"{base}/runs/training.nc",
+    ]
     if c["robot"] == "stage1d":
         files.append(f"{base}/metrics/metrology.nc")
     return files
@@ -103,3 +120,31 @@ def plan_section(run):
         "training": "training",
         "metrology": "metrology",
     }[run]
+
+
+def identify_inputs(w):
+    c = CAMPAIGN[w.campaign]
+    base = f"results/{w.campaign}"
+    if c["robot"] != "xytheta":
+        return {"run": f"{base}/runs/training.nc"}
+    spec = c["models"][w.model]
+    if "base" in spec:
+        return {
+            "base": f"{base}/models/{spec['base']}.nc",
+            "residuals": f"{base}/runs/angle_residuals_{spec['base']}.nc",
+        }
+    inputs = {"run": f"{base}/runs/identification.nc"}
+    if spec.get("position_table"):
+        inputs["luts"] = f"{base}/luts/position.nc"
+    return inputs
+
+
+def identify_args(w, input):
+    return " ".join(f"--{k} {v}" for k, v in input.items())
+
+
+def identify_digest(w):
+    c = CAMPAIGN[w.campaign]
+    if c["robot"] != "xytheta":
+        return digest([code_digest("identify"), c["model"]])
+    return digest([code_digest("identify"), c["identification"], c["models"][w.model]])

@@ -11,16 +11,20 @@ rule summarise:
         ),
     output:
         summary="results/{campaign}/summary.json",
-    params:
-        campaign=campaign_file,
-        truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
-        digest=section("summarise", "description", "robot", "seed", "rig", "uncertainty"),
     log:
         "results/{campaign}/logs/summarise.log",
     benchmark:
         "results/{campaign}/benchmarks/summarise.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+    params:
+        campaign=campaign_file,
+        truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
+        digest=section(
+            "summarise", "description", "robot", "seed", "rig", "uncertainty"
+        ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"
         " {params.truth} --out {output.summary} > {log} 2>&1"
@@ -33,15 +37,17 @@ rule report:
     output:
         html="reports/{campaign}/report.html",
         pdf="reports/{campaign}/report.pdf",
-    params:
-        campaign=campaign_file,
-        digest=lambda w: digest([code_digest("report"), CAMPAIGN[w.campaign]]),
     log:
         "results/{campaign}/logs/report.log",
     benchmark:
         "results/{campaign}/benchmarks/report.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest([code_digest("report"), CAMPAIGN[w.campaign]]),
     shell:
         "calflow report --campaign {params.campaign} --summary {input.summary}"
         " --files {input.files} --html {output.html} --pdf {output.pdf} > {log} 2>&1"
@@ -56,5 +62,7 @@ rule index:
         "results/logs/index.log",
     benchmark:
         "results/benchmarks/index.tsv"
+    conda:
+        "../envs/calflow.yaml"
     shell:
         "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"

@@ -6,15 +6,22 @@ rule acquire_validation_model:
         model="results/{campaign}/models/{model}.nc",
     output:
         run="results/{campaign}/runs/validation_{model}.nc",
-    params:
-        campaign=campaign_file,
-        digest=lambda w: digest([rig_digest(f"validation_{w.model}")(w), CAMPAIGN[w.campaign]["validation"]]),
     log:
         "results/{campaign}/logs/acquire_validation_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [
+                rig_digest(f"validation_{w.model}")(w),
+                CAMPAIGN[w.campaign]["validation"],
+            ]
+        ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
         " --model {input.model} --out {output.run} > {log} 2>&1"
@@ -23,20 +30,26 @@ rule acquire_validation_model:
 rule acquire_validation_tests:
     input:
         models=lambda w: expand(
-            "results/{c}/models/{m}.nc", c=w.campaign, m=nano_models(CAMPAIGN[w.campaign])
+            "results/{c}/models/{m}.nc",
+            c=w.campaign,
+            m=nano_models(CAMPAIGN[w.campaign]),
         ),
     output:
         run="results/{campaign}/runs/validation.nc",
-    params:
-        campaign=campaign_file,
-        models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
-        digest=lambda w: digest([rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]),
     log:
         "results/{campaign}/logs/acquire_validation.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation.tsv"
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+    params:
+        campaign=campaign_file,
+        models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
+        digest=lambda w: digest(
+            [rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]
+        ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
         " {params.models} --out {output.run} > {log} 2>&1"
@@ -47,17 +60,19 @@ rule metrics:
         run="results/{campaign}/runs/{name}.nc",
     output:
         metrics="results/{campaign}/metrics/{name}.nc",
-    wildcard_constraints:
-        name="validation|validation_[A-Za-z0-9_]+|training|metrology|(square|random_points)_(none|linear|cubic)",
-    params:
-        campaign=campaign_file,
-        digest=section("metrics"),
     log:
         "results/{campaign}/logs/metrics_{name}.log",
     benchmark:
         "results/{campaign}/benchmarks/metrics_{name}.tsv"
+    wildcard_constraints:
+        name="validation|validation_[A-Za-z0-9_]+|training|metrology|(square|random_points)_(none|linear|cubic)",
+    conda:
+        "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+    params:
+        campaign=campaign_file,
+        digest=section("metrics"),
     shell:
         "calflow metrics --campaign {params.campaign} --run {input.run}"
         " --out {output.metrics} > {log} 2>&1"
