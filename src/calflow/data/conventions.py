@@ -59,8 +59,17 @@ ROBOT_JOINTS = {"xytheta": ("x", "y", "theta"), "stage1d": ("x",), "stage2d": ("
 
 
 def utc_now() -> str:
-    """The current UTC time as an ISO 8601 string (seconds)."""
-    return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+    """The current UTC time as an ISO 8601 string (seconds).
+
+    Honours ``SOURCE_DATE_EPOCH`` (reproducible-builds convention), so two runs of a
+    campaign can produce byte-identical files.
+    """
+    import os
+
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    now = (_dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch and epoch.isdigit()
+           else _dt.datetime.now(_dt.timezone.utc))
+    return now.replace(microsecond=0).isoformat()
 
 
 def time_units(start: str) -> str:
