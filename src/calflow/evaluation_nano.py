@@ -349,8 +349,11 @@ def accuracy_vs_temperature(metrics: xr.Dataset, training_range_c: tuple[float, 
     return out
 
 
-def iso230_2_of_run(run: xr.Dataset) -> dict:
+def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
     """ISO 230-2 of a 1-DoF run (training): E, M, B, R, A and parts, in nm.
+
+    ``attained``/``target`` (µm, one per sample) replace ``meas_x``/``target_x`` — e.g. the
+    stage-frame displacement and the command of an XY characterisation sweep.
 
     Attained positions ``meas_x`` grouped by target ``target_x`` and ``direction`` (+1
     forward, −1 backward), one column per cycle.  Only targets reached in both directions
@@ -358,7 +361,8 @@ def iso230_2_of_run(run: xr.Dataset) -> dict:
     listed in ``excluded_targets_um``.  Cycles with a NaN reading at any used target in a
     direction are dropped for that direction.
     """
-    x, tgt = run["meas_x"].values.astype(float), run["target_x"].values.astype(float)
+    x = np.asarray(run["meas_x"].values if attained is None else attained, dtype=float)
+    tgt = np.asarray(run["target_x"].values if target is None else target, dtype=float)
     direction, cycle = run["direction"].values.astype(int), run["cycle"].values.astype(int)
     key = np.round(tgt, 6)
     fwd_t, bwd_t = set(key[direction > 0]), set(key[direction < 0])

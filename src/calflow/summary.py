@@ -93,9 +93,23 @@ def _xy_test(m: xr.Dataset) -> dict:
     }
 
 
+def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
+    """ISO 230-2 of one stage from its characterisation sweep (stage frame, µm)."""
+    from calflow.characterisation import stage_positions
+    from calflow.evaluation_nano import iso230_2_of_run
+
+    u, v = stage_positions(run)
+    r = iso230_2_of_run(run, attained=u if axis == "x" else v, target=run[f"cmd_{axis}"].values)
+    out = {"units": "um", "targets": len(r["targets_um"]), "cycles_forward": r["cycles_forward"],
+           "cycles_backward": r["cycles_backward"]}
+    for key in ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd", "R_bwd", "A", "A_fwd", "A_bwd"):
+        out[f"{key}_um"] = _clean(r[f"{key}_nm"] / 1000.0)
+    return out
+
+
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
-    models, validation, xy, luts, obs = {}, {}, {}, None, None
+    models, validation, xy, luts, obs, iso = {}, {}, {}, None, None, {}
     for path in files:
         with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
             ds = ds.load()
@@ -110,6 +124,8 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             obs = ds
         elif kind == "luts":
             luts = ds
+        elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
+            iso[plan[-1]] = _iso230_2_of_sweep(ds, plan[-1])
     order = [name for name in campaign["models"] if name in models]
     summary = {
         "campaign": campaign["name"],
@@ -126,6 +142,8 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         summary["characterisation"] = _characterisation(luts)
     if xy:
         summary["xy_tests"] = xy
+    if iso:
+        summary["iso230_2"] = iso
     if obs is not None:
         summary["observability"] = {
             "poses": [int(v) for v in obs["poses"].values],

@@ -94,6 +94,7 @@ def results_of(name):
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
             files.append(f"{base}/luts/position.nc")
+            files += [f"{base}/runs/characterisation_{a}.nc" for a in "xy"]  # ISO 230-2
         files += [
             f"{base}/metrics/{t}_{k}.nc"
             for t in ("square", "random_points")
