@@ -14,7 +14,9 @@ from calflow.provenance import code_digest
 from calflow.errors import ConfigError
 
 # Rules call the `calflow` installed beside the Python that runs Snakemake.
-shell.prefix(f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; ")
+shell.prefix(
+    f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; "
+)
 
 try:
     config.update(load_workflow_config(config))
