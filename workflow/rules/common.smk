@@ -151,3 +151,11 @@ def identify_digest(w):
     if c["robot"] != "xytheta":
         return digest([code_digest("identify"), c["model"]])
     return digest([code_digest("identify"), c["identification"], c["models"][w.model]])
+
+
+def report_files(name):
+    """What the report draws on: the summary's files and, for XYΘ, the identification poses."""
+    files = results_of(name)
+    if CAMPAIGN[name]["robot"] == "xytheta":
+        files = files + [f"results/{name}/runs/identification.nc"]
+    return files

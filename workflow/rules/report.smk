@@ -33,7 +33,7 @@ rule summarise:
 rule report:
     input:
         summary="results/{campaign}/summary.json",
-        files=lambda w: results_of(w.campaign),
+        files=lambda w: report_files(w.campaign),
     output:
         html="reports/{campaign}/report.html",
         pdf="reports/{campaign}/report.pdf",

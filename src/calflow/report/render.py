@@ -1,18 +1,76 @@
-"""Rendering reports: Jinja2 (autoescaped) to HTML, WeasyPrint to PDF from the same HTML."""
+"""Rendering reports: Jinja2 (autoescaped) to HTML, WeasyPrint to PDF from the same HTML.
+
+One template family (``templates/base.html.j2`` and its children, ``macros.html.j2``) and
+one stylesheet (``templates/style.css``, screen and print) serve every robot.  Figures are
+matplotlib SVG generated in :mod:`calflow.report.figures`; they are the only markup the
+templates embed unescaped.  Headline numbers carry ``data-key="dotted.summary.key"`` and
+are formatted from the summary, so a test can read them back and compare.
+"""
 
 from __future__ import annotations
 
-import json
+import math
 import platform
+import shlex
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import jinja2
+import yaml
 
 from calflow import __version__
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = ("numpy", "scipy", "xarray", "netCDF4", "snakemake", "jinja2", "matplotlib", "weasyprint", "statsmodels")
+
+_UNITS = {"um": "µm", "um-1": "µm⁻¹", "um-2": "µm⁻²", "um degC-1": "µm/°C", "degC": "°C", "degree": "°",
+          "nm": "nm", "1": "—", "um/h": "µm/h", "h": "h"}
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+_MODES = {"no_calibration": "no calibration", "adaptive_kmz": "adaptive model (KMZ)", "single": "single model"}
+
+
+def dig(data, key: str):
+    """``data["a"]["b"]…`` for ``key = "a.b…"``; None when any part is missing."""
+    for part in key.split("."):
+        if isinstance(data, dict) and part in data:
+            data = data[part]
+        elif isinstance(data, list) and part.isdigit() and int(part) < len(data):
+            data = data[int(part)]
+        else:
+            return None
+    return data
+
+
+def is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def num(v, digits: int = 3) -> str:
+    """Fixed-point text of a number; "—" for None, NaN or non-numbers."""
+    if not is_number(v):
+        return "—" if v is None or isinstance(v, float) else str(v)
+    return f"{v:.{digits}f}"
+
+
+def sig(v, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits; × 10^n notation when small or large."""
+    if not is_number(v):
+        return "—"
+    if v == 0:
+        return "0"
+    exponent = math.floor(math.log10(abs(v)))
+    if exponent < -3 or exponent >= 5:
+        mantissa = v / 10 ** exponent
+        if round(abs(mantissa), digits - 1) >= 10:
+            mantissa, exponent = mantissa / 10, exponent + 1
+        return f"{mantissa:.{digits - 1}f} × 10{str(exponent).translate(_SUPERSCRIPT)}"
+    return f"{v:.{max(0, digits - 1 - exponent)}f}"
+
+
+def unit(u) -> str:
+    return _UNITS.get(str(u), str(u)) if u is not None else ""
 
 
 def environment() -> jinja2.Environment:
@@ -23,7 +81,9 @@ def environment() -> jinja2.Environment:
         trim_blocks=True,
         lstrip_blocks=True,
     )
-    env.filters["num"] = lambda v, digits=3: "—" if v is None else f"{v:.{digits}f}"
+    env.filters.update(num=num, sig=sig, unit=unit, label=lambda n: str(n).replace("_", " "),
+                       mode=lambda n: _MODES.get(str(n), str(n).replace("_", " ")))
+    env.globals.update(dig=dig, is_number=is_number)
     return env
 
 
@@ -37,14 +97,58 @@ def _versions() -> dict[str, str]:
     return out
 
 
+def _machine() -> str:
+    return f"{platform.system()} {platform.release()} {platform.machine()}"
+
+
+def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -> dict:
+    from calflow.summary import sha256_file
+
+    inputs = dict(summary.get("inputs") or {})
+    listed = {str(Path(p)) for p in inputs}
+    extra = {}  # files the report draws on that the summary did not record
+    for f in files or []:
+        if str(Path(f)) not in listed and Path(f).is_file():
+            extra[str(f)] = sha256_file(f)
+    name = summary.get("campaign", campaign.get("name", "campaign"))
+    report_cmd = (f"calflow report --campaign config/campaigns/{name}.yaml --summary results/{name}/summary.json"
+                  + (" --files " + " ".join(shlex.quote(str(f)) for f in files) if files else "")
+                  + f" --html reports/{name}/report.html --pdf reports/{name}/report.pdf")
+    return {
+        "versions": _versions(),
+        "machine": _machine(),
+        "campaign_yaml": yaml.safe_dump({k: v for k, v in campaign.items() if not str(k).startswith("_")},
+                                        sort_keys=False, allow_unicode=True, width=90,
+                                        default_flow_style=None),
+        "inputs": inputs,
+        "extra_inputs": extra,
+        "command": command,
+        "report_command": report_cmd,
+    }
+
+
+def figures_for(summary: dict, files: list[str] | None):
+    """The numbered figures of a campaign's report, by section, and notes on omitted ones."""
+    from calflow.report import figures as common
+
+    inputs = common.classify(files)
+    if summary["robot"] == "xytheta":
+        from calflow.report.figures_xytheta import build
+    else:
+        from calflow.report.figures_nano import build
+    figs, notes = build(summary, inputs)
+    return common.by_section(common.number(figs)), notes
+
+
 def render_campaign(summary: dict, campaign: dict, command: str, files: list[str] | None = None) -> str:
     """The HTML report of one campaign; ``files`` are the result files its figures draw on."""
+    figures, notes = figures_for(summary, files)
     template = environment().get_template(f"{summary['robot']}.html.j2")
     return template.render(
         s=summary,
-        campaign_yaml=json.dumps({k: v for k, v in campaign.items() if k != "name"}, indent=2, sort_keys=True),
-        versions=_versions(),
-        command=command,
+        figures=figures,
+        notes=notes,
+        prov=_provenance(summary, campaign, command, files or []),
         css=(TEMPLATES / "style.css").read_text(),
     )
 
@@ -52,11 +156,12 @@ def render_campaign(summary: dict, campaign: dict, command: str, files: list[str
 def render_index(summaries: list[dict]) -> str:
     """``reports/index.html``: every campaign's headline numbers beside the thesis's."""
     template = environment().get_template("index.html.j2")
-    return template.render(summaries=summaries, versions=_versions(), css=(TEMPLATES / "style.css").read_text())
+    return template.render(summaries=summaries, versions=_versions(), machine=_machine(),
+                           css=(TEMPLATES / "style.css").read_text())
 
 
 def write_pdf(html: str, base_url: str | Path) -> bytes:
-    """The PDF rendering of ``html`` (WeasyPrint)."""
+    """The PDF rendering of ``html`` (WeasyPrint, print media of the same stylesheet)."""
     import logging
 
     import weasyprint
