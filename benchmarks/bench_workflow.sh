@@ -11,10 +11,10 @@ trap 'rm -rf "$work"' EXIT
 cp -r "$root/Snakefile" "$root/workflow" "$root/config" "$work/"
 cd "$work"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores; --cores $cores"
-t() { local s; s=$(date +%s.%N); "$@" > /dev/null 2>&1; echo "$(date +%s.%N) - $s" | bc; }
+t() { local s; s=$(date +%s.%N); "$@" > /dev/null 2>&1; python3 -c "print(round($(date +%s.%N) - $s, 1))"; }
 echo "cold run of the default campaigns: $(t "$snakemake" --cores "$cores") s"
 echo "no-op rerun: $(t "$snakemake" --cores "$cores") s"
 sed -i 's/^  cycles: 30 .*/  cycles: 20/' config/campaigns/xytheta-thesis.yaml
-jobs=$("$snakemake" -n --quiet rules --cores "$cores" 2>&1 | awk '/^[a-z_]+ +[0-9]+$/ {printf "%s=%s ", $1, $2}')
+jobs=$("$snakemake" -n --quiet rules --cores "$cores" 2>&1 | awk '/^[a-z_]+ +[0-9]+$/ && !seen[$1]++ {printf "%s=%s ", $1, $2}')
 echo "validation-only change of xytheta-thesis would run: $jobs"
 echo "rerun after it: $(t "$snakemake" --cores "$cores") s"
