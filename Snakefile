@@ -11,6 +11,7 @@ include: "workflow/rules/characterise.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/validate.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/montecarlo.smk"
 
 
 rule all:
@@ -18,3 +19,4 @@ rule all:
         "reports/index.html",
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
+        expand("reports/studies/{study}.html", study=STUDIES),

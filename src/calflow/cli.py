@@ -208,6 +208,10 @@ def parser() -> argparse.ArgumentParser:
     k = _sub(sub, "check-config", cmd_check_config, "validate config/config.yaml and its campaign files")
     k.add_argument("config", nargs="?", default="config/config.yaml")
     k.add_argument("--campaign-dir")
+
+    from calflow.commands.montecarlo import add_parsers as add_montecarlo_parsers
+
+    add_montecarlo_parsers(sub)
     return p
 
 

@@ -12,6 +12,7 @@ from calflow.config import (
 )
 from calflow.provenance import code_digest
 from calflow.errors import ConfigError
+from calflow.montecarlo import load_study
 
 # Rules call the `calflow` installed beside the Python that runs Snakemake.
 shell.prefix(
@@ -24,6 +25,11 @@ try:
     CAMPAIGNS = [check_campaign_name(name) for name in config["campaigns"]]
     CAMPAIGN = {
         name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml") for name in CAMPAIGNS
+    }
+    STUDIES = [check_campaign_name(name) for name in config["studies"]]
+    STUDY = {
+        name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)
+        for name in STUDIES
     }
 except ConfigError as exc:
     sys.stderr.write(f"calflow: error: {exc}\n")

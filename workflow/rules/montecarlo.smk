@@ -1,0 +1,76 @@
+# Monte-Carlo studies (issue 8): many simulated XYΘ campaigns over seeds × sensor noise ×
+# identification poses (config/studies/<name>.yaml), one job per point or per batch of
+# seeds (key seeds_per_job), then the aggregate and the study's page.
+# Needs from common.smk: STUDIES (names) and STUDY (name -> calflow.montecarlo.load_study()).
+from calflow import montecarlo as mc
+
+
+wildcard_constraints:
+    study="[A-Za-z0-9][A-Za-z0-9_-]*",
+    seeds=r"\d+(-\d+)?",
+    noise=r"[0-9][0-9.e+-]*",
+    poses=r"\d+",
+
+
+rule mc_point:
+    output:
+        point="results/studies/{study}/points/{seeds}_{noise}_{poses}.json",
+    log:
+        "results/studies/{study}/logs/point_{seeds}_{noise}_{poses}.log",
+    benchmark:
+        "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        study=lambda w: STUDY[w.study]["file"],
+        campaign_dir=CAMPAIGN_DIR,
+        digest=lambda w: mc.point_digest(STUDY[w.study]),
+    shell:
+        "calflow mc-point --study {params.study} --campaign-dir {params.campaign_dir} --seed {wildcards.seeds}"
+        " --noise {wildcards.noise} --poses {wildcards.poses} --out {output.point} > {log} 2>&1"
+
+
+rule mc_aggregate:
+    input:
+        points=lambda w: mc.point_files(STUDY[w.study]),
+    output:
+        aggregate="results/studies/{study}/aggregate.json",
+    log:
+        "results/studies/{study}/logs/aggregate.log",
+    benchmark:
+        "results/studies/{study}/benchmarks/aggregate.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=2000,
+    params:
+        study=lambda w: STUDY[w.study]["file"],
+        campaign_dir=CAMPAIGN_DIR,
+        digest=lambda w: mc.study_digest(STUDY[w.study]),
+    shell:
+        "calflow mc-aggregate --study {params.study} --campaign-dir {params.campaign_dir}"
+        " --points {input.points} --out {output.aggregate} > {log} 2>&1"
+
+
+rule mc_report:
+    input:
+        aggregate="results/studies/{study}/aggregate.json",
+    output:
+        html="reports/studies/{study}.html",
+    log:
+        "results/studies/{study}/logs/report.log",
+    benchmark:
+        "results/studies/{study}/benchmarks/report.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=2000,
+    params:
+        study=lambda w: STUDY[w.study]["file"],
+        campaign_dir=CAMPAIGN_DIR,
+        digest=lambda w: mc.study_digest(STUDY[w.study]),
+    shell:
+        "calflow mc-report --study {params.study} --campaign-dir {params.campaign_dir}"
+        " --aggregate {input.aggregate} --out {output.html} > {log} 2>&1"
