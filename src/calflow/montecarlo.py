@@ -129,7 +129,11 @@ def point_digest(study: dict) -> str:
     from calflow.config import digest
 
     b = study["base"]
-    return digest([code_digest("point"), b["seed"], b["start"], b["rig"], b["identification"], b["validation"],
+    v = b["validation"]
+    used = {"targets": v.get("targets"), "dwell_s": v["dwell_s"]}  # the validation keys a point reads
+    if not study.get("validation_cycles"):
+        used["cycles"] = v["cycles"]
+    return digest([code_digest("point"), b["seed"], b["start"], b["rig"], b["identification"], used,
                    b["models"][study["model"]], {k: study[k] for k in ("model", "validation_cycles", "rig_options")}])
 
 
