@@ -30,6 +30,7 @@ rule acquire_xy_test:
         ),
     output:
         run="results/{campaign}/runs/{test}_{comp}.nc",
+        truth="results/{campaign}/truth/{test}_{comp}.json",
     log:
         "results/{campaign}/logs/acquire_{test}_{comp}.log",
     benchmark:
@@ -46,7 +47,8 @@ rule acquire_xy_test:
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan {wildcards.test}"
-        " --compensation {wildcards.comp} {params.luts} --out {output.run} > {log} 2>&1"
+        " --compensation {wildcards.comp} {params.luts} --out {output.run}"
+        " --truth {output.truth} > {log} 2>&1"
 
 
 rule acquire_angle_residuals:
@@ -54,6 +56,7 @@ rule acquire_angle_residuals:
         model="results/{campaign}/models/{model}.nc",
     output:
         run="results/{campaign}/runs/angle_residuals_{model}.nc",
+        truth="results/{campaign}/truth/angle_residuals_{model}.json",
     log:
         "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
     benchmark:
@@ -72,4 +75,4 @@ rule acquire_angle_residuals:
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan angle_residuals"
-        " --model {input.model} --out {output.run} > {log} 2>&1"
+        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -64,5 +64,7 @@ rule index:
         "results/benchmarks/index.tsv"
     conda:
         "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
     shell:
         "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"

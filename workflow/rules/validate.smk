@@ -6,6 +6,7 @@ rule acquire_validation_model:
         model="results/{campaign}/models/{model}.nc",
     output:
         run="results/{campaign}/runs/validation_{model}.nc",
+        truth="results/{campaign}/truth/validation_{model}.json",
     log:
         "results/{campaign}/logs/acquire_validation_{model}.log",
     benchmark:
@@ -24,7 +25,7 @@ rule acquire_validation_model:
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
-        " --model {input.model} --out {output.run} > {log} 2>&1"
+        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
 rule acquire_validation_tests:
@@ -36,6 +37,7 @@ rule acquire_validation_tests:
         ),
     output:
         run="results/{campaign}/runs/validation.nc",
+        truth="results/{campaign}/truth/validation.json",
     log:
         "results/{campaign}/logs/acquire_validation.log",
     benchmark:
@@ -52,7 +54,7 @@ rule acquire_validation_tests:
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
-        " {params.models} --out {output.run} > {log} 2>&1"
+        " {params.models} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
 rule metrics:
