@@ -317,3 +317,24 @@ def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     for name in ("meas_x", "meas_y"):
         diff = np.abs(ds[name].values - sim[name].values)
         assert np.nanmax(diff) < 10 * NOISE_UM, (name, done, np.nanargmax(diff), np.nanmax(diff))
+
+
+def test_two_rigs_on_one_controller_take_turns(emulated):
+    """A second acquisition on the same controller waits until the first rig is closed."""
+    import threading
+
+    emu, options = emulated
+    first = gcs(**options)
+    opened = threading.Event()
+
+    def second():
+        rig = gcs(**options)
+        opened.set()
+        rig.close()
+
+    t = threading.Thread(target=second)
+    t.start()
+    assert not opened.wait(0.5), "the second rig opened while the first held the controller"
+    first.close()
+    assert opened.wait(10)
+    t.join(10)

@@ -13,6 +13,7 @@ rule acquire:
         "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+        rig=rig_slots,
     params:
         campaign=campaign_file,
         digest=lambda w: digest(
@@ -39,6 +40,7 @@ rule acquire_xy_test:
         "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+        rig=rig_slots,
     params:
         campaign=campaign_file,
         luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
@@ -65,6 +67,7 @@ rule acquire_angle_residuals:
         "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+        rig=rig_slots,
     params:
         campaign=campaign_file,
         digest=lambda w: digest(

@@ -165,3 +165,11 @@ def report_files(name):
     if CAMPAIGN[name]["robot"] == "xytheta":
         files = files + [f"results/{name}/runs/identification.nc"]
     return files
+
+
+def rig_slots(wildcards):
+    """One unit of the global `rig` resource when the campaign acquires from a real rig.
+
+    A physical rig moves one plan at a time; simulators are independent per run.
+    """
+    return 0 if CAMPAIGN[wildcards.campaign]["rig"]["factory"] == "simulated" else 1

@@ -15,6 +15,7 @@ rule acquire_validation_model:
         "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
+        rig=rig_slots,
     params:
         campaign=campaign_file,
         digest=lambda w: digest(
@@ -46,6 +47,7 @@ rule acquire_validation_tests:
         "../envs/calflow.yaml"
     resources:
         mem_mb=2000,
+        rig=rig_slots,
     params:
         campaign=campaign_file,
         models=lambda w, input: " ".join(f"--model {m}" for m in input.models),

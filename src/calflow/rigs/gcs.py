@@ -26,6 +26,7 @@ import logging
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, TypeVar
 
 from calflow.errors import RigError
@@ -67,6 +68,35 @@ def _connection(spec: Mapping[str, Any], timeout: float) -> tuple[tuple, str, Ca
     baud = int(spec.get("baudrate") or DEFAULT_BAUD)
     return (("serial", str(serial), baud), f"serial:{serial}",
             lambda: GCSController.connect_serial(str(serial), baud, timeout))
+
+
+def _lock_controllers(names: list[str]) -> list:
+    """Hold an exclusive lock per controller while a rig drives it.
+
+    A stage moves one plan at a time: two acquisitions on the same controllers (e.g.
+    two validation jobs that Snakemake runs in parallel) must take turns, whatever the
+    executor. The locks are files in the temporary directory, taken in sorted order (no
+    deadlock), blocking until free, released on ``close`` or when the process dies.
+    """
+    import fcntl
+    import hashlib
+    import tempfile
+
+    held = []
+    for name in names:
+        path = Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
+        f = open(path, "a+")
+        fcntl.flock(f, fcntl.LOCK_EX)
+        held.append(f)
+    return held
+
+
+def _unlock(locks: list) -> None:
+    import fcntl
+
+    for f in locks:
+        fcntl.flock(f, fcntl.LOCK_UN)
+        f.close()
 
 
 class GCSRig:
@@ -147,6 +177,7 @@ class GCSRig:
             self.sensor.close()
         for link in self.links:
             link.ctl.close()
+        _unlock(getattr(self, "_locks", []))
 
     # ------------------------------------------------------------------ resilience
     def _run(self, link: Link, what: str, op: Callable[[bool], T]) -> T:
@@ -247,6 +278,7 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
         groups.setdefault(key, (name, opener, {}))[2][str(joint)] = str(spec["axis"])
     rc = dict(reconnect or {})
     sensor_obj = load_sensor(sensor)
+    locks = _lock_controllers(sorted(name for name, _, _ in groups.values()))
     links: list[Link] = []
     try:
         for name, opener, joints in groups.values():
@@ -260,11 +292,14 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
     except BaseException:
         for link in links:
             link.ctl.close()
+        _unlock(locks)
         raise
-    return GCSRig(links, sensor_obj, scale=scale or {}, tries=rc.get("tries", 5),
-                  backoff_s=float(rc.get("backoff_s", 0.2)),
-                  max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
-                  move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
+    rig = GCSRig(links, sensor_obj, scale=scale or {}, tries=rc.get("tries", 5),
+                 backoff_s=float(rc.get("backoff_s", 0.2)),
+                 max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
+                 move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
+    rig._locks = locks
+    return rig
 
 
 def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str, float],
