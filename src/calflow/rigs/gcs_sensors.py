@@ -25,7 +25,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.kinematics.xytheta import forward, pattern_from_world
+from calflow.kinematics.xytheta import forward
 from calflow.rigs.xytheta import XYThetaTruth
 
 BUILTIN_SENSORS = {"simulated_vision": "calflow.rigs.gcs_sensors:simulated_vision"}
@@ -60,15 +60,8 @@ class SimulatedVision:
         x_P, y_P = forward(X, Y, theta, t.parameters, f_ax=f_ax, f_ay=f_ay)
         jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
         temperature = float(t.room_temperature(time_s))
-        x_m, y_m = pattern_from_world(float(x_P) + jitter[0], float(y_P) + jitter[1], theta,
-                                      t.camera_x_um, t.camera_y_um)
-        drift = (temperature - t.room_temperature_degC) * np.asarray(t.drift_um_per_degC)
         noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
-        res = t.sensor_resolution_um
-        x_m = np.round((x_m + drift[0] + noise[0]) / res) * res
-        y_m = np.round((y_m + drift[1] + noise[1]) / res) * res
-        if not (0 <= x_m <= t.pattern_range_um[0] and 0 <= y_m <= t.pattern_range_um[1]):
-            x_m = y_m = float("nan")  # the camera sees no pattern
+        x_m, y_m = t.vision(float(x_P) + jitter[0], float(y_P) + jitter[1], theta, temperature, noise)
         return {
             "meas_x": float(x_m),
             "meas_y": float(y_m),

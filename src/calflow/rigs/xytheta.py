@@ -120,6 +120,22 @@ class XYThetaTruth:
                 break
         return X, Y
 
+    def vision(self, x_P, y_P, theta, temperature_degC, noise_um):
+        """The vision reading (x_m, y_m) of the camera point in the pattern frame, µm.
+
+        Eq. (4.26) for the tool point (x_P, y_P) at angle Θ, plus the thermal drift of
+        Table 3.3, the given noise (two draws), the sensor's resolution; NaN when the
+        camera sees no pattern (outside its measuring range).
+        """
+        x_m, y_m = pattern_from_world(x_P, y_P, theta, self.camera_x_um, self.camera_y_um)
+        drift = (temperature_degC - self.room_temperature_degC) * np.asarray(self.drift_um_per_degC)
+        res = self.sensor_resolution_um
+        x_m = float(np.round((x_m + drift[0] + noise_um[0]) / res) * res)
+        y_m = float(np.round((y_m + drift[1] + noise_um[1]) / res) * res)
+        if not (0 <= x_m <= self.pattern_range_um[0] and 0 <= y_m <= self.pattern_range_um[1]):
+            return float("nan"), float("nan")  # the camera sees no pattern: no decodable reading
+        return x_m, y_m
+
     def room_temperature(self, t_s):
         """Room temperature (degC) at virtual time ``t_s``: a daily swing."""
         return self.room_temperature_degC + self.room_swing_degC * np.sin(2 * np.pi * np.asarray(t_s) / 86400.0)
@@ -172,14 +188,8 @@ class SimulatedXYTheta:
     def read(self) -> dict[str, float]:
         t = self.truth_model
         temperature = float(t.room_temperature(self._time))
-        x_m, y_m = pattern_from_world(self._pose[0], self._pose[1], self._pose[2], t.camera_x_um, t.camera_y_um)
-        drift = (temperature - t.room_temperature_degC) * np.asarray(t.drift_um_per_degC)
         noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
-        res = t.sensor_resolution_um
-        x_m = np.round((x_m + drift[0] + noise[0]) / res) * res
-        y_m = np.round((y_m + drift[1] + noise[1]) / res) * res
-        if not (0 <= x_m <= t.pattern_range_um[0] and 0 <= y_m <= t.pattern_range_um[1]):
-            x_m = y_m = float("nan")  # the camera sees no pattern: no decodable reading
+        x_m, y_m = t.vision(self._pose[0], self._pose[1], self._pose[2], temperature, noise)
         theta_m = self._pose[2] + self._rng.normal(0.0, t.sensor_theta_noise_deg)
         return {
             "time": self._time,
