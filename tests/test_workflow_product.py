@@ -3,10 +3,6 @@
 import json
 import shutil
 import subprocess
-import sys
-from pathlib import Path
-
-import pytest
 
 from conftest import BIN, ROOT, SMALL_XYTHETA, make_workdir, snakemake
 

@@ -32,7 +32,7 @@ from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.gcs.axis import AxisConfig
-from calflow.gcs.emulator import LOCALHOST, EmulatedController, Faults, GCSEmulator
+from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
 from calflow.rigs.gcs_sensors import truth_from_options
 from calflow.rigs.xytheta import XYThetaTruth
 

@@ -29,7 +29,7 @@ from typing import Iterator, Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.rigs.nano_options import _COMMON, _DAY, _NON_NEGATIVE, _POSITIVE, _Walk, _coerce  # noqa: F401
+from calflow.rigs.nano_options import _COMMON, _NON_NEGATIVE, _POSITIVE, _Walk, _coerce
 from calflow.rigs.thermal import LagBank, room_profile
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]

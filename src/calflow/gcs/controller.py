@@ -1,0 +1,184 @@
+"""The emulated controller behind :class:`calflow.gcs.emulator.GCSEmulator`: GCS 2.0
+command semantics (PI MS249E §8), the error register (ERR? returns and clears the last
+error, §8.7) and the simulated axes (:mod:`calflow.gcs.axis`)."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from calflow.gcs.axis import SimAxis, axis_configs
+from calflow.gcs.protocol import NOT_READY, READY, parse_bool, split_command
+
+TruePosition = Callable[[str, float], float]
+
+
+class _Err(Exception):
+    """A GCS error code raised inside a handler; stored in the error register."""
+
+
+class EmulatedController:
+    """Controller state and GCS command semantics, independent of the transport."""
+
+    HELP = ["*IDN?", "CSV?", "SAI? [ALL]", "HLP?", "ERR?", "SVO {<AxisID> <State>}", "SVO?",
+            "FRF [{<AxisID>}]", "FNL [{<AxisID>}]", "FPL [{<AxisID>}]", "FRF?",
+            "VEL {<AxisID> <Velocity>}", "VEL?", "MOV {<AxisID> <Position>}", "MOV?", "POS?",
+            "ONT?", "TMN?", "TMX?", "STP", "#5", "#7", "#24"]
+
+    def __init__(self, axes: Any = None, *, time_scale: float = 1.0,
+                 true_position: TruePosition | None = None,
+                 idn: str = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0") -> None:
+        if not time_scale > 0:
+            raise ValueError("time_scale must be > 0")
+        self.axes = {n: SimAxis(n, c) for n, c in axis_configs(axes).items()}
+        self.time_scale, self.true_position, self.idn = float(time_scale), true_position, idn
+        self.error = 0
+        self.lock = threading.RLock()
+        self._t0 = time.monotonic()
+
+    def now(self) -> float:
+        """Simulation time: wall-clock seconds since start times ``time_scale``."""
+        return (time.monotonic() - self._t0) * self.time_scale
+
+    # ------------------------------------------------------------------ dispatch
+    def handle(self, line: str) -> list[str] | None:
+        """Execute one command line; return reply lines, or None if nothing is sent."""
+        name, args = split_command(line)
+        with self.lock:
+            now = self.now()
+            try:
+                reply = self._axis_query(name, args, now)
+                if reply is not None:
+                    return reply
+                handler = getattr(self, "_q_" + name[:-1].lstrip("*")
+                                  if name.endswith("?") else "_c_" + name.replace("#", "h"),
+                                  None)
+                if handler is None:
+                    raise _Err(2)
+                return handler(args, now)
+            except _Err as exc:
+                self.error = exc.args[0]
+                return None
+
+    def _select(self, args: list[str]) -> list[SimAxis]:
+        for a in args:
+            if a not in self.axes:
+                raise _Err(15)
+        return [self.axes[a] for a in args] if args else list(self.axes.values())
+
+    def _pairs(self, args: list[str], conv: Callable[[str], Any]) -> list[tuple[SimAxis, Any]]:
+        if not args or len(args) % 2:
+            raise _Err(1)
+        out = []
+        for axis, raw in zip(args[0::2], args[1::2]):
+            if axis not in self.axes:
+                raise _Err(15)
+            try:
+                value = conv(raw)
+            except ValueError:
+                raise _Err(1) from None
+            if isinstance(value, float) and not math.isfinite(value):
+                raise _Err(1)
+            out.append((self.axes[axis], value))
+        return out
+
+    @staticmethod
+    def _answer(axes: Iterable[SimAxis], fn: Callable[[SimAxis], object]) -> list[str]:
+        def fmt(v: object) -> str:
+            return str(int(v)) if isinstance(v, bool) else f"{v:.6f}" if isinstance(v, float) \
+                else str(v)
+        return [f"{ax.name}={fmt(fn(ax))}" for ax in axes]
+
+    # ------------------------------------------------------------------ queries
+    def _q_IDN(self, args: list[str], now: float) -> list[str]:
+        return [self.idn]
+
+    def _q_CSV(self, args: list[str], now: float) -> list[str]:
+        return ["2.0"]  # GCS syntax version (MS249E §8, CSV?)
+
+    def _q_SAI(self, args: list[str], now: float) -> list[str]:
+        if args and args != ["ALL"]:
+            raise _Err(1)
+        return list(self.axes)
+
+    def _q_HLP(self, args: list[str], now: float) -> list[str]:
+        return ["The following commands are available:", *self.HELP]
+
+    def _q_ERR(self, args: list[str], now: float) -> list[str]:
+        code, self.error = self.error, 0
+        return [str(code)]
+
+    def _axis_query(self, name: str, args: list[str], now: float) -> list[str] | None:
+        """Per-axis queries answering ``axis=value`` (MS249E §8: SVO?, FRF?, POS?, ...)."""
+        hook = self.true_position or (lambda axis, commanded: commanded)
+        getters: dict[str, Callable[[SimAxis], object]] = {
+            "SVO?": lambda ax: ax.servo,
+            "FRF?": lambda ax: (ax.update(now), ax.referenced)[1],
+            "VEL?": lambda ax: ax.velocity,
+            "MOV?": lambda ax: ax.target(),
+            "POS?": lambda ax: float(hook(ax.name, ax.position(now))),
+            "ONT?": lambda ax: ax.on_target(now),
+            "TMN?": lambda ax: float(ax.config.tmn),
+            "TMX?": lambda ax: float(ax.config.tmx),
+        }
+        if name not in getters:
+            return None
+        return self._answer(self._select(args), getters[name])
+
+    def _c_h5(self, args: list[str], now: float) -> list[str]:
+        mask = sum(1 << i for i, ax in enumerate(self.axes.values()) if ax.moving(now))
+        return [f"{mask:X}"]
+
+    def _c_h7(self, args: list[str], now: float) -> list[str]:
+        busy = any(ax.referencing(now) for ax in self.axes.values())
+        return [NOT_READY if busy else READY]
+
+    # ------------------------------------------------------------------ commands
+    def _c_SVO(self, args: list[str], now: float) -> None:
+        pairs = self._pairs(args, parse_bool)
+        for ax, on in pairs:
+            if not on and ax.moving(now):
+                ax.stop(now)
+            ax.servo = on
+
+    def _c_FRF(self, args: list[str], now: float, where: str = "ref") -> None:
+        """FRF: to the reference switch; FNL/FPL: to the negative/positive limit."""
+        axes = self._select(args)
+        if any(not ax.servo for ax in axes):
+            raise _Err(5)
+        for ax in axes:
+            ax.reference(now, {"ref": None, "neg": ax.config.tmn, "pos": ax.config.tmx}[where])
+
+    def _c_FNL(self, args: list[str], now: float) -> None:
+        self._c_FRF(args, now, "neg")
+
+    def _c_FPL(self, args: list[str], now: float) -> None:
+        self._c_FRF(args, now, "pos")
+
+    def _c_VEL(self, args: list[str], now: float) -> None:
+        pairs = self._pairs(args, float)
+        if any(not 0 < v <= ax.config.max_velocity for ax, v in pairs):
+            raise _Err(8)
+        for ax, v in pairs:
+            ax.velocity = v
+
+    def _c_MOV(self, args: list[str], now: float) -> None:
+        pairs = self._pairs(args, float)
+        if any(not ax.servo or not ax.referenced or ax.referencing(now) for ax, _ in pairs):
+            raise _Err(5)
+        if any(not ax.within_limits(v) for ax, v in pairs):
+            raise _Err(7)
+        for ax, v in pairs:
+            ax.move(v, now)
+
+    def _c_STP(self, args: list[str], now: float) -> None:
+        if args:
+            raise _Err(1)
+        for ax in self.axes.values():
+            ax.stop(now)
+        self.error = 10  # MS249E: #24 and STP set error 10, PI_CNTR_STOP
+
+    _c_h24 = _c_STP
