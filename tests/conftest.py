@@ -12,6 +12,16 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def _xy_noise_um() -> float:
+    from calflow.rigs.xytheta import XYThetaTruth
+
+    t = XYThetaTruth()
+    return float((t.sensor_noise_um ** 2 + t.stage_repeatability_um ** 2) ** 0.5)
+
+
+XY_NOISE_UM = _xy_noise_um()  # one reading's noise on the default simulated XYΘ rig (sensor, stage), µm
 BIN = Path(sys.executable).parent
 
 SMALL_XYTHETA = {

@@ -26,10 +26,9 @@ from calflow.plans import sweeps
 from calflow.plans.xytheta import validation
 from calflow.rigs.xytheta import simulated_xytheta
 
+from conftest import XY_NOISE_UM
 
-# one reading's noise on the default simulated rig (sensor and stage repeatability), µm
-_T = __import__('calflow.rigs.xytheta', fromlist=['XYThetaTruth']).XYThetaTruth()
-NOISE_UM = float(np.hypot(_T.sensor_noise_um, _T.stage_repeatability_um))
+
 
 
 def meta(plan):
@@ -147,7 +146,7 @@ def test_compensation_on_the_rig_random_points(lut_ds):
           "RP:", {k: round(v.attrs["repeatability_um"], 3) for k, v in res.items()})
     assert ap["none"] > 20
     for m in ("linear", "cubic"):
-        assert ap[m] < 0.05 * ap["none"] and ap[m] < 8 * NOISE_UM
+        assert ap[m] < 0.05 * ap["none"] and ap[m] < 8 * XY_NOISE_UM
     assert ap["linear"] < ap["one-shot"] < 0.2 * ap["none"]
 
 
@@ -159,7 +158,7 @@ def test_compensation_on_the_rig_square(lut_ds):
     cmd = run_xy(plan_fn, lut.compensate, 41).attrs["accuracy_um"]
     tgt = run_xy(plan_fn, lut.compensate, 41, directions="target").attrs["accuracy_um"]
     print(f"square AP (um): none {none:.3f}, LUT command-directions {cmd:.3f}, LUT target-directions {tgt:.3f}")
-    assert none > 20 and cmd < 0.03 * none and cmd < 8 * NOISE_UM
+    assert none > 20 and cmd < 0.03 * none and cmd < 8 * XY_NOISE_UM
     assert tgt < 0.1 * none and cmd < tgt  # Fig. 4.10 guesses X's direction wrong on BC/DA
 
 

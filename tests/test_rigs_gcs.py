@@ -34,10 +34,7 @@ from calflow.plans import Plan
 from calflow.plans import xytheta as plans
 from calflow.rigs.gcs import gcs
 from calflow.rigs.xytheta import simulated_xytheta
-from conftest import ROOT, SMALL_XYTHETA
-
-_T = __import__("calflow.rigs.xytheta", fromlist=["XYThetaTruth"]).XYThetaTruth()
-NOISE_UM = float(np.hypot(_T.sensor_noise_um, _T.stage_repeatability_um))  # one reading's noise, µm
+from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
 
 META = RunMetadata(campaign="gcs-test", robot="xytheta", source="gcs", plan="identification",
                    config_sha256="0" * 64)
@@ -96,8 +93,8 @@ def test_identification_through_the_emulator_agrees_with_the_simulated_rig(emula
     for name in ("meas_x", "meas_y"):
         a, b = ds[name].values, sim[name].values
         assert np.array_equal(np.isnan(a), np.isnan(b))
-        assert np.nanmedian(np.abs(a - b)) < 1.5 * NOISE_UM, name
-        assert np.nanmax(np.abs(a - b)) < 10 * NOISE_UM, name
+        assert np.nanmedian(np.abs(a - b)) < 1.5 * XY_NOISE_UM, name
+        assert np.nanmax(np.abs(a - b)) < 10 * XY_NOISE_UM, name
     assert np.max(np.abs(ds["meas_theta"].values - sim["meas_theta"].values)) < 0.01
     r_gcs, r_sim = _identify(ds), _identify(sim)
     assert r_gcs.success and r_sim.success
@@ -316,7 +313,7 @@ def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     sim = acquire(plan, simulated_xytheta(seed=7, stream="identification"), META)
     for name in ("meas_x", "meas_y"):
         diff = np.abs(ds[name].values - sim[name].values)
-        assert np.nanmax(diff) < 10 * NOISE_UM, (name, done, np.nanargmax(diff), np.nanmax(diff))
+        assert np.nanmax(diff) < 10 * XY_NOISE_UM, (name, done, np.nanargmax(diff), np.nanmax(diff))
 
 
 def test_two_rigs_on_one_controller_take_turns(emulated):

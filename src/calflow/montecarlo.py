@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calflow.data.io import jsonable
 from calflow.errors import ConfigError
 
 #: Parameters of Eq. (4.18): (model name, summary key, units).
@@ -253,24 +254,11 @@ def run_point(base_campaign: dict, seed: int, noise_um: float, poses: int, model
         val_run, _ = simulate_run(c, vplan, f"validation_{model}", rig_seed, noise_um, model)
         accuracy = validation_accuracy(val_run, c)  # the run dataset only
 
-    return _clean({
+    return jsonable({
         "campaign": c["name"], "model": model, "seed": int(seed), "noise_um": float(noise_um), "poses": int(poses),
         "rig_seed": rig_seed, "failed": diag.pop("failed", None), "diagnostics": diag, **accuracy,
         "parameters": score(identified, truth),
     })
-
-
-def _clean(obj):
-    """NaN/inf become None (strict JSON); numpy scalars become Python numbers."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
 
 
 # ---------------------------------------------------------------------------- aggregation

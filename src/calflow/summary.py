@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from calflow import __version__, reference
+from calflow.data.io import jsonable
 from calflow.kinematics.xytheta import PARAMETER_NAMES, PARAMETER_UNITS
 
 _SUFFIX = {"um": "um", "degree": "deg"}
@@ -24,17 +24,6 @@ _SUFFIX = {"um": "um", "degree": "deg"}
 def parameter_key(name: str) -> str:
     """Summary key of a parameter: its name and unit, e.g. ``x_R_um``, ``alpha_deg``."""
     return f"{name}_{_SUFFIX[PARAMETER_UNITS[name]]}"
-
-
-def _clean(value):
-    """A JSON-ready scalar: numpy numbers become Python numbers, NaN becomes None."""
-    if value is None:
-        return None
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return None if math.isnan(value) else float(value)
-    return value
 
 
 def sha256_file(path: str | Path) -> str:
@@ -54,13 +43,13 @@ def _model_entry(model: xr.Dataset, m: xr.Dataset) -> dict:
         "position_table": bool(model.attrs.get("position_table", 0)),
         "angle_table": bool(model.attrs.get("angle_table", 0)),
         "parameters": {
-            parameter_key(p): {"value": float(model[p].values), "std": _clean(float(model[p].attrs.get("std", np.nan)))}
+            parameter_key(p): {"value": float(model[p].values), "std": jsonable(float(model[p].attrs.get("std", np.nan)))}
             for p in PARAMETER_NAMES
         },
-        "correlation": [[_clean(v) for v in row] for row in corr],
-        "identifiability": {"r_diag": [_clean(v) for v in model["r_diag"].values] if "r_diag" in model else [],
+        "correlation": [[jsonable(v) for v in row] for row in corr],
+        "identifiability": {"r_diag": [jsonable(v) for v in model["r_diag"].values] if "r_diag" in model else [],
                             "not_identifiable": model.attrs.get("not_identifiable", "")},
-        "identification": {k: _clean(v) for k, v in model.attrs.items()
+        "identification": {k: jsonable(v) for k, v in model.attrs.items()
                            if k in ("residual_rms_um", "n_poses", "dof", "condition_number", "O1", "O2", "O3", "O4")},
         "per_target": [
             {"target": int(t), "x_um": float(m["target_x"].sel(target=t)), "y_um": float(m["target_y"].sel(target=t)),
@@ -72,14 +61,14 @@ def _model_entry(model: xr.Dataset, m: xr.Dataset) -> dict:
 
 
 def _characterisation(luts: xr.Dataset) -> dict:
-    out = {name: _clean(float(luts[name])) for name in ("x_stage_angle", "perpendicularity") if name in luts}
-    out["periods_um"] = {k[len("period_"):]: _clean(float(luts[k])) for k in luts.data_vars if k.startswith("period_")}
+    out = {name: jsonable(float(luts[name])) for name in ("x_stage_angle", "perpendicularity") if name in luts}
+    out["periods_um"] = {k[len("period_"):]: jsonable(float(luts[k])) for k in luts.data_vars if k.startswith("period_")}
     out["repeatability_um"] = {
-        k[len("rep_"):]: {"median": _clean(float(np.nanmedian(luts[k].values))), "max": _clean(float(np.nanmax(luts[k].values)))}
+        k[len("rep_"):]: {"median": jsonable(float(np.nanmedian(luts[k].values))), "max": jsonable(float(np.nanmax(luts[k].values)))}
         for k in luts.data_vars if k.startswith("rep_")
     }
     out["peak_to_valley_um"] = {
-        k[len("err_"):]: _clean(float(np.nanmax(luts[k].values) - np.nanmin(luts[k].values)))
+        k[len("err_"):]: jsonable(float(np.nanmax(luts[k].values) - np.nanmin(luts[k].values)))
         for k in luts.data_vars if k.startswith("err_")
     }
     return out
@@ -87,9 +76,9 @@ def _characterisation(luts: xr.Dataset) -> dict:
 
 def _xy_test(m: xr.Dataset) -> dict:
     return {
-        "accuracy_um": _clean(float(m.attrs["accuracy_um"])),
-        "repeatability_um": _clean(float(m.attrs["repeatability_um"])),
-        "per_target": [{"target": int(t), "ap_um": _clean(float(m["ap"].sel(target=t)))} for t in m["target"].values],
+        "accuracy_um": jsonable(float(m.attrs["accuracy_um"])),
+        "repeatability_um": jsonable(float(m.attrs["repeatability_um"])),
+        "per_target": [{"target": int(t), "ap_um": jsonable(float(m["ap"].sel(target=t)))} for t in m["target"].values],
     }
 
 
@@ -103,7 +92,7 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
     out = {"units": "um", "targets": len(r["targets_um"]), "cycles_forward": r["cycles_forward"],
            "cycles_backward": r["cycles_backward"]}
     for key in ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd", "R_bwd", "A", "A_fwd", "A_bwd"):
-        out[f"{key}_um"] = _clean(r[f"{key}_nm"] / 1000.0)
+        out[f"{key}_um"] = jsonable(r[f"{key}_nm"] / 1000.0)
     return out
 
 
@@ -147,7 +136,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     if obs is not None:
         summary["observability"] = {
             "poses": [int(v) for v in obs["poses"].values],
-            **{k: [_clean(v) for v in obs[k].values] for k in ("O1", "O2", "O3", "O4")},
+            **{k: [jsonable(v) for v in obs[k].values] for k in ("O1", "O2", "O3", "O4")},
             "O2_plateau_poses": int(obs.attrs["O2_plateau_poses"]),
         }
     if truth and truth.get("available", True):

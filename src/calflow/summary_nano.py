@@ -14,38 +14,16 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping
 
 import numpy as np
 import xarray as xr
 
 from calflow import __version__, reference
 from calflow.evaluation_nano import accuracy_vs_temperature, mode_names, robustness_by_mode
+from calflow.data.io import jsonable  # noqa: F401 (re-exported)
 from calflow.summary import sha256_file
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary"]
-
-
-def jsonable(value):
-    """``value`` as plain JSON types: numpy scalars and arrays become Python numbers and
-    lists, tuples become lists, non-finite floats become None, keys become strings."""
-    if value is None or isinstance(value, (bool, str)):
-        return value
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):  # 0-d arrays and the like
-        return jsonable(value.item())
-    return str(value)
 
 
 def _budget(budget):

@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Mapping
+
+import numpy as np
 
 import xarray as xr
 
@@ -61,6 +64,28 @@ def group_names(path: str | os.PathLike) -> list[str]:
 
     with netCDF4.Dataset(path) as nc:
         return list(nc.groups)
+
+
+def jsonable(value):
+    """``value`` as plain JSON types: numpy scalars and arrays become Python numbers and
+    lists, tuples become lists, non-finite floats become None, keys become strings."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # 0-d arrays and the like
+        return jsonable(value.item())
+    return str(value)
 
 
 def write_json(obj: Any, path: str | os.PathLike) -> Path:
