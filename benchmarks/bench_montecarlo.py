@@ -46,55 +46,18 @@ def machine() -> str:
             f"Python {platform.python_version()}, Snakemake {snake}, {platform.system()} {platform.release()}")
 
 
-def integrate(work: Path) -> None:
-    """Add the study's include, rule-all input and STUDIES/STUDY to the copy if the tree lacks them."""
-    snakefile = (work / "Snakefile").read_text()
-    if "montecarlo.smk" not in snakefile:
-        snakefile = snakefile.replace('include: "workflow/rules/report.smk"\n',
-                                      'include: "workflow/rules/report.smk"\ninclude: "workflow/rules/montecarlo.smk"\n')
-        (work / "Snakefile").write_text(snakefile)
-    common = (work / "workflow/rules/common.smk").read_text()
-    if "STUDIES" not in common:
-        from calflow.config import schema
-
-        pop = "config.pop('studies', [])" if "studies" not in schema("config")["properties"] else "None"
-        common = common.replace("try:\n", f"_STUDIES = {pop}\ntry:\n", 1)
-        common += ("\nfrom calflow.montecarlo import load_study\n"
-                   "STUDIES = [check_campaign_name(n) for n in (config['studies'] if _STUDIES is None else _STUDIES)]\n"
-                   "STUDY = {n: load_study(f\"{config.get('study_dir', 'config/studies')}/{n}.yaml\", CAMPAIGN_DIR)"
-                   " for n in STUDIES}\n")
-        (work / "workflow/rules/common.smk").write_text(common)
-
-
-def cli_shim(tmp: Path) -> dict:
-    """If cli.py does not register the mc-* subcommands yet, add them through sitecustomize."""
-    from calflow.cli import parser
-
-    if "mc-point" in parser()._subparsers._group_actions[0].choices:
-        return {}
-    shim = tmp / "shim"
-    shim.mkdir(exist_ok=True)
-    (shim / "sitecustomize.py").write_text(
-        "import calflow.cli as _cli\nfrom calflow.commands.montecarlo import add_parsers as _add\n"
-        "_parser = _cli.parser\n"
-        "def parser():\n    p = _parser()\n    _add(p._subparsers._group_actions[0])\n    return p\n"
-        "_cli.parser = parser\n")
-    return {"PYTHONPATH": os.pathsep.join(filter(None, [str(shim), os.environ.get("PYTHONPATH")]))}
-
-
 def run(study: str, cores: int, seeds_per_job: int | None, tmp: Path) -> tuple[float, int, float, float]:
     work = tmp / f"cores{cores}"
     work.mkdir()
     shutil.copy(ROOT / "Snakefile", work / "Snakefile")
     shutil.copytree(ROOT / "workflow", work / "workflow")
     shutil.copytree(ROOT / "config", work / "config")
-    integrate(work)
     if seeds_per_job:
         path = work / "config/studies" / f"{study}.yaml"
         body = yaml.safe_load(path.read_text())
         body["seeds_per_job"] = seeds_per_job
         path.write_text(yaml.safe_dump(body))
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", **cli_shim(tmp)}
+    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     cmd = [str(BIN / "snakemake"), "--cores", str(cores), "--config", f"studies=[{study}]", "--quiet", "all",
            "--", f"reports/studies/{study}.html"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -44,11 +44,11 @@ def stream_peak_memory(rate_hz: float) -> tuple[float, float, int]:
     """Acquire the 14 h training plan streamed at ``rate_hz``; wall time, peak RSS (MiB), samples."""
     code = f"""
 import resource, time
-from calflow.acquisition import acquire
+from calflow.acquisition.runner import acquire
 from calflow.config import load_campaign
 from calflow.commands.common import meta
-from calflow.plans import nano
-from calflow.rigs.nano import nano1d
+from calflow.nano import plans as nano
+from calflow.nano.rig import nano1d
 import numpy as np
 c = load_campaign({str(CAMPAIGN)!r})
 t = c["training"]

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from calflow.acquisition import acquire
-from calflow.characterisation import characterise, characterise_axis, dominant_period, stage_positions
+from calflow.acquisition.runner import acquire
+from calflow.xytheta.characterisation import characterise, characterise_axis, dominant_period, stage_positions
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import DataError
-from calflow.plans import sweeps
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta import sweeps
+from calflow.xytheta.rig import simulated_xytheta
 
 STOP, CYCLES = 2000.0, 2
 

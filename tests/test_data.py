@@ -6,14 +6,14 @@ import sys
 import numpy as np
 import pytest
 
-from calflow.acquisition import acquire
+from calflow.acquisition.runner import acquire
 from calflow.cli import main
 from calflow.data.io import atomic_path, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset, validate_file
 from calflow.errors import DataError
-from calflow.plans import xytheta as plans
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta import plans
+from calflow.xytheta.rig import simulated_xytheta
 
 
 @pytest.fixture

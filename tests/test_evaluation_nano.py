@@ -11,7 +11,7 @@ import xarray as xr
 
 from calflow import reference
 from calflow.errors import DataError
-from calflow.evaluation_nano import (
+from calflow.nano.evaluation import (
     accuracy_vs_temperature,
     iso230_2_of_run,
     pose_metrics_1d,
@@ -20,7 +20,7 @@ from calflow.evaluation_nano import (
     temperature_range,
 )
 from calflow.metrics import iso230_2
-from calflow.summary_nano import stage1d_summary, stage2d_summary
+from calflow.nano.summary import stage1d_summary, stage2d_summary
 
 MODES_1D = "no_calibration adaptive_kmz single"
 FWD = np.arange(0.0, 481.0, 80.0)

@@ -9,7 +9,7 @@ from conftest import SMALL_XYTHETA, make_workdir, snakemake
 
 
 def test_campaign_through_the_emulator_matches_the_simulated_rig(tmp_path):
-    from calflow.gcs.serve_campaign import emulated_rig_options
+    from calflow.xytheta.emulate import emulated_rig_options
 
     sim = json.loads(json.dumps(SMALL_XYTHETA))
     sim["models"] = {k: v for k, v in sim["models"].items() if k in ("I", "II")}

@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from calflow.identification import cost, diagnostics
-from calflow.identification.least_squares import identify
-from calflow.kinematics.xytheta import Parameters, forward
+from calflow.identification import diagnostics
+from calflow.xytheta import cost
+from calflow.xytheta.identification import identify
+from calflow.xytheta.kinematics import Parameters, forward
 
 TRUE = Parameters(9572.9, 7795.9, 177.69, -0.11)
 

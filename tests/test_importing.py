@@ -8,7 +8,7 @@ from calflow.data.io import open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import DataError
-from calflow.importing import check_mapping, import_csv, load_mapping
+from calflow.data.importing import check_mapping, import_csv, load_mapping
 
 META = RunMetadata(campaign="bench", robot="xytheta", source="replay", plan="identification",
                    config_sha256="0" * 64, start="2026-03-02T10:00:00+00:00")

@@ -8,13 +8,13 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.acquisition import acquire
-from calflow.characterisation import characterise, xy_positioning_metrics
+from calflow.acquisition.runner import acquire
+from calflow.xytheta.characterisation import characterise, xy_positioning_metrics
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
-from calflow.evaluation import xytheta_validation_metrics
-from calflow.kinematics.xytheta import Parameters, forward, inverse
-from calflow.lookup import (
+from calflow.xytheta.evaluation import xytheta_validation_metrics
+from calflow.xytheta.kinematics import Parameters, forward, inverse
+from calflow.xytheta.lookup import (
     AngleLUT,
     PositionLUT,
     angle_residuals_from_run,
@@ -22,9 +22,9 @@ from calflow.lookup import (
     joint_increments,
     sequential_commands,
 )
-from calflow.plans import sweeps
-from calflow.plans.xytheta import validation
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta import sweeps
+from calflow.xytheta.plans import validation
+from calflow.xytheta.rig import simulated_xytheta
 
 from conftest import XY_NOISE_UM
 

@@ -12,9 +12,9 @@ import yaml
 
 from calflow.config import schema, validate
 from calflow.errors import ConfigError
-from calflow.montecarlo import (aggregate, cell, grid, identify_run, jobs, load_study, parse_seeds, render_page,
+from calflow.xytheta.montecarlo import (aggregate, cell, grid, identify_run, jobs, load_study, parse_seeds, render_page,
                                 run_point, seed_batches, simulate_run)
-from calflow.rigs.xytheta import XYThetaTruth
+from calflow.xytheta.rig import XYThetaTruth
 from conftest import SMALL_XYTHETA, make_workdir, snakemake
 
 PARAMS = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
@@ -64,7 +64,7 @@ def test_run_point_on_tiny_settings():
 def test_identification_uses_the_run_dataset_only(tmp_path):
     """The analysis path gets a run dataset read back from disk: no simulator, no truth."""
     from calflow.data.io import open_dataset, write_dataset
-    from calflow.plans.xytheta import identification
+    from calflow.xytheta.plans import identification
 
     c = small_campaign()
     p = c["identification"]
@@ -200,14 +200,11 @@ def test_page_renders_figures_and_escapes(tmp_path):
 
 
 def test_commands_batch_of_seeds_and_errors(tmp_path):
-    import argparse
-
-    from calflow.commands.montecarlo import add_parsers
+    from calflow.cli import parser
     from calflow.errors import CalflowError
 
     study = _study_files(tmp_path, {**STUDY, "poses": [5]})
-    p = argparse.ArgumentParser()
-    add_parsers(p.add_subparsers(dest="command", required=True))
+    p = parser()
 
     def call(*argv):
         args = p.parse_args([argv[0], "--study", str(study), "--campaign-dir", str(tmp_path / "campaigns"), *argv[1:]])
@@ -235,60 +232,12 @@ def test_commands_batch_of_seeds_and_errors(tmp_path):
 # ---------------------------------------------------------------------------- workflow
 
 
-def _integrate(work):
-    """Patch the scratch copy with the lines the lead adds (Snakefile include and ``rule all``,
-    STUDIES/STUDY in common.smk), so the test does not wait for them."""
-    snakefile = (work / "Snakefile").read_text()
-    if "montecarlo.smk" not in snakefile:
-        snakefile = snakefile.replace('include: "workflow/rules/report.smk"\n',
-                                      'include: "workflow/rules/report.smk"\ninclude: "workflow/rules/montecarlo.smk"\n')
-        snakefile += '        expand("reports/studies/{study}.html", study=STUDIES),\n'
-        (work / "Snakefile").write_text(snakefile)
-    common = (work / "workflow/rules/common.smk").read_text()
-    if "STUDIES" not in common:
-        if "studies" not in schema("config")["properties"]:  # config.schema.yaml not updated yet
-            common = common.replace("try:\n", "_STUDIES = config.pop('studies', [])\ntry:\n", 1)
-        else:
-            common = common.replace("try:\n", "_STUDIES = None\ntry:\n", 1)
-        common += ("\nfrom calflow.montecarlo import load_study\n"
-                   "STUDIES = [check_campaign_name(n) for n in (config['studies'] if _STUDIES is None else _STUDIES)]\n"
-                   "STUDY = {n: load_study(f\"{config.get('study_dir', 'config/studies')}/{n}.yaml\", CAMPAIGN_DIR)"
-                   " for n in STUDIES}\n")
-        (work / "workflow/rules/common.smk").write_text(common)
-
-
-def _cli_shim(tmp_path) -> dict:
-    """Until cli.py registers mc-point/mc-aggregate/mc-report, add them in the jobs' Python."""
-    from calflow.cli import parser
-
-    if "mc-point" in parser()._subparsers._group_actions[0].choices:
-        return {}
-    shim = tmp_path / "shim"
-    shim.mkdir()
-    (shim / "sitecustomize.py").write_text(
-        "import calflow.cli as _cli\n"
-        "from calflow.commands.montecarlo import add_parsers as _add\n"
-        "_parser = _cli.parser\n"
-        "def parser():\n"
-        "    p = _parser()\n"
-        "    _add(p._subparsers._group_actions[0])\n"
-        "    return p\n"
-        "_cli.parser = parser\n")
-    return {"PYTHONPATH": f"{shim}:{__import__('os').environ.get('PYTHONPATH', '')}"}
-
-
 def test_study_through_snakemake(tmp_path):
-    from conftest import ROOT
-
     work = make_workdir(tmp_path, {"small": SMALL_XYTHETA})
-    _integrate(work)
     (work / "config/studies").mkdir()
     (work / "config/studies/mini.yaml").write_text(yaml.safe_dump(STUDY))
-    env = _cli_shim(tmp_path)
-    if env:
-        env["PYTHONPATH"] += f":{ROOT / 'tests'}"
     target = "reports/studies/mini.html"
-    proc = snakemake(work, "--config", "studies=[mini]", "--", target, env_extra=env)
+    proc = snakemake(work, "--config", "studies=[mini]", "--", target)
     assert proc.returncode == 0, proc.stderr[-3000:]
     agg = json.loads((work / "results/studies/mini/aggregate.json").read_text())
     assert agg["n_points"] == 8 and agg["missing"] == 0
@@ -300,11 +249,11 @@ def test_study_through_snakemake(tmp_path):
     assert (work / "results/studies/mini/logs/aggregate.log").exists()
     html = (work / target).read_text()
     assert html.count("<svg") == 4 and "mini" in html
-    proc = snakemake(work, "--config", "studies=[mini]", "-n", "--", target, env_extra=env)
+    proc = snakemake(work, "--config", "studies=[mini]", "-n", "--", target)
     assert proc.returncode == 0 and "Nothing to be done" in proc.stdout + proc.stderr, proc.stdout[-3000:]
     # more seeds: only the new points run, then the aggregate and the page
     (work / "config/studies/mini.yaml").write_text(yaml.safe_dump({**STUDY, "seeds": 3}))
-    proc = snakemake(work, "--config", "studies=[mini]", "-n", "--quiet", "rules", "--", target, env_extra=env)
+    proc = snakemake(work, "--config", "studies=[mini]", "-n", "--quiet", "rules", "--", target)
     assert proc.returncode == 0, proc.stderr[-2000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)\s*$", proc.stdout + proc.stderr, re.M))
     assert counts.get("mc_point") == "4" and counts.get("mc_aggregate") == "1" and counts.get("mc_report") == "1"

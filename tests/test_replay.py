@@ -5,16 +5,16 @@ import json
 import numpy as np
 import pytest
 
-from calflow.acquisition import acquire
+from calflow.acquisition.runner import acquire
 from calflow.data.io import open_dataset, write_dataset, write_json
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import RigError
-from calflow.kinematics.xytheta import Parameters, inverse
-from calflow.plans import xytheta as plans
+from calflow.xytheta.kinematics import Parameters, inverse
+from calflow.xytheta import plans
 from calflow.rigs.protocol import Rig
 from calflow.rigs.replay import replay
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta.rig import simulated_xytheta
 
 SEED = 3
 

@@ -117,10 +117,10 @@ def strict():
 @pytest.fixture(scope="module")
 def xytheta(tmp_path_factory, strict):
     from calflow.data.runs import RunMetadata
-    from calflow.kinematics.xytheta import Parameters
-    from calflow.lookup import AngleLUT
-    from calflow.lookup_pose import PoseAngleLUT
-    from calflow.models.micro import MicroModel
+    from calflow.xytheta.kinematics import Parameters
+    from calflow.xytheta.lookup import AngleLUT
+    from calflow.xytheta.pose_lookup import PoseAngleLUT
+    from calflow.xytheta.models import MicroModel
 
     root = tmp_path_factory.mktemp("xytheta")
     files = []

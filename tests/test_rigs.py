@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from calflow.acquisition import acquire
+from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
-from calflow.plans import xytheta as plans
+from calflow.xytheta import plans
 from calflow.rigs import load_rig
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta.rig import simulated_xytheta
 
 META = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64)
 
@@ -53,7 +53,7 @@ def test_reading_is_the_pattern_frame_view_of_the_tool_point():
                             lead_fwd_um=[0, 0], lead_bwd_um=[0, 0], coupling_um=[0, 0], backlash_um=0.0,
                             f_ax_cubic_um=0.0, f_ay_cubic_um=0.0, runout_um=0.0, room_swing_degC=0.0,
                             sensor_theta_noise_deg=0.0, tilt_coupling_um_per_deg=0.0)
-    from calflow.kinematics.xytheta import forward, world_from_pattern
+    from calflow.xytheta.kinematics import forward, world_from_pattern
     home = rig.read()
     rig.move({"x": 1500.0, "y": 700.0, "theta": 3.0})
     r = rig.read()

@@ -18,22 +18,22 @@ import numpy as np
 import pytest
 import yaml
 
-from calflow.acquisition import acquire
-from calflow.checkpoint import Journal, plan_digest
+from calflow.acquisition.runner import acquire
+from calflow.acquisition.checkpoint import Journal, plan_digest
 from calflow.config import load_campaign
 from calflow.data.io import open_dataset
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
 from calflow.gcs import GCSController
 from calflow.gcs.emulator import GCSEmulator
-from calflow.gcs.serve_campaign import emulate_main, emulated_rig_options
-from calflow.identification import cost
-from calflow.identification.least_squares import identify
-from calflow.kinematics.xytheta import Parameters
-from calflow.plans import Plan
-from calflow.plans import xytheta as plans
-from calflow.rigs.gcs import gcs
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta.emulate import emulate_main, emulated_rig_options
+from calflow.xytheta import cost
+from calflow.xytheta.identification import identify
+from calflow.xytheta.kinematics import Parameters
+from calflow.plan import Plan
+from calflow.xytheta import plans
+from calflow.gcs.rig import gcs
+from calflow.xytheta.rig import simulated_xytheta
 from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
 
 META = RunMetadata(campaign="gcs-test", robot="xytheta", source="gcs", plan="identification",
@@ -291,7 +291,7 @@ def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     c = yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA))
     emu, options = emulated_rig_options(c, time_scale=20.0, timeout=1.0)
     try:
-        c["rig"] = {"factory": "calflow.rigs.gcs:gcs", "options": options}
+        c["rig"] = {"factory": "calflow.gcs.rig:gcs", "options": options}
         campaign = tmp_path / "gcs-resume.yaml"
         campaign.write_text(yaml.safe_dump(c))
         out = tmp_path / "killed.nc"

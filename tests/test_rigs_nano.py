@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calflow.errors import RigError
-from calflow.rigs.nano import Nano1DRig, Nano2DRig, nano1d, nano2d
+from calflow.nano.rig import Nano1DRig, Nano2DRig, nano1d, nano2d
 from calflow.rigs.thermal import LagBank, room_profile
 
 QUIET = {"drift_walk_nm_per_sqrt_day": 0.0, "creep_nm": 0.0}

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.rigs.nano import nano1d
-from calflow.streams import DwellReducer, reduce_dwell
+from calflow.nano.rig import nano1d
+from calflow.acquisition.streams import DwellReducer, reduce_dwell
 
 
 def _naive(chunks, window_s):

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from calflow.acquisition import acquire
+from calflow.acquisition.runner import acquire
 from calflow.data.conventions import PLANS
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
-from calflow.kinematics.xytheta import Parameters, inverse
-from calflow.lookup import infer_directions
-from calflow.plans import sweeps
-from calflow.rigs.xytheta import simulated_xytheta
+from calflow.xytheta.kinematics import Parameters, inverse
+from calflow.xytheta.lookup import infer_directions
+from calflow.xytheta import sweeps
+from calflow.xytheta.rig import simulated_xytheta
 
 
 def test_characterisation_rows_passes_and_approach_directions():

@@ -49,14 +49,14 @@ def test_xytheta_identified_geometry_is_close_to_truth(thesis):
 
 def test_model_v_reaches_the_limitation_of_the_robot(thesis):
     """Model V's accuracy is no worse than 1.5× the rig's repeatability at the targets (oracle)."""
-    from calflow.acquisition import acquire
+    from calflow.acquisition.runner import acquire
     from calflow.config import load_campaign
     from calflow.data.runs import RunMetadata
-    from calflow.evaluation import xytheta_validation_metrics
-    from calflow.kinematics.xytheta import inverse as nominal_inverse
-    from calflow.lookup import infer_directions
-    from calflow.plans.xytheta import validation
-    from calflow.rigs.xytheta import simulated_xytheta
+    from calflow.xytheta.evaluation import xytheta_validation_metrics
+    from calflow.xytheta.kinematics import inverse as nominal_inverse
+    from calflow.xytheta.lookup import infer_directions
+    from calflow.xytheta.plans import validation
+    from calflow.xytheta.rig import simulated_xytheta
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     rig = simulated_xytheta(seed=c["seed"], stream="validation_oracle", **c["rig"]["options"])

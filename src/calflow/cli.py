@@ -22,56 +22,35 @@ def cmd_acquire(args) -> None:
     acquire.run(args)
 
 
-def cmd_characterise(args) -> None:
-    from calflow.commands import xytheta
+def _family(args):
+    from calflow.config import load_campaign
+    from calflow.family import family_of
 
-    xytheta.characterise(args)
+    campaign = load_campaign(args.campaign)
+    return campaign, family_of(campaign["robot"])
 
 
 def cmd_identify(args) -> None:
-    from calflow.commands import nano, xytheta
-    from calflow.config import load_campaign
-
-    robot = load_campaign(args.campaign)["robot"]
-    (xytheta if robot == "xytheta" else nano).identify(args)
+    _family(args)[1].step("identify")(args)
 
 
 def cmd_metrics(args) -> None:
-    from calflow.commands import nano, xytheta
-    from calflow.config import load_campaign
-
-    robot = load_campaign(args.campaign)["robot"]
-    (xytheta if robot == "xytheta" else nano).metrics(args)
-
-
-def cmd_observability(args) -> None:
-    from calflow.commands import xytheta
-
-    xytheta.observability(args)
+    _family(args)[1].step("metrics")(args)
 
 
 def cmd_summarise(args) -> None:
-    from calflow.config import load_campaign
     from calflow.data.io import write_json
 
-    campaign = load_campaign(args.campaign)
-    if campaign["robot"] == "xytheta":
-        from calflow.summary import xytheta_summary
-
-        truth = json.loads(Path(args.truth).read_text()) if args.truth else None
-        summary = xytheta_summary(campaign, args.files, truth)
-    else:
-        from calflow.commands.nano import summarise
-
-        summary = summarise(campaign, args.files)
-    write_json(summary, args.out)
+    campaign, family = _family(args)
+    truth = json.loads(Path(args.truth).read_text()) if args.truth else None
+    write_json(family.step("summarise")(campaign, args.files, truth), args.out)
 
 
 def cmd_report(args) -> None:
     from calflow.config import load_campaign
     from calflow.data.io import write_bytes, write_text
     from calflow.report import render_campaign, write_pdf
-    from calflow.summary import load_summary
+    from calflow.data.io import load_summary
 
     campaign = load_campaign(args.campaign)
     summary = load_summary(args.summary)
@@ -85,7 +64,7 @@ def cmd_report(args) -> None:
 def cmd_index(args) -> None:
     from calflow.data.io import write_text
     from calflow.report import render_index
-    from calflow.summary import load_summary
+    from calflow.data.io import load_summary
 
     write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
 
@@ -93,17 +72,11 @@ def cmd_index(args) -> None:
 def cmd_import_csv(args) -> None:
     from calflow.commands.common import campaign, meta
     from calflow.data.io import write_dataset
-    from calflow.importing import import_csv, load_mapping
+    from calflow.data.importing import import_csv, load_mapping
 
     c = campaign(args.campaign)
     mapping = load_mapping(args.mapping)
     write_dataset(import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out)
-
-
-def cmd_emulate(args) -> int:
-    from calflow.gcs.serve_campaign import emulate_main
-
-    return emulate_main(args.rest)
 
 
 def cmd_validate(args) -> int:
@@ -131,6 +104,17 @@ def cmd_check_config(args) -> None:
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
+def _run(target: str):
+    """A subcommand function that imports ``"module:function"`` only when it runs."""
+
+    def run(args):
+        from calflow.family import resolve
+
+        return resolve(target)(args)
+
+    return run
+
+
 def _sub(sub, name, func, help_):
     p = sub.add_parser(name, help=help_)
     p.set_defaults(func=func)
@@ -146,16 +130,8 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--campaign", required=True)
     a.add_argument("--plan", required=True)
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
-    a.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
-    a.add_argument("--compensation", choices=["none", "linear", "cubic"], default="none")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
-
-    c = _sub(sub, "characterise", cmd_characterise, "XY error tables from the characterisation sweeps")
-    c.add_argument("--campaign", required=True)
-    c.add_argument("--x", required=True)
-    c.add_argument("--y", required=True)
-    c.add_argument("--out", required=True)
 
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
@@ -170,10 +146,6 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--campaign", required=True)
     m.add_argument("--run", required=True)
     m.add_argument("--out", required=True)
-
-    o = _sub(sub, "observability", cmd_observability, "observability indices against the number of poses")
-    o.add_argument("--campaign", required=True)
-    o.add_argument("--out", required=True)
 
     s = _sub(sub, "summarise", cmd_summarise, "write the campaign's summary.json")
     s.add_argument("--campaign", required=True)
@@ -198,10 +170,6 @@ def parser() -> argparse.ArgumentParser:
     ic.add_argument("--campaign", required=True)
     ic.add_argument("--out", required=True)
 
-    e = _sub(sub, "emulate", cmd_emulate, "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1")
-    e.add_argument("kind", choices=["gcs"])
-    e.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] [--duration S]")
-
     v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")
 
@@ -209,9 +177,13 @@ def parser() -> argparse.ArgumentParser:
     k.add_argument("config", nargs="?", default="config/config.yaml")
     k.add_argument("--campaign-dir")
 
-    from calflow.commands.montecarlo import add_parsers as add_montecarlo_parsers
+    from calflow.family import families
 
-    add_montecarlo_parsers(sub)
+    for family in families():
+        if family.acquire_arguments is not None:
+            family.acquire_arguments(a)
+        for command in family.commands:
+            command.arguments(_sub(sub, command.name, _run(command.run), command.help))
     return p
 
 

@@ -18,6 +18,7 @@ import jsonschema
 import yaml
 
 from calflow.errors import ConfigError
+from calflow.family import family_of, resolve, robots
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -126,7 +127,6 @@ def check_campaign_name(name: str) -> str:
     return name
 
 
-ROBOTS = ("xytheta", "stage1d", "stage2d")
 
 
 def load_campaign(path: str | Path) -> dict:
@@ -140,40 +140,17 @@ def load_campaign(path: str | Path) -> dict:
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: <top level>: expected a mapping of keys, got {type(data).__name__}")
     robot = data.get("robot")
+    known = list(robots())
     if robot is None:
-        raise ConfigError(f"{path}: key 'robot': missing, it is required (one of {list(ROBOTS)})")
-    if robot not in ROBOTS:
-        raise ConfigError(f"{path}: key 'robot': expected one of {list(ROBOTS)}, got {robot!r}")
+        raise ConfigError(f"{path}: key 'robot': missing, it is required (one of {known})")
+    if robot not in known:
+        raise ConfigError(f"{path}: key 'robot': expected one of {known}, got {robot!r}")
     campaign = validate(data, f"campaign-{robot}", path)
-    if robot == "xytheta":
-        _check_models(campaign["models"], path)
-        if any(spec.get("position_table") for spec in campaign["models"].values()):
-            ident, char = campaign["identification"], campaign["characterisation"]
-            for axis in ("x", "y"):
-                if ident[f"{axis}_um"][1] > char[f"{axis}_stop_um"]:
-                    raise ConfigError(
-                        f"{path}: key 'identification.{axis}_um': expected poses within the characterised stroke "
-                        f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
-                        f"got up to {ident[f'{axis}_um'][1]}")
+    check = family_of(robot).steps.get("check")
+    if check:
+        resolve(check)(campaign, path)
     campaign["name"] = path.stem
     return campaign
-
-
-def _check_models(models: dict, path: Path) -> None:
-    """Each model is identified (``free``) or built on another (``base`` + ``angle_table``)."""
-    for name, spec in models.items():
-        if ("free" in spec) == ("base" in spec):
-            raise ConfigError(f"{path}: key 'models.{name}': expected either 'free' (identified) or "
-                              "'base' with 'angle_table: true' (post-calibration), not both or neither")
-        if "base" in spec:
-            base = spec["base"]
-            if base not in models:
-                raise ConfigError(f"{path}: key 'models.{name}.base': expected one of {sorted(models)}, got {base!r}")
-            if "base" in models[base]:
-                raise ConfigError(f"{path}: key 'models.{name}.base': model {base!r} has a base itself; "
-                                  "expected an identified model")
-            if not spec.get("angle_table"):
-                raise ConfigError(f"{path}: key 'models.{name}.angle_table': expected true for a model with a base")
 
 
 def load_workflow_config(data: dict, file: str = "config/config.yaml") -> dict:

@@ -8,44 +8,38 @@ new calflow version) reruns exactly the jobs that use them.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 from functools import lru_cache
 from pathlib import Path
 
 from calflow import __version__
 
-# The modules each kind of step runs (packages include their submodules).
-STEPS = {
-    "acquire": ("calflow.acquisition", "calflow.checkpoint", "calflow.streams", "calflow.rigs", "calflow.plans",
-                "calflow.controllers", "calflow.data", "calflow.commands", "calflow.kinematics", "calflow.lookup",
-                "calflow.models", "calflow.gcs", "calflow.config"),
-    "characterise": ("calflow.characterisation", "calflow.data", "calflow.commands", "calflow.config"),
-    "identify": ("calflow.identification", "calflow.models", "calflow.kinematics", "calflow.lookup",
-                 "calflow.stepwise", "calflow.data", "calflow.commands", "calflow.config"),
-    "metrics": ("calflow.metrics", "calflow.evaluation", "calflow.evaluation_nano", "calflow.characterisation",
-                "calflow.kinematics", "calflow.data", "calflow.commands", "calflow.config"),
-    "summarise": ("calflow.summary", "calflow.summary_nano", "calflow.reference", "calflow.uncertainty",
-                  "calflow.models", "calflow.evaluation_nano", "calflow.metrics", "calflow.data", "calflow.config"),
-    "report": ("calflow.report", "calflow.summary", "calflow.config"),
-}
-
 
 def _files(module: str) -> list[Path]:
-    spec = importlib.util.find_spec(module)
-    if spec is None or spec.origin is None:
-        raise ValueError(f"provenance: no module {module!r}")
-    origin = Path(spec.origin)
-    if origin.name == "__init__.py":
-        root = origin.parent
-        return sorted(p for p in root.rglob("*") if p.suffix in (".py", ".j2", ".css", ".yaml") and p.is_file())
-    return [origin]
+    """The source files of ``module``: a module, a package with its submodules and data, or
+    a folder of templates inside the package (``calflow.xytheta.templates``)."""
+    root = Path(__file__).resolve().parent
+    parts = module.split(".")
+    if parts[0] != "calflow":
+        raise ValueError(f"provenance: {module!r} is not part of calflow")
+    base = root.joinpath(*parts[1:])
+    if base.with_suffix(".py").is_file():
+        return [base.with_suffix(".py")]
+    if base.is_dir():
+        return sorted(p for p in base.rglob("*") if p.suffix in (".py", ".j2", ".css", ".yaml") and p.is_file())
+    raise ValueError(f"provenance: no module {module!r}")
 
 
 @lru_cache(maxsize=None)
-def code_digest(step: str) -> str:
-    """SHA-256 over calflow's version and the source of the modules of ``step``."""
+def code_digest(step: str, robot: str) -> str:
+    """SHA-256 over calflow's version and the source of the modules of ``step`` for
+    campaigns of ``robot`` (the modules its family lists, :class:`calflow.family.Family`)."""
+    from calflow.family import family_of
+
+    modules = family_of(robot).modules.get(step)
+    if modules is None:
+        raise ValueError(f"provenance: the family of robot {robot!r} lists no modules for step {step!r}")
     h = hashlib.sha256(__version__.encode())
-    for module in STEPS[step]:
+    for module in modules:
         for path in _files(module):
             h.update(path.name.encode())
             h.update(path.read_bytes())

@@ -12,7 +12,7 @@ from calflow.config import (
 )
 from calflow.provenance import code_digest
 from calflow.errors import ConfigError
-from calflow.montecarlo import load_study
+from calflow.xytheta.montecarlo import load_study
 
 # Rules call the `calflow` installed beside the Python that runs Snakemake.
 shell.prefix(
@@ -65,7 +65,7 @@ def section(step, *keys):
 
     def _digest(wildcards):
         c = CAMPAIGN[wildcards.campaign]
-        return digest([code_digest(step)] + [c.get(k) for k in keys])
+        return digest([code_digest(step, c["robot"])] + [c.get(k) for k in keys])
 
     return _digest
 
@@ -77,7 +77,9 @@ def rig_digest(run_id):
         c = CAMPAIGN[wildcards.campaign]
         rid = run_id(wildcards) if callable(run_id) else run_id
         rig = {**c["rig"], "runs": c["rig"].get("runs", {}).get(rid)}
-        return digest([code_digest("acquire"), c["robot"], c["seed"], c["start"], rig])
+        return digest(
+            [code_digest("acquire", c["robot"]), c["robot"], c["seed"], c["start"], rig]
+        )
 
     return _digest
 
@@ -155,8 +157,10 @@ def identify_args(w, input):
 def identify_digest(w):
     c = CAMPAIGN[w.campaign]
     if c["robot"] != "xytheta":
-        return digest([code_digest("identify"), c["model"]])
-    return digest([code_digest("identify"), c["identification"], c["models"][w.model]])
+        return digest([code_digest("identify", c["robot"]), c["model"]])
+    return digest(
+        [code_digest("identify", c["robot"]), c["identification"], c["models"][w.model]]
+    )
 
 
 def report_files(name):

@@ -47,7 +47,7 @@ rule report:
         mem_mb=2000,
     params:
         campaign=campaign_file,
-        digest=lambda w: digest([code_digest("report"), CAMPAIGN[w.campaign]]),
+        digest=lambda w: digest([code_digest("report", robot(w)), CAMPAIGN[w.campaign]]),
     shell:
         "calflow report --campaign {params.campaign} --summary {input.summary}"
         " --files {input.files} --html {output.html} --pdf {output.pdf} > {log} 2>&1"

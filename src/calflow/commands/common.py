@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import shlex
 import sys
-import zlib
 
 from calflow import __version__
 from calflow.config import campaign_digest, load_campaign
@@ -24,26 +23,21 @@ def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetada
 
 
 def open_rig(c: dict, run_id: str, start_s: float = 0.0):
-    """The campaign's rig for run ``run_id``; returns (rig, source)."""
+    """The campaign's rig for run ``run_id``; returns (rig, source).
+
+    The campaign's ``rig.options``, overridden by ``rig.runs.<run_id>``, plus what the
+    robot's family adds per run (:class:`calflow.family.Family` ``rig_options``: seeds and
+    noise streams of simulated rigs). A replayed recording plays the stream of the run.
+    """
+    from calflow.family import family_of, resolve
     from calflow.rigs import load_rig
 
     rig_cfg = c["rig"]
     options = {**rig_cfg.get("options", {}), **rig_cfg.get("runs", {}).get(run_id, {})}
-    if rig_cfg["factory"] == "simulated" and c["robot"] == "xytheta":
-        options.setdefault("seed", c["seed"])
+    if rig_cfg["factory"] == "replay":
         options["stream"] = run_id
-    elif rig_cfg["factory"] == "simulated":
-        # one world (room, slow drift) per campaign; independent noise per run
-        options.setdefault("world_seed", c["seed"])
-        options["seed"] = zlib.crc32(f"{c['seed']}:{run_id}".encode())
-        options["start_offset_s"] = start_s
-    elif rig_cfg["factory"] == "replay":
-        options["stream"] = run_id
-    elif rig_cfg["factory"] == "gcs":  # real stages; a simulated sensor gets its own noise per run
-        sensor = dict(options.get("sensor") or {})
-        if sensor.get("factory") == "simulated_vision":
-            sensor["options"] = {"seed": c["seed"], **sensor.get("options", {}), "stream": run_id}
-            options["sensor"] = sensor
+    else:
+        options = resolve(family_of(c["robot"]).rig_options)(c, rig_cfg["factory"], run_id, options, start_s)
     return load_rig(rig_cfg["factory"], c["robot"], options)
 
 

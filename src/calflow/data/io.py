@@ -6,6 +6,8 @@ complete, so an interrupted job never leaves a half-written file under the final
 
 from __future__ import annotations
 
+import hashlib
+
 import contextlib
 import json
 import math
@@ -128,3 +130,15 @@ def open_dataset(path: str | os.PathLike, kind: str | None = None, group: str | 
             f"{path}: attribute 'calflow_kind': expected {kind!r}, got {ds.attrs.get('calflow_kind')!r}"
         )
     return ds
+
+
+def sha256_file(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def load_summary(path: str | Path) -> dict:
+    return json.loads(Path(path).read_text())

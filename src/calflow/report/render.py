@@ -73,9 +73,18 @@ def unit(u) -> str:
     return _UNITS.get(str(u), str(u)) if u is not None else ""
 
 
+def _family_templates() -> list[Path]:
+    """The ``templates/`` folder of every installed robot family (``<robot>.html.j2``)."""
+    from importlib.resources import files
+
+    from calflow.family import families
+
+    return [Path(str(files(family.templates) / "templates")) for family in families()]
+
+
 def environment() -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(TEMPLATES),
+        loader=jinja2.FileSystemLoader([TEMPLATES, *_family_templates()]),
         autoescape=True,
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
@@ -102,7 +111,7 @@ def _machine() -> str:
 
 
 def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -> dict:
-    from calflow.summary import sha256_file
+    from calflow.data.io import sha256_file
 
     inputs = dict(summary.get("inputs") or {})
     listed = {str(Path(p)) for p in inputs}
@@ -129,14 +138,11 @@ def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -
 
 def figures_for(summary: dict, files: list[str] | None):
     """The numbered figures of a campaign's report, by section, and notes on omitted ones."""
+    from calflow.family import family_of
     from calflow.report import figures as common
 
     inputs = common.classify(files)
-    if summary["robot"] == "xytheta":
-        from calflow.report.figures_xytheta import build
-    else:
-        from calflow.report.figures_nano import build
-    figs, notes = build(summary, inputs)
+    figs, notes = family_of(summary["robot"]).step("figures")(summary, inputs)
     return common.by_section(common.number(figs)), notes
 
 

@@ -12,25 +12,33 @@ import importlib
 import re
 from typing import Any, Callable, Mapping
 
-from calflow.errors import RigError
+from calflow.errors import CalflowError, RigError
 from calflow.rigs.protocol import Rig, missing_members
 
 _FACTORY_RE = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 
-# Short names of built-in factories, per robot kind.
-BUILTIN = {
-    ("simulated", "xytheta"): "calflow.rigs.xytheta:simulated_xytheta",
-    ("simulated", "stage1d"): "calflow.rigs.nano:nano1d",
-    ("simulated", "stage2d"): "calflow.rigs.nano:nano2d",
-    **{("replay", robot): "calflow.rigs.replay:replay" for robot in ("xytheta", "stage1d", "stage2d")},
-    **{("gcs", robot): "calflow.rigs.gcs:gcs" for robot in ("xytheta", "stage1d", "stage2d")},
-}
+# Built-in rigs every robot has: replay of recordings and PI GCS controllers. The robot
+# families add their own short names (``simulated``), :class:`calflow.family.Family`.
+CORE_RIGS = {"replay": "calflow.rigs.replay:replay", "gcs": "calflow.gcs.rig:gcs"}
+
+
+def builtin(name: str, robot: str) -> str | None:
+    """The ``"module:callable"`` of built-in rig ``name`` for ``robot``, or None."""
+    from calflow.family import family_of
+
+    if name in CORE_RIGS:
+        return CORE_RIGS[name]
+    try:
+        return family_of(robot).rigs.get(robot, {}).get(name)
+    except CalflowError:  # an unknown robot is reported by the config check
+        return None
 
 
 def resolve_factory(name: str, robot: str) -> tuple[Callable[..., Any], str]:
     """Return the factory callable named by ``name`` and the data ``source`` it implies."""
-    if (name, robot) in BUILTIN:
-        target, source = BUILTIN[(name, robot)], name
+    target = builtin(name, robot)
+    if target is not None:
+        source = name
     elif _FACTORY_RE.match(name):
         target, source = name, "plugin"
     else:

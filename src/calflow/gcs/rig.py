@@ -1,0 +1,327 @@
+"""The ``gcs`` rig: PI GCS 2.0 stages plus a sensor (docs/gcs.md, "The gcs rig").
+
+Stages are driven with :class:`calflow.gcs.GCSController` (docs/gcs.md "Servo,
+referencing, motion"); readings come from a sensor plug-in
+(:mod:`calflow.xytheta.vision_sensor`, docs/gcs.md "Sensor drivers") given the stages' actual
+``POS?`` positions. At open: servo on, FRF for axes not referenced (``reference: true``).
+
+Resilience (docs/gcs.md "What the client does on errors", "Resilience of the gcs rig"):
+
+* a link failure (:class:`GCSConnectionLost`, :class:`GCSTimeout` — after which the client
+  refuses to talk until ``reconnect()`` —, :class:`GCSProtocolError`, socket errors) is
+  recovered by ``reconnect()`` with exponential backoff, then the interrupted operation
+  runs again; ``MOV`` is idempotent, so an interrupted move is simply sent again, and a
+  sample is returned once, so acquisition neither loses nor duplicates samples. After
+  ``reconnect.tries`` recoveries of one operation the rig gives up with a
+  :class:`RigError`;
+* a controller error (``ERR?`` non-zero, e.g. 7 out of limits, 5 servo off) or a motion
+  that does not settle in ``move_timeout_s`` sends ``#24`` (stop all) to every controller
+  and raises :class:`RigError` naming the joint, axis, command and code. The acquisition
+  journal keeps the samples already taken.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from calflow.errors import RigError
+from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionLost,
+                         GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
+                         GCSProtocolError, GCSTimeout)
+from calflow.gcs.sensors import load_sensor
+
+log = logging.getLogger("calflow.gcs.rig")
+T = TypeVar("T")
+LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
+
+
+@dataclass
+class Link:
+    """One controller and the joints it drives (joint -> controller axis id)."""
+
+    name: str
+    ctl: GCSController
+    joints: dict[str, str]
+
+    @property
+    def axes(self) -> list[str]:
+        return list(self.joints.values())
+
+    def joint_of(self, axis: str | None) -> str | None:
+        return next((j for j, a in self.joints.items() if a == axis), None)
+
+
+def _connection(spec: Mapping[str, Any], timeout: float) -> tuple[tuple, str, Callable[[], GCSController]]:
+    """(key, name, opener) of a controller given host/port or serial/baudrate."""
+    host, serial = spec.get("host"), spec.get("serial")
+    if (host is None) == (serial is None):
+        raise RigError("gcs rig: each controller needs exactly one of 'host' (TCP) or 'serial'")
+    if host is not None:
+        port = int(spec.get("port") or DEFAULT_PORT)
+        return (("tcp", str(host), port), f"tcp://{host}:{port}",
+                lambda: GCSController.connect_tcp(str(host), port, timeout))
+    baud = int(spec.get("baudrate") or DEFAULT_BAUD)
+    return (("serial", str(serial), baud), f"serial:{serial}",
+            lambda: GCSController.connect_serial(str(serial), baud, timeout))
+
+
+def _lock_controllers(names: list[str]) -> list:
+    """Hold an exclusive lock per controller while a rig drives it.
+
+    A stage moves one plan at a time: two acquisitions on the same controllers (e.g.
+    two validation jobs that Snakemake runs in parallel) must take turns, whatever the
+    executor. The locks are files in the temporary directory, taken in sorted order (no
+    deadlock), blocking until free, released on ``close`` or when the process dies.
+    """
+    import fcntl
+    import hashlib
+    import tempfile
+
+    held = []
+    for name in names:
+        path = Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
+        f = open(path, "a+")
+        fcntl.flock(f, fcntl.LOCK_EX)
+        held.append(f)
+    return held
+
+
+def _unlock(locks: list) -> None:
+    import fcntl
+
+    for f in locks:
+        fcntl.flock(f, fcntl.LOCK_UN)
+        f.close()
+
+
+class GCSRig:
+    """Rig protocol (DESIGN.md) over GCS controllers; build it with :func:`gcs`."""
+
+    replayable = False  # a real rig is continued, not replayed, on resume
+
+    def __init__(self, links: list[Link], sensor: Any, *, scale: Mapping[str, float],
+                 tries: int = 5, backoff_s: float = 0.2, max_backoff_s: float = 10.0,
+                 time_scale: float = 1.0, move_timeout_s: float = 60.0,
+                 poll_s: float = 0.02) -> None:
+        self.links, self.sensor = links, sensor
+        self.joints = tuple(j for link in links for j in link.joints)
+        self.sensors = tuple(sensor.sensors)
+        self.thermometers = tuple(sensor.thermometers)
+        self.scale = {j: float(scale.get(j, 1.0)) for j in self.joints}
+        self.tries, self.backoff_s, self.max_backoff_s = max(0, int(tries)), backoff_s, max_backoff_s
+        self.time_scale, self.move_timeout_s, self.poll_s = time_scale, move_timeout_s, poll_s
+        self.recoveries = 0  # link recoveries so far (for logs and tests)
+        self._closed = False
+        self._t0 = time.monotonic()
+
+    @property
+    def controllers(self) -> dict[str, GCSController]:
+        return {link.name: link.ctl for link in self.links}
+
+    # ------------------------------------------------------------------ protocol
+    def time(self) -> float:
+        """Seconds since open, times ``time_scale`` (the emulator's simulation time)."""
+        return (time.monotonic() - self._t0) * self.time_scale
+
+    def move(self, command: Mapping[str, float]) -> None:
+        """``MOV`` on every controller, then ``wait_on_target`` on each (docs/gcs.md)."""
+        if self._closed:
+            raise RigError("gcs rig: move() after close()")
+        unknown = sorted(set(command) - set(self.joints))
+        if unknown:
+            raise RigError(f"gcs rig: command names joints {unknown}; the rig has {list(self.joints)}")
+        plan = [(link, {a: float(command[j]) / self.scale[j] for j, a in link.joints.items()
+                        if j in command}) for link in self.links]
+        plan = [(link, targets) for link, targets in plan if targets]
+        for link, targets in plan:
+            self._run(link, "MOV", lambda retry, link=link, t=targets: link.ctl.move(t))
+        for link, targets in plan:
+            def settle(retry: bool, link: Link = link, t: dict = targets) -> None:
+                if retry:  # the interrupted move is sent again: MOV is idempotent
+                    link.ctl.move(t)
+                link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
+                                        axes=list(t))
+            self._run(link, "wait on target", settle)
+
+    def wait(self, seconds: float) -> None:
+        """Dwell: real time, divided by ``time_scale``."""
+        time.sleep(max(0.0, float(seconds)) / self.time_scale)
+
+    def positions(self) -> dict[str, float]:
+        """Actual joint positions (``POS?``) in rig units (µm, degree)."""
+        out: dict[str, float] = {}
+        for link in self.links:
+            pos = self._run(link, "POS?", lambda retry, link=link: link.ctl.position(link.axes))
+            out.update({j: pos[a] * self.scale[j] for j, a in link.joints.items()})
+        return out
+
+    def read(self) -> dict[str, float]:
+        """``time`` (s since open), each sensor and thermometer, read at ``POS?``."""
+        if self._closed:
+            raise RigError("gcs rig: read() after close()")
+        positions = self.positions()
+        now = self.time()
+        values = self.sensor.read(positions, now)
+        return {"time": now, **{k: float(values[k]) for k in (*self.sensors, *self.thermometers)}}
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if hasattr(self.sensor, "close"):
+            self.sensor.close()
+        for link in self.links:
+            link.ctl.close()
+        _unlock(getattr(self, "_locks", []))
+
+    # ------------------------------------------------------------------ resilience
+    def _run(self, link: Link, what: str, op: Callable[[bool], T]) -> T:
+        """Run ``op(retry)`` on ``link``; recover link failures, fail on controller errors."""
+        failures = 0
+        while True:
+            try:
+                return op(failures > 0)
+            except GCSMotionTimeout as exc:
+                self._fail(link, what, exc)
+            except LINK_ERRORS as exc:
+                failures += 1
+                if failures > self.tries:
+                    raise RigError(f"gcs rig: {link.name}: {what} failed {failures} times in a "
+                                   f"row, giving up (last: {exc})") from exc
+                self._recover(link, what, failures, exc)
+            except GCSError as exc:  # GCSControllerError and other controller-side failures
+                self._fail(link, what, exc)
+
+    def _recover(self, link: Link, what: str, failures: int, exc: Exception) -> None:
+        log.warning("gcs rig: %s: %s failed (%s); reconnecting (%d/%d)", link.name, what, exc,
+                    failures, self.tries)
+        if failures > 1:
+            time.sleep(min(self.backoff_s * 2 ** (failures - 1), self.max_backoff_s))
+        try:
+            link.ctl.reconnect(max_tries=max(1, self.tries), backoff=self.backoff_s,
+                               max_backoff=self.max_backoff_s)
+        except GCSConnectionLost as lost:
+            raise RigError(f"gcs rig: {link.name}: link lost during {what} and reconnecting "
+                           f"failed: {lost}") from exc
+        self.recoveries += 1
+
+    def stop_all(self) -> list[str]:
+        """``#24`` on every controller; returns the names of those that could not be stopped."""
+        failed = []
+        for link in self.links:
+            for attempt in range(2):
+                try:
+                    link.ctl.stop_all()
+                    break
+                except GCSError as exc:
+                    if attempt:
+                        log.error("gcs rig: %s: #24 failed: %s", link.name, exc)
+                        failed.append(link.name)
+                    else:
+                        try:
+                            link.ctl.reconnect(max_tries=2, backoff=self.backoff_s)
+                        except GCSError:
+                            pass
+        return failed
+
+    def _fail(self, link: Link, what: str, exc: GCSError) -> None:
+        joint = link.joint_of(exc.axis)
+        where = (f"joint {joint!r} (axis {exc.axis!r}" if joint else
+                 f"joints {', '.join(link.joints)} (axes {', '.join(link.axes)}") + f" on {link.name})"
+        if isinstance(exc, GCSControllerError) and exc.code is not None:
+            name = ERROR_NAMES.get(exc.code, ("", "unknown error"))[1]
+            cause = f"command {exc.command or what!r} failed with GCS error {exc.code} ({name})"
+        elif isinstance(exc, GCSMotionTimeout):
+            cause = f"{what}: not on target within {self.move_timeout_s} s"
+        else:
+            cause = f"{what} failed: {exc}"
+        failed = self.stop_all()
+        stopped = ("all axes stopped (#24)" if not failed
+                   else f"#24 could not be sent to {', '.join(failed)}")
+        raise RigError(f"gcs rig: {where}: {cause}; {stopped}") from exc
+
+
+def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PORT,
+        serial: str | None = None, baudrate: int = DEFAULT_BAUD, timeout: float = 5.0,
+        sensor: Mapping[str, Any] | None = None, reconnect: Mapping[str, Any] | None = None,
+        reference: bool = True, servo: bool = True, scale: Mapping[str, float] | None = None,
+        velocity: Mapping[str, float] | None = None, time_scale: float = 1.0,
+        move_timeout_s: float = 60.0, poll_s: float = 0.02) -> GCSRig:
+    """Factory of the ``gcs`` rig (docs/gcs.md, "The gcs rig").
+
+    ``axes`` maps joint -> axis id on the controller at ``host``/``port`` (TCP) or
+    ``serial``/``baudrate``, or joint -> ``{axis, host, port | serial, baudrate}`` for one
+    controller per joint (the C-863 drives one axis). ``scale``: rig units (µm, degree)
+    per controller unit, per joint (1000 for a stage in mm). ``velocity``: VEL per joint in
+    controller units. ``reconnect``: ``{tries: 5, backoff_s: 0.2, max_backoff_s: 10}``.
+    ``time_scale`` divides dwell times and multiplies reported time (emulators only).
+    """
+    if not isinstance(axes, Mapping) or not axes:
+        raise RigError("gcs rig: option 'axes' must map joint names to controller axis ids")
+    if not time_scale > 0:
+        raise RigError(f"gcs rig: time_scale must be > 0, got {time_scale!r}")
+    shared = {"host": host, "port": port, "serial": serial, "baudrate": baudrate}
+    groups: dict[tuple, tuple[str, Callable[[], GCSController], dict[str, str]]] = {}
+    for joint, spec in axes.items():
+        spec = {"axis": spec} if not isinstance(spec, Mapping) else dict(spec)
+        if "axis" not in spec:
+            raise RigError(f"gcs rig: axes.{joint}: missing 'axis' (the controller's axis id)")
+        conn = {**shared, **{k: spec[k] for k in ("host", "port", "serial", "baudrate") if k in spec}}
+        if ("host" in spec) != ("serial" in spec):  # a per-joint link replaces the shared one
+            conn[("serial" if "host" in spec else "host")] = None
+        key, name, opener = _connection(conn, timeout)
+        groups.setdefault(key, (name, opener, {}))[2][str(joint)] = str(spec["axis"])
+    rc = dict(reconnect or {})
+    sensor_obj = load_sensor(sensor)
+    locks = _lock_controllers(sorted(name for name, _, _ in groups.values()))
+    links: list[Link] = []
+    try:
+        for name, opener, joints in groups.values():
+            try:
+                link = Link(name, opener(), joints)
+            except GCSError as exc:
+                raise RigError(f"gcs rig: cannot open controller {name}: {exc}") from exc
+            links.append(link)
+            _prepare(link, servo=servo, reference=reference, velocity=velocity or {},
+                     timeout=move_timeout_s, poll=poll_s)
+    except BaseException:
+        for link in links:
+            link.ctl.close()
+        _unlock(locks)
+        raise
+    rig = GCSRig(links, sensor_obj, scale=scale or {}, tries=rc.get("tries", 5),
+                 backoff_s=float(rc.get("backoff_s", 0.2)),
+                 max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
+                 move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
+    rig._locks = locks
+    return rig
+
+
+def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str, float],
+             timeout: float, poll: float) -> None:
+    """Check the axes exist (SAI?), servo on (SVO), FRF what is not referenced, set VEL."""
+    ctl = link.ctl
+    try:
+        known = ctl.axes()
+        for joint, axis in link.joints.items():
+            if axis not in known:
+                raise RigError(f"gcs rig: axes.{joint}: controller {link.name} has no axis "
+                               f"{axis!r} (SAI? lists {known})")
+        if servo:
+            ctl.servo_on(link.axes)
+        if reference:
+            todo = [a for a, ok in ctl.is_referenced(link.axes).items() if not ok]
+            if todo:
+                log.info("gcs rig: %s: referencing axes %s (FRF)", link.name, todo)
+                ctl.reference(todo, timeout=timeout, poll=poll)
+        vel = {link.joints[j]: float(v) for j, v in velocity.items() if j in link.joints}
+        if vel:
+            ctl.set_velocity(vel)
+    except GCSError as exc:
+        raise RigError(f"gcs rig: preparing controller {link.name} "
+                       f"(joints {', '.join(link.joints)}) failed: {exc}") from exc

@@ -1,0 +1,57 @@
+"""Sensor plug-ins of the ``gcs`` rig (docs/gcs.md, "Sensor drivers").
+
+The ``gcs`` rig moves PI stages; what it measures comes from a *sensor*: any object with
+
+* ``sensors: tuple[str, ...]`` and ``thermometers: tuple[str, ...]`` (the rig's own),
+* ``read(positions: Mapping[str, float], time_s: float) -> Mapping[str, float]``: one
+  value per sensor and thermometer; ``positions`` are the stages' actual positions
+  (``POS?``) per joint in rig units (µm, degree), ``time_s`` the rig's time,
+* optionally ``close()``.
+
+A sensor is named in the rig options as ``sensor: {factory: "module:callable", options:
+{...}}``; ``factory(**options)`` returns it. Short names (``simulated_vision``) are the
+sensors the installed robot families register (:mod:`calflow.family`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from typing import Any, Mapping
+
+from calflow.errors import RigError
+from calflow.family import families
+
+_FACTORY_RE = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
+
+
+def builtin_sensors() -> dict[str, str]:
+    """Short sensor names registered by the families, to ``"module:callable"``."""
+    return {name: target for fam in families() for name, target in fam.sensors.items()}
+
+
+def load_sensor(spec: Mapping[str, Any] | None) -> Any:
+    """Build the sensor named by ``{factory, options}`` and check its interface."""
+    if not isinstance(spec, Mapping) or "factory" not in spec:
+        raise RigError("gcs rig: option 'sensor' is required: {factory: 'simulated_vision' or "
+                       "'package.module:callable', options: {...}}")
+    name, options = str(spec["factory"]), dict(spec.get("options") or {})
+    target = builtin_sensors().get(name, name)
+    if not _FACTORY_RE.match(target):
+        raise RigError(f"gcs rig: sensor.factory: expected 'simulated_vision' or "
+                       f"'package.module:callable', got {name!r}")
+    module_name, attr = target.split(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attr, None)
+    except ImportError as exc:
+        raise RigError(f"gcs rig: sensor.factory: cannot import module {module_name!r} ({exc})") from None
+    if not callable(factory):
+        raise RigError(f"gcs rig: sensor.factory: module {module_name!r} has no callable {attr!r}")
+    try:
+        sensor = factory(**options)
+    except TypeError as exc:
+        raise RigError(f"gcs rig: sensor.options: {name!r} rejected the options ({exc})") from None
+    missing = [m for m in ("sensors", "thermometers", "read") if not hasattr(sensor, m)]
+    if missing:
+        raise RigError(f"gcs rig: sensor {name!r} returned an object without {', '.join(missing)}")
+    return sensor

@@ -1,1 +1,0 @@
-"""Forward and inverse kinematics of the robots calflow calibrates."""

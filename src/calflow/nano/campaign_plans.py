@@ -1,0 +1,57 @@
+"""The nanopositioning plans of a campaign, as ``calflow acquire --plan NAME`` builds them.
+
+Each builder reads its section of the campaign and returns a
+:class:`calflow.plan.Acquisition`; :mod:`calflow.nano.family` registers them by name.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calflow.nano import plans
+from calflow.plan import Acquisition
+
+
+def _grid(section: dict) -> np.ndarray:
+    return np.arange(section["start_um"], section["stop_um"] + 1e-9, section["step_um"])
+
+
+def training_1d(c: dict, args) -> Acquisition:
+    """Forward and backward cycles over the stroke in the training period (Sec. 5.3.2, Fig. 5.8)."""
+    t = c["training"]
+    return Acquisition(plans.training_1d(_grid(t), t["cycles"], t["dwell_s"], t["average_last_s"], 0.0), "training")
+
+
+def metrology_1d(c: dict, args) -> Acquisition:
+    """The metrology-room run of Sec. 5.3.3 (intrinsic accuracy and repeatability)."""
+    m = c["metrology"]
+    return Acquisition(plans.metrology_1d(_grid(m), m["cycles"], m["dwell_s"], m["average_last_s"]), "metrology")
+
+
+def _controller(plan, c: dict, args):
+    from calflow.nano.controllers import nano_validation_controller
+
+    return nano_validation_controller(plan, args.model or [], c)
+
+
+def validation_1d(c: dict, args) -> Acquisition:
+    """The five-day validation: every test through each mode's run-time controller (Fig. 5.9)."""
+    v = c["validation"]
+    plan = plans.validation_1d(_grid(v), v["cycles"], v["dwell_s"], v["tests"], tuple(v["order"]),
+                               v["average_last_s"], start_s=v["start_h"] * 3600.0)
+    return Acquisition(plan, "validation", controller=_controller(plan, c, args))
+
+
+def training_2d(c: dict, args) -> Acquisition:
+    """The 2-DoF training grid (Sec. 5.4.1, Fig. 5.21)."""
+    t = c["training"]
+    return Acquisition(plans.training_2d(t["step_um"], t["stop_um"], t["cycles"], t["dwell_s"], t["average_last_s"]),
+                       "training")
+
+
+def validation_2d(c: dict, args) -> Acquisition:
+    """The six validation points of Sec. 5.4.2 (Fig. 5.22) through the run-time controllers."""
+    v = c["validation"]
+    plan = plans.validation_2d(np.asarray(v["points_um"], dtype=float), v["cycles"], v["tests"], v["dwell_s"],
+                               tuple(v["order"]), v["average_last_s"], start_s=v["start_h"] * 3600.0)
+    return Acquisition(plan, "validation", controller=_controller(plan, c, args))

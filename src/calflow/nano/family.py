@@ -1,0 +1,59 @@
+"""What the nanopositioning family registers with the core (:class:`calflow.family.Family`).
+
+Plans by name for the 1-DoF (``stage1d``) and 2-DoF (``stage2d``) stages, their simulated
+rigs and the steps of the workflow. Kept free of numerical imports: it is read by
+``calflow --help``.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+from calflow.family import Family
+
+_P = "calflow.nano.campaign_plans"
+_C = "calflow.nano.commands"
+
+
+def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
+    """Per-run rig options of the simulated stages: one world (room, slow drift) per
+    campaign, independent noise per run, and the run's start in campaign time."""
+    if factory == "simulated":
+        options.setdefault("world_seed", c["seed"])
+        options["seed"] = zlib.crc32(f"{c['seed']}:{run_id}".encode())
+        options["start_offset_s"] = start_s
+    return options
+
+
+_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
+_MODELS = ("calflow.nano.model", "calflow.nano.models", "calflow.nano.thermal_model", "calflow.nano.kmz",
+           "calflow.stepwise")
+
+FAMILY = Family(
+    name="nano",
+    robots=("stage1d", "stage2d"),
+    rigs={"stage1d": {"simulated": "calflow.nano.rig:nano1d"}, "stage2d": {"simulated": "calflow.nano.rig:nano2d"}},
+    plans={
+        "stage1d": {"training": f"{_P}:training_1d", "metrology": f"{_P}:metrology_1d",
+                    "validation": f"{_P}:validation_1d"},
+        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d"},
+    },
+    rig_options="calflow.nano.family:rig_options",
+    steps={
+        "identify": f"{_C}:identify",
+        "metrics": f"{_C}:metrics",
+        "summarise": f"{_C}:summarise",
+        "figures": "calflow.nano.figures:build",
+    },
+    templates="calflow.nano",
+    modules={
+        "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
+                                      "calflow.nano.campaign_plans", "calflow.nano.rig", "calflow.nano.rig_options",
+                                      "calflow.nano.controllers", "calflow.nano.family"),
+        "identify": _CORE + _MODELS + ("calflow.nano.commands",),
+        "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.commands"),
+        "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",
+                                        "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands"),
+        "report": _CORE + ("calflow.report", "calflow.nano.figures", "calflow.nano.templates"),
+    },
+)

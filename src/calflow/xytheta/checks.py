@@ -1,0 +1,37 @@
+"""Checks of an XYΘ campaign beyond its JSON Schema: the model table and the table strokes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from calflow.errors import ConfigError
+
+
+def check_campaign(campaign: dict, path: Path) -> None:
+    """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
+    _check_models(campaign["models"], path)
+    if any(spec.get("position_table") for spec in campaign["models"].values()):
+        ident, char = campaign["identification"], campaign["characterisation"]
+        for axis in ("x", "y"):
+            if ident[f"{axis}_um"][1] > char[f"{axis}_stop_um"]:
+                raise ConfigError(
+                    f"{path}: key 'identification.{axis}_um': expected poses within the characterised stroke "
+                    f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
+                    f"got up to {ident[f'{axis}_um'][1]}")
+
+
+def _check_models(models: dict, path: Path) -> None:
+    """Each model is identified (``free``) or built on another (``base`` + ``angle_table``)."""
+    for name, spec in models.items():
+        if ("free" in spec) == ("base" in spec):
+            raise ConfigError(f"{path}: key 'models.{name}': expected either 'free' (identified) or "
+                              "'base' with 'angle_table: true' (post-calibration), not both or neither")
+        if "base" in spec:
+            base = spec["base"]
+            if base not in models:
+                raise ConfigError(f"{path}: key 'models.{name}.base': expected one of {sorted(models)}, got {base!r}")
+            if "base" in models[base]:
+                raise ConfigError(f"{path}: key 'models.{name}.base': model {base!r} has a base itself; "
+                                  "expected an identified model")
+            if not spec.get("angle_table"):
+                raise ConfigError(f"{path}: key 'models.{name}.angle_table': expected true for a model with a base")

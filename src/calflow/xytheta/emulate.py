@@ -1,0 +1,190 @@
+"""A GCS emulator serving the simulated stages of a campaign (docs/gcs.md, "Emulating a campaign").
+
+``calflow emulate gcs --campaign config/campaigns/X.yaml --port 50000 [--time-scale 100]``
+starts :class:`calflow.gcs.emulator.GCSEmulator` on 127.0.0.1 with one axis per joint of
+the campaign's XYΘ robot and prints the ``rig:`` section that drives it with the ``gcs``
+rig. The model is deliberately simple:
+
+* axes ``1``, ``2`` (X, Y) are M-111-like lead-screw stages in **mm** (±7.5 mm, 1.5 mm/s,
+  need FRF); axis ``3`` (Θ) is a rotation stage in **degree** (±30°, 10°/s, absolute);
+* ``POS?`` of X and Y answers the *attained* joint position of the simulated physics
+  (:class:`calflow.xytheta.rig.XYThetaTruth`): the trajectory plus the lead-screw error
+  of the approach direction (with backlash) and the coupling of the other screw (Fig. 4.8,
+  4.9). Θ answers its trajectory. The approach direction of an axis is the sign of the
+  last change of its trajectory seen by ``POS?``;
+* the vision sensor is not served over GCS: the rig's built-in ``simulated_vision`` sensor
+  (:mod:`calflow.xytheta.vision_sensor`) reads it at those ``POS?`` positions, adding the
+  Θ-dependent errors, stage repeatability, noise and drift.
+
+So a run through the emulator sees the same physics as the simulated rig, with the
+stages' timing, limits and faults of a controller (the emulator's ``faults``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import threading
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from calflow.errors import CalflowError
+from calflow.gcs.axis import AxisConfig
+from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
+from calflow.xytheta.vision_sensor import truth_from_options
+from calflow.xytheta.rig import XYThetaTruth
+
+JOINT_AXES = {"x": "1", "y": "2", "theta": "3"}
+SCALE = {"x": 1000.0, "y": 1000.0, "theta": 1.0}  # µm or degree per controller unit
+AXIS_CONFIGS = {
+    "1": AxisConfig(tmn=-7.5, tmx=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "2": AxisConfig(tmn=-7.5, tmx=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "3": AxisConfig(tmn=-30.0, tmx=30.0, velocity=10.0, max_velocity=20.0, accel=100.0,
+                    needs_reference=False),
+}
+
+
+class StagePhysics:
+    """``true_position`` hook of the emulator: attained X/Y joint positions (module doc)."""
+
+    def __init__(self, truth: XYThetaTruth) -> None:
+        self.truth = truth
+        self.controller: EmulatedController | None = None  # set by :func:`campaign_emulator`
+        self._last: dict[str, float] = {}
+        self.direction = {"x": 1.0, "y": 1.0}  # as the simulated rig starts
+
+    def _trajectory(self) -> dict[str, float]:
+        """Trajectory position of every joint in µm/degree (the emulator holds its lock)."""
+        assert self.controller is not None, "StagePhysics is not bound to a controller"
+        now = self.controller.now()
+        return {j: self.controller.axes[a].position(now) * SCALE[j] for j, a in JOINT_AXES.items()}
+
+    def __call__(self, axis: str, commanded: float) -> float:
+        q = self._trajectory()
+        for j in ("x", "y"):
+            last = self._last.get(j)
+            if last is not None and q[j] != last:
+                self.direction[j] = math.copysign(1.0, q[j] - last)
+            self._last[j] = q[j]
+        t = self.truth
+        if axis == JOINT_AXES["x"]:
+            value = q["x"] + t.lead_error(0, q["x"], self.direction["x"]) + t.coupling_error(1, q["y"])
+            return float(value) / SCALE["x"]
+        if axis == JOINT_AXES["y"]:
+            value = q["y"] + t.lead_error(1, q["y"], self.direction["y"]) + t.coupling_error(0, q["x"])
+            return float(value) / SCALE["y"]
+        return float(commanded)
+
+
+def _load(campaign: Mapping[str, Any] | str | Path) -> dict:
+    if isinstance(campaign, (str, Path)):
+        from calflow.config import load_campaign
+
+        return load_campaign(campaign)
+    return dict(campaign)
+
+
+def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
+    """:class:`XYThetaTruth` overrides of a campaign: the simulated rig's options, or the
+    ``simulated_vision`` sensor options of a ``gcs`` rig (seed and stream removed)."""
+    if campaign.get("robot", "xytheta") != "xytheta":
+        raise CalflowError(f"emulate gcs: robot {campaign.get('robot')!r}: only xytheta campaigns "
+                           "have simulated stages to serve")
+    rig = campaign.get("rig") or {}
+    options = dict(rig.get("options") or {})
+    if rig.get("factory", "simulated") != "simulated":
+        sensor = options.get("sensor") or {}
+        options = dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_vision" else {}
+    return {k: v for k, v in options.items() if k not in ("seed", "stream")}
+
+
+def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
+                      time_scale: float = 1.0, faults: Faults | None = None) -> GCSEmulator:
+    """An (unstarted) emulator with axes 1, 2, 3 backed by the campaign's XYΘ physics."""
+    c = _load(campaign)
+    try:
+        physics = StagePhysics(truth_from_options(physics_options(c)))
+    except TypeError as exc:
+        raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
+    emu = GCSEmulator(axes=dict(AXIS_CONFIGS), port=port, faults=faults, time_scale=time_scale,
+                      true_position=physics)
+    physics.controller = emu.controller
+    return emu
+
+
+def rig_options(address: tuple[str, int], campaign: Mapping[str, Any], *,
+                time_scale: float = 1.0, timeout: float = 5.0, tries: int = 5,
+                backoff_s: float = 0.2) -> dict[str, Any]:
+    """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
+    return {
+        "axes": dict(JOINT_AXES), "host": address[0], "port": int(address[1]),
+        "timeout": timeout, "scale": dict(SCALE), "time_scale": time_scale,
+        "reference": True, "reconnect": {"tries": tries, "backoff_s": backoff_s},
+        "sensor": {"factory": "simulated_vision",
+                   "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs",
+                               **physics_options(campaign)}},
+    }
+
+
+def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
+                         time_scale: float = 100.0, timeout: float = 1.0, tries: int = 5,
+                         backoff_s: float = 0.05, faults: Faults | None = None,
+                         ) -> tuple[GCSEmulator, dict[str, Any]]:
+    """Start a campaign emulator; return it and the ``gcs`` rig options that drive it.
+
+    For tests: the caller stops it (``emu.stop()``). The rig's ``time_scale`` equals the
+    emulator's, so dwell and reported times are in simulation seconds.
+    """
+    c = _load(campaign)
+    emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
+    return emu, rig_options(emu.address, c, time_scale=time_scale, timeout=timeout,
+                            tries=tries, backoff_s=backoff_s)
+
+
+def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
+    """``calflow emulate gcs``: serve a campaign's simulated stages until Ctrl-C or --duration."""
+    import yaml
+
+    p = argparse.ArgumentParser(prog="calflow emulate gcs",
+                                description="Serve a campaign's simulated XYΘ stages as a PI GCS "
+                                            "2.0 controller on 127.0.0.1 (docs/gcs.md).")
+    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
+    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    a = p.parse_args(argv)
+    if not a.time_scale > 0:
+        raise CalflowError(f"emulate gcs: --time-scale: expected a value > 0, got {a.time_scale}")
+    c = _load(a.campaign)
+    try:
+        emu = campaign_emulator(c, port=a.port, time_scale=a.time_scale).start()
+    except OSError as exc:
+        raise CalflowError(f"emulate gcs: --port {a.port}: cannot listen ({exc.strerror})") from None
+    stop_event = stop_event or threading.Event()
+    deadline = math.inf if a.duration is None else time.monotonic() + a.duration
+    try:
+        host, port = emu.address
+        print(f"GCS emulator of campaign {c.get('name', a.campaign)!r} on {host}:{port} "
+              f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {a.time_scale:g})", flush=True)
+        print("campaign rig section for it:\n" + yaml.safe_dump(
+            {"rig": {"factory": "gcs", "options": rig_options(emu.address, c,
+                                                              time_scale=a.time_scale)}},
+            sort_keys=False), flush=True)
+        while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:
+            stop_event.wait(min(0.5, left))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        emu.stop()
+    return 0
+
+
+def emulate_command(args) -> int:
+    """``calflow emulate gcs ...``: the CLI entry (arguments after ``gcs`` go to :func:`emulate_main`)."""
+    return emulate_main(args.rest)
+
+
+if __name__ == "__main__":
+    raise SystemExit(emulate_main())

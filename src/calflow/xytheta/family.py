@@ -1,0 +1,131 @@
+"""What the XYΘ family registers with the core (:class:`calflow.family.Family`).
+
+Plans by name, the simulated rig and vision sensor, the steps of the workflow and the
+family's own subcommands. Kept free of numerical imports: it is read by ``calflow --help``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from calflow.family import Command, Family
+
+_P = "calflow.xytheta.campaign_plans"
+_C = "calflow.xytheta.commands"
+_S = "calflow.xytheta.study_commands"
+
+
+def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
+    """Per-run rig options: the simulated rig draws its noise stream from (seed, run)."""
+    if factory == "simulated":
+        options.setdefault("seed", c["seed"])
+        options["stream"] = run_id
+    elif factory == "gcs":  # real stages; a simulated sensor gets its own noise per run
+        sensor = dict(options.get("sensor") or {})
+        if sensor.get("factory") == "simulated_vision":
+            sensor["options"] = {"seed": c["seed"], **sensor.get("options", {}), "stream": run_id}
+            options["sensor"] = sensor
+    return options
+
+
+def _acquire_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
+    p.add_argument("--compensation", choices=["none", "linear", "cubic"], default="none",
+                   help="lookup-table compensation of the square / random-points runs (Sec. 4.4.2)")
+
+
+def _characterise_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--x", required=True)
+    p.add_argument("--y", required=True)
+    p.add_argument("--out", required=True)
+
+
+def _observability_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--out", required=True)
+
+
+def _emulate_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("kind", choices=["gcs"])
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
+                                                          "[--duration S]")
+
+
+def _study(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--study", required=True, help="study file, config/studies/<name>.yaml")
+    p.add_argument("--campaign-dir", default="config/campaigns", help="folder of the base campaign file")
+
+
+def _point_arguments(p: argparse.ArgumentParser) -> None:
+    _study(p)
+    p.add_argument("--seed", required=True, help="seed N, or seeds FIRST-LAST run in this one job")
+    p.add_argument("--noise", required=True, help="sensor noise (um), one of the study's noise_um")
+    p.add_argument("--poses", type=int, required=True, help="number of identification poses, one of the study's")
+    p.add_argument("--off-grid", action="store_true", help="allow noise/poses outside the study's grid")
+    p.add_argument("--out", required=True)
+
+
+def _aggregate_arguments(p: argparse.ArgumentParser) -> None:
+    _study(p)
+    p.add_argument("--points", nargs="+", required=True)
+    p.add_argument("--partial", action="store_true", help="allow missing grid points")
+    p.add_argument("--out", required=True)
+
+
+def _page_arguments(p: argparse.ArgumentParser) -> None:
+    _study(p)
+    p.add_argument("--aggregate", required=True)
+    p.add_argument("--out", required=True)
+
+
+_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
+
+FAMILY = Family(
+    name="xytheta",
+    robots=("xytheta",),
+    rigs={"xytheta": {"simulated": "calflow.xytheta.rig:simulated_xytheta"}},
+    plans={"xytheta": {name: f"{_P}:{name}" for name in (
+        "identification", "validation", "characterisation_x", "characterisation_y", "angle_residuals",
+        "square", "random_points")}},
+    rig_options="calflow.xytheta.family:rig_options",
+    steps={
+        "identify": f"{_C}:identify",
+        "metrics": f"{_C}:metrics",
+        "summarise": "calflow.xytheta.summary:xytheta_summary",
+        "figures": "calflow.xytheta.figures:build",
+        "check": "calflow.xytheta.checks:check_campaign",
+    },
+    templates="calflow.xytheta",
+    modules={
+        "acquire": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.xytheta.campaign_plans",
+                            "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig",
+                            "calflow.xytheta.vision_sensor", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
+                            "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.family"),
+        "characterise": _CORE + ("calflow.xytheta.characterisation", "calflow.xytheta.commands"),
+        "identify": _CORE + ("calflow.identification", "calflow.xytheta.identification", "calflow.xytheta.cost",
+                             "calflow.xytheta.models", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
+                             "calflow.xytheta.pose_lookup", "calflow.xytheta.commands"),
+        "metrics": _CORE + ("calflow.metrics", "calflow.xytheta.evaluation", "calflow.xytheta.characterisation",
+                            "calflow.xytheta.kinematics", "calflow.xytheta.commands"),
+        "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary",
+                              "calflow.xytheta.characterisation", "calflow.xytheta.kinematics"),
+        "report": _CORE + ("calflow.report", "calflow.xytheta.figures", "calflow.xytheta.templates",
+                           "calflow.xytheta.models"),
+    },
+    acquire_arguments=_acquire_arguments,
+    commands=(
+        Command("characterise", "XY error tables from the characterisation sweeps (Sec. 4.4.1)",
+                _characterise_arguments, f"{_C}:characterise"),
+        Command("observability", "observability indices against the number of poses (Fig. 4.21)",
+                _observability_arguments, f"{_C}:observability"),
+        Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1",
+                _emulate_arguments, "calflow.xytheta.emulate:emulate_command"),
+        Command("mc-point", "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
+                _point_arguments, f"{_S}:point"),
+        Command("mc-aggregate", "aggregate the points of a Monte-Carlo study", _aggregate_arguments,
+                f"{_S}:aggregate"),
+        Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
+    ),
+    sensors={"simulated_vision": "calflow.xytheta.vision_sensor:simulated_vision"},
+)

@@ -1,0 +1,129 @@
+"""The package's shape (issue: one package per robot family over a shared core).
+
+Reads every module's imports, including those inside functions: a family imports the
+core (and the controller layer ``calflow.gcs``) and never another family; the core and
+``calflow.gcs`` never import a family; no import cycle between modules; no module over
+~400 lines; ``calflow acquire`` does not branch on plan names.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "src" / "calflow"
+FAMILIES = ("xytheta", "nano")
+MAX_LINES = 420  # "~400": a module that grows past this has split into two concepts
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+MODULES = _modules()
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """calflow modules ``name`` imports, anywhere in its body (resolved to modules)."""
+    is_pkg = path.name == "__init__.py"
+    package = name if is_pkg else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        targets = []
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            # `from pkg import submodule` imports the submodule; `from mod import name`, mod
+            subs = [f"{mod}.{a.name}" for a in node.names if f"{mod}.{a.name}" in MODULES]
+            targets = subs + ([mod] if len(subs) < len(node.names) else [])
+        for t in targets:
+            while t and t not in MODULES:
+                t = t.rpartition(".")[0]
+            if t.startswith("calflow") and t != name:
+                found.add(t)
+    return found
+
+
+GRAPH = {name: _imports(name, path) for name, path in MODULES.items()}
+
+
+def _family(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in FAMILIES else None
+
+
+def test_the_families_exist():
+    for fam in FAMILIES:
+        assert f"calflow.{fam}" in MODULES
+        assert f"calflow.{fam}.family" in MODULES
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_layers(module):
+    own = _family(module)
+    for dep in GRAPH[module]:
+        other = _family(dep)
+        if own is None:
+            assert other is None, f"core module {module} imports family module {dep}"
+        else:
+            assert other in (None, own), f"{module} (family {own}) imports {dep} (family {other})"
+
+
+def test_no_import_cycle():
+    """Tarjan's strongly connected components over the module graph; each must be one module."""
+    index, low, stack, on, cycles = {}, {}, [], set(), []
+    counter = [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in GRAPH[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                cycles.append(sorted(comp))
+
+    for v in sorted(GRAPH):
+        if v not in index:
+            visit(v)
+    assert cycles == []
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_module_size(module):
+    n = len(MODULES[module].read_text().splitlines())
+    assert n <= MAX_LINES, f"{module} has {n} lines"
+
+
+def test_acquire_does_not_branch_on_plans():
+    src = (PACKAGE / "commands" / "acquire.py").read_text()
+    tree = ast.parse(src)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            names = {n.attr for n in ast.walk(node) if isinstance(n, ast.Attribute)}
+            assert "plan" not in names, f"calflow acquire compares args.plan (line {node.lineno})"
