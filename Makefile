@@ -18,7 +18,7 @@ run: $(STAMP)  ## run the default campaigns and write reports/
 	$(BIN)/snakemake --cores $(CORES)
 
 test: $(STAMP)  ## run the test suite
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 
 dry-run: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) -n

@@ -87,3 +87,19 @@ def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subproce
 @pytest.fixture
 def small_campaign() -> dict:
     return yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA))
+
+
+def cf_problems(files) -> list[str]:
+    """Failed CF-1.11 checks of weight 2 (warning) or 3 (error) of the IOOS compliance-checker."""
+    from compliance_checker.runner import CheckSuite
+
+    suite = CheckSuite()
+    suite.load_all_available_checkers()
+    problems = []
+    for path in files:
+        results = suite.run_all(suite.load_dataset(str(path)), ["cf:1.11"], skip_checks=[])["cf:1.11"][0]
+        for r in results:
+            scored, possible = r.value if isinstance(r.value, tuple) else (int(bool(r.value)), 1)
+            if r.weight >= 2 and scored < possible:
+                problems.append(f"{path}: {r.name}: {r.msgs}")
+    return problems

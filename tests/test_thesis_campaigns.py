@@ -26,8 +26,21 @@ def thesis(tmp_path_factory):
     proc = snakemake(work, "results/xytheta-thesis/summary.json", "results/nano1d-thesis/summary.json",
                      "results/nano2d-thesis/summary.json")
     assert proc.returncode == 0, proc.stderr[-3000:]
-    return {name: json.loads((work / f"results/{name}/summary.json").read_text())
-            for name in ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")}
+    summaries = {name: json.loads((work / f"results/{name}/summary.json").read_text())
+                 for name in ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")}
+    summaries["work"] = work
+    return summaries
+
+
+def test_nano_netcdf_outputs_pass_the_cf_checker(thesis):
+    """The nano campaigns' runs, models and metrics: no CF-1.11 error or warning (the XYΘ
+    files are checked in test_workflow.py)."""
+    from conftest import cf_problems
+
+    results = thesis["work"] / "results"
+    files = sorted(f for name in ("nano1d-thesis", "nano2d-thesis") for f in (results / name).rglob("*.nc"))
+    assert len(files) >= 10
+    assert cf_problems(files) == []
 
 
 def test_xytheta_models_improve_in_order_and_match_table_4_8_within_2x(thesis):

@@ -148,3 +148,28 @@ def test_replay_campaign_reproduces_the_recorded_analysis(finished):
         path.unlink()
         shutil.rmtree(finished / "results/again", ignore_errors=True)
         shutil.rmtree(finished / "reports/again", ignore_errors=True)
+
+
+def test_snakemake_report_packs_the_campaign_reports(finished, tmp_path):
+    """`snakemake --report` gives a self-contained report with each campaign's outputs and captions."""
+    import zipfile
+
+    out = tmp_path / "report.zip"
+    proc = snakemake(finished, "--report", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with zipfile.ZipFile(out) as z:
+        names = z.namelist()
+        main = z.read(next(n for n in names if n.endswith("/report.html") and "/data/" not in n)).decode()
+    packed = {n.rsplit("/", 1)[-1] for n in names if "/data/raw/" in n}
+    assert {"report.html", "report.pdf", "summary.json", "index.html"} <= packed
+    assert "Campaign reports" in main and "Summaries" in main
+    assert "machine-readable" in main  # a caption from workflow/report/
+
+
+def test_every_netcdf_output_passes_the_cf_checker(finished):
+    """The IOOS compliance-checker finds no CF-1.11 error or warning in any netCDF output (XYΘ)."""
+    from conftest import cf_problems
+
+    files = sorted((finished / "results").rglob("*.nc"))
+    assert len(files) > 20
+    assert cf_problems(files) == []

@@ -37,3 +37,21 @@ def test_cluster_generic_run_gives_the_local_summary(tmp_path):
     assert b.returncode == 0, b.stderr[-3000:]
     assert "cluster-generic" in b.stdout + b.stderr or (cluster / ".snakemake/local-cluster").exists()
     assert (local / "results/c/summary.json").read_bytes() == (cluster / "results/c/summary.json").read_bytes()
+
+
+def _jobs(*config: str) -> dict[str, int]:
+    proc = subprocess.run([str(BIN / "snakemake"), "-n", "--forceall", "--quiet", "rules", "--config", *config], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    import re
+
+    return {k: int(v) for k, v in re.findall(r"^(\w+)\s+(\d+)\s*$", proc.stdout + proc.stderr, re.M)}
+
+
+def test_choosing_campaigns_on_the_command_line_runs_no_study_unless_named():
+    """`--config campaigns=[x]` schedules no Monte-Carlo job; naming the study schedules it."""
+    jobs = _jobs('campaigns=["nano2d-thesis"]')
+    assert jobs.get("summarise") == 1, jobs  # the campaign itself is scheduled
+    assert not any(rule.startswith("mc_") for rule in jobs), jobs
+    jobs = _jobs('campaigns=["nano2d-thesis"]', 'studies=["montecarlo-xytheta"]')
+    assert jobs.get("mc_report") == 1 and jobs.get("mc_point", 0) > 0, jobs

@@ -19,6 +19,17 @@ shell.prefix(
     f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; "
 )
 
+
+def selected_studies(config):
+    """The studies to run: those of the configuration, unless the command line chose the
+    campaigns (``--config 'campaigns=[...]'``) without naming studies too — running one's
+    own campaign runs no Monte-Carlo study unless asked for."""
+    overrides = workflow.config_settings.overwrite_config or {}
+    if "campaigns" in overrides and "studies" not in overrides:
+        return []
+    return config["studies"]
+
+
 try:
     config.update(load_workflow_config(config))
     CAMPAIGN_DIR = config["campaign_dir"]
@@ -26,7 +37,7 @@ try:
     CAMPAIGN = {
         name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml") for name in CAMPAIGNS
     }
-    STUDIES = [check_campaign_name(name) for name in config["studies"]]
+    STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)
         for name in STUDIES

@@ -58,7 +58,12 @@ rule mc_report:
     input:
         aggregate="results/studies/{study}/aggregate.json",
     output:
-        html="reports/studies/{study}.html",
+        html=report(
+            "reports/studies/{study}.html",
+            caption="../report/study.rst",
+            category="Studies",
+            labels={"study": "{study}"},
+        ),
     log:
         "results/studies/{study}/logs/report.log",
     benchmark:

@@ -10,7 +10,12 @@ rule summarise:
             else []
         ),
     output:
-        summary="results/{campaign}/summary.json",
+        summary=report(
+            "results/{campaign}/summary.json",
+            caption="../report/summary.rst",
+            category="Summaries",
+            labels={"campaign": "{campaign}"},
+        ),
     log:
         "results/{campaign}/logs/summarise.log",
     benchmark:
@@ -35,8 +40,18 @@ rule report:
         summary="results/{campaign}/summary.json",
         files=lambda w: report_files(w.campaign),
     output:
-        html="reports/{campaign}/report.html",
-        pdf="reports/{campaign}/report.pdf",
+        html=report(
+            "reports/{campaign}/report.html",
+            caption="../report/campaign_report.rst",
+            category="Campaign reports",
+            labels={"campaign": "{campaign}", "format": "HTML"},
+        ),
+        pdf=report(
+            "reports/{campaign}/report.pdf",
+            caption="../report/campaign_pdf.rst",
+            category="Campaign reports",
+            labels={"campaign": "{campaign}", "format": "PDF"},
+        ),
     log:
         "results/{campaign}/logs/report.log",
     benchmark:
@@ -57,7 +72,12 @@ rule index:
     input:
         summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
     output:
-        "reports/index.html",
+        report(
+            "reports/index.html",
+            caption="../report/index.rst",
+            category="Index",
+            labels={"page": "all campaigns"},
+        ),
     log:
         "results/logs/index.log",
     benchmark:

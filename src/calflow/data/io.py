@@ -44,20 +44,35 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 
 
 def _encoding(ds: xr.Dataset) -> dict:
-    return {name: {"zlib": True, "complevel": 4}
-            for name, var in ds.data_vars.items() if var.dtype.kind in "fiu" and var.ndim > 0}
+    """Compressed numeric data; CF coordinate variables (named as their dimension) carry no
+    ``_FillValue`` (CF 2.5.1: they must have no missing values)."""
+    enc = {name: {"zlib": True, "complevel": 4}
+           for name, var in ds.data_vars.items() if var.dtype.kind in "fiu" and var.ndim > 0}
+    enc.update({name: {"_FillValue": None} for name in ds.coords if name in ds.dims and ds[name].dtype.kind == "f"})
+    return enc
 
 
 def write_dataset(ds: xr.Dataset, path: str | os.PathLike, groups: dict[str, xr.Dataset] | None = None) -> Path:
     """Write ``ds`` as netCDF4 to ``path`` atomically and return the path.
 
     ``groups`` are written as netCDF groups of the same file (e.g. a model's lookup tables).
+    A file without a ``title`` (CF 2.6.2) gets one from its kind, campaign, plan and model.
     """
+    if not ds.attrs.get("title"):
+        ds = ds.copy()
+        ds.attrs["title"] = title(ds.attrs)
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
         for name, group in (groups or {}).items():
             group.to_netcdf(tmp, mode="a", group=name, engine="netcdf4", format="NETCDF4", encoding=_encoding(group))
     return Path(path)
+
+
+def title(attrs: Mapping[str, Any]) -> str:
+    """A one-line CF ``title``: e.g. ``calflow run identification of campaign xytheta-thesis``."""
+    what = " ".join(str(attrs[k]) for k in ("calflow_kind", "plan") if attrs.get(k))
+    model = f" (model {attrs['model']})" if attrs.get("model") else ""
+    return f"calflow {what or 'dataset'}{model} of campaign {attrs.get('campaign', 'unnamed')}"
 
 
 def group_names(path: str | os.PathLike) -> list[str]:

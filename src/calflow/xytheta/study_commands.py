@@ -18,6 +18,7 @@ def _study(args) -> dict:
 
 def point(args) -> None:
     """One point of the study's grid (seed × noise × poses), or a batch of seeds ``A-B``."""
+    from calflow.acquisition.progress import progress
     from calflow.data.io import write_json
     from calflow.xytheta.montecarlo import noise_label, parse_seeds, run_point
 
@@ -30,8 +31,12 @@ def point(args) -> None:
         raise CalflowError(f"{args.study}: --noise {noise_label(noise)}: not in key 'noise_um' {s['noise_um']}")
     if args.poses not in s["poses"] and not args.off_grid:
         raise CalflowError(f"{args.study}: --poses {args.poses}: not in key 'poses' {s['poses']}")
-    points = [run_point(s["base"], seed, noise, args.poses, model=s["model"], validation_cycles=s["validation_cycles"],
-                        rig_options=s["rig_options"]) for seed in seeds]
+    points = []
+    with progress(f"{s['name']} noise {noise_label(noise)} um, {args.poses} poses", len(seeds)) as step:
+        for seed in seeds:
+            points.append(run_point(s["base"], seed, noise, args.poses, model=s["model"],
+                                    validation_cycles=s["validation_cycles"], rig_options=s["rig_options"]))
+            step(len(points), len(seeds))
     write_json({"study": s["name"], "points": points}, args.out)
 
 
