@@ -103,3 +103,40 @@ def cf_problems(files) -> list[str]:
             if r.weight >= 2 and scored < possible:
                 problems.append(f"{path}: {r.name}: {r.msgs}")
     return problems
+
+
+# ---------------------------------------------------------------------------- shared runs
+# Whole-workflow runs are the slow part of the suite: each is made once per session and
+# read by every test that only reads it. All the tests of one run are in one file
+# (test_default_run.py, test_reduced_run.py), so under `pytest -n N --dist loadfile` (the
+# README's test command) one worker makes it. (xdist's `loadgroup` would be the natural
+# tool, but pytest 9 ignores the node ids it rewrites.)
+
+#: SMALL_XYTHETA with Models I and II only, no XY tests and 120 poses: a run of 10 jobs.
+REDUCED_XYTHETA = {**SMALL_XYTHETA, "models": {k: SMALL_XYTHETA["models"][k] for k in ("I", "II")},
+                   "xy_tests": {"compensation": []},
+                   "identification": {**SMALL_XYTHETA["identification"], "poses": 120}}
+SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created` attributes
+
+
+@pytest.fixture(scope="session")
+def thesis_run(tmp_path_factory) -> Path:
+    """The default configuration (the three thesis campaigns, no study) run once: its
+    project folder, with results/ and reports/."""
+    work = tmp_path_factory.mktemp("thesis") / "project"
+    work.mkdir()
+    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+    shutil.copytree(ROOT / "workflow", work / "workflow")
+    shutil.copytree(ROOT / "config", work / "config")
+    proc = snakemake(work, "--config", "studies=[]")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return work
+
+
+@pytest.fixture(scope="session")
+def reduced_run(tmp_path_factory) -> Path:
+    """REDUCED_XYTHETA (campaign ``c``) run once locally under SOURCE_DATE_EPOCH."""
+    work = make_workdir(tmp_path_factory.mktemp("reduced"), {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))})
+    proc = snakemake(work, env_extra=SOURCE_DATE_EPOCH)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return work

@@ -6,6 +6,7 @@ is test-only, and measures the rig's own repeatability at the validation targets
 """
 
 import json
+import re
 import shutil
 
 import numpy as np
@@ -13,28 +14,22 @@ import pytest
 
 from conftest import ROOT, snakemake
 
+CAMPAIGN = "xytheta-thesis"
+
 THESIS_4_8 = {"I": 95.980, "II": 34.338, "III": 26.461, "IV": 2.838, "V": 2.568}
 
 
 @pytest.fixture(scope="module")
-def thesis(tmp_path_factory):
-    work = tmp_path_factory.mktemp("thesis") / "project"
-    work.mkdir()
-    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-    shutil.copytree(ROOT / "workflow", work / "workflow")
-    shutil.copytree(ROOT / "config", work / "config")
-    proc = snakemake(work, "results/xytheta-thesis/summary.json", "results/nano1d-thesis/summary.json",
-                     "results/nano2d-thesis/summary.json")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    summaries = {name: json.loads((work / f"results/{name}/summary.json").read_text())
+def thesis(thesis_run):
+    summaries = {name: json.loads((thesis_run / f"results/{name}/summary.json").read_text())
                  for name in ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")}
-    summaries["work"] = work
+    summaries["work"] = thesis_run
     return summaries
 
 
 def test_nano_netcdf_outputs_pass_the_cf_checker(thesis):
     """The nano campaigns' runs, models and metrics: no CF-1.11 error or warning (the XYΘ
-    files are checked in test_workflow.py)."""
+    files are checked below)."""
     from conftest import cf_problems
 
     results = thesis["work"] / "results"
@@ -117,3 +112,96 @@ def test_nano2d_model_brings_micrometres_to_hundreds_of_nanometres(thesis):
     t = thesis["nano2d-thesis"]["tests"]
     assert t["no_calibration"]["max_accuracy_nm"] > 1000
     assert t["single"]["max_accuracy_nm"] < 400
+
+
+# ------------------------------------------------ the workflow on the same run
+
+
+def test_run_leaves_summary_and_reports(thesis_run):
+    summary = json.loads((thesis_run / f"results/{CAMPAIGN}/summary.json").read_text())
+    assert list(summary["models"]) == ["I", "II", "III", "IV", "V"]
+    for name in ("I", "II", "III", "IV", "V"):
+        m = summary["models"][name]
+        assert m["accuracy_um"] > 0 and m["repeatability_um"] > 0
+        for key in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg"):
+            assert set(m["parameters"][key]) == {"value", "std"}
+    acc = [summary["models"][k]["accuracy_um"] for k in ("I", "II", "IV")]
+    assert acc[1] < acc[0] / 3 and acc[2] < acc[1]
+    assert summary["models"]["III"]["position_table"] and summary["models"]["IV"]["angle_table"]
+    assert summary["characterisation"]["periods_um"]["xx"] == pytest.approx(400, rel=0.05)
+    xy = summary["xy_tests"]["random_points"]
+    assert xy["linear"]["accuracy_um"] < xy["none"]["accuracy_um"] / 5
+    assert summary["observability"]["poses"][0] == 3
+    assert summary["models"]["I"]["parameters"]["alpha_deg"] == {"value": 180.0, "std": None}
+    assert summary["reference"]["models"]["I"]["accuracy_um"] == pytest.approx(95.980)
+    assert set(summary["truth"]["parameters"]) == {"x_R_um", "y_R_um", "alpha_deg", "beta_deg"}
+    html = (thesis_run / f"reports/{CAMPAIGN}/report.html").read_text()
+    assert (thesis_run / f"reports/{CAMPAIGN}/report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert "95.980" in html and "Model II" in html
+    index = (thesis_run / "reports/index.html").read_text()
+    assert all(name in index for name in (CAMPAIGN, "nano1d-thesis", "nano2d-thesis"))
+
+
+def test_report_headline_equals_summary(thesis_run):
+    summary = json.loads((thesis_run / f"results/{CAMPAIGN}/summary.json").read_text())
+    html = (thesis_run / f"reports/{CAMPAIGN}/report.html").read_text()
+    cells = dict(re.findall(r'data-key="([^"]+)">([^<]+)<', html))
+    assert cells, "the headline table carries data-key cells"
+    for key, text in cells.items():
+        value = summary
+        for part in key.split("."):
+            value = value[part]
+        assert float(text) == pytest.approx(value, abs=5e-4), key
+
+
+def test_rerun_has_nothing_to_do(thesis_run):
+    proc = snakemake(thesis_run, "-n", "--config", "studies=[]")
+    assert proc.returncode == 0
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+def test_validation_change_reruns_only_validation_metrics_and_report(thesis_run, tmp_path):
+    import shutil
+
+    import yaml
+
+    work = tmp_path / "copy"
+    shutil.copytree(thesis_run, work, symlinks=True)
+    path = work / f"config/campaigns/{CAMPAIGN}.yaml"
+    c = yaml.safe_load(path.read_text())
+    c["validation"]["cycles"] = 5
+    path.write_text(yaml.safe_dump(c))
+    proc = snakemake(work, "-n", "--quiet", "rules", "--config", "studies=[]")
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout + proc.stderr
+    jobs = dict(re.findall(r"^(\w+)\s+(\d+)\s*$", out, re.M))
+    n = len(c["models"])
+    assert jobs.pop("acquire_validation_model") == str(n) and jobs.pop("metrics") == str(n)
+    assert jobs.pop("summarise") == "1" and jobs.pop("report") == "1" and jobs.pop("index") == "1"
+    jobs.pop("total", None), jobs.pop("all", None)
+    assert jobs == {}, f"only validation, its metrics and the report rerun, not {jobs}"
+
+
+def test_snakemake_report_packs_the_campaign_reports(thesis_run, tmp_path):
+    """`snakemake --report` gives a self-contained report with each campaign's outputs and captions."""
+    import zipfile
+
+    out = tmp_path / "report.zip"
+    proc = snakemake(thesis_run, "--report", str(out), "--config", "studies=[]")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with zipfile.ZipFile(out) as z:
+        names = z.namelist()
+        main = z.read(next(n for n in names if n.endswith("/report.html") and "/data/" not in n)).decode()
+    packed = {n.rsplit("/", 1)[-1] for n in names if "/data/raw/" in n}
+    assert {"report.html", "report.pdf", "summary.json", "index.html"} <= packed
+    assert "Campaign reports" in main and "Summaries" in main
+    assert "machine-readable" in main  # a caption from workflow/report/
+
+
+def test_every_netcdf_output_passes_the_cf_checker(thesis_run):
+    """The IOOS compliance-checker finds no CF-1.11 error or warning in any netCDF output (XYΘ)."""
+    from conftest import cf_problems
+
+    files = sorted((thesis_run / "results" / CAMPAIGN).rglob("*.nc"))  # nano: above
+    assert len(files) > 30
+    assert cf_problems(files) == []

@@ -1,0 +1,73 @@
+"""The same analysis through other paths: a cluster executor, a replay of the recordings and
+the GCS controller emulator all give the session's reduced local run's results
+(``reduced_run`` in conftest). One file, so `pytest --dist loadfile` makes that run once."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from conftest import REDUCED_XYTHETA, ROOT, SOURCE_DATE_EPOCH, make_workdir, snakemake
+
+
+def test_cluster_generic_run_gives_the_local_summary(reduced_run, tmp_path):
+    """Each job its own process through a submit script: the same summary.json, byte for byte."""
+    cluster = make_workdir(tmp_path, {"c": REDUCED_XYTHETA})
+    shutil.copytree(ROOT / "workflow" / "profiles", cluster / "workflow" / "profiles", dirs_exist_ok=True)
+    b = snakemake(cluster, "results/c/summary.json", "--workflow-profile", "workflow/profiles/local-cluster",
+                  env_extra=SOURCE_DATE_EPOCH)
+    assert b.returncode == 0, b.stderr[-3000:]
+    assert "cluster-generic" in b.stdout + b.stderr or (cluster / ".snakemake/local-cluster").exists()
+    assert (reduced_run / "results/c/summary.json").read_bytes() == (cluster / "results/c/summary.json").read_bytes()
+
+
+def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
+    """A campaign replaying another's recordings gets the same models and metrics."""
+    import shutil
+
+    import yaml
+
+    from conftest import REDUCED_XYTHETA
+
+    recorded = reduced_run / "results/c/runs"
+    campaign = json.loads(json.dumps(REDUCED_XYTHETA))
+    campaign["rig"] = {"factory": "replay", "options": {"recordings": str(recorded)}}
+    path = reduced_run / "config/campaigns/again.yaml"
+    path.write_text(yaml.safe_dump(campaign))
+    try:
+        proc = snakemake(reduced_run, "--config", 'campaigns=["again"]')
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        a = json.loads((reduced_run / "results/c/summary.json").read_text())
+        b = json.loads((reduced_run / "results/again/summary.json").read_text())
+        assert list(a["models"]) == ["I", "II"]
+        assert a["models"] == b["models"]
+        assert a["truth"] == b["truth"]
+    finally:
+        path.unlink()
+        shutil.rmtree(reduced_run / "results/again", ignore_errors=True)
+        shutil.rmtree(reduced_run / "reports/again", ignore_errors=True)
+
+
+def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tmp_path):
+    """The session's reduced XYΘ campaign on the simulated rig, and the same campaign through
+    the GCS emulator of that rig."""
+    from calflow.xytheta.emulate import emulated_rig_options
+
+    sim = json.loads(json.dumps(REDUCED_XYTHETA))
+    emu, options = emulated_rig_options(sim, time_scale=2000.0, timeout=2.0)
+    try:
+        via_gcs = json.loads(json.dumps(sim))
+        via_gcs["rig"] = {"factory": "gcs", "options": options}
+        work = make_workdir(tmp_path, {"viagcs": via_gcs})
+        proc = snakemake(work, "results/viagcs/summary.json")
+        assert proc.returncode == 0, proc.stderr[-3000:]
+    finally:
+        emu.stop()
+    a = json.loads((reduced_run / "results/c/summary.json").read_text())["models"]
+    b = json.loads((work / "results/viagcs/summary.json").read_text())["models"]
+    for name in ("I", "II"):
+        assert b[name]["accuracy_um"] == pytest.approx(a[name]["accuracy_um"], rel=0.3, abs=2.0), name
+    for key in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg"):
+        pa, pb = a["II"]["parameters"][key], b["II"]["parameters"][key]
+        assert abs(pa["value"] - pb["value"]) < 4 * np.hypot(pa["std"], pb["std"]), key
