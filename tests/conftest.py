@@ -29,17 +29,17 @@ SMALL_XYTHETA = {
     "robot": "xytheta",
     "seed": 7,
     "rig": {"factory": "simulated", "options": {}},
-    "characterisation": {"x_stop_um": 4000, "y_stop_um": 2800, "step_um": 25, "cycles": 2, "dwell_s": 0.2},
+    "characterisation": {"x_stop_um": 4400, "y_stop_um": 3200, "step_um": 25, "cycles": 2, "dwell_s": 0.2},
     "xy_tests": {"compensation": ["none", "linear"], "square": {"side_um": 1000, "points_per_segment": 4, "cycles": 2},
                  "random_points": {"cycles": 2, "targets": [[500, 300], [1500, 900], [2500, 1200]]}},
     "identification": {"poses": 60, "dwell_s": 0.5},
     "observability": {"max_poses": 200, "steps": 5, "repeats": 1},
-    "angle_residuals": {"cycles": 2},
+    "angle_residuals": {"cycles": 2, "positions": 2, "step_deg": 0.25},
     "models": {"I": {"free": ["x_R", "y_R"], "fixed": {"alpha": 180.0, "beta": 0.0}},
                "II": {"free": ["x_R", "y_R", "alpha", "beta"]},
                "III": {"free": ["x_R", "y_R", "alpha", "beta"], "position_table": True},
                "IV": {"base": "II", "angle_table": True}},
-    "validation": {"cycles": 4, "dwell_s": 0.5},
+    "validation": {"cycles": 4, "dwell_s": 0.5, "heldout": {"targets": 12, "cycles": 3}},
 }
 
 SMALL_NANO1D = {

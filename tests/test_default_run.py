@@ -38,12 +38,81 @@ def test_nano_netcdf_outputs_pass_the_cf_checker(thesis):
     assert cf_problems(files) == []
 
 
-def test_xytheta_models_improve_in_order_and_match_table_4_8_within_2x(thesis):
-    acc = {k: v["accuracy_um"] for k, v in thesis["xytheta-thesis"]["models"].items()}
-    assert acc["I"] > acc["II"] > acc["III"] > acc["IV"]
-    assert acc["V"] <= acc["IV"] * 1.1  # IV ≥ V within the noise
-    for name, ref in THESIS_4_8.items():
-        assert ref / 2 <= acc[name] <= ref * 2, (name, acc[name], ref)
+def test_xytheta_heldout_accuracy_improves_model_by_model(thesis):
+    """Held out, each model's tables and parameters help on poses they never saw (Sec. 4.5.5).
+
+    The thesis's Table 4.8 stays beside calflow's numbers in the report; no test asks
+    calflow's figures to land near it."""
+    models = thesis["xytheta-thesis"]["models"]
+    acc = {k: v["accuracy_um"] for k, v in models.items()}
+    assert all(v["protocol"] == "heldout" for v in models.values())
+    assert acc["I"] > acc["II"] > acc["III"] > acc["IV"] > acc["V"]
+    for name, m in models.items():
+        assert m["reference_targets"]["thesis_accuracy_um"] == THESIS_4_8[name]  # shown beside, not asserted
+
+
+def test_heldout_targets_are_disjoint_from_every_training_pose(thesis):
+    """From the run datasets alone: ≥ 50 held-out targets, their plan recorded, none of them
+    an identification or angle-table pose; the summary says the same."""
+    import xarray as xr
+
+    runs = thesis["work"] / "results/xytheta-thesis/runs"
+
+    def joints(path):
+        with xr.open_dataset(path) as ds:
+            sel = ds["pose"].values > 0
+            return ds.attrs["plan"], np.column_stack([ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")])
+
+    training = [joints(p) for p in sorted(runs.glob("identification.nc")) + sorted(runs.glob("angle_residuals_*.nc"))]
+    assert {plan for plan, _ in training} == {"identification", "angle_residuals"}
+    train = np.vstack([q for _, q in training])
+    for path in sorted(runs.glob("validation_heldout_*.nc")):
+        plan, q = joints(path)
+        assert plan == "validation_heldout"
+        targets = np.unique(q[:, 2])
+        assert targets.size >= 50
+        d = np.min(np.abs(q[:, None, 0] - train[None, :, 0]) + np.abs(q[:, None, 1] - train[None, :, 1])
+                   + 1e3 * np.abs(q[:, None, 2] - train[None, :, 2]), axis=1)
+        assert d.min() > 1.0, path.name
+    h = thesis["xytheta-thesis"]["validation"]["heldout"]
+    assert h["n_targets"] >= 50 and h["coincident_samples"] == 0 and isinstance(h["seed"], int)
+
+
+def test_every_model_has_both_protocols_cross_validation_and_adequacy(thesis):
+    for name, m in thesis["xytheta-thesis"]["models"].items():
+        assert m["accuracy_um"] > 0 and m["reference_targets"]["accuracy_um"] > 0, name
+        idf = m["identification"]
+        assert idf["cv_rms_um"] > 0 and idf["residual_rms_um"] > 0 and idf["cv_folds"] == 5, name
+        assert 0.8 < idf["cv_rms_um"] / idf["residual_rms_um"] < 1.5, name  # no overfitting with 4 parameters
+        assert set(m["adequacy"]) >= {"chi2_dof", "adequate", "statement"}, name
+
+
+def test_adequacy_flags_every_model_whose_parameters_are_biased(thesis):
+    """A model whose free parameters sit more than 3 σ from the rig's truth is said not to
+    fit, in the summary and in the report's words, and the report prints no ± beside it."""
+    s = thesis["xytheta-thesis"]
+    truth = s["truth"]["parameters"]
+    html = (thesis["work"] / "reports/xytheta-thesis/report.html").read_text()
+    biased_models = 0
+    for name, m in s["models"].items():
+        biased = any(abs(p["value"] - truth[k]) > 3 * p["std"] for k, p in m["parameters"].items() if p["std"])
+        if biased:
+            biased_models += 1
+            assert m["adequacy"]["adequate"] is False, name
+            assert f"Model {name}: The model does not fit" in html
+    assert biased_models >= 1  # the default rig has errors no model represents
+    assert "assumes a fit the model does not have" in html
+
+
+def test_angle_table_is_indexed_by_theta_with_a_step_from_the_spectrum(thesis):
+    for name in ("IV", "V"):
+        info = thesis["xytheta-thesis"]["models"][name]["angle_table_info"]
+        assert info["table"] == "angle_sweep"
+        theta = np.array(info["theta_deg"])
+        assert np.allclose(np.diff(theta)[:-1], info["step_deg"])
+        assert info["step_deg"] <= info["shortest_period_deg"] / 10 + 1e-9 or info["undersampled"]
+        assert np.array(info["f_ax_um"]).shape == (2, theta.size)  # forward, backward
+        assert len(info["sweep_theta_deg"]) > theta.size
 
 
 def test_xytheta_identified_geometry_is_close_to_truth(thesis):
@@ -55,8 +124,9 @@ def test_xytheta_identified_geometry_is_close_to_truth(thesis):
     assert s["characterisation"]["periods_um"]["xx"] == pytest.approx(400, rel=0.02)
 
 
-def test_model_v_reaches_the_limitation_of_the_robot(thesis):
-    """Model V's accuracy is no worse than 1.5× the rig's repeatability at the targets (oracle)."""
+def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis):
+    """Commanded through the rig's exact inverse (test-only truth), the Table 4.7 targets are
+    reached within noise; Model V's repeatability at them is the rig's own."""
     from calflow.acquisition.runner import acquire
     from calflow.config import load_campaign
     from calflow.data.runs import RunMetadata
@@ -82,8 +152,8 @@ def test_model_v_reaches_the_limitation_of_the_robot(thesis):
     m = xytheta_validation_metrics(run, meta)
     rp_oracle = m.attrs["repeatability_um"]
     assert m.attrs["accuracy_um"] < 0.5 * rp_oracle  # the oracle is accurate to within noise
-    v = thesis["xytheta-thesis"]["models"]["V"]["accuracy_um"]
-    assert v <= 1.5 * rp_oracle, (v, rp_oracle)
+    v = thesis["xytheta-thesis"]["models"]["V"]["reference_targets"]["repeatability_um"]
+    assert 0.67 * rp_oracle <= v <= 1.5 * rp_oracle, (v, rp_oracle)
 
 
 def test_nano1d_five_days_follow_the_thesis(thesis):
@@ -106,6 +176,18 @@ def test_nano1d_five_days_follow_the_thesis(thesis):
     # intrinsic (metrology room): AP of the order of 350 nm, RP of the order of 35 nm (Sec. 5.3.3)
     assert 175 < s["intrinsic"]["accuracy_nm"] < 700
     assert 15 < s["intrinsic"]["repeatability_nm"] < 70
+
+
+def test_nano_validation_records_what_is_out_of_sample(thesis):
+    """Validation after training in time; positions training visited are named, and the
+    max AP over the others is given per test type (thesis protocol kept beside)."""
+    for name, shared in (("nano1d-thesis", [[0.0], [240.0], [480.0]]), ("nano2d-thesis", [[0.0, 0.0]])):
+        s = thesis[name]
+        h = s["validation"]["heldout"]
+        assert h["time_disjoint"] and h["validation_start_h"] > h["training_end_h"]
+        assert h["shared_positions_um"] == shared
+        for mode, t in s["tests"].items():
+            assert t["heldout_max_accuracy_nm"] <= t["max_accuracy_nm"], (name, mode)
 
 
 def test_nano2d_model_brings_micrometres_to_hundreds_of_nanometres(thesis):

@@ -100,9 +100,19 @@ def _xy_model_entry(k, free):
         "correlation": np.eye(n).round(3).tolist(),
         "identifiability": {"r_diag": [1.25] * n if k < 3 else [], "not_identifiable": ""},
         "identification": {"O1": 7.3, "O2": 0.0011, "O3": 1.25, "O4": 0.0014, "condition_number": 876.0,
-                           "dof": 2396, "n_poses": 60, "residual_rms_um": 4.2},
-        "per_target": [{"target": t, "x_um": x, "y_um": y, "theta_deg": th, "ap_um": 1.0 + k + t / 10,
-                        "rp_um": 0.3 + t / 100} for t, x, y, th in targets],
+                           "dof": 2396, "n_poses": 60, "residual_rms_um": 4.2, "cv_rms_um": 4.4, "cv_folds": 5,
+                           "sigma_fit_um": 3.0},
+        "protocol": "heldout",
+        "per_target": [{"target": t, "x_um": 10.0 * t, "y_um": -5.0 * t, "theta_deg": 0.07 * t, "ap_um": 1.5 + k + t / 9,
+                        "rp_um": 0.4 + t / 90} for t in range(1, 51)],
+        "reference_targets": {
+            "accuracy_um": 80.0 / (k + 1) + 0.654321, "repeatability_um": 1.5 / (k + 1), "thesis_accuracy_um": 95.98,
+            "per_target": [{"target": t, "x_um": x, "y_um": y, "theta_deg": th, "ap_um": 1.0 + k + t / 10,
+                            "rp_um": 0.3 + t / 100} for t, x, y, th in targets]},
+        "adequacy": ({"chi2_dof": 1.02, "p_value": 0.4, "adequate": True, "floor_um": 0.5, "statement": "fits"}
+                     if k == 1 else
+                     {"chi2_dof": 36.0, "p_value": 0.0, "adequate": False, "floor_um": 0.5,
+                      "statement": "The model does not fit: <b>not bold</b>"}),
     }
 
 
@@ -189,8 +199,19 @@ def xytheta(tmp_path_factory, strict):
 def test_xytheta_headline_equals_summary(xytheta):
     summary, _, html = xytheta
     must = [f"models.{m}.accuracy_um" for m in MODELS] + [f"models.{m}.repeatability_um" for m in MODELS]
+    must += [f"models.{m}.reference_targets.accuracy_um" for m in MODELS]
     must += [f"xy_tests.{p}.{c}.accuracy_um" for p in ("square", "random_points") for c in ("none", "linear", "cubic")]
     assert_headline_equals_summary(html, summary, must + ["observability.O2_plateau_poses"])
+
+
+def test_xytheta_report_shows_both_protocols_and_says_when_a_model_does_not_fit(xytheta):
+    summary, _, html = xytheta
+    assert "held-out AP" in html and "reference-target AP" in html
+    assert html.count("The model does not fit") == len(MODELS) - 1  # every model but the adequate one
+    assert "&lt;b&gt;not bold&lt;/b&gt;" in html  # summary text is escaped
+    # the adequate model prints value ± σ; an inadequate one does not
+    assert "assumes a fit the model does not have" in html and "± 3.1" in html
+    assert html.count("P50") >= 1  # the 50 held-out targets are listed
 
 
 def test_xytheta_figures_have_captions_svg_and_units(xytheta):

@@ -95,6 +95,12 @@ def rig_digest(run_id):
     return _digest
 
 
+def reference_validation(w):
+    """The validation section without its held-out part: what the reference runs read."""
+    v = CAMPAIGN[w.campaign]["validation"]
+    return {k: v[k] for k in v if k != "heldout"}
+
+
 def xytheta_models(c):
     return list(c["models"])
 
@@ -111,6 +117,14 @@ def results_of(name):
         models = xytheta_models(c)
         files = [f"{base}/models/{m}.nc" for m in models]
         files += [f"{base}/metrics/validation_{m}.nc" for m in models]
+        files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
+        files += [f"{base}/runs/validation_heldout_{m}.nc" for m in models]
+        files.append(f"{base}/runs/identification.nc")
+        files += [
+            f"{base}/runs/angle_residuals_{s['base']}.nc"
+            for s in c["models"].values()
+            if "base" in s
+        ]
         files.append(f"{base}/metrics/observability.nc")
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
@@ -154,6 +168,7 @@ def identify_inputs(w):
         return {
             "base": f"{base}/models/{spec['base']}.nc",
             "residuals": f"{base}/runs/angle_residuals_{spec['base']}.nc",
+            "run": f"{base}/runs/identification.nc",
         }
     inputs = {"run": f"{base}/runs/identification.nc"}
     if spec.get("position_table"):
@@ -169,9 +184,11 @@ def identify_digest(w):
     c = CAMPAIGN[w.campaign]
     if c["robot"] != "xytheta":
         return digest([code_digest("identify", c["robot"]), c["model"]])
-    return digest(
-        [code_digest("identify", c["robot"]), c["identification"], c["models"][w.model]]
-    )
+    spec = c["models"][w.model]
+    sections = [c["identification"], spec]
+    if "base" in spec:
+        sections.append(c["angle_residuals"])
+    return digest([code_digest("identify", c["robot"]), c["seed"]] + sections)
 
 
 def report_files(name):

@@ -1,6 +1,9 @@
 # Validation on the rig through the models' inverse kinematics, and the metrics of each run.
 
 
+ruleorder: acquire_validation_heldout > acquire_validation_model
+
+
 rule acquire_validation_model:
     input:
         model="results/{campaign}/models/{model}.nc",
@@ -21,11 +24,41 @@ rule acquire_validation_model:
         digest=lambda w: digest(
             [
                 rig_digest(f"validation_{w.model}")(w),
-                CAMPAIGN[w.campaign]["validation"],
+                reference_validation(w),
             ]
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
+        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
+
+
+rule acquire_validation_heldout:
+    input:
+        model="results/{campaign}/models/{model}.nc",
+    output:
+        run="results/{campaign}/runs/validation_heldout_{model}.nc",
+        truth="results/{campaign}/truth/validation_heldout_{model}.json",
+    log:
+        "results/{campaign}/logs/acquire_validation_heldout_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [
+                rig_digest(f"validation_heldout_{w.model}")(w),
+                CAMPAIGN[w.campaign]["validation"]["heldout"],
+                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
+                CAMPAIGN[w.campaign]["identification"],
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation_heldout"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 

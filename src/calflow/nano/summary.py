@@ -107,6 +107,37 @@ def mode_block(metrics: xr.Dataset, training_range_c: tuple[float, float] | None
     return tests, validation
 
 
+def heldout_block(validation_metrics: xr.Dataset, training_metrics: xr.Dataset | None, tests: dict) -> dict:
+    """Is the validation out of sample? Times and positions against the training run's.
+
+    Records whether validation starts after training ends, which validation positions
+    (µm) are also training positions, and adds to each mode in ``tests`` the max AP over
+    the validation poses at positions training never visited (``heldout_max_accuracy_nm``)
+    — the figure that says how a model does where it was not trained.
+    """
+    if training_metrics is None:
+        return {"time_disjoint": None, "shared_positions_um": None}
+    axes = str(validation_metrics.attrs.get("axes", "x")).split()
+    val = np.column_stack([validation_metrics[f"target_{a}"].values for a in axes])
+    train = np.column_stack([training_metrics[f"target_{a}"].values for a in axes])
+    shared = np.array([np.any(np.all(np.abs(train - v) < 1e-6, axis=1)) for v in val])
+    t_end = float(training_metrics.attrs.get("end_time_h", np.nanmax(training_metrics["time_end_h"].values)))
+    v_start = float(validation_metrics.attrs.get("start_time_h", np.nanmin(validation_metrics["time_start_h"].values)))
+    mode = validation_metrics["mode"].values
+    ap = validation_metrics["ap"].transpose("test", "pose").values
+    for k, name in enumerate(mode_names(validation_metrics)):
+        if name in tests:
+            tests[name]["heldout_max_accuracy_nm"] = _nanmax(ap[mode == k][:, ~shared]) if (~shared).any() else None
+    return {"time_disjoint": bool(v_start > t_end), "training_end_h": t_end, "validation_start_h": v_start,
+            "shared_positions_um": np.unique(val[shared], axis=0).tolist(),
+            "heldout_positions_um": np.unique(val[~shared], axis=0).tolist(),
+            "statement": ("Validation starts after training ends; " +
+                          ("every validation position is one training never visited." if not shared.any() else
+                           f"{int(np.unique(val[shared], axis=0).shape[0])} of its {int(np.unique(val, axis=0).shape[0])} "
+                           "positions are training positions (the thesis's protocol), so "
+                           "tests.<mode>.heldout_max_accuracy_nm gives the max AP over the others."))}
+
+
 def _per_pose(metrics: xr.Dataset, test: int = 0) -> list[dict]:
     m = metrics.isel(test=test)
     axes = str(metrics.attrs.get("axes", "x")).split()
@@ -160,6 +191,7 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     values (``calflow.reference.STAGE1D``); ``inputs`` {path: sha256}.
     """
     tests, validation = mode_block(validation_metrics, training_range_c)
+    validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
     summary = _common(campaign, "stage1d", models, budget, inputs)
     summary.update(
         intrinsic=_headline(metrology_metrics) if metrology_metrics is not None else None,
@@ -179,6 +211,7 @@ def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``."""
     tests, validation = mode_block(validation_metrics, training_range_c)
+    validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
     summary = _common(campaign, "stage2d", models, budget, inputs)
     summary.update(
         training=_headline(training_metrics) if training_metrics is not None else None,

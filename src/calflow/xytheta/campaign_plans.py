@@ -7,6 +7,10 @@ by name.
 
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
+
 from calflow.errors import CalflowError
 from calflow.plan import Acquisition
 from calflow.xytheta import plans, sweeps
@@ -35,12 +39,59 @@ def validation(c: dict, args) -> Acquisition:
                        f"validation_{model.name}", model.name)
 
 
+def heldout_seed(c: dict) -> int:
+    """The held-out targets' seed: ``validation.heldout.seed``, else one derived from the campaign's."""
+    seed = c["validation"]["heldout"].get("seed")
+    return int(seed) if seed is not None else int(np.random.SeedSequence([int(c["seed"]), 9_283]).generate_state(1)[0])
+
+
+def validation_heldout(c: dict, args) -> Acquisition:
+    """Held-out validation through a model's inverse: targets no identification or table saw."""
+    from calflow.xytheta.kinematics import Parameters
+
+    model = _model(args, "validation_heldout")
+    p, h = c["identification"], c["validation"]["heldout"]
+    targets = plans.heldout_targets(h["targets"], p["x_um"], p["y_um"], p["theta_deg"],
+                                    Parameters(**p["initial"]), heldout_seed(c))
+    plan = dataclasses.replace(plans.validation(model.inverse, targets, h["cycles"], c["validation"]["dwell_s"]),
+                               name="validation_heldout")
+    return Acquisition(plan, f"validation_heldout_{model.name}", model.name)
+
+
+def angle_positions(c: dict, base) -> np.ndarray:
+    """World-frame positions (M, 2) of the angle characterisation, µm.
+
+    ``angle_residuals.targets`` when given; else ``angle_residuals.positions`` joint poses
+    drawn over the identification workspace at Θ = 0 from their own random stream, put
+    in the world frame by the base model's forward kinematics (Eq. 4.18).
+    """
+    a, p = c["angle_residuals"], c["identification"]
+    if a.get("targets") is not None:
+        return np.asarray(a["targets"], dtype=float)
+    rng = np.random.default_rng(np.random.SeedSequence([int(c["seed"]), 4_26]))
+    n = int(a["positions"])
+    X = p["x_um"][0] + (p["x_um"][1] - p["x_um"][0]) * rng.random(n)
+    Y = p["y_um"][0] + (p["y_um"][1] - p["y_um"][0]) * rng.random(n)
+    x, y = base.forward(X, Y, np.zeros(n))
+    return np.column_stack([x, y])
+
+
 def angle_residuals(c: dict, args) -> Acquisition:
-    """Angle sweeps commanded through a base model (Fig. 4.26), for the angle tables."""
+    """The angle characterisation through a base model (Sec. 4.5.5), for the angle tables.
+
+    Default (``table: angle``): Θ swept forward and backward over ``theta_deg`` in
+    ``step_deg`` steps at positions no validation visits (:func:`angle_positions`).
+    Opt-in ``table: position_angle``: the thesis's Fig. 4.26 run, at the Table 4.7
+    positions (the reference validation's own poses) unless ``targets`` says otherwise.
+    """
     model = _model(args, "angle_residuals")
     a = c["angle_residuals"]
-    plan = sweeps.angle_residual_plan(model.inverse, a.get("targets"), a["angles_deg"], a["cycles"], a["dwell_s"])
-    return Acquisition(plan, f"angle_residuals_{model.name}", model.name)
+    if a["table"] == "position_angle":
+        plan = sweeps.angle_residual_plan(model.inverse, a.get("targets"), a["angles_deg"], a["cycles"], a["dwell_s"])
+    else:
+        plan = sweeps.angle_sweep(model.inverse, angle_positions(c, model), a["theta_deg"], a["step_deg"],
+                                  a["cycles"], a["dwell_s"])
+    return Acquisition(plan, f"angle_residuals_{model.name}", model.name, attrs={"angle_table": a["table"]})
 
 
 def _characterisation(axis: str):

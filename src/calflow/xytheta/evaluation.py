@@ -36,7 +36,7 @@ def xytheta_validation_metrics(run: xr.Dataset, meta: RunMetadata) -> xr.Dataset
     """ISO 9283 AP and RP per validation target (µm) and their maxima."""
     x, y = attained_points(run)
     poses = np.unique(run["pose"].values[run["pose"].values > 0])
-    rows = []
+    rows, scatter = [], []
     for p in poses:
         sel = (run["pose"].values == p) & np.isfinite(x) & np.isfinite(y)
         if sel.sum() < 2:
@@ -44,6 +44,7 @@ def xytheta_validation_metrics(run: xr.Dataset, meta: RunMetadata) -> xr.Dataset
         command = np.array([run["target_x"].values[sel][0], run["target_y"].values[sel][0]])
         result = iso9283(command, np.column_stack([x[sel], y[sel]]))
         rows.append((p, command, run["target_theta"].values[sel][0], result, int(sel.sum())))
+        scatter.append(np.column_stack([x[sel] - x[sel].mean(), y[sel] - y[sel].mean()]))
 
     def var(values, units, long_name):
         return xr.Variable(("target",), np.asarray(values), attrs={"units": units, "long_name": long_name})
@@ -65,4 +66,10 @@ def xytheta_validation_metrics(run: xr.Dataset, meta: RunMetadata) -> xr.Dataset
     )
     ds.attrs["accuracy_um"] = float(ds["ap"].max())
     ds.attrs["repeatability_um"] = float(ds["rp"].max())
+    # the repeatability floor: pooled within-target scatter per reading and axis (µm), with
+    # its degrees of freedom — what a model's fit residual is compared with (adequacy)
+    dev = np.vstack(scatter)
+    dof = 2 * (len(dev) - len(scatter))
+    ds.attrs["within_target_std_um"] = float(np.sqrt(np.sum(dev**2) / dof)) if dof > 0 else float("nan")
+    ds.attrs["within_target_dof"] = int(dof)
     return ds

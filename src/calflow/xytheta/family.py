@@ -86,7 +86,7 @@ FAMILY = Family(
     robots=("xytheta",),
     rigs={"xytheta": {"simulated": "calflow.xytheta.rig:simulated_xytheta"}},
     plans={"xytheta": {name: f"{_P}:{name}" for name in (
-        "identification", "validation", "characterisation_x", "characterisation_y", "angle_residuals",
+        "identification", "validation", "validation_heldout", "characterisation_x", "characterisation_y", "angle_residuals",
         "square", "random_points")}},
     rig_options="calflow.xytheta.family:rig_options",
     steps={
@@ -101,11 +101,12 @@ FAMILY = Family(
         "acquire": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.xytheta.campaign_plans",
                             "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig",
                             "calflow.xytheta.vision_sensor", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
-                            "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.family"),
+                            "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.angle_table",
+                            "calflow.xytheta.family"),
         "characterise": _CORE + ("calflow.xytheta.characterisation", "calflow.xytheta.commands"),
         "identify": _CORE + ("calflow.identification", "calflow.xytheta.identification", "calflow.xytheta.cost",
                              "calflow.xytheta.models", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
-                             "calflow.xytheta.pose_lookup", "calflow.xytheta.commands"),
+                             "calflow.xytheta.pose_lookup", "calflow.xytheta.angle_table", "calflow.xytheta.commands"),
         "metrics": _CORE + ("calflow.metrics", "calflow.xytheta.evaluation", "calflow.xytheta.characterisation",
                             "calflow.xytheta.kinematics", "calflow.xytheta.commands"),
         "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary",

@@ -147,32 +147,37 @@ def observability(summary: dict) -> Figure | None:
 
 
 def validation(summary: dict) -> Figure | None:
-    """Accuracy and repeatability per validation target and model (Fig. 4.25)."""
+    """Accuracy per target and model: held-out targets against Θ_T, and the Table 4.7 targets (Fig. 4.25)."""
     models = summary.get("models") or {}
     if not models:
         return None
     fig, ax = new_figure(2, height=2.9)
     for name, m in models.items():
-        target = [t["target"] for t in m["per_target"]]
         color = COLORS.get(name)
-        ax[0, 0].plot(target, finite([t["ap_um"] for t in m["per_target"]]), "o-", color=color, label=f"Model {name}")
-        ax[0, 1].plot(target, finite([t["rp_um"] for t in m["per_target"]]), "o-", color=color, label=f"Model {name}")
-    ax[0, 0].set_yscale("log")
-    ax[0, 1].set_ylim(bottom=0)
-    for a, what in zip(ax[0], ("accuracy AP (µm, log scale)", "repeatability RP (µm)")):
-        a.set_xlabel("validation target P_i (Table 4.7)")
-        a.set_ylabel(what)
-        a.set_xticks(sorted({t["target"] for m in models.values() for t in m["per_target"]}))
-    ax[0, 0].set_title("(a) accuracy")
-    ax[0, 1].set_title("(b) repeatability")
-    legend_below(fig, ax[0, 0], ncol=len(models))
+        if m.get("protocol") == "heldout":
+            rows = m["per_target"]
+            ax[0, 0].plot([t["theta_deg"] for t in rows], finite([t["ap_um"] for t in rows]), "o", ms=3,
+                          color=color, label=f"Model {name}")
+        ref = (m.get("reference_targets") or {}).get("per_target", [])
+        ax[0, 1].plot([t["target"] for t in ref], finite([t["ap_um"] for t in ref]), "o-", color=color,
+                      label=f"Model {name}")
+    for a in ax[0]:
+        a.set_yscale("log")
+        a.set_ylabel("accuracy AP (µm, log scale)")
+    ax[0, 0].set_xlabel("target angle Θ_T (°)")
+    ax[0, 0].set_title("(a) held-out targets")
+    ax[0, 1].set_xlabel("target P_i (Table 4.7)")
+    ax[0, 1].set_title("(b) reference targets")
+    legend_below(fig, ax[0, 1], ncol=len(models))
     return finish(fig, "fig-validation", "validation",
-                  "ISO 9283 accuracy and repeatability at each validation target with Models I–V "
-                  "(metrics/validation_*.nc).", "Fig. 4.25")
+                  "ISO 9283 accuracy at each validation target with Models I–V: (a) the held-out targets, drawn over "
+                  "the identification workspace, against their angle; (b) the thesis's Table 4.7 targets "
+                  "(metrics/validation_heldout_*.nc, metrics/validation_*.nc).", "Fig. 4.25")
 
 
 def angle_errors(inputs: Inputs) -> Figure | None:
     """Angle-dependent errors f_ax(Θ), f_ay(Θ) of the models with an angle table (Sec. 4.5.5)."""
+    from calflow.xytheta.angle_table import AngleTable
     from calflow.xytheta.models import MicroModel
 
     tables = {}
@@ -184,25 +189,39 @@ def angle_errors(inputs: Inputs) -> Figure | None:
     if not tables:
         return None
     fig, ax = new_figure(2, height=2.4)
-    per_position = False
+    per_position = swept = False
     for name, t in tables.items():
+        color = COLORS.get(name)
         theta = np.asarray(t.theta, dtype=float)
+        if isinstance(t, AngleTable):  # rows: forward, backward
+            sweep = t.info.get("sweep_theta")
+            for a, key, values in zip(ax[0], ("sweep_f_ax", "sweep_f_ay"), (t.f_ax, t.f_ay)):
+                if sweep is not None:
+                    swept = True
+                    for row, marker in zip(np.asarray(t.info[key]), ("^", "v")):
+                        a.plot(sweep, row, marker, ms=2, alpha=0.5, color=color)
+                a.plot(theta, values[0], "-", lw=1.2, color=color, label=f"Model {name}, forward")
+                a.plot(theta, values[1], "--", lw=1.2, color=color, label=f"Model {name}, backward")
+                a.plot(theta, values[0], "o", ms=3, color=color)
+            continue
         for a, values in zip(ax[0], (t.f_ax, t.f_ay)):
             rows = np.atleast_2d(np.asarray(values, dtype=float))  # (positions, angles) or one row
             if rows.shape[0] > 1:  # a position-angle table: every target faint, their mean bold
                 per_position = True
-                a.plot(theta, rows.T, "-", lw=0.5, alpha=0.35, color=COLORS.get(name))
-            a.plot(theta, np.nanmean(rows, axis=0), "o-", color=COLORS.get(name),
+                a.plot(theta, rows.T, "-", lw=0.5, alpha=0.35, color=color)
+            a.plot(theta, np.nanmean(rows, axis=0), "o-", color=color,
                    label=f"Model {name}" + (" (mean over targets)" if rows.shape[0] > 1 else ""))
     for a, k in zip(ax[0], ("f_ax", "f_ay")):
         a.set_xlabel("rotation Θ (°)")
         a.set_ylabel(f"{k}(Θ) (µm)")
-        a.legend(loc="best")
-    return finish(fig, "fig-angle", "validation",
-                  "Angle-dependent errors measured with the base models along the sequence of Fig. 4.26 and "
-                  "tabulated in the models' angle tables (models/*.nc)" +
-                  ("; thin lines: each target of the position-angle tables" if per_position else "") + ".",
-                  "Fig. 4.26 (Sec. 4.5.5)")
+        a.legend(loc="best", fontsize=6)
+    caption = "Angle-dependent errors measured with the base models and tabulated in the models' angle tables (models/*.nc)"
+    if swept:
+        caption += ("; lines and circles: the tabulated angles, forward (solid) and backward (dashed); small "
+                    "triangles: the swept curve (mean over positions and cycles) the table's step was chosen from")
+    if per_position:
+        caption += "; thin lines: each target of the position-angle tables (at the Table 4.7 positions)"
+    return finish(fig, "fig-angle", "validation", caption + ".", "Fig. 4.26 (Sec. 4.5.5)")
 
 
 def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:

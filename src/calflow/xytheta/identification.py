@@ -119,3 +119,72 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
         success=bool(sol.success),
         message=str(sol.message),
     )
+
+
+def noise_sigma(eps: np.ndarray, n_poses: int, n_free: int) -> float:
+    """σ̂ (µm): the noise per reading and axis that the residuals ε imply, Cov(ε) = σ² D Dᵀ.
+
+    ``E[εᵀε] ≈ σ² (tr(D Dᵀ) − 2 p)``, tr(D Dᵀ) = 4 (n − 1) (:func:`parameter_covariance`
+    gives the exact correction); this is what a model-adequacy test compares with the
+    repeatability floor.
+    """
+    effective = 4.0 * (n_poses - 1) - 2.0 * n_free
+    return float(np.sqrt(float(eps @ eps) / effective)) if effective > 0 else float("nan")
+
+
+def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 5, seed: int = 0,
+                   ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0) -> float:
+    """k-fold prediction RMS (µm) of the pose-difference residuals ε, Eq. (4.30).
+
+    The poses after the home row are dealt at random into ``k`` folds; each fold's poses
+    are predicted by the parameters identified (with ``ex``, ``ey``) on the other folds,
+    with the model's angle errors ``f_ax``, ``f_ay`` added in the prediction, and ε is
+    taken between consecutive poses of the fold as in the fit. Comparable with the fit's
+    ``residual_rms_um``: much larger means the model fits the noise or its structure
+    does not carry to poses it has not seen.
+    """
+    X, Y, theta, P_mx, P_my = (np.asarray(a, dtype=float) for a in (X, Y, theta, P_mx, P_my))
+    ex, ey, f_ax, f_ay = (np.broadcast_to(np.asarray(a, dtype=float), X.shape) for a in (ex, ey, f_ax, f_ay))
+    ok = np.flatnonzero(np.isfinite(X) & np.isfinite(Y) & np.isfinite(theta) & np.isfinite(P_mx) & np.isfinite(P_my))
+    rest = ok[1:]
+    if k < 2 or rest.size < 2 * k:
+        raise ValueError(f"cross-validation: {rest.size} poses cannot make {k} folds of 2 or more")
+    folds = np.array_split(np.random.default_rng(seed).permutation(rest), k)
+    sq, count = 0.0, 0
+    for fold in folds:
+        train = np.sort(np.concatenate([[ok[0]], np.setdiff1d(rest, fold)]))
+        fit = identify(X[train], Y[train], theta[train], P_mx[train], P_my[train], free=free, initial=initial,
+                       ex=ex[train], ey=ey[train])
+        test = np.sort(fold)
+        eps = cost.residuals(fit.parameters, X[test], Y[test], theta[test], P_mx[test], P_my[test],
+                             ex[test], ey[test], f_ax[test], f_ay[test])
+        sq, count = sq + float(eps @ eps), count + eps.size
+    return float(np.sqrt(sq / count))
+
+
+def bootstrap_std(X, Y, theta, P_mx, P_my, free, initial: Parameters, n_resamples: int = 200, seed: int = 0,
+                  ex=0.0, ey=0.0) -> dict[str, float]:
+    """Pose-bootstrap standard deviations of the free parameters (µm or degree).
+
+    Poses (after the home row, which defines the frame and stays) are resampled with
+    replacement and the model refitted ``n_resamples`` times. Why a pairs bootstrap: when
+    the model does not fit, the residuals are not independent noise of one σ but a field
+    of unmodelled errors sampled at random poses; resampling the poses themselves gives
+    the spread of the estimate over such draws (asymptotically the Huber–White sandwich),
+    whatever the residuals' size or their dependence on the pose. It does *not* cover the
+    bias of a wrong model — the distance to the best-fitting "pseudo-true" value of the
+    workspace is what it measures, not the distance to the physical parameters; the
+    adequacy test says when the two differ.
+    """
+    X, Y, theta, P_mx, P_my = (np.asarray(a, dtype=float) for a in (X, Y, theta, P_mx, P_my))
+    ex, ey = (np.broadcast_to(np.asarray(a, dtype=float), X.shape) for a in (ex, ey))
+    rng = np.random.default_rng(seed)
+    n = X.size
+    estimates = []
+    for _ in range(int(n_resamples)):
+        rows = np.concatenate([[0], np.sort(rng.integers(1, n, n - 1))])
+        fit = identify(X[rows], Y[rows], theta[rows], P_mx[rows], P_my[rows], free=free, initial=initial,
+                       ex=ex[rows], ey=ey[rows])
+        estimates.append([getattr(fit.parameters, name) for name in free])
+    sd = np.std(np.asarray(estimates), axis=0, ddof=1)
+    return {name: float(v) for name, v in zip(free, sd)}

@@ -20,6 +20,7 @@ from calflow.data.io import group_names, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.xytheta import kinematics as kin
 from calflow.xytheta.lookup import AngleLUT, PositionLUT, infer_directions, joint_increments
+from calflow.xytheta.angle_table import AngleTable
 from calflow.xytheta.pose_lookup import PoseAngleLUT
 
 _LONG = {
@@ -46,7 +47,7 @@ class MicroModel:
     correlation: np.ndarray
     diagnostics: dict = field(default_factory=dict)
     position: PositionLUT | None = None  # ex, ey (Models III, V)
-    angle: AngleLUT | PoseAngleLUT | None = None  # f_ax, f_ay and g_ax, g_ay (Models IV, V)
+    angle: AngleTable | AngleLUT | PoseAngleLUT | None = None  # f_ax, f_ay and g_ax, g_ay (Models IV, V)
     method: str = "linear"  # interpolation in the tables
 
     def position_errors(self, X, Y, dir_x, dir_y):
@@ -55,10 +56,13 @@ class MicroModel:
             return np.zeros(np.shape(X)), np.zeros(np.shape(Y))
         return self.position.errors(X, Y, dir_x, dir_y, self.method, trends=False)
 
-    def angle_errors(self, x, y, theta):
-        """f_ax, f_ay (µm) at tool points x, y (µm) and angles Θ; zero without an angle table."""
+    def angle_errors(self, x, y, theta, dir_theta=None):
+        """f_ax, f_ay (µm) at tool points x, y (µm) and angles Θ approached in ``dir_theta``
+        (±1; None: both directions' mean); zero without an angle table."""
         if self.angle is None:
             return 0.0, 0.0
+        if isinstance(self.angle, AngleTable):
+            return self.angle.f(theta, dir_theta)
         if isinstance(self.angle, PoseAngleLUT):
             return self.angle.f(x, y, theta, self.method)
         return self.angle.f(theta, self.method)
@@ -74,11 +78,14 @@ class MicroModel:
     def inverse(self, x_T, y_T, theta_T, start=(0.0, 0.0)):
         """Joint inputs (µm) for a sequence of task-space targets, Eq. (4.19) with g and ex, ey.
 
-        g_ax, g_ay come from the angle table; the position errors depend on the joint
+        g_ax, g_ay come from the angle table, for the approach direction of each Θ in
+        the sequence (starting from Θ = 0); the position errors depend on the joint
         values themselves (X = X₀ + ex(X, Y)), solved by fixed-point iteration, with
         approach directions taken from the command sequence starting at ``start``.
         """
-        g_ax, g_ay = (joint_increments(*self.angle_errors(x_T, y_T, theta_T), self.angle.alpha, self.angle.beta)
+        dir_theta = infer_directions(theta_T) if np.ndim(theta_T) else None
+        g_ax, g_ay = (joint_increments(*self.angle_errors(x_T, y_T, theta_T, dir_theta), self.angle.alpha,
+                                       self.angle.beta)
                       if self.angle is not None else (0.0, 0.0))
         X0, Y0 = kin.inverse(x_T, y_T, theta_T, self.parameters, g_ax=g_ax, g_ay=g_ay)
         if self.position is None:
@@ -146,7 +153,8 @@ class MicroModel:
         angle = None
         if "angle_table" in groups:
             table = open_dataset(path, group="angle_table")
-            angle = (PoseAngleLUT if table.attrs.get("table") == "position_angle" else AngleLUT).from_dataset(table)
+            kind = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(table.attrs.get("table"), AngleLUT)
+            angle = kind.from_dataset(table)
         return cls.from_dataset(ds, position, angle)
 
     @classmethod
@@ -154,6 +162,6 @@ class MicroModel:
         params = kin.Parameters(**{name: float(ds[name].values) for name in kin.PARAMETER_NAMES})
         free = tuple(str(v) for v in ds["parameter"].values)
         std = {name: float(ds[name].attrs.get("std", np.nan)) for name in kin.PARAMETER_NAMES}
-        diagnostics = {k: v for k, v in ds.attrs.items() if k.startswith(("O", "residual", "n_poses", "dof"))}
+        diagnostics = {k: v for k, v in ds.attrs.items() if k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty"))}
         return cls(str(ds.attrs["model"]), params, free, std, ds["correlation"].values, diagnostics,
                    position, angle, str(ds.attrs.get("interpolation", "linear")))

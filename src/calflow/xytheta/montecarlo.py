@@ -306,7 +306,20 @@ def parameter_stats(points: list[dict], key: str) -> dict:
         "reported_std_rms": rep,
         "std_ratio": spread / rep if spread is not None and rep else None,
         "rms_z": _rms([r["z"] for r in rows]),
+        "coverage_95": coverage(rows),
     }
+
+
+def coverage(rows: list[dict], z: float = 1.959964) -> float | None:
+    """Fraction of the points whose 95 % interval, estimate ± 1.96 σ, holds the truth.
+
+    0.95 when the reported σ are honest and the model is the rig's; below when the σ are
+    optimistic or the estimate biased (an inadequate model). None for a fixed parameter.
+    """
+    scored = [r for r in rows if r["free"] and r["std"] is not None and np.isfinite(r["std"]) and r["std"] > 0]
+    if not scored:
+        return None
+    return float(np.mean([abs(r["error"]) <= z * r["std"] for r in scored]))
 
 
 def aggregate(points: list[dict]) -> dict:

@@ -55,6 +55,28 @@ def validation_targets(targets=None) -> np.ndarray:
     return t
 
 
+def heldout_targets(n_targets: int, x_range, y_range, theta_range, nominal, seed: int) -> np.ndarray:
+    """Held-out validation targets (n, 3): x_T, y_T (µm, world frame), Θ_T (degree).
+
+    Joint poses are drawn uniformly over the identification workspace (``x_range``,
+    ``y_range`` in µm, ``theta_range`` in degree, Θ continuous) from their own random
+    stream, then put in the world frame by Eq. (4.18) with the ``nominal`` parameters
+    (the campaign's ``identification.initial``, not an identified model), so every model
+    is validated on the same targets. A continuous draw never repeats an identification
+    pose or a table angle; the summary checks it from the run datasets.
+    """
+    from calflow.xytheta.kinematics import forward
+
+    if n_targets < 1:
+        raise ValueError(f"validation.heldout.targets: expected at least 1, got {n_targets}")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 9_283]))
+    lo = np.array([x_range[0], y_range[0], theta_range[0]], dtype=float)
+    hi = np.array([x_range[1], y_range[1], theta_range[1]], dtype=float)
+    q = lo + (hi - lo) * rng.random((int(n_targets), 3))
+    x_T, y_T = forward(q[:, 0], q[:, 1], q[:, 2], nominal)
+    return np.column_stack([x_T, y_T, q[:, 2]])
+
+
 def validation(inverse, targets=None, cycles: int = 30, dwell_s: float = 1.0) -> Plan:
     """ISO 9283 validation: home, then ``cycles`` visits of P1..PM in sequence (Fig. 4.23).
 

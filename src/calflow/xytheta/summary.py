@@ -25,11 +25,20 @@ def parameter_key(name: str) -> str:
     return f"{name}_{_SUFFIX[PARAMETER_UNITS[name]]}"
 
 
-def _model_entry(model: xr.Dataset, m: xr.Dataset) -> dict:
+def _per_target(m: xr.Dataset) -> list[dict]:
+    return [{"target": int(t), "x_um": float(m["target_x"].sel(target=t)), "y_um": float(m["target_y"].sel(target=t)),
+             "theta_deg": float(m["target_theta"].sel(target=t)), "ap_um": float(m["ap"].sel(target=t)),
+             "rp_um": float(m["rp"].sel(target=t))} for t in m["target"].values]
+
+
+def _model_entry(name: str, model: xr.Dataset, heldout: xr.Dataset | None, ref: xr.Dataset | None,
+                 floor: dict, angle: dict | None) -> dict:
     corr = model["correlation"].values
-    return {
-        "accuracy_um": float(m.attrs["accuracy_um"]),
-        "repeatability_um": float(m.attrs["repeatability_um"]),
+    main = heldout if heldout is not None else ref
+    entry = {
+        "accuracy_um": jsonable(float(main.attrs["accuracy_um"])) if main is not None else None,
+        "repeatability_um": jsonable(float(main.attrs["repeatability_um"])) if main is not None else None,
+        "protocol": "heldout" if heldout is not None else "reference_targets",
         "free": [str(p) for p in model["parameter"].values],
         "position_table": bool(model.attrs.get("position_table", 0)),
         "angle_table": bool(model.attrs.get("angle_table", 0)),
@@ -41,14 +50,112 @@ def _model_entry(model: xr.Dataset, m: xr.Dataset) -> dict:
         "identifiability": {"r_diag": [jsonable(v) for v in model["r_diag"].values] if "r_diag" in model else [],
                             "not_identifiable": model.attrs.get("not_identifiable", "")},
         "identification": {k: jsonable(v) for k, v in model.attrs.items()
-                           if k in ("residual_rms_um", "n_poses", "dof", "condition_number", "O1", "O2", "O3", "O4")},
-        "per_target": [
-            {"target": int(t), "x_um": float(m["target_x"].sel(target=t)), "y_um": float(m["target_y"].sel(target=t)),
-             "theta_deg": float(m["target_theta"].sel(target=t)), "ap_um": float(m["ap"].sel(target=t)),
-             "rp_um": float(m["rp"].sel(target=t))}
-            for t in m["target"].values
-        ],
+                           if k in ("residual_rms_um", "sigma_fit_um", "cv_rms_um", "cv_folds", "n_poses", "dof",
+                                    "condition_number", "uncertainty", "O1", "O2", "O3", "O4")},
+        "per_target": _per_target(main) if main is not None else [],
+        "adequacy": adequacy(model.attrs.get("sigma_fit_um"), model.attrs.get("n_poses"), len(model["parameter"]), floor),
     }
+    if ref is not None:
+        entry["reference_targets"] = {
+            "accuracy_um": jsonable(float(ref.attrs["accuracy_um"])),
+            "repeatability_um": jsonable(float(ref.attrs["repeatability_um"])),
+            "thesis_accuracy_um": reference.XYTHETA["models"].get(name, {}).get("accuracy_um"),
+            "per_target": _per_target(ref),
+        }
+    if angle is not None:
+        entry["angle_table_info"] = angle
+    return entry
+
+
+def repeatability_floor(metrics: list[xr.Dataset]) -> dict:
+    """The sensor-and-stage floor (µm per reading and axis): the pooled within-target scatter
+    of every validation run, with its degrees of freedom."""
+    pairs = [(m.attrs.get("within_target_std_um"), m.attrs.get("within_target_dof", 0)) for m in metrics]
+    pairs = [(float(s), int(d)) for s, d in pairs if s is not None and np.isfinite(s) and d > 0]
+    dof = sum(d for _, d in pairs)
+    if not dof:
+        return {"floor_um": None, "dof": 0}
+    return {"floor_um": float(np.sqrt(sum(s**2 * d for s, d in pairs) / dof)), "dof": int(dof)}
+
+
+def adequacy(sigma_fit, n_poses, n_free: int, floor: dict, alpha: float = 0.01) -> dict:
+    """Lack-of-fit test of a model: its residual σ̂ against the repeatability floor.
+
+    χ²/dof = σ̂²_fit / σ²_floor is 1 when the model leaves only noise; the F-test with
+    (2(n−1) − p, floor dof) degrees of freedom rejects adequacy when p < ``alpha``. An
+    inadequate model's parameters absorb unmodelled errors, and their σ (which assume the
+    residuals are noise) understate their error.
+    """
+    if sigma_fit is None or not floor.get("floor_um") or not n_poses:
+        return {"chi2_dof": None, "p_value": None, "adequate": None,
+                "statement": "No repeatability floor was measured: calflow cannot tell whether the model fits."}
+    from scipy.stats import f as fisher
+
+    ratio = float(sigma_fit) ** 2 / floor["floor_um"] ** 2
+    df1 = max(1, 2 * (int(n_poses) - 1) - n_free)
+    p = float(fisher.sf(ratio, df1, floor["dof"]))
+    ok = p >= alpha
+    statement = ("The residuals are at the repeatability floor: the model fits, and its parameter σ can be trusted."
+                 if ok else
+                 f"The model does not fit: its residuals are {np.sqrt(ratio):.1f} times the repeatability floor "
+                 f"({float(sigma_fit):.2f} against {floor['floor_um']:.2f} µm). Its parameters absorb errors it does "
+                 f"not model, and their σ understate their real error.")
+    return {"chi2_dof": jsonable(ratio), "p_value": jsonable(p), "adequate": bool(ok),
+            "sigma_fit_um": jsonable(float(sigma_fit)), "floor_um": jsonable(floor["floor_um"]),
+            "floor_dof": floor["dof"], "fit_dof": df1, "alpha": alpha, "statement": statement}
+
+
+def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
+    """The angle table of Model IV/V: tabulated and swept curves, the step and its reasons."""
+    if not model.attrs.get("angle_table") or model.attrs.get("angle_table") == 0:
+        return None
+    from calflow.data.io import group_names, open_dataset
+
+    if "angle_table" not in group_names(model_path):
+        return None
+    t = open_dataset(model_path, group="angle_table")
+    info = {"kind": str(model.attrs.get("angle_table", "")), "table": t.attrs.get("table", "")}
+    for k in ("angle_step_deg", "angle_sweep_step_deg", "angle_shortest_period_deg", "angle_noise_um",
+              "angle_interpolation_error_um", "angle_undersampled", "angle_warning"):
+        if k in model.attrs:
+            info[k[len("angle_"):]] = jsonable(model.attrs[k])
+    if t.attrs.get("table") == "angle_sweep":
+        info["theta_deg"] = [float(v) for v in t["theta"].values]
+        info["f_ax_um"] = [[jsonable(float(v)) for v in row] for row in t["f_ax"].values]
+        info["f_ay_um"] = [[jsonable(float(v)) for v in row] for row in t["f_ay"].values]
+        if "sweep_theta" in t:
+            info["sweep_theta_deg"] = [float(v) for v in t["sweep_theta"].values]
+            info["sweep_f_ax_um"] = [[jsonable(float(v)) for v in row] for row in t["sweep_f_ax"].values]
+            info["sweep_f_ay_um"] = [[jsonable(float(v)) for v in row] for row in t["sweep_f_ay"].values]
+    return info
+
+
+def disjointness(heldout_runs: list[xr.Dataset], training_runs: list[xr.Dataset], tol_um: float = 1.0,
+                 tol_deg: float = 1e-3) -> dict:
+    """Do held-out commands repeat any identification or table pose? From the run datasets.
+
+    A held-out sample coincides with a training sample when their X and Y commands are
+    within ``tol_um`` and their Θ commands within ``tol_deg``.
+    """
+    def joints(ds):
+        sel = ds["pose"].values > 0
+        return np.column_stack([ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")]).astype(float)
+
+    if not heldout_runs or not training_runs:
+        return {"coincident_samples": None}
+    train = np.vstack([joints(r) for r in training_runs])
+    order = np.argsort(train[:, 2])
+    train = train[order]
+    coincident = 0
+    for run in heldout_runs:
+        for q in joints(run):
+            lo, hi = np.searchsorted(train[:, 2], [q[2] - tol_deg, q[2] + tol_deg])
+            if hi > lo:
+                d = np.hypot(train[lo:hi, 0] - q[0], train[lo:hi, 1] - q[1])
+                coincident += int(np.any(d <= tol_um))
+    return {"coincident_samples": coincident, "tolerance": {"xy_um": tol_um, "theta_deg": tol_deg},
+            "checked_samples": int(sum((r["pose"].values > 0).sum() for r in heldout_runs)),
+            "training_samples": int(len(train))}
 
 
 def _characterisation(luts: xr.Dataset) -> dict:
@@ -89,15 +196,18 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
-    models, validation, xy, luts, obs, iso = {}, {}, {}, None, None, {}
+    models, paths, ref, heldout, xy, luts, obs, iso = {}, {}, {}, {}, {}, None, None, {}
+    heldout_runs, training_runs = [], []
     for path in files:
         with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
             ds = ds.load()
         kind, plan = ds.attrs.get("calflow_kind"), ds.attrs.get("plan")
         if kind == "model":
-            models[ds.attrs["model"]] = ds
+            models[ds.attrs["model"]], paths[ds.attrs["model"]] = ds, path
         elif kind == "metrics" and plan == "validation":
-            validation[ds.attrs["model"]] = ds
+            ref[ds.attrs["model"]] = ds
+        elif kind == "metrics" and plan == "validation_heldout":
+            heldout[ds.attrs["model"]] = ds
         elif kind == "metrics" and plan in ("square", "random_points"):
             xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
         elif kind == "metrics" and plan == "observability":
@@ -106,7 +216,12 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             luts = ds
         elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
             iso[plan[-1]] = _iso230_2_of_sweep(ds, plan[-1])
+        elif kind == "run" and plan == "validation_heldout":
+            heldout_runs.append(ds)
+        elif kind == "run" and plan in ("identification", "angle_residuals"):
+            training_runs.append(ds)
     order = [name for name in campaign["models"] if name in models]
+    floor = repeatability_floor(list(heldout.values()) + list(ref.values()))
     summary = {
         "campaign": campaign["name"],
         "robot": campaign["robot"],
@@ -114,7 +229,9 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "calflow_version": __version__,
         "seed": campaign.get("seed"),
         "rig": campaign.get("rig", {}).get("factory"),
-        "models": {name: _model_entry(models[name], validation[name]) for name in order},
+        "models": {name: _model_entry(name, models[name], heldout.get(name), ref.get(name), floor,
+                                      _angle_info(paths[name], models[name])) for name in order},
+        "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor),
         "reference": reference.BY_ROBOT["xytheta"],
         "inputs": {str(p): sha256_file(p) for p in files},
     }
@@ -129,7 +246,28 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             "poses": [int(v) for v in obs["poses"].values],
             **{k: [jsonable(v) for v in obs[k].values] for k in ("O1", "O2", "O3", "O4")},
             "O2_plateau_poses": int(obs.attrs["O2_plateau_poses"]),
+            "O2_plateau_tolerance": jsonable(obs.attrs.get("O2_plateau_tolerance")),
+            "O2_limit": jsonable(obs.attrs.get("O2_limit")),
+            "repeats": jsonable(obs.attrs.get("repeats")),
         }
     if truth and truth.get("available", True):
         summary["truth"] = {"parameters": {k: truth[k] for k in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")}}
     return summary
+
+
+def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor) -> dict:
+    from calflow.xytheta.campaign_plans import heldout_seed
+
+    v = campaign["validation"]
+    out = {"repeatability_floor": floor}
+    if heldout:
+        any_metrics = next(iter(heldout.values()))
+        out["heldout"] = {"n_targets": int(any_metrics.sizes["target"]), "requested_targets": v["heldout"]["targets"],
+                          "cycles": v["heldout"]["cycles"], "seed": heldout_seed(campaign),
+                          "drawn_over": {k: campaign["identification"][k] for k in ("x_um", "y_um", "theta_deg")},
+                          **disjointness(heldout_runs, training_runs)}
+    if ref:
+        any_metrics = next(iter(ref.values()))
+        out["reference_targets"] = {"n_targets": int(any_metrics.sizes["target"]), "cycles": v["cycles"],
+                                    "source": "Table 4.7" if v.get("targets") is None else "validation.targets"}
+    return out

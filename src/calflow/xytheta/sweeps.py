@@ -4,8 +4,11 @@
   joints held at 0 (Sec. 4.4.1, Fig. 4.6–4.9).
 * :func:`square` — the 4 × 4 mm square AB BC CD DA of Fig. 4.12 (Sec. 4.4.2).
 * :func:`random_points` — the ten random targets of Table 4.3 (Fig. 4.15).
-* :func:`angle_residuals` / :func:`angle_residual_plan` — targets visited at 5 angles,
-  commanded through a model's inverse (Fig. 4.26), to measure f_ax(Θ), f_ay(Θ).
+* :func:`angle_sweep` — the angle characterisation of Sec. 4.5.5 as calflow runs it by
+  default: at a few positions that are no validation target, Θ swept forward and
+  backward in fine steps through a base model's inverse, to tabulate f_ax(Θ), f_ay(Θ).
+* :func:`angle_residuals` / :func:`angle_residual_plan` — the thesis's own run (Fig. 4.26):
+  the Table 4.7 positions visited at 5 angles, for the opt-in position-angle table.
 
 Targets of :func:`square` and :func:`random_points` are *stage-frame* coordinates in µm:
 x_T ≈ X, y_T ≈ Y, compared with the displacement of the vision reading from the home
@@ -183,3 +186,42 @@ def angle_residual_plan(inverse, targets=None, angles=(1, 2, 3, 4, 5), cycles: i
     ``inverse(x_T, y_T, Θ_T) -> (X, Y)`` (Model II or III, Eq. 4.19), home row first."""
     plan = validation(inverse, targets=angle_residuals(targets, angles), cycles=cycles, dwell_s=dwell_s)
     return dataclasses.replace(plan, name="angle_residuals")
+
+
+def angle_sweep(inverse, positions, theta_range=(0.0, 5.0), step_deg: float = 0.1, cycles: int = 2,
+                dwell_s: float = 1.0, overtravel_deg: float = 0.2) -> Plan:
+    """Angle characterisation (Sec. 4.5.5): Θ swept forward and backward at fixed positions.
+
+    ``positions`` (M, 2) are world-frame points x_T, y_T (µm); at each, per cycle: an
+    approach row at Θ_lo − ``overtravel_deg`` (direction 0), the forward pass Θ_lo..Θ_hi in
+    ``step_deg`` steps (direction +1), an approach row at Θ_hi + ``overtravel_deg`` and the
+    backward pass (direction −1) — like the XY sweeps, so every tabulated angle is
+    approached in its pass's direction. Commands come from ``inverse(x_T, y_T, Θ_T)``
+    (the base model, Eq. 4.19). Pose k ≥ 1 indexes (position, angle); home row first.
+    """
+    xy = np.asarray(positions, dtype=float)
+    if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 1:
+        raise ValueError(f"angle_residuals.targets: expected rows of [x_um, y_um], got shape {xy.shape}")
+    lo, hi = (float(v) for v in theta_range)
+    if not (step_deg > 0 and hi > lo):
+        raise ValueError(f"angle_residuals: expected step_deg > 0 and theta_deg ordered, got {step_deg}, {theta_range}")
+    if cycles < 2:
+        raise ValueError(f"angle_residuals.cycles: expected at least 2, got {cycles}")
+    n = int(round((hi - lo) / step_deg)) + 1
+    angles = np.linspace(lo, hi, n)
+    rows = [(np.nan, np.nan, 0.0, 0, 0, 0)]  # x_T, y_T, Θ_T, pose, cycle, direction
+    for m, (x, y) in enumerate(xy):
+        first = 1 + m * (n + 2)
+        for c in range(cycles):
+            rows.append((x, y, lo - overtravel_deg, first + n, c, 0))
+            rows += [(x, y, a, first + k, c, 1) for k, a in enumerate(angles)]
+            rows.append((x, y, hi + overtravel_deg, first + n + 1, c, 0))
+            rows += [(x, y, a, first + k, c, -1) for k, a in reversed(list(enumerate(angles)))]
+    r = np.array(rows, dtype=float)
+    X, Y = inverse(r[1:, 0], r[1:, 1], r[1:, 2])
+    return Plan(
+        name="angle_residuals",
+        commands={"x": np.concatenate([[0.0], X]), "y": np.concatenate([[0.0], Y]), "theta": r[:, 2].copy()},
+        targets={"x": r[:, 0], "y": r[:, 1], "theta": np.concatenate([[np.nan], r[1:, 2]])},
+        pose=r[:, 3].astype(int), cycle=r[:, 4].astype(int), direction=r[:, 5].astype(int), dwell_s=dwell_s,
+    )
