@@ -27,17 +27,11 @@ def small_campaign() -> dict:
 
 
 def clean_rig() -> dict:
-    """Rig options with every error the models do not describe switched off (whichever the
-    simulator has): sensor noise is then the only source of identification error."""
-    fields = XYThetaTruth.__dataclass_fields__
-    names = ("lead_fwd_um", "lead_bwd_um", "coupling_um", "backlash_um", "f_ax_cubic_um", "f_ay_cubic_um",
-             "runout_um", "tilt_coupling_um_per_deg", "drift_um_per_degC", "stage_repeatability_um")
-    out = {}
-    for name in names:
-        if name in fields:
-            default = fields[name].default
-            out[name] = [0.0] * len(default) if isinstance(default, tuple) else 0.0
-    return out
+    """Rig options with every error the models do not describe switched off: sensor noise
+    is then the only source of identification error."""
+    from calflow.xytheta.rig_physics import options_off
+
+    return {**options_off(), "stage_repeatability_um": 0.0}
 
 
 # ---------------------------------------------------------------------------- points

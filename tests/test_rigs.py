@@ -49,10 +49,10 @@ def test_same_seed_same_readings_different_seed_different_noise():
 
 def test_reading_is_the_pattern_frame_view_of_the_tool_point():
     """Eq. (4.26): with noise and physics errors off, the reading is the exact transform."""
+    from calflow.xytheta.rig_physics import options_off
+
     rig = simulated_xytheta(seed=0, sensor_noise_um=0.0, stage_repeatability_um=0.0, sensor_resolution_um=1e-9,
-                            lead_fwd_um=[0, 0], lead_bwd_um=[0, 0], coupling_um=[0, 0], backlash_um=0.0,
-                            f_ax_cubic_um=0.0, f_ay_cubic_um=0.0, runout_um=0.0, room_swing_degC=0.0,
-                            sensor_theta_noise_deg=0.0, tilt_coupling_um_per_deg=0.0)
+                            room_swing_degC=0.0, sensor_theta_noise_deg=0.0, **options_off())
     from calflow.xytheta.kinematics import forward, world_from_pattern
     home = rig.read()
     rig.move({"x": 1500.0, "y": 700.0, "theta": 3.0})

@@ -14,13 +14,13 @@ from calflow.xytheta.commands import o2_plateau
 from calflow.xytheta.identification import cross_validate, identify
 from calflow.xytheta.kinematics import Parameters, forward
 from calflow.xytheta.plans import heldout_targets, identification
+from calflow.xytheta.rig_physics import options_off
 from calflow.xytheta.summary import adequacy, disjointness, repeatability_floor
 
 NOMINAL = Parameters(10000.0, 8000.0, 180.0, 0.0)
 #: a simulated rig whose only errors are geometric (and the noise of stage and sensor)
-GEOMETRIC_RIG = dict(lead_fwd_um=[0, 0], lead_bwd_um=[0, 0], coupling_um=[0, 0], backlash_um=0.0,
-                     f_ax_cubic_um=0.0, f_ay_cubic_um=0.0, runout_um=0.0, tilt_coupling_um_per_deg=0.0,
-                     room_swing_degC=0.0)
+PARAMS_II = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
+GEOMETRIC_RIG = {**options_off(), "room_swing_degC": 0.0}
 
 
 # ---------------------------------------------------------------------------- held-out targets
@@ -191,7 +191,8 @@ def test_intervals_cover_the_truth_on_a_rig_the_model_describes(tmp_path, model,
 
 
 def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
-    """Model II on the default rig (angle errors it does not model): its intervals miss."""
+    """Model II on the default rig (lead screw, backlash, yaw… it does not model): with many
+    poses its σ shrink, the bias does not, and its intervals miss."""
     import yaml
 
     from calflow.config import load_campaign
@@ -200,6 +201,6 @@ def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
     c = load_campaign(tmp_path / "c.yaml")
-    points = [run_point(c, seed, 0.05, 200, "II", validation_cycles=2) for seed in range(20)]
+    points = [run_point(c, seed, 0.05, 1200, "II", validation_cycles=2) for seed in range(12)]
     cell = aggregate(points)["cells"][0]
-    assert min(cell["parameters"][k]["coverage_95"] for k in ("x_R_um", "y_R_um")) < 0.5
+    assert min(cell["parameters"][k]["coverage_95"] for k in PARAMS_II) < 0.5

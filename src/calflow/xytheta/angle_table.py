@@ -6,7 +6,9 @@ of course, interpolation might be needed if angle Θ is not a part of the lookup
 calflow builds it from an angle characterisation (:func:`calflow.xytheta.sweeps.angle_sweep`):
 Θ swept forward and backward in fine steps at a few positions that no validation visits,
 through a base model (II or III). The residual f = measured − target (world frame,
-Eq. 4.27) is averaged over positions and cycles into one curve per direction. Its
+Eq. 4.27), taken relative to its value at the lowest swept angle at each position (what
+is left there is that position's error, not an angle error), is averaged over positions
+and cycles into one curve per direction. Its
 amplitude spectrum decides the table's step: the shortest *significant* period (a spectral
 peak above ``significance`` × the noise spectrum and ``min_fraction`` of the largest component) gets
 at least ``samples_per_period`` tabulated angles. The noise spectrum is measured, not
@@ -152,6 +154,17 @@ class AngleTable:
         theta = run["target_theta"].values[sel].astype(float)
         fx = (x - run["target_x"].values)[sel]
         fy = (y - run["target_y"].values)[sel]
+        # the angle-dependent error is the change of the residual with Θ: at each position,
+        # the residual at the lowest swept angle (both directions) is the position's own
+        # error, not an angle error (Eq. 4.27: the frame is the home pose's, at Θ = 0)
+        where = np.round(run["target_x"].values[sel], 6) + 1j * np.round(run["target_y"].values[sel], 6)
+        lowest = np.isclose(theta, np.nanmin(theta))
+        for position in np.unique(where):
+            at = where == position
+            ref = at & lowest & np.isfinite(fx) & np.isfinite(fy)
+            if ref.any():
+                fx[at] -= fx[ref].mean()
+                fy[at] -= fy[ref].mean()
         grid_all = np.unique(np.round(theta, 9))
         if grid_all.size < 4:
             raise ValueError(f"angle table: run {run.attrs.get('plan')!r} sweeps {grid_all.size} angles, expected 4 or more")

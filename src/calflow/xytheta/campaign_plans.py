@@ -63,17 +63,30 @@ def angle_positions(c: dict, base) -> np.ndarray:
 
     ``angle_residuals.targets`` when given; else ``angle_residuals.positions`` joint poses
     drawn over the identification workspace at Θ = 0 from their own random stream, put
-    in the world frame by the base model's forward kinematics (Eq. 4.18).
+    in the world frame by the base model's forward kinematics (Eq. 4.18), keeping only
+    those whose whole Θ sweep (through the base model's inverse) stays inside the
+    identification workspace — a rotation of 5° moves the joints by about a millimetre.
     """
     a, p = c["angle_residuals"], c["identification"]
     if a.get("targets") is not None:
         return np.asarray(a["targets"], dtype=float)
     rng = np.random.default_rng(np.random.SeedSequence([int(c["seed"]), 4_26]))
-    n = int(a["positions"])
-    X = p["x_um"][0] + (p["x_um"][1] - p["x_um"][0]) * rng.random(n)
-    Y = p["y_um"][0] + (p["y_um"][1] - p["y_um"][0]) * rng.random(n)
-    x, y = base.forward(X, Y, np.zeros(n))
-    return np.column_stack([x, y])
+    out = []
+    for _ in range(100 * int(a["positions"])):
+        X = p["x_um"][0] + (p["x_um"][1] - p["x_um"][0]) * rng.random()
+        Y = p["y_um"][0] + (p["y_um"][1] - p["y_um"][0]) * rng.random()
+        x, y = (float(np.ravel(v)[0]) for v in base.forward(np.array([X]), np.array([Y]), np.zeros(1)))
+        try:
+            q = sweeps.angle_sweep(base.inverse, [(x, y)], a["theta_deg"], a["step_deg"], 2).commands
+        except ValueError:  # the sweep leaves the base model's position tables
+            continue
+        if (np.all((q["x"][1:] >= p["x_um"][0]) & (q["x"][1:] <= p["x_um"][1]))
+                and np.all((q["y"][1:] >= p["y_um"][0]) & (q["y"][1:] <= p["y_um"][1]))):
+            out.append((x, y))
+            if len(out) == int(a["positions"]):
+                return np.array(out)
+    raise CalflowError("angle_residuals.positions: no position found whose Θ sweep stays inside the "
+                       "identification workspace; widen identification.x_um / y_um or narrow theta_deg")
 
 
 def angle_residuals(c: dict, args) -> Acquisition:

@@ -76,7 +76,8 @@ def identify(args) -> None:
         model = _angle_model(c, args, base)
         ex, ey = base.position_errors(X, Y, *joint_directions(X, Y))
         x0, y0 = kin.forward(X, Y, theta, base.parameters, ex=ex, ey=ey)
-        f_ax, f_ay = model.angle_errors(x0, y0, theta, infer_directions(theta))
+        commanded = run["cmd_theta"].values  # the table is indexed by the commanded angle
+        f_ax, f_ay = model.angle_errors(x0, y0, commanded, infer_directions(commanded))
         initial = Parameters(**{**c["identification"]["initial"], **c["models"][spec["base"]].get("fixed", {})})
         model.diagnostics.update(_fit_quality(c, X, Y, theta, P_mx, P_my, base.free, base.parameters, ex, ey,
                                               f_ax, f_ay))

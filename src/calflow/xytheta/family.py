@@ -99,7 +99,7 @@ FAMILY = Family(
     templates="calflow.xytheta",
     modules={
         "acquire": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.xytheta.campaign_plans",
-                            "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig",
+                            "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig", "calflow.xytheta.rig_physics",
                             "calflow.xytheta.vision_sensor", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
                             "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.angle_table",
                             "calflow.xytheta.family"),
@@ -109,7 +109,8 @@ FAMILY = Family(
                              "calflow.xytheta.pose_lookup", "calflow.xytheta.angle_table", "calflow.xytheta.commands"),
         "metrics": _CORE + ("calflow.metrics", "calflow.xytheta.evaluation", "calflow.xytheta.characterisation",
                             "calflow.xytheta.kinematics", "calflow.xytheta.commands"),
-        "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary",
+        "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary", "calflow.xytheta.oracle",
+                              "calflow.xytheta.rig", "calflow.xytheta.rig_physics", "calflow.acquisition",
                               "calflow.xytheta.characterisation", "calflow.xytheta.kinematics"),
         "report": _CORE + ("calflow.report", "calflow.xytheta.figures", "calflow.xytheta.templates",
                            "calflow.xytheta.models"),

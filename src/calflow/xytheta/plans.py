@@ -59,7 +59,7 @@ def heldout_targets(n_targets: int, x_range, y_range, theta_range, nominal, seed
     """Held-out validation targets (n, 3): x_T, y_T (µm, world frame), Θ_T (degree).
 
     Joint poses are drawn uniformly over the identification workspace (``x_range``,
-    ``y_range`` in µm, ``theta_range`` in degree, Θ continuous) from their own random
+    ``y_range`` in µm less 5 % at each edge, ``theta_range`` in degree, Θ continuous) from their own random
     stream, then put in the world frame by Eq. (4.18) with the ``nominal`` parameters
     (the campaign's ``identification.initial``, not an identified model), so every model
     is validated on the same targets. A continuous draw never repeats an identification
@@ -72,6 +72,8 @@ def heldout_targets(n_targets: int, x_range, y_range, theta_range, nominal, seed
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 9_283]))
     lo = np.array([x_range[0], y_range[0], theta_range[0]], dtype=float)
     hi = np.array([x_range[1], y_range[1], theta_range[1]], dtype=float)
+    margin = 0.05 * (hi - lo) * np.array([1.0, 1.0, 0.0])  # X, Y only: the identified geometry
+    lo, hi = lo + margin, hi - margin  # differs from the nominal one by its errors (≈ 0.1 mm here)
     q = lo + (hi - lo) * rng.random((int(n_targets), 3))
     x_T, y_T = forward(q[:, 0], q[:, 1], q[:, 2], nominal)
     return np.column_stack([x_T, y_T, q[:, 2]])

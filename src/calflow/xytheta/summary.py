@@ -231,7 +231,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "rig": campaign.get("rig", {}).get("factory"),
         "models": {name: _model_entry(name, models[name], heldout.get(name), ref.get(name), floor,
                                       _angle_info(paths[name], models[name])) for name in order},
-        "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor),
+        "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
         "reference": reference.BY_ROBOT["xytheta"],
         "inputs": {str(p): sha256_file(p) for p in files},
     }
@@ -255,7 +255,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     return summary
 
 
-def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor) -> dict:
+def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth) -> dict:
     from calflow.xytheta.campaign_plans import heldout_seed
 
     v = campaign["validation"]
@@ -266,6 +266,13 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
                           "cycles": v["heldout"]["cycles"], "seed": heldout_seed(campaign),
                           "drawn_over": {k: campaign["identification"][k] for k in ("x_um", "y_um", "theta_deg")},
                           **disjointness(heldout_runs, training_runs)}
+        if truth and truth.get("rig") == "simulated_xytheta" and heldout_runs:
+            from calflow.xytheta.oracle import oracle_validation  # the simulated truth: reports only
+
+            oracle = oracle_validation(truth, heldout_runs[0], int(campaign.get("seed") or 0))
+            out["heldout"].update(floor_um=oracle["floor_um"], oracle_accuracy_um=oracle["accuracy_um"],
+                                  floor_definition="ISO 9283 RP (max over the held-out targets) of the targets "
+                                                   "commanded through the simulated truth's exact inverse")
     if ref:
         any_metrics = next(iter(ref.values()))
         out["reference_targets"] = {"n_targets": int(any_metrics.sizes["target"]), "cycles": v["cycles"],

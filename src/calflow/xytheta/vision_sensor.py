@@ -10,13 +10,12 @@ the thesis hardware.
 from __future__ import annotations
 
 import zlib
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.xytheta.kinematics import forward
-from calflow.xytheta.rig import XYThetaTruth
+from calflow.xytheta.rig_physics import XYThetaTruth, truth_from_options
 
 
 
@@ -35,6 +34,7 @@ class SimulatedVision:
 
     def __init__(self, truth: XYThetaTruth, seed: int = 0, stream: str = "") -> None:
         self.truth_model = truth
+        self._theta = 0.0
         self._rng = np.random.default_rng(np.random.SeedSequence(
             [int(seed), zlib.crc32(f"gcs-vision:{stream}".encode())]))
 
@@ -44,30 +44,24 @@ class SimulatedVision:
             X, Y, theta = (float(positions[j]) for j in ("x", "y", "theta"))
         except KeyError as exc:
             raise RigError(f"simulated_vision sensor: no position of joint {exc.args[0]!r}") from None
-        f_ax, f_ay = t.angle_error(theta)
-        x_P, y_P = forward(X, Y, theta, t.parameters, f_ax=f_ax, f_ay=f_ay)
-        jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
         temperature = float(t.room_temperature(time_s))
+        ex, ey = t.slide_errors(X, Y, temperature)  # the emulator's positions hold lead screw and backlash
+        direction = 1.0 if theta >= self._theta else -1.0
+        self._theta = theta
+        x_P, y_P, theta_a = t.tool_from_carriages(X + ex, Y + ey, X, Y, theta, direction)
+        jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
         noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
-        x_m, y_m = t.vision(float(x_P) + jitter[0], float(y_P) + jitter[1], theta, temperature, noise)
+        gross = t.gross_error(*self._rng.random(2))
+        x_m, y_m = t.vision(float(x_P) + jitter[0], float(y_P) + jitter[1], float(theta_a), temperature, noise, gross)
         return {
             "meas_x": float(x_m),
             "meas_y": float(y_m),
-            "meas_theta": theta + float(self._rng.normal(0.0, t.sensor_theta_noise_deg)),
+            "meas_theta": float(theta_a) + float(self._rng.normal(0.0, t.sensor_theta_noise_deg)),
             "T1": round(temperature + float(self._rng.normal(0.0, 0.005)), 3),
         }
 
     def close(self) -> None:
         pass
-
-
-def truth_from_options(physics: Mapping[str, Any]) -> XYThetaTruth:
-    """An :class:`XYThetaTruth` with ``physics`` overrides (lists become tuples)."""
-    fields = XYThetaTruth.__dataclass_fields__
-    unknown = sorted(set(physics) - set(fields))
-    if unknown:
-        raise TypeError(f"unknown option(s) {unknown}; expected some of {sorted(fields)}")
-    return XYThetaTruth(**{k: tuple(v) if isinstance(v, list) else v for k, v in physics.items()})
 
 
 def simulated_vision(seed: int = 0, stream: str = "", **physics) -> SimulatedVision:
