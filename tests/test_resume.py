@@ -30,7 +30,7 @@ def _campaign(tmp_path: Path, factory: str) -> Path:
 def _acquire(campaign: Path, out: Path, kill_after: float | None = None) -> int:
     env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
     cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign), "--plan", "identification",
-           "--out", str(out)]
+           "--out", str(out), "--rig-plugins", "toyrigs"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     if kill_after is None:
         proc.wait(timeout=300)

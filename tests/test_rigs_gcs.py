@@ -219,7 +219,8 @@ class EchoSensor:
         return {"meas_x": positions["x"] + self.offset, "meas_y": positions["y"] + self.offset}
 
 
-def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor():
+def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor(monkeypatch):
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_rigs_gcs")  # plug-in sensors are code: allowed
     a = GCSEmulator(axes={"1": {"tmn": 0, "tmx": 25}}, time_scale=100.0).start()
     b = GCSEmulator(axes={"A": {"needs_reference": False}}, time_scale=100.0).start()
     try:

@@ -100,7 +100,7 @@ def cmd_check_config(args) -> None:
     cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
     for name in cfg["campaigns"]:
-        load_campaign(folder / f"{check_campaign_name(name)}.yaml")
+        load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -132,6 +132,9 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
+    a.add_argument("--rig-plugins", metavar="MODULES",
+                   help="comma-separated modules whose 'module:callable' rig factories may run "
+                        "(default: $CALFLOW_RIG_PLUGINS; the workflow passes config rig_plugins)")
 
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)

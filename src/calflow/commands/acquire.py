@@ -17,9 +17,12 @@ def run(args) -> None:
     from calflow.acquisition.runner import acquire
     from calflow.data.io import write_dataset, write_json
 
-    c = load(args.campaign)
+    from calflow.rigs.plugin import allowed_modules
+
+    plugins = allowed_modules(getattr(args, "rig_plugins", None))
+    c = load(args.campaign, plugins)
     job = family_of(c["robot"]).plan(c["robot"], args.plan)(c, args)
-    rig, source = open_rig(c, job.run_id, job.plan.start_s)
+    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
     journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
     try:
         with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:

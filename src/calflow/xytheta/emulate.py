@@ -106,7 +106,7 @@ def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0
     c = _load(campaign)
     try:
         physics = StagePhysics(truth_from_options(physics_options(c)))
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
     emu = GCSEmulator(axes=dict(AXIS_CONFIGS), port=port, faults=faults, time_scale=time_scale,
                       true_position=physics)

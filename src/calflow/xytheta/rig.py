@@ -19,7 +19,7 @@ from typing import Mapping
 
 import numpy as np
 
-from calflow.errors import RigError
+from calflow.errors import OptionError, RigError, UnknownOptionError
 from calflow.xytheta.kinematics import Parameters, forward, pattern_from_world
 
 
@@ -207,11 +207,59 @@ class SimulatedXYTheta:
         return {"rig": "simulated_xytheta", **asdict(self.truth_model)}
 
 
+# Options that are magnitudes (>= 0) and those that must be > 0; the rest may take any sign.
+_NON_NEGATIVE = ("backlash_um", "stage_repeatability_um", "sensor_noise_um", "sensor_theta_noise_deg",
+                 "room_swing_degC", "settle_s")
+_POSITIVE = ("thread_pitch_um", "sensor_resolution_um", "velocity_um_s", "velocity_deg_s", "pattern_range_um",
+             "tilt_period_um")
+
+
+def _number(key: str, value, bound: str | None):
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    ok = ok and bool(np.isfinite(value))
+    ok = ok and (bound is None or (value > 0 if bound == ">" else value >= 0))
+    if not ok:
+        expected = {None: "a finite number", ">": "a finite number > 0", ">=": "a finite number >= 0"}[bound]
+        raise OptionError(key, expected, value)
+    return float(value)
+
+
+def check_options(seed=0, stream: str = "", **physics) -> dict:
+    """The options of the simulated XYΘ rig checked and converted; raises :class:`OptionError`
+    naming the option: unknown names, non-numbers, NaN/inf, negative magnitudes (noise,
+    resolution, backlash, repeatability), non-positive velocities, pitch and ranges."""
+    fields = XYThetaTruth.__dataclass_fields__
+    for key in physics:
+        if key not in fields:
+            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(fields))}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise OptionError("seed", "an integer >= 0", seed)
+    if not isinstance(stream, str):
+        raise OptionError("stream", "a string", stream)
+    out = {}
+    for key, value in physics.items():
+        bound = ">" if key in _POSITIVE else ">=" if key in _NON_NEGATIVE else None
+        default = fields[key].default
+        if isinstance(default, tuple):
+            if not isinstance(value, (list, tuple)) or len(value) != len(default):
+                raise OptionError(key, f"a list of {len(default)} numbers", value)
+            for v in value:
+                try:
+                    _number(key, v, bound)
+                except OptionError:
+                    expected = {None: "finite", ">": "finite and > 0", ">=": "finite and >= 0"}[bound]
+                    raise OptionError(key, f"a list of {len(default)} numbers, each {expected}", value) from None
+            out[key] = tuple(float(v) for v in value)
+        else:
+            out[key] = _number(key, value, bound)
+    return {"seed": int(seed), "stream": stream, **out}
+
+
 def simulated_xytheta(seed: int = 0, stream: str = "", **physics) -> SimulatedXYTheta:
     """Factory of the simulated XYΘ rig; ``physics`` overrides :class:`XYThetaTruth` fields."""
-    fields = XYThetaTruth.__dataclass_fields__
-    unknown = sorted(set(physics) - set(fields))
-    if unknown:
-        raise TypeError(f"unknown option(s) {unknown}; expected some of {sorted(fields)}")
-    converted = {k: tuple(v) if isinstance(v, list) else v for k, v in physics.items()}
-    return SimulatedXYTheta(XYThetaTruth(**converted), seed=seed, stream=stream)
+    o = check_options(seed, stream, **physics)
+    seed, stream = o.pop("seed"), o.pop("stream")
+    return SimulatedXYTheta(XYThetaTruth(**o), seed=seed, stream=stream)
+
+
+simulated_xytheta.check_options = check_options  # the config check calls it (calflow.rigs.plugin)

@@ -16,7 +16,7 @@ import numpy as np
 
 from calflow.errors import RigError
 from calflow.xytheta.kinematics import forward
-from calflow.xytheta.rig import XYThetaTruth
+from calflow.xytheta.rig import XYThetaTruth, check_options
 
 
 
@@ -62,12 +62,11 @@ class SimulatedVision:
 
 
 def truth_from_options(physics: Mapping[str, Any]) -> XYThetaTruth:
-    """An :class:`XYThetaTruth` with ``physics`` overrides (lists become tuples)."""
-    fields = XYThetaTruth.__dataclass_fields__
-    unknown = sorted(set(physics) - set(fields))
-    if unknown:
-        raise TypeError(f"unknown option(s) {unknown}; expected some of {sorted(fields)}")
-    return XYThetaTruth(**{k: tuple(v) if isinstance(v, list) else v for k, v in physics.items()})
+    """An :class:`XYThetaTruth` with ``physics`` overrides, checked as the simulated rig's
+    options are (:func:`calflow.xytheta.rig.check_options`)."""
+    o = check_options(**physics)
+    del o["seed"], o["stream"]
+    return XYThetaTruth(**o)
 
 
 def simulated_vision(seed: int = 0, stream: str = "", **physics) -> SimulatedVision:
