@@ -47,9 +47,12 @@ except ConfigError as exc:
 
 # Rules call the `calflow` installed beside the Python that runs Snakemake, with the
 # allow-list of rig plug-in modules (config `rig_plugins`, docs/rigs.md "Plugins are code").
+# A job's output goes to its log; its stderr is kept as descriptor 3, where calflow also
+# writes its one-line error, so a failed job's reason reaches the terminal.
 shell.prefix(
     f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; "
     f"export CALFLOW_RIG_PLUGINS={shlex.quote(','.join(RIG_PLUGINS))}; "
+    "exec 3>&2; export CALFLOW_ERROR_FD=3; "
 )
 
 OPEN_LOOP_RUNS = (

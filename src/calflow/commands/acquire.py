@@ -15,12 +15,14 @@ def run(args) -> None:
     from calflow.acquisition.checkpoint import Journal, plan_digest
     from calflow.acquisition.progress import progress
     from calflow.acquisition.runner import acquire
-    from calflow.data.io import write_dataset, write_json
+    from calflow.data.io import output_folder, write_dataset, write_json
 
     from calflow.rigs.plugin import allowed_modules
 
     plugins = allowed_modules(getattr(args, "rig_plugins", None))
     c = load(args.campaign, plugins)
+    for out in filter(None, (args.out, args.truth)):  # before the rig moves: a bad --out costs no run
+        output_folder(out)
     job = family_of(c["robot"]).plan(c["robot"], args.plan)(c, args)
     rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
     journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
