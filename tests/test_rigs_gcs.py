@@ -271,7 +271,9 @@ def test_emulate_main_serves_and_prints_the_rig_section(capsys, tmp_path):
 
 # --------------------------------------------------------------------------- resume
 def _run_cli(campaign: Path, out: Path, kill_after: float | None = None) -> int:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    # toyrigs from tests/, before whatever calflow PYTHONPATH already names (a worktree's src)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
     cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign),
            "--plan", "identification", "--out", str(out)]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
