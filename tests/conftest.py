@@ -61,14 +61,18 @@ SMALL_NANO2D = {
 }
 
 
-def make_workdir(tmp: Path, campaigns: dict[str, dict]) -> Path:
-    """A scratch project: the repository's Snakefile and workflow with the given campaigns."""
+def make_workdir(tmp: Path, campaigns: dict[str, dict], rig_plugins: list[str] | None = None) -> Path:
+    """A scratch project: the repository's Snakefile and workflow with the given campaigns.
+
+    ``rig_plugins``: the config's allow-list of rig plug-in modules (e.g. ``["toyrigs"]``).
+    """
     work = tmp / "project"
     work.mkdir()
     shutil.copy(ROOT / "Snakefile", work / "Snakefile")
     shutil.copytree(ROOT / "workflow", work / "workflow")
     (work / "config" / "campaigns").mkdir(parents=True)
-    (work / "config" / "config.yaml").write_text(yaml.safe_dump({"campaigns": list(campaigns)}))
+    cfg = {"campaigns": list(campaigns), **({"rig_plugins": list(rig_plugins)} if rig_plugins else {})}
+    (work / "config" / "config.yaml").write_text(yaml.safe_dump(cfg))
     for name, body in campaigns.items():
         text = body if isinstance(body, str) else yaml.safe_dump(body)
         (work / "config" / "campaigns" / f"{name}.yaml").write_text(text)

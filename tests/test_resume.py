@@ -28,9 +28,11 @@ def _campaign(tmp_path: Path, factory: str) -> Path:
 
 
 def _acquire(campaign: Path, out: Path, kill_after: float | None = None) -> int:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    # toyrigs from tests/, before whatever calflow PYTHONPATH already names (a worktree's src)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
     cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign), "--plan", "identification",
-           "--out", str(out)]
+           "--out", str(out), "--rig-plugins", "toyrigs"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     if kill_after is None:
         proc.wait(timeout=300)

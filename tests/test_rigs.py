@@ -16,7 +16,7 @@ META = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="iden
 def test_builtin_and_plugin_factories_load():
     rig, source = load_rig("simulated", "xytheta", {"seed": 1})
     assert source == "simulated" and rig.joints == ("x", "y", "theta")
-    rig, source = load_rig("toyrigs:open_toy", "xytheta", {"x_R": 100.0})
+    rig, source = load_rig("toyrigs:open_toy", "xytheta", {"x_R": 100.0}, allowed=["toyrigs"])
     assert source == "plugin" and rig.p[0] == 100.0
 
 
@@ -27,7 +27,23 @@ def test_builtin_and_plugin_factories_load():
 ])
 def test_bad_factories_give_clear_errors(factory, match):
     with pytest.raises(RigError, match=match):
-        load_rig(factory, "xytheta", {})
+        load_rig(factory, "xytheta", {}, allowed=["toyrigs", "no_such_module_xyz"])
+
+
+@pytest.mark.parametrize("factory,allowed", [("os:system", []), ("toyrigs:open_toy", ["toy"]),
+                                             ("toyrigs:open_toy", ["toyrigs.sub"])])
+def test_plugin_factories_run_only_when_their_module_is_allowed(factory, allowed, monkeypatch):
+    monkeypatch.delenv("CALFLOW_RIG_PLUGINS", raising=False)
+    with pytest.raises(RigError, match="not allowed to run.*rig_plugins"):
+        load_rig(factory, "xytheta", {"command": "true"}, allowed=allowed)
+
+
+def test_a_parent_package_or_the_environment_allows_a_module(monkeypatch):
+    from calflow.rigs.plugin import is_allowed
+
+    assert is_allowed("my_lab.rigs.stage", ["my_lab"]) and not is_allowed("my_labx", ["my_lab"])
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "toyrigs, my_lab")
+    assert load_rig("toyrigs:open_toy", "xytheta", {})[1] == "plugin"
 
 
 def test_unknown_option_is_named():

@@ -219,7 +219,8 @@ class EchoSensor:
         return {"meas_x": positions["x"] + self.offset, "meas_y": positions["y"] + self.offset}
 
 
-def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor():
+def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor(monkeypatch):
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_rigs_gcs")  # plug-in sensors are code: allowed
     a = GCSEmulator(axes={"1": {"tmn": 0, "tmx": 25}}, time_scale=100.0).start()
     b = GCSEmulator(axes={"A": {"needs_reference": False}}, time_scale=100.0).start()
     try:
@@ -270,7 +271,9 @@ def test_emulate_main_serves_and_prints_the_rig_section(capsys, tmp_path):
 
 # --------------------------------------------------------------------------- resume
 def _run_cli(campaign: Path, out: Path, kill_after: float | None = None) -> int:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    # toyrigs from tests/, before whatever calflow PYTHONPATH already names (a worktree's src)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
     cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign),
            "--plan", "identification", "--out", str(out)]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)

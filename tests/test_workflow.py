@@ -25,7 +25,7 @@ def test_plugin_rig_campaign_runs_end_to_end(tmp_path):
     campaign["identification"]["initial"] = {"x_R": 5500.0, "y_R": 2500.0}
     campaign["models"] = {k: v for k, v in campaign["models"].items() if k in ("I", "II")}
     campaign["xy_tests"] = {"compensation": []}
-    work = make_workdir(tmp_path, {"toy": campaign})
+    work = make_workdir(tmp_path, {"toy": campaign}, rig_plugins=["toyrigs"])  # plugins are code: allowed
     proc = snakemake(work, "results/toy/summary.json")  # the reports are tested on the default run
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((work / "results/toy/summary.json").read_text())

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -100,7 +101,7 @@ def cmd_check_config(args) -> None:
     cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
     for name in cfg["campaigns"]:
-        load_campaign(folder / f"{check_campaign_name(name)}.yaml")
+        load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -132,6 +133,9 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
+    a.add_argument("--rig-plugins", metavar="MODULES",
+                   help="comma-separated modules whose 'module:callable' rig factories may run "
+                        "(default: $CALFLOW_RIG_PLUGINS; the workflow passes config rig_plugins)")
 
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
@@ -187,13 +191,29 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _error(message: str) -> int:
+    """Print ``calflow: error: <message>`` on stderr, and on the file descriptor named by
+    ``CALFLOW_ERROR_FD`` too: the workflow's jobs send stderr to their log, and pass the
+    terminal's stderr as that descriptor so the one line reaches the user (common.smk)."""
+    line = f"calflow: error: {message}"
+    print(line, file=sys.stderr)
+    fd = os.environ.get("CALFLOW_ERROR_FD", "")
+    if fd.isdigit():
+        try:
+            os.write(int(fd), (line + "\n").encode())
+        except OSError:  # not open in this process: stderr has it
+            pass
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         status = args.func(args)
     except (CalflowError, ValueError) as exc:  # library ValueErrors are worded for users
-        print(f"calflow: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc))
+    except OSError as exc:  # a file or folder the system refused: name it, no traceback
+        return _error(f"{exc.filename}: {exc.strerror or exc}" if exc.filename else str(exc.strerror or exc))
     except KeyboardInterrupt:
         print("calflow: interrupted; no output was written", file=sys.stderr)
         return 130

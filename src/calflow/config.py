@@ -7,8 +7,10 @@ YAML is loaded with ``yaml.safe_load``; nothing from a configuration is evaluate
 from __future__ import annotations
 
 import copy
+import datetime as dt
 import hashlib
 import json
+import math
 import re
 from functools import lru_cache
 from pathlib import Path
@@ -106,15 +108,70 @@ def load_yaml(path: str | Path) -> Any:
         raise ConfigError(f"{path}: not valid YAML{where} ({getattr(exc, 'problem', exc)})") from None
 
 
+def check_finite(node: Any, file: str | Path, path: tuple = ()) -> None:
+    """Refuse NaN and ±inf anywhere in a configuration (YAML's ``.nan``, ``.inf``): JSON
+    Schema's ``minimum`` lets NaN through. Names the key path."""
+    if isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(f"{file}: key '{_key(path)}': expected a finite number, got {node!r}")
+    if isinstance(node, dict):
+        for k, v in node.items():
+            check_finite(v, file, path + (k,))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            check_finite(v, file, path + (i,))
+
+
+def _check_ranges(node: Any, sch: dict, root: dict, file, path: tuple = ()) -> None:
+    """Every ``$defs/range`` value ``[lo, hi]`` of ``node`` has lo < hi."""
+    if "$ref" in sch:
+        ref = sch["$ref"].split("/")[-1]
+        if ref == "range" and isinstance(node, list) and len(node) == 2 and not node[0] < node[1]:
+            raise ConfigError(f"{file}: key '{_key(path)}': expected a range [low, high] with low < high, "
+                              f"got {node!r}")
+        sch = root["$defs"].get(ref, {})
+    if isinstance(node, dict):
+        for key, value in node.items():
+            sub = sch.get("properties", {}).get(key)
+            if sub is None and isinstance(sch.get("additionalProperties"), dict):
+                sub = sch["additionalProperties"]
+            if sub is not None:
+                _check_ranges(value, sub, root, file, path + (key,))
+
+
+def _check_dwells(node: Any, file, path: tuple = ()) -> None:
+    """Where a section averages the last seconds of a dwell, they fit in the dwell."""
+    if not isinstance(node, dict):
+        return
+    avg, dwell = node.get("average_last_s"), node.get("dwell_s")
+    if isinstance(avg, (int, float)) and isinstance(dwell, (int, float)) and avg > dwell:
+        key = _key(path + ("average_last_s",))
+        raise ConfigError(f"{file}: key '{key}': expected a value <= {_key(path + ('dwell_s',))} "
+                          f"({dwell!r}), got {avg!r}")
+    for key, value in node.items():
+        _check_dwells(value, file, path + (key,))
+
+
+def _check_start(campaign: dict, file) -> None:
+    """The campaign ``start`` is a real date and time (the pattern lets 2026-02-31 through)."""
+    start = campaign.get("start")
+    try:
+        dt.datetime.fromisoformat(str(start).replace("Z", "+00:00"))
+    except ValueError as exc:
+        raise ConfigError(f"{file}: key 'start': expected a real ISO 8601 date and time, got {start!r} "
+                          f"({exc})") from None
+
+
 def validate(data: Any, name: str, file: str | Path) -> dict:
     """Validate ``data`` against schema ``name``; return it with defaults filled in."""
     sch = schema(name)
     if not isinstance(data, dict):
         raise ConfigError(f"{file}: <top level>: expected a mapping of keys, got {type(data).__name__}")
+    check_finite(data, file)
     validator = jsonschema.Draft202012Validator(sch)
     errors = sorted(validator.iter_errors(data), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
     if errors:
         raise ConfigError(_describe(errors[0], str(file)))
+    _check_ranges(data, sch, sch, file)
     return _apply_defaults(copy.deepcopy(data), sch, sch)
 
 
@@ -129,10 +186,15 @@ def check_campaign_name(name: str) -> str:
 
 
 
-def load_campaign(path: str | Path) -> dict:
+def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) -> dict:
     """Load and validate a campaign file; the campaign's name is the file's stem.
 
-    The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``).
+    The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``). Numbers are
+    finite, ranges ordered, ``start`` a real date, averaging windows within their dwell,
+    and the rig's options are checked (:func:`calflow.rigs.plugin.check_rig`). A
+    ``module:callable`` rig factory is checked (allowed, importable, callable) only when
+    ``rig_plugins``, the allow-list of plug-in modules, is given; otherwise no plug-in
+    code is imported.
     """
     path = Path(path)
     check_campaign_name(path.stem)
@@ -146,6 +208,11 @@ def load_campaign(path: str | Path) -> dict:
     if robot not in known:
         raise ConfigError(f"{path}: key 'robot': expected one of {known}, got {robot!r}")
     campaign = validate(data, f"campaign-{robot}", path)
+    _check_start(campaign, path)
+    _check_dwells(campaign, path)
+    from calflow.rigs.plugin import check_rig
+
+    check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
     check = family_of(robot).steps.get("check")
     if check:
         resolve(check)(campaign, path)

@@ -1,6 +1,7 @@
 # Helpers shared by the rules: config validation, campaign look-up, rerun digests, and
 # the list of files each campaign produces.
 import os
+import shlex
 import sys
 
 from calflow import __version__ as CALFLOW_VERSION
@@ -14,10 +15,6 @@ from calflow.provenance import code_digest
 from calflow.errors import ConfigError
 from calflow.xytheta.montecarlo import load_study
 
-# Rules call the `calflow` installed beside the Python that runs Snakemake.
-shell.prefix(
-    f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; "
-)
 
 
 def selected_studies(config):
@@ -34,8 +31,10 @@ try:
     config.update(load_workflow_config(config))
     CAMPAIGN_DIR = config["campaign_dir"]
     CAMPAIGNS = [check_campaign_name(name) for name in config["campaigns"]]
+    RIG_PLUGINS = config["rig_plugins"]
     CAMPAIGN = {
-        name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml") for name in CAMPAIGNS
+        name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml", RIG_PLUGINS)
+        for name in CAMPAIGNS
     }
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
@@ -45,6 +44,16 @@ try:
 except ConfigError as exc:
     sys.stderr.write(f"calflow: error: {exc}\n")
     sys.exit(2)
+
+# Rules call the `calflow` installed beside the Python that runs Snakemake, with the
+# allow-list of rig plug-in modules (config `rig_plugins`, docs/rigs.md "Plugins are code").
+# A job's output goes to its log; its stderr is kept as descriptor 3, where calflow also
+# writes its one-line error, so a failed job's reason reaches the terminal.
+shell.prefix(
+    f"set -euo pipefail; export PATH={os.path.dirname(sys.executable)}:$PATH; "
+    f"export CALFLOW_RIG_PLUGINS={shlex.quote(','.join(RIG_PLUGINS))}; "
+    "exec 3>&2; export CALFLOW_ERROR_FD=3; "
+)
 
 OPEN_LOOP_RUNS = (
     "identification|characterisation_x|characterisation_y|training|metrology"

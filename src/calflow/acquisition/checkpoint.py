@@ -1,6 +1,7 @@
 """Crash-safe acquisition: an append-only journal of completed samples.
 
-Each settled sample is appended to ``<output>.journal`` as one JSON line and flushed to
+The journal appears with the first sample read. Each settled sample is appended to
+``<output>.journal`` as one JSON line and flushed to
 the operating system at once, so a killed process (even SIGKILL) loses at most the
 sample being read; the file is fsync'ed every few seconds against power loss. A
 trailing line cut short by the kill is ignored. The first line records a digest of the
@@ -49,6 +50,7 @@ class Journal:
         self.digest = digest
         self.fsync_every_s = fsync_every_s
         self._file = None
+        self._pending = False  # opened without readings: the file is made by the first append
         self._last_sync = 0.0
         self.last_wall: float | None = None  # wall-clock time of the last recorded sample
 
@@ -76,7 +78,19 @@ class Journal:
         return readings
 
     def open(self, readings: list[dict]) -> None:
-        """Start the journal afresh with ``readings`` already in it (rewritten whole)."""
+        """Start the journal afresh with ``readings`` already in it (rewritten whole).
+
+        With no readings yet, the file is created by the first :meth:`append`: a run that
+        fails before its first sample (a deterministic configuration or rig error) leaves
+        no journal behind.
+        """
+        self._pending = not readings
+        if not readings:
+            return
+        self._write(readings)
+
+    def _write(self, readings: list[dict]) -> None:
+        self._pending = False
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_suffix(self.path.suffix + ".tmp")
         with open(tmp, "w", encoding="utf-8") as f:
@@ -89,6 +103,8 @@ class Journal:
         self._file = open(self.path, "a", encoding="utf-8")
 
     def append(self, reading: dict) -> None:
+        if self._file is None and getattr(self, "_pending", False):
+            self._write([])
         self._file.write(_encode({**reading, WALL: time.time()}) + "\n")
         self._file.flush()
         now = time.monotonic()

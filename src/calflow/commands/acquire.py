@@ -8,6 +8,7 @@ run-time compensation, the controller.
 from __future__ import annotations
 
 from calflow.commands.common import campaign as load, meta, open_rig
+from calflow.errors import RigError
 from calflow.family import family_of
 
 
@@ -15,11 +16,15 @@ def run(args) -> None:
     from calflow.acquisition.checkpoint import Journal, plan_digest
     from calflow.acquisition.progress import progress
     from calflow.acquisition.runner import acquire
-    from calflow.data.io import write_dataset, write_json
+    from calflow.data.io import output_folder, write_dataset, write_json
+    from calflow.rigs.plugin import allowed_modules
 
-    c = load(args.campaign)
+    plugins = allowed_modules(getattr(args, "rig_plugins", None))
+    c = load(args.campaign, plugins)
+    for out in filter(None, (args.out, args.truth)):  # before the rig moves: a bad --out costs no run
+        output_folder(out)
     job = family_of(c["robot"]).plan(c["robot"], args.plan)(c, args)
-    rig, source = open_rig(c, job.run_id, job.plan.start_s)
+    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
     journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
     try:
         with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:
@@ -28,6 +33,11 @@ def run(args) -> None:
     finally:
         rig.close()
     ds.attrs.update(job.attrs)
+    empty = [n for n in rig.sensors if n in ds and ds.sizes.get("sample") and ds[n].isnull().all()]
+    if empty:  # refused here, not two rules later as "needs at least 2 valid poses"
+        journal.close(remove=True)
+        raise RigError(f"{args.out}: rig {c['rig']['factory']!r}: every reading of {empty[0]} in plan "
+                       f"{args.plan!r} is NaN; no run written (is the sensor connected and in range?)")
     if args.truth:
         write_json(truth, args.truth)
     write_dataset(ds, args.out)

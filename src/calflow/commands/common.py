@@ -10,8 +10,10 @@ from calflow.config import campaign_digest, load_campaign
 from calflow.data.runs import RunMetadata
 
 
-def campaign(path: str) -> dict:
-    return load_campaign(path)
+def campaign(path: str, rig_plugins=None) -> dict:
+    """The campaign at ``path``; with ``rig_plugins`` (the allow-list of plug-in modules) its
+    ``module:callable`` rig factory is checked too (docs/rigs.md, "Plugins are code")."""
+    return load_campaign(path, rig_plugins)
 
 
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
@@ -22,12 +24,14 @@ def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetada
     )
 
 
-def open_rig(c: dict, run_id: str, start_s: float = 0.0):
+def open_rig(c: dict, run_id: str, start_s: float = 0.0, rig_plugins=None):
     """The campaign's rig for run ``run_id``; returns (rig, source).
 
     The campaign's ``rig.options``, overridden by ``rig.runs.<run_id>``, plus what the
     robot's family adds per run (:class:`calflow.family.Family` ``rig_options``: seeds and
     noise streams of simulated rigs). A replayed recording plays the stream of the run.
+    ``rig_plugins``: the modules a ``module:callable`` factory may come from (default: the
+    ``CALFLOW_RIG_PLUGINS`` environment variable).
     """
     from calflow.family import family_of, resolve
     from calflow.rigs import load_rig
@@ -38,7 +42,7 @@ def open_rig(c: dict, run_id: str, start_s: float = 0.0):
         options["stream"] = run_id
     else:
         options = resolve(family_of(c["robot"]).rig_options)(c, rig_cfg["factory"], run_id, options, start_s)
-    return load_rig(rig_cfg["factory"], c["robot"], options)
+    return load_rig(rig_cfg["factory"], c["robot"], options, rig_plugins)
 
 
 def pairs(items: list[str] | None, flag: str) -> dict[str, str]:

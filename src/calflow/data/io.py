@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 
 import contextlib
+import glob
 import json
 import math
 import os
@@ -23,19 +24,54 @@ import xarray as xr
 from calflow.errors import DataError
 
 
+def output_folder(path: str | os.PathLike) -> Path:
+    """Create the folder of output ``path``; :class:`DataError` naming it when it cannot be."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next((p for p in [path.parent, *path.parent.parents] if p.exists() and not p.is_dir()), path.parent)
+        raise DataError(f"{path}: cannot create its folder: {blocker} is a file, not a folder") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot create its folder {path.parent} ({exc.strerror})") from None
+    if os.path.exists(path) and os.path.isdir(path):
+        raise DataError(f"{path}: is a folder; expected a file name to write")
+    return path.parent
+
+
+def remove_stale_partials(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files a killed writer of ``path`` left (``.<name>.*.partial``)."""
+    path = Path(path)
+    stale = sorted(path.parent.glob(f".{glob.escape(path.name)}.*.partial"))
+    for p in stale:
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+    return stale
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
 
     On any exception the temporary file is removed and ``path`` is left untouched.
+    Temporaries a killed earlier writer left are removed first; the file gets the mode
+    an ordinary ``open`` would give it (``0o666`` less the umask), not ``mkstemp``'s 0600.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    output_folder(path)
+    remove_stale_partials(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

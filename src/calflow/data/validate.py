@@ -68,7 +68,9 @@ def _check_run(ds: xr.Dataset) -> list[str]:
         if t.size and not np.all(np.isfinite(t)):
             problems.append("variable 'time': expected finite values, found NaN or inf")
         elif t.size > 1 and np.any(np.diff(t) < 0):
-            problems.append("variable 'time': expected non-decreasing values")
+            i = int(np.argmax(np.diff(t) < 0))
+            problems.append(f"variable 'time': expected non-decreasing values, got {t[i]!r} then {t[i + 1]!r} "
+                            f"at sample {i + 1}")
     joints = ROBOT_JOINTS.get(ds.attrs.get("robot"), ())
     for joint in joints:
         for prefix in ("cmd", "meas"):
@@ -83,6 +85,10 @@ def _check_run(ds: xr.Dataset) -> list[str]:
             expected_dims = ("sample", "sensor") if name == "temperature" else ("sample",)
             if var.dims != expected_dims:
                 problems.append(f"variable '{name}': dims expected {expected_dims}, got {var.dims}")
+    for name in sorted(n for n in ds.data_vars if n.startswith("meas_")):
+        values = np.asarray(ds[name].values, dtype=float)
+        if values.size and not np.any(np.isfinite(values)):
+            problems.append(f"variable '{name}': expected measurements, every value is NaN")
     if "direction" in ds.variables:
         bad = ~np.isin(ds["direction"].values, (-1, 0, 1))
         if bad.any():
@@ -92,10 +98,21 @@ def _check_run(ds: xr.Dataset) -> list[str]:
     return problems
 
 
+def _looks_like_run(ds: xr.Dataset) -> bool:
+    """A run's shape: dimension ``sample`` with plan indices, commands and measurements."""
+    names = set(ds.variables)
+    return ("sample" in ds.dims and {"pose", "cycle", "direction"} <= names
+            and any(n.startswith("cmd_") for n in names) and any(n.startswith("meas_") for n in names))
+
+
 def validate_dataset(ds: xr.Dataset) -> list[str]:
     """Return the list of contract violations of ``ds`` (empty when it conforms)."""
     problems = _check_global(ds) + _check_cf_variables(ds)
-    if ds.attrs.get("calflow_kind") == "run":
+    kind = ds.attrs.get("calflow_kind")
+    if kind != "run" and kind in KINDS and _looks_like_run(ds):
+        problems.append(f"global attribute 'calflow_kind': expected 'run' for a dataset of settled samples "
+                        f"(dimension 'sample', pose, cycle, direction, cmd_*, meas_*), got {kind!r}")
+    if kind == "run" or _looks_like_run(ds):
         problems += _check_run(ds)
     return problems
 

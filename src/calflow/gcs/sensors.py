@@ -41,6 +41,11 @@ def load_sensor(spec: Mapping[str, Any] | None) -> Any:
         raise RigError(f"gcs rig: sensor.factory: expected 'simulated_vision' or "
                        f"'package.module:callable', got {name!r}")
     module_name, attr = target.split(":")
+    from calflow.rigs.plugin import HOW_TO_ALLOW, is_allowed
+
+    if target == name and not is_allowed(module_name):  # not a registered short name: plug-in code
+        raise RigError(f"gcs rig: sensor.factory: {name!r} is not allowed to run; "
+                       + HOW_TO_ALLOW.format(module=module_name))
     try:
         factory = getattr(importlib.import_module(module_name), attr, None)
     except ImportError as exc:
@@ -49,7 +54,7 @@ def load_sensor(spec: Mapping[str, Any] | None) -> Any:
         raise RigError(f"gcs rig: sensor.factory: module {module_name!r} has no callable {attr!r}")
     try:
         sensor = factory(**options)
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise RigError(f"gcs rig: sensor.options: {name!r} rejected the options ({exc})") from None
     missing = [m for m in ("sensors", "thermometers", "read") if not hasattr(sensor, m)]
     if missing:

@@ -29,7 +29,7 @@ from typing import Iterator, Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.nano.rig_options import _COMMON, _NON_NEGATIVE, _POSITIVE, _Walk, _coerce
+from calflow.nano.rig_options import _COMMON, _Walk, check_options
 from calflow.rigs.thermal import LagBank, room_profile
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]
@@ -48,27 +48,8 @@ class _NanoRig:
     _DRIFT_FACTOR: tuple[float, ...] = ()  # walk and creep per sensor, relative
 
     def __init__(self, **options):
-        defaults = {**_COMMON, **self._EXTRA}
-        for key in options:
-            if key not in defaults:
-                raise TypeError(f"{self._NAME}: unknown option {key!r}; known options: "
-                                f"{', '.join(sorted(defaults))}")
-        o = {**defaults, **options}
-        for key, default in defaults.items():
-            o[key] = _coerce(self._NAME, key, o[key], default)
-        n_s = len(self.sensors)
-        for key in ("stage_coeff_um_per_c", "frame_coeff_um_per_c"):
-            if len(o[key]) != n_s:
-                raise ValueError(f"{self._NAME}: option {key!r} needs {n_s} values, one per sensor")
-        n_tc = len(o["thermocouple_tau_h"])
-        if not (len(o["thermocouple_gain"]) == len(o["thermocouple_offset_c"]) == n_tc):
-            raise ValueError(f"{self._NAME}: options 'thermocouple_tau_h', 'thermocouple_gain' "
-                             "and 'thermocouple_offset_c' need the same number of values")
-        bad = [k for k in _POSITIVE if not o[k] > 0] + [k for k in _NON_NEGATIVE if o[k] < 0]
-        bad += [k for k in ("thermocouple_tau_h",) if not all(v > 0 for v in o[k])]
-        bad += [k for k in ("repeatability_correlation",) if not -1.0 < o[k] < 1.0]
-        if bad:
-            raise ValueError(f"{self._NAME}: option {bad[0]!r} has invalid value {o[bad[0]]!r}")
+        o = check_options(self._NAME, {**_COMMON, **self._EXTRA}, len(self.sensors), options)
+        n_s, n_tc = len(self.sensors), len(o["thermocouple_tau_h"])
         self.options = o
         self.thermometers = tuple(f"T{j + 1}" for j in range(n_tc))
         self.room = room_profile(o["profile"], base_c=o["base_temperature_c"],
@@ -376,3 +357,8 @@ def nano1d(**options) -> Nano1DRig:
 def nano2d(**options) -> Nano2DRig:
     """Factory of the simulated 2-DoF stage; options and defaults in ``_COMMON``/``_EXTRA``."""
     return Nano2DRig(**options)
+
+
+# The config check calls these (calflow.rigs.plugin.check_rig): options checked, no rig built.
+nano1d.check_options = lambda **o: check_options("nano1d", {**_COMMON, **Nano1DRig._EXTRA}, 2, o)
+nano2d.check_options = lambda **o: check_options("nano2d", {**_COMMON, **Nano2DRig._EXTRA}, 2, o)

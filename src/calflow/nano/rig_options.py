@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from calflow.errors import OptionError, UnknownOptionError
+
 _DAY = 86400.0
 
 _COMMON = {
@@ -84,6 +86,8 @@ def _coerce(rig, key, value, default):
     """Convert a config value to the type of its default; errors name the option."""
     try:
         if isinstance(default, tuple):
+            if isinstance(value, (str, bytes)):
+                raise TypeError
             out = tuple(float(v) for v in value)
             if not all(math.isfinite(v) for v in out):
                 raise ValueError
@@ -98,10 +102,53 @@ def _coerce(rig, key, value, default):
             if isinstance(value, bool) or int(value) != value:
                 raise TypeError
             return int(value)
+        if isinstance(value, (bool, str)):
+            raise TypeError
         out = float(value)
         if not math.isfinite(out):
             raise ValueError
         return out
-    except (TypeError, ValueError):
-        raise ValueError(f"{rig}: option {key!r} has invalid value {value!r} "
-                         f"(expected a value like {default!r})") from None
+    except (TypeError, ValueError, OverflowError):
+        kind = ("a list of finite numbers" if isinstance(default, tuple) else "a mapping" if isinstance(default, dict)
+                else "a string" if isinstance(default, str) else "an integer"
+                if isinstance(default, int) and not isinstance(default, bool) else "a finite number")
+        raise OptionError(key, f"{kind} (like {default!r})", value) from None
+
+
+def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> dict:
+    """The options of nano rig ``name`` (``defaults`` are its own), checked and converted;
+    raises :class:`~calflow.errors.OptionError` naming the option."""
+    for key in options:
+        if key not in defaults:
+            raise UnknownOptionError(key, f"expected one of: {', '.join(sorted(defaults))}")
+    o = {**defaults, **options}
+    for key, default in defaults.items():
+        o[key] = _coerce(name, key, o[key], default)
+    for key in ("stage_coeff_um_per_c", "frame_coeff_um_per_c"):
+        if len(o[key]) != n_sensors:
+            raise OptionError(key, f"{n_sensors} values, one per sensor", o[key])
+    n_tc = len(o["thermocouple_tau_h"])
+    for key in ("thermocouple_gain", "thermocouple_offset_c"):
+        if len(o[key]) != n_tc:
+            raise OptionError(key, f"{n_tc} values, as many as 'thermocouple_tau_h'", o[key])
+    for key in _POSITIVE:
+        if key in o and not o[key] > 0:
+            raise OptionError(key, "a value > 0", o[key])
+    for key in _NON_NEGATIVE:
+        if key in o and o[key] < 0:
+            raise OptionError(key, "a value >= 0", o[key])
+    if not all(v > 0 for v in o["thermocouple_tau_h"]):
+        raise OptionError("thermocouple_tau_h", "values > 0", o["thermocouple_tau_h"])
+    from calflow.rigs.thermal import _DEFAULTS, PROFILES
+
+    if o["profile"] not in PROFILES:
+        raise OptionError("profile", f"one of {list(PROFILES)}", o["profile"])
+    for key, value in o["profile_params"].items():
+        if key not in _DEFAULTS[o["profile"]]:
+            raise OptionError("profile_params", f"parameters of profile {o['profile']!r} "
+                              f"({', '.join(sorted(_DEFAULTS[o['profile']]))})", {key: value})
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise OptionError("profile_params", "finite numbers", {key: value})
+    if not -1.0 < o["repeatability_correlation"] < 1.0:
+        raise OptionError("repeatability_correlation", "a value in (-1, 1)", o["repeatability_correlation"])
+    return o

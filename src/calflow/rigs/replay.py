@@ -5,7 +5,10 @@ of a campaign (a ``results/<campaign>/runs/`` folder of ``<run id>.nc`` files, o
 mapping run id → file) and the run id to serve (``stream``). Acquisition drives it
 like any rig; each ``move`` advances to the next recorded sample and must command
 exactly the recorded joint positions (within ``tolerance_um``), otherwise the replay
-raises :class:`~calflow.errors.RigError` — a replay never serves the wrong pose.
+raises :class:`~calflow.errors.RigError` — a replay never serves the wrong pose. A
+recording must meet the data contract (:func:`calflow.data.validate.validate_dataset`:
+units µm / degree / degC, finite non-decreasing ``time``, the robot's ``meas_*``, not all
+NaN) or it is refused when the rig is opened.
 ``read`` returns the recorded ``time`` (s since the campaign start), sensor readings
 (µm, degree; NaN preserved) and temperatures (degC) of the current sample. Time is
 that of the recording, so ``wait`` does not change it.
@@ -66,6 +69,12 @@ class ReplayRig:
             ds = open_dataset(self.path, kind="run")
         except CalflowError as exc:
             raise RigError(f"replay: {exc}") from None
+        from calflow.data.validate import validate_dataset
+
+        problems = validate_dataset(ds)  # the data contract, units included: a replay serves µm and degree
+        if problems:
+            more = f" (and {len(problems) - 1} more; calflow validate {self.path} lists them)" if len(problems) > 1 else ""
+            raise RigError(f"{self.path}: replay: {problems[0]}{more}")
         self.attrs = dict(ds.attrs)
         self.units = {name: str(ds[name].attrs.get("units", "")) for name in ds.data_vars}
         order = ROBOT_JOINTS.get(str(ds.attrs.get("robot")), ())
@@ -132,10 +141,10 @@ class ReplayRig:
             requested = float(command[joint])
             same = (math.isnan(recorded) and math.isnan(requested)) or abs(recorded - requested) <= self.tolerance
             if not same:
-                unit = self.units.get(f"cmd_{joint}", "")
+                unit = {"um": "µm"}.get(self.units.get(f"cmd_{joint}", ""), self.units.get(f"cmd_{joint}", ""))
                 raise RigError(
                     f"{self.path}: sample {i}: joint {joint!r}: recorded command {recorded!r} {unit}, "
-                    f"requested {requested!r} {unit} (tolerance {self.tolerance:g}); "
+                    f"requested {requested!r} {unit} (tolerance {self.tolerance:g} {unit}); "
                     "the replayed plan differs from the recorded one")
         self._i = i
 

@@ -106,7 +106,7 @@ def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0
     c = _load(campaign)
     try:
         physics = StagePhysics(truth_from_options(physics_options(c)))
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
     emu = GCSEmulator(axes=dict(AXIS_CONFIGS), port=port, faults=faults, time_scale=time_scale,
                       true_position=physics)
@@ -155,6 +155,8 @@ def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | No
     p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     a = p.parse_args(argv)
+    if not 0 <= a.port <= 65535:
+        raise CalflowError(f"emulate gcs: --port: expected a TCP port 0-65535 (0 = any free port), got {a.port}")
     if not a.time_scale > 0:
         raise CalflowError(f"emulate gcs: --time-scale: expected a value > 0, got {a.time_scale}")
     c = _load(a.campaign)

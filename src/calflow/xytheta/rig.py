@@ -20,9 +20,9 @@ from typing import Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.xytheta.rig_physics import XYThetaTruth, truth_from_options
+from calflow.xytheta.rig_physics import XYThetaTruth, check_options
 
-__all__ = ["SimulatedXYTheta", "XYThetaTruth", "simulated_xytheta"]
+__all__ = ["SimulatedXYTheta", "XYThetaTruth", "check_options", "simulated_xytheta"]
 
 
 class SimulatedXYTheta:
@@ -101,4 +101,9 @@ class SimulatedXYTheta:
 
 def simulated_xytheta(seed: int = 0, stream: str = "", **physics) -> SimulatedXYTheta:
     """Factory of the simulated XYΘ rig; ``physics`` overrides :class:`XYThetaTruth` fields."""
-    return SimulatedXYTheta(truth_from_options(physics), seed=seed, stream=stream)
+    o = check_options(seed, stream, **physics)
+    seed, stream = o.pop("seed"), o.pop("stream")
+    return SimulatedXYTheta(XYThetaTruth(**o), seed=seed, stream=stream)
+
+
+simulated_xytheta.check_options = check_options  # the config check calls it (calflow.rigs.plugin)

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
+from calflow.errors import OptionError, UnknownOptionError
 from calflow.xytheta.kinematics import Parameters, forward, pattern_from_world
 
 TRAVEL_UM = 15000.0  # Table 4.1: travel range of the M-111.1DG
@@ -277,13 +278,66 @@ EFFECTS = {  # effect name → the fields that switch it off, for the error budg
 }
 
 
+_NON_NEGATIVE = ("backlash_um", "stage_repeatability_um", "sensor_noise_um", "sensor_theta_noise_deg",
+                 "room_swing_degC", "settle_s", "decode_error_um", "gross_error_rate", "theta_backlash_mdeg")
+_POSITIVE = ("thread_pitch_um", "sensor_resolution_um", "velocity_um_s", "velocity_deg_s", "pattern_range_um",
+             "pattern_period_um", "theta_period_deg")
+
+
+def _number(key: str, value, bound: str | None):
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    ok = ok and bool(np.isfinite(value))
+    ok = ok and (bound is None or (value > 0 if bound == ">" else value >= 0))
+    if not ok:
+        expected = {None: "a finite number", ">": "a finite number > 0", ">=": "a finite number >= 0"}[bound]
+        raise OptionError(key, expected, value)
+    return float(value)
+
+
+def check_options(seed=0, stream: str = "", **physics) -> dict:
+    """The options of the simulated XYΘ rig checked and converted; raises :class:`OptionError`
+    naming the option: unknown names, non-numbers, NaN/inf, negative magnitudes (noise,
+    resolution, backlash, repeatability, rates), non-positive velocities, pitches, periods
+    and ranges, switches that are not true/false."""
+    known = {f.name: f.default for f in fields(XYThetaTruth)}
+    for key in physics:
+        if key not in known:
+            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(known))}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise OptionError("seed", "an integer >= 0", seed)
+    if not isinstance(stream, str):
+        raise OptionError("stream", "a string", stream)
+    out = {}
+    for key, value in physics.items():
+        bound = ">" if key in _POSITIVE else ">=" if key in _NON_NEGATIVE else None
+        default = known[key]
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise OptionError(key, "true or false", value)
+            out[key] = value
+        elif isinstance(default, tuple):
+            if not isinstance(value, (list, tuple)) or len(value) != len(default):
+                raise OptionError(key, f"a list of {len(default)} numbers", value)
+            for v in value:
+                try:
+                    _number(key, v, bound)
+                except OptionError:
+                    expected = {None: "finite", ">": "finite and > 0", ">=": "finite and >= 0"}[bound]
+                    raise OptionError(key, f"a list of {len(default)} numbers, each {expected}", value) from None
+            out[key] = tuple(float(v) for v in value)
+        else:
+            out[key] = _number(key, value, bound)
+    if out.get("gross_error_rate", 0.0) > 1:
+        raise OptionError("gross_error_rate", "a probability between 0 and 1", physics["gross_error_rate"])
+    return {"seed": int(seed), "stream": stream, **out}
+
+
 def truth_from_options(physics) -> XYThetaTruth:
-    """An :class:`XYThetaTruth` with ``physics`` overrides (lists become tuples)."""
-    names = {f.name for f in fields(XYThetaTruth)}
-    unknown = sorted(set(physics) - names)
-    if unknown:
-        raise TypeError(f"unknown option(s) {unknown}; expected some of {sorted(names)}")
-    return XYThetaTruth(**{k: tuple(v) if isinstance(v, list) else v for k, v in physics.items()})
+    """An :class:`XYThetaTruth` with ``physics`` overrides, checked as the simulated rig's
+    options are (:func:`check_options`)."""
+    o = check_options(**physics)
+    del o["seed"], o["stream"]
+    return XYThetaTruth(**o)
 
 
 def options_off(*effects: str) -> dict:
