@@ -307,3 +307,32 @@ def test_piezo_axis_needs_no_reference_and_faults_default():
     assert c.handle("FRF? A") == ["A=1"]
     assert c.handle("MOV A 50") is None and c.handle("ERR?") == ["0"]
     assert Faults() == Faults(drop_after=None, delay=0.0, garbage=0, refuse=0)
+
+
+def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
+    """Asked for 2.0 mm, ``POS?`` answers 2.0 within the encoder's 50 nm (Table 4.1), as a
+    real controller's encoder would; the external sensor still sees the lead screw."""
+    from calflow.gcs.client import GCSController
+    from calflow.xytheta.emulate import ENCODER_UM, campaign_emulator
+    from calflow.xytheta.kinematics import forward, world_from_pattern
+    from calflow.xytheta.vision_sensor import simulated_vision
+
+    campaign = {"robot": "xytheta", "rig": {"factory": "simulated", "options": {}}}
+    with campaign_emulator(campaign, time_scale=500.0) as e:
+        ctl = GCSController.connect_tcp(*e.address, timeout=2.0)
+        try:
+            ctl.servo_on(["1", "2"])
+            ctl.reference(["1", "2"])
+            ctl.move({"1": 2.0, "2": 1.0})
+            pos = ctl.wait_on_target(timeout=10.0)
+        finally:
+            ctl.close()
+    assert abs(pos["1"] - 2.0) <= ENCODER_UM["x"] / 1000 and abs(pos["2"] - 1.0) <= ENCODER_UM["y"] / 1000
+    quiet = dict(sensor_noise_um=0.0, stage_repeatability_um=0.0, decode_error_um=0.0, gross_error_rate=0.0,
+                 room_swing_degC=0.0, sensor_resolution_um=1e-6)
+    vision = simulated_vision(**quiet)
+    home = vision.read({"x": 0.0, "y": 0.0, "theta": 0.0}, 0.0)
+    r = vision.read({"x": pos["1"] * 1000, "y": pos["2"] * 1000, "theta": 0.0}, 0.0)
+    x, y = world_from_pattern(r["meas_x"], r["meas_y"], 0.0, home["meas_x"], home["meas_y"])
+    ideal = forward(pos["1"] * 1000, pos["2"] * 1000, 0.0, vision.truth_model.parameters)
+    assert 1.0 < float(abs(x - ideal[0]) + abs(y - ideal[1])) < 30.0  # lead screw, coupling, scale...

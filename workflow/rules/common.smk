@@ -16,7 +16,6 @@ from calflow.errors import ConfigError
 from calflow.xytheta.montecarlo import load_study
 
 
-
 def selected_studies(config):
     """The studies to run: those of the configuration, unless the command line chose the
     campaigns (``--config 'campaigns=[...]'``) without naming studies too — running one's

@@ -7,14 +7,16 @@ rig. The model is deliberately simple:
 
 * axes ``1``, ``2`` (X, Y) are M-111-like lead-screw stages in **mm** (±7.5 mm, 1.5 mm/s,
   need FRF); axis ``3`` (Θ) is a rotation stage in **degree** (±30°, 10°/s, absolute);
-* ``POS?`` of X and Y answers the *attained* joint position of the simulated physics
-  (:class:`calflow.xytheta.rig.XYThetaTruth`): the trajectory plus the lead-screw error
-  of the approach direction (with backlash) and the coupling of the other screw (Fig. 4.8,
-  4.9). Θ answers its trajectory. The approach direction of an axis is the sign of the
-  last change of its trajectory seen by ``POS?``;
+* ``POS?`` answers what the controller's encoder measures: the trajectory position,
+  quantised to the encoder's resolution (``ENCODER_UM``, the 50 nm of Table 4.1 for X and
+  Y). Like a real controller's, it cannot see the errors only an external sensor sees —
+  lead screw, backlash, coupling, scale, straightness, the Θ stage's angle errors;
 * the vision sensor is not served over GCS: the rig's built-in ``simulated_vision`` sensor
-  (:mod:`calflow.xytheta.vision_sensor`) reads it at those ``POS?`` positions, adding the
-  Θ-dependent errors, stage repeatability, noise and drift.
+  (:mod:`calflow.xytheta.vision_sensor`) is the physical world: read at those encoder
+  positions, it puts the carriages where the simulated physics
+  (:class:`calflow.xytheta.rig_physics.XYThetaTruth`) puts them — lead screw and lost
+  motion of the approach, coupling, scale, straightness, Θ errors, runout, yaw — and adds
+  stage repeatability, noise, decoding errors and drift.
 
 So a run through the emulator sees the same physics as the simulated rig, with the
 stages' timing, limits and faults of a controller (the emulator's ``faults``).
@@ -46,36 +48,23 @@ AXIS_CONFIGS = {
 }
 
 
+ENCODER_UM = {"x": 0.05, "y": 0.05, "theta": 0.0}  # Table 4.1: 50 nm resolution; Θ: < 1.1 µ° (Table 4.2)
+
+
 class StagePhysics:
-    """``true_position`` hook of the emulator: attained X/Y joint positions (module doc)."""
+    """``true_position`` hook of the emulator: what each axis's encoder reads (module doc)."""
 
     def __init__(self, truth: XYThetaTruth) -> None:
         self.truth = truth
         self.controller: EmulatedController | None = None  # set by :func:`campaign_emulator`
-        self._last: dict[str, float] = {}
-        self.direction = {"x": 1.0, "y": 1.0}  # as the simulated rig starts
-
-    def _trajectory(self) -> dict[str, float]:
-        """Trajectory position of every joint in µm/degree (the emulator holds its lock)."""
-        assert self.controller is not None, "StagePhysics is not bound to a controller"
-        now = self.controller.now()
-        return {j: self.controller.axes[a].position(now) * SCALE[j] for j, a in JOINT_AXES.items()}
 
     def __call__(self, axis: str, commanded: float) -> float:
-        q = self._trajectory()
-        for j in ("x", "y"):
-            last = self._last.get(j)
-            if last is not None and q[j] != last:
-                self.direction[j] = math.copysign(1.0, q[j] - last)
-            self._last[j] = q[j]
-        t = self.truth
-        if axis == JOINT_AXES["x"]:
-            value = q["x"] + t.lead_error(0, q["x"], self.direction["x"]) + t.coupling_error(1, q["y"])
-            return float(value) / SCALE["x"]
-        if axis == JOINT_AXES["y"]:
-            value = q["y"] + t.lead_error(1, q["y"], self.direction["y"]) + t.coupling_error(0, q["x"])
-            return float(value) / SCALE["y"]
-        return float(commanded)
+        joint = next(j for j, a in JOINT_AXES.items() if a == axis)
+        q = commanded * SCALE[joint]
+        res = ENCODER_UM[joint]
+        if res > 0:
+            q = round(q / res) * res
+        return float(q) / SCALE[joint]
 
 
 def _load(campaign: Mapping[str, Any] | str | Path) -> dict:

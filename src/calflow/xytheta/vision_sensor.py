@@ -22,11 +22,13 @@ from calflow.xytheta.rig_physics import XYThetaTruth, truth_from_options
 class SimulatedVision:
     """The simulated XYΘ vision sensor read at given joint positions.
 
-    ``positions["x"]``, ``["y"]`` are the *attained* X/Y joint positions (µm; the campaign
-    emulator's ``POS?`` includes the lead-screw errors, Fig. 4.8, 4.9), ``["theta"]`` the
-    rotation (degree). Adds the Θ-dependent errors (Sec. 4.5.5), stage repeatability,
-    the sensor's noise, resolution and thermal drift (Table 3.3); mirrors
-    :meth:`calflow.xytheta.rig.SimulatedXYTheta.read`.
+    ``positions["x"]``, ``["y"]``, ``["theta"]`` are the controller's encoder positions
+    (µm, degree; ``POS?``), which see none of the stage's errors. The sensor is the physical
+    world: it tracks the approach direction and nut play of each axis from successive
+    readings and puts the carriages and the tool where :class:`XYThetaTruth` puts them
+    (lead screw, lost motion, coupling, scale, straightness, Θ errors, runout, yaw), then
+    adds stage repeatability, noise, decoding and gross errors and drift (Table 3.3);
+    mirrors :class:`calflow.xytheta.rig.SimulatedXYTheta`.
     """
 
     sensors = ("meas_x", "meas_y", "meas_theta")
@@ -34,7 +36,9 @@ class SimulatedVision:
 
     def __init__(self, truth: XYThetaTruth, seed: int = 0, stream: str = "") -> None:
         self.truth_model = truth
-        self._theta = 0.0
+        self._last = np.zeros(3)  # the encoder positions of the last reading (home first)
+        self._dir = np.ones(3)
+        self._lash = np.full(2, 0.5 * truth.backlash_um)
         self._rng = np.random.default_rng(np.random.SeedSequence(
             [int(seed), zlib.crc32(f"gcs-vision:{stream}".encode())]))
 
@@ -45,10 +49,18 @@ class SimulatedVision:
         except KeyError as exc:
             raise RigError(f"simulated_vision sensor: no position of joint {exc.args[0]!r}") from None
         temperature = float(t.room_temperature(time_s))
-        ex, ey = t.slide_errors(X, Y, temperature)  # the emulator's positions hold lead screw and backlash
-        direction = 1.0 if theta >= self._theta else -1.0
-        self._theta = theta
-        x_P, y_P, theta_a = t.tool_from_carriages(X + ex, Y + ey, X, Y, theta, direction)
+        q = np.array([X, Y, theta])
+        delta = q - self._last
+        half = 0.5 * t.backlash_um
+        for k in (0, 1, 2):  # approach directions and the nut play, as the simulated rig tracks them
+            if abs(delta[k]) > 1e-9:
+                self._dir[k] = np.sign(delta[k])
+                if k < 2:
+                    self._lash[k] = (np.clip(self._lash[k] + delta[k], -half, half) if t.lost_motion
+                                     else half * self._dir[k])
+        self._last = q
+        Xa, Ya = t.attained_joints(X, Y, self._lash[0], self._lash[1], temperature)
+        x_P, y_P, theta_a = t.tool_from_carriages(Xa, Ya, X, Y, theta, self._dir[2])
         jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
         noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
         gross = t.gross_error(*self._rng.random(2))
