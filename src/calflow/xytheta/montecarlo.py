@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from calflow.data.io import jsonable
 from calflow.errors import ConfigError
 
 #: Parameters of Eq. (4.18): (model name, summary key, units).
@@ -254,6 +253,8 @@ def run_point(base_campaign: dict, seed: int, noise_um: float, poses: int, model
         vplan = plans.validation(identified.inverse, v.get("targets"), validation_cycles or v["cycles"], v["dwell_s"])
         val_run, _ = simulate_run(c, vplan, f"validation_{model}", rig_seed, noise_um, model)
         accuracy = validation_accuracy(val_run, c)  # the run dataset only
+
+    from calflow.data.io import jsonable  # xarray: not at the workflow's start-up
 
     return jsonable({
         "campaign": c["name"], "model": model, "seed": int(seed), "noise_um": float(noise_um), "poses": int(poses),
