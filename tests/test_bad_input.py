@@ -65,6 +65,8 @@ CAMPAIGN_CASES = {
     "not a factory name": (SMALL_XYTHETA, _set("rig.factory", "os.system"), ["key 'rig.factory'"]),
     "no callable": (SMALL_XYTHETA, _set("rig.factory", "toyrigs:nothing_here"), ["key 'rig.factory'", "no callable"]),
     "no module": (SMALL_XYTHETA, _set("rig.factory", "toyrigs_not_there:make"), ["key 'rig.factory'", "cannot import"]),
+    "reversed stroke": (SMALL_NANO1D, _set("validation.stop_um", -10.0),
+                        ["key 'validation.stop_um'", "validation.start_um"]),
     "average beyond dwell": (SMALL_NANO1D, _set("training.average_last_s", 20.0),
                              ["key 'training.average_last_s'", "training.dwell_s"]),
     "nano inf option": (SMALL_NANO1D, _set("rig.options.rise_time_s", INF), ["key 'rig.options.rise_time_s'"]),

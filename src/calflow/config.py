@@ -151,6 +151,18 @@ def _check_dwells(node: Any, file, path: tuple = ()) -> None:
         _check_dwells(value, file, path + (key,))
 
 
+def _check_strokes(node: Any, file, path: tuple = ()) -> None:
+    """Where a section sweeps from ``start_um`` to ``stop_um``, start lies below stop."""
+    if not isinstance(node, dict):
+        return
+    start, stop = node.get("start_um"), node.get("stop_um")
+    if isinstance(start, (int, float)) and isinstance(stop, (int, float)) and not start < stop:
+        raise ConfigError(f"{file}: key '{_key(path + ('stop_um',))}': expected a value > "
+                          f"{_key(path + ('start_um',))} ({start!r}), got {stop!r}")
+    for key, value in node.items():
+        _check_strokes(value, file, path + (key,))
+
+
 def _check_start(campaign: dict, file) -> None:
     """The campaign ``start`` is a real date and time (the pattern lets 2026-02-31 through)."""
     start = campaign.get("start")
@@ -191,6 +203,7 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
 
     The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``). Numbers are
     finite, ranges ordered, ``start`` a real date, averaging windows within their dwell,
+    sweeps from ``start_um`` up to ``stop_um``,
     and the rig's options are checked (:func:`calflow.rigs.plugin.check_rig`). A
     ``module:callable`` rig factory is checked (allowed, importable, callable) only when
     ``rig_plugins``, the allow-list of plug-in modules, is given; otherwise no plug-in
@@ -210,6 +223,7 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     campaign = validate(data, f"campaign-{robot}", path)
     _check_start(campaign, path)
     _check_dwells(campaign, path)
+    _check_strokes(campaign, path)
     from calflow.rigs.plugin import check_rig
 
     check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
