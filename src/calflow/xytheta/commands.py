@@ -130,7 +130,7 @@ def _angle_model(c: dict, args, base):
     if a["table"] == "position_angle":
         r = angle_residuals_from_run(sweep)
         angle = PoseAngleLUT.from_residuals(r.x_T, r.y_T, r.theta, r.f_ax, r.f_ay, alpha, beta)
-        diag["angle_table"] = "position_angle (at the reference validation poses: in-sample for Table 4.7)"
+        diag["angle_table_kind"] = "position_angle (at the reference validation poses: in-sample for Table 4.7)"
         diag["angle_residual_nan"] = int(r.nan_readings)
     else:
         try:
@@ -138,7 +138,7 @@ def _angle_model(c: dict, args, base):
                                                     a["min_fraction"])
         except ValueError as exc:
             raise CalflowError(f"{args.residuals}: {exc}") from None
-        diag.update(angle_table="angle", angle_step_deg=spectrum.step_deg, angle_sweep_step_deg=spectrum.sweep_step_deg,
+        diag.update(angle_table_kind="angle", angle_step_deg=spectrum.step_deg, angle_sweep_step_deg=spectrum.sweep_step_deg,
                     angle_shortest_period_deg=spectrum.shortest_period_deg if spectrum.shortest_period_deg else 0.0,
                     angle_noise_um=spectrum.noise_um, angle_interpolation_error_um=spectrum.interpolation_error_um,
                     angle_undersampled=int(spectrum.undersampled), angle_warning=spectrum.warning)

@@ -124,13 +124,13 @@ class MicroModel:
             "parameter_b": xr.Variable(("parameter_b",), np.array(self.free, dtype=object), attrs={"long_name": "free parameter"}),
         }
         ds = xr.Dataset(data, coords=coords, attrs=meta.attrs("model"))
-        ds.attrs["model"] = self.name
-        ds.attrs["position_table"] = int(self.position is not None)
-        ds.attrs["angle_table"] = int(self.angle is not None)
-        ds.attrs["interpolation"] = self.method
         for key, value in self.diagnostics.items():
             if key != "r_diag" and isinstance(value, (int, float, str, np.integer, np.floating)):
                 ds.attrs[key] = value
+        ds.attrs["model"] = self.name  # what the model is: never a diagnostic's to overwrite
+        ds.attrs["position_table"] = int(self.position is not None)
+        ds.attrs["angle_table"] = int(self.angle is not None)
+        ds.attrs["interpolation"] = self.method
         return ds
 
     def groups(self) -> dict[str, xr.Dataset]:
@@ -162,6 +162,7 @@ class MicroModel:
         params = kin.Parameters(**{name: float(ds[name].values) for name in kin.PARAMETER_NAMES})
         free = tuple(str(v) for v in ds["parameter"].values)
         std = {name: float(ds[name].attrs.get("std", np.nan)) for name in kin.PARAMETER_NAMES}
-        diagnostics = {k: v for k, v in ds.attrs.items() if k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty"))}
+        diagnostics = {k: v for k, v in ds.attrs.items() if k != "angle_table"
+                       and k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty"))}
         return cls(str(ds.attrs["model"]), params, free, std, ds["correlation"].values, diagnostics,
                    position, angle, str(ds.attrs.get("interpolation", "linear")))

@@ -26,6 +26,13 @@ UNMODELLED = ("lost_motion", "yaw_urad", "expansion_ppm_per_degC", "decode_error
               "drift_um_per_degC")  # effects no calflow model represents
 
 
+def _off(value):
+    """The switched-off value of an effect's field: False, 0.0, or a tuple of zeros."""
+    if isinstance(value, bool):
+        return False
+    return tuple(0.0 for _ in value) if isinstance(value, tuple) else 0.0
+
+
 @dataclass(frozen=True)
 class XYThetaTruth:
     """True physics of the simulated XYΘ rig (units in the field names)."""
@@ -75,9 +82,7 @@ class XYThetaTruth:
 
     def __post_init__(self) -> None:
         if not self.unmodelled:  # one key switches off every effect no model represents
-            off = {name: (False if name == "lost_motion" else
-                          tuple(0.0 for _ in getattr(self, name)) if isinstance(getattr(self, name), tuple) else 0.0)
-                   for name in UNMODELLED}
+            off = {name: _off(getattr(self, name)) for name in UNMODELLED}
             for name, value in off.items():
                 object.__setattr__(self, name, value)
 
@@ -87,12 +92,7 @@ class XYThetaTruth:
 
     def without(self, *effects: str) -> "XYThetaTruth":
         """The same physics with ``effects`` (field names) switched off."""
-        off = {}
-        for name in effects:
-            value = getattr(self, name)
-            off[name] = False if isinstance(value, bool) else (
-                tuple(0.0 for _ in value) if isinstance(value, tuple) else 0.0)
-        return replace(self, **off)
+        return replace(self, **{name: _off(getattr(self, name)) for name in effects})
 
     # ------------------------------------------------------------------ X and Y stages
     def lead_error(self, axis: int, q, direction):
@@ -349,6 +349,6 @@ def options_off(*effects: str) -> dict:
     defaults = XYThetaTruth()
     for name in names:
         for f in EFFECTS[name]:
-            value = getattr(defaults, f)
-            out[f] = [0.0] * len(value) if isinstance(value, tuple) else 0.0
+            value = _off(getattr(defaults, f))
+            out[f] = list(value) if isinstance(value, tuple) else value
     return out

@@ -107,15 +107,15 @@ def adequacy(sigma_fit, n_poses, n_free: int, floor: dict, alpha: float = 0.01) 
 
 def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
     """The angle table of Model IV/V: tabulated and swept curves, the step and its reasons."""
-    if not model.attrs.get("angle_table") or model.attrs.get("angle_table") == 0:
+    if not model.attrs.get("angle_table"):
         return None
     from calflow.data.io import group_names, open_dataset
 
     if "angle_table" not in group_names(model_path):
         return None
     t = open_dataset(model_path, group="angle_table")
-    info = {"kind": str(model.attrs.get("angle_table", "")), "table": t.attrs.get("table", "")}
-    for k in ("angle_step_deg", "angle_sweep_step_deg", "angle_shortest_period_deg", "angle_noise_um",
+    info = {"table": t.attrs.get("table", "")}
+    for k in ("angle_table_kind", "angle_step_deg", "angle_sweep_step_deg", "angle_shortest_period_deg", "angle_noise_um",
               "angle_interpolation_error_um", "angle_undersampled", "angle_warning"):
         if k in model.attrs:
             info[k[len("angle_"):]] = jsonable(model.attrs[k])
