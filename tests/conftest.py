@@ -39,7 +39,7 @@ SMALL_XYTHETA = {
                "II": {"free": ["x_R", "y_R", "alpha", "beta"]},
                "III": {"free": ["x_R", "y_R", "alpha", "beta"], "position_table": True},
                "IV": {"base": "II", "angle_table": True}},
-    "validation": {"cycles": 4, "dwell_s": 0.5, "heldout": {"targets": 12, "cycles": 3}},
+    "validation": {"cycles": 4, "dwell_s": 0.5, "heldout": {"targets": 12, "cycles": 3, "error_budget": False}},
 }
 
 SMALL_NANO1D = {

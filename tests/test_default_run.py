@@ -55,6 +55,33 @@ def test_xytheta_heldout_accuracy_of_the_geometric_and_position_models(thesis):
         assert m["reference_targets"]["thesis_accuracy_um"] == THESIS_4_8[name]  # shown beside, not asserted
 
 
+def test_xytheta_error_budget_accounts_for_every_models_heldout_error(thesis, thesis_run):
+    """Per model, the budget's entries (baseline, each effect of the rig, interaction) add up in
+    signed quadrature to the RMS of the held-out per-target AP; every effect of the default
+    rig has its entry; what no model represents is marked; the report shows the table."""
+    import xarray as xr
+
+    s = thesis["xytheta-thesis"]
+    eb = s["validation"]["heldout"]["error_budget"]
+    assert {"lead_screw", "backlash", "yaw", "decode", "lost_motion", "gross_errors"} <= set(eb["effects"])
+    assert {"yaw", "expansion", "decode", "drift", "lost_motion", "gross_errors"} == set(eb["unmodelled"])
+    for name, m in s["models"].items():
+        b = m["error_budget_um"]
+        assert set(b) == {"baseline", "interaction", *eb["effects"]}
+        total = sum(np.sign(v) * v**2 for v in b.values())
+        with xr.open_dataset(thesis_run / f"results/xytheta-thesis/metrics/validation_heldout_{name}.nc") as ds:
+            ms = float(np.mean(ds["ap"].values ** 2))
+        assert np.isclose(total, ms, rtol=1e-6) and np.isclose(m["error_budget_rms_um"] ** 2, ms, rtol=1e-9)
+        assert m["error_budget_rms_um"] <= m["accuracy_um"]  # an RMS over targets, the max is AP
+        assert 0 < b["baseline"]
+    # Model I's fixed α, β stay wrong on a rig without effects: its baseline is most of its error;
+    # Model V's baseline is noise, a small part of its error
+    assert s["models"]["I"]["error_budget_um"]["baseline"] > 0.5 * s["models"]["I"]["error_budget_rms_um"]
+    assert s["models"]["V"]["error_budget_um"]["baseline"] < s["models"]["V"]["error_budget_rms_um"]
+    html = (thesis_run / "reports/xytheta-thesis/report.html").read_text()
+    assert 'id="error-budget"' in html and "signed quadrature" in html
+
+
 def test_heldout_targets_are_disjoint_from_every_training_pose(thesis):
     """From the run datasets alone: ≥ 50 held-out targets, their plan recorded, none of them
     an identification or angle-table pose; the summary says the same."""

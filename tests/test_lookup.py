@@ -65,6 +65,27 @@ def test_errors_follow_eq_4_14_4_15_and_direction():
         lut.errors(1.0, 1.0, 0, 1)
 
 
+def test_tables_inside_a_model_hold_only_the_stages_own_errors():
+    """On a rig whose stages have no error of their own — only the thesis's 2.3° misalignment
+    and perpendicularity, which α and β represent — the tables a kinematic model uses
+    (trends=False) are zero within noise: no cosine error of the misalignment (7.7 µm at
+    9.45 mm in the raw along-travel table), no offset from the home reading, zero at home."""
+    from calflow.xytheta.rig_physics import options_off
+
+    quiet = {**options_off(), "stage_repeatability_um": 0.01, "sensor_noise_um": 0.01}
+    runs = [acquire(sweeps.characterisation(a, stop_um=s, step_um=100, cycles=1),
+                    simulated_xytheta(seed=3, stream=f"char-{a}", **quiet), meta(f"characterisation_{a}"))
+            for a, s in (("x", 9000.0), ("y", 3600.0))]
+    lut = PositionLUT.from_dataset(characterise(*runs, meta=meta("characterisation_x")))
+    X, Y = np.meshgrid(np.linspace(0, 9000, 7), np.linspace(0, 3600, 5))
+    raw_x, raw_y = lut.errors(X, Y, 1, 1, trends=True)
+    ex, ey = lut.errors(X, Y, 1, 1, trends=False)
+    assert np.max(np.abs(raw_x - raw_x.min())) > 5.0  # the raw table holds the cosine error
+    assert np.max(np.abs(ex)) < 0.1 and np.max(np.abs(ey)) < 0.1
+    e0 = lut.errors(0.0, 0.0, 1, 1, trends=False)
+    assert e0[0] == pytest.approx(0.0, abs=1e-12) and e0[1] == pytest.approx(0.0, abs=1e-12)
+
+
 def test_linear_and_cubic_interpolation():
     q = np.linspace(3, 1990, 97)
     truth = 1 + np.sin(2 * np.pi * q / 400)  # f_xx forward of synthetic(), other terms zero at y=0, dy=+1

@@ -71,3 +71,16 @@ def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tm
     for key in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg"):
         pa, pb = a["II"]["parameters"][key], b["II"]["parameters"][key]
         assert abs(pa["value"] - pb["value"]) < 4 * np.hypot(pa["std"], pb["std"]), key
+
+
+def test_error_budget_replay_reproduces_the_campaign(reduced_run):
+    """The budget's replay with nothing switched off is the campaign's own calibration: the
+    same held-out AP at every target, to the bit (same seeds, streams and command functions)."""
+    import xarray as xr
+
+    from calflow.xytheta.error_budget import replay
+
+    r = replay(reduced_run / "config/campaigns/c.yaml", "none")
+    for name, ap in r["ap_um"].items():
+        with xr.open_dataset(reduced_run / f"results/c/metrics/validation_heldout_{name}.nc") as m:
+            assert np.array_equal(np.asarray(ap), m["ap"].values), name

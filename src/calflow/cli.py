@@ -44,6 +44,8 @@ def cmd_summarise(args) -> None:
 
     campaign, family = _family(args)
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
+    if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
+        truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
     write_json(family.step("summarise")(campaign, args.files, truth), args.out)
 
 
@@ -155,6 +157,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--campaign", required=True)
     s.add_argument("--files", nargs="+", required=True, help="the campaign's model, metrics and table files")
     s.add_argument("--truth")
+    s.add_argument("--budget", help="the error budget's replays (calflow error-budget), simulated rigs")
     s.add_argument("--out", required=True)
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")

@@ -155,6 +155,28 @@ def results_of(name):
     return files
 
 
+def budget_file(name):
+    """The error budget's replays (simulated XYΘ rigs with ``validation.heldout.error_budget``)."""
+    c = CAMPAIGN[name]
+    if c["robot"] != "xytheta" or c["rig"]["factory"] != "simulated":
+        return []
+    if not c["validation"]["heldout"]["error_budget"]:
+        return []
+    return [f"results/{name}/truth/error_budget.json"]
+
+
+def budget_digest(w):
+    """What the budget's replays read: the rig, the calibration's sections, the held-out targets."""
+    c = CAMPAIGN[w.campaign]
+    keys = ("seed", "start", "rig", "characterisation", "identification", "angle_residuals", "models")
+    v = c["validation"]
+    return digest(
+        [code_digest("error_budget", "xytheta")]
+        + [c.get(k) for k in keys]
+        + [v["heldout"], v["dwell_s"]]
+    )
+
+
 def plan_section(run):
     """The campaign section that defines an open-loop run's plan."""
     return {

@@ -9,6 +9,7 @@ rule summarise:
             if CAMPAIGN[w.campaign]["robot"] == "xytheta"
             else []
         ),
+        budget=lambda w: budget_file(w.campaign),
     output:
         summary=report(
             "results/{campaign}/summary.json",
@@ -27,12 +28,13 @@ rule summarise:
     params:
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
+        budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
         digest=section(
             "summarise", "description", "robot", "seed", "rig", "uncertainty"
         ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"
-        " {params.truth} --out {output.summary} > {log} 2>&1"
+        " {params.truth} {params.budget} --out {output.summary} > {log} 2>&1"
 
 
 rule report:

@@ -62,6 +62,26 @@ rule acquire_validation_heldout:
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
+rule error_budget:
+    output:
+        budget="results/{campaign}/truth/error_budget.json",
+    log:
+        "results/{campaign}/logs/error_budget.log",
+    benchmark:
+        "results/{campaign}/benchmarks/error_budget.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    threads: 2
+    resources:
+        mem_mb=2000,
+    params:
+        campaign=campaign_file,
+        digest=budget_digest,
+    shell:
+        "calflow error-budget --campaign {params.campaign} --jobs {threads}"
+        " --out {output.budget} > {log} 2>&1"
+
+
 rule acquire_validation_tests:
     input:
         models=lambda w: expand(

@@ -46,6 +46,12 @@ def _observability_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True)
 
 
+def _budget_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--jobs", type=int, default=1, help="replays run in parallel (processes)")
+    p.add_argument("--out", required=True)
+
+
 def _emulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("kind", choices=["gcs"])
     p.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
@@ -112,6 +118,7 @@ FAMILY = Family(
         "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary", "calflow.xytheta.oracle",
                               "calflow.xytheta.rig", "calflow.xytheta.rig_physics", "calflow.acquisition",
                               "calflow.xytheta.characterisation", "calflow.xytheta.kinematics"),
+        "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
         "report": _CORE + ("calflow.report", "calflow.xytheta.figures", "calflow.xytheta.templates",
                            "calflow.xytheta.models"),
     },
@@ -121,6 +128,8 @@ FAMILY = Family(
                 _characterise_arguments, f"{_C}:characterise"),
         Command("observability", "observability indices against the number of poses (Fig. 4.21)",
                 _observability_arguments, f"{_C}:observability"),
+        Command("error-budget", "replay the calibration with each rig effect off: the error budget (simulated rigs)",
+                _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
         Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1",
                 _emulate_arguments, "calflow.xytheta.emulate:emulate_command"),
         Command("mc-point", "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",

@@ -25,7 +25,11 @@ def oracle_validation(truth: dict, run: xr.Dataset, seed: int) -> dict:
     from calflow.xytheta.plans import validation
     from calflow.xytheta.rig import simulated_xytheta
 
-    physics = {k: v for k, v in truth.items() if k not in ("rig", "available")}
+    from dataclasses import fields
+
+    from calflow.xytheta.rig_physics import XYThetaTruth
+
+    physics = {f.name: truth[f.name] for f in fields(XYThetaTruth) if f.name in truth}
     rig = simulated_xytheta(seed=seed, stream="validation_oracle", **physics)
     t = rig.truth_model
     visits = run["pose"].values > 0

@@ -250,9 +250,27 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             "O2_limit": jsonable(obs.attrs.get("O2_limit")),
             "repeats": jsonable(obs.attrs.get("repeats")),
         }
+    if truth and truth.get("error_budget") and heldout:
+        _add_error_budget(summary, heldout, truth["error_budget"])
     if truth and truth.get("available", True):
         summary["truth"] = {"parameters": {k: truth[k] for k in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")}}
     return summary
+
+
+def _add_error_budget(summary: dict, heldout: dict, budget: dict) -> None:
+    """``models.<M>.error_budget_um`` and ``validation.heldout.error_budget`` from the budget's
+    replays on the simulated truth (:mod:`calflow.xytheta.error_budget`): reports only."""
+    from calflow.xytheta.error_budget import combine, groups
+
+    ap = {name: m["ap"].values for name, m in heldout.items()}
+    b = combine(ap, budget["replays"])
+    for name, entry in b["models"].items():
+        if name in summary["models"]:
+            summary["models"][name].update(error_budget_um=entry["error_budget_um"],
+                                           error_budget_rms_um=entry["rms_ap_um"],
+                                           error_budget_groups_um=groups(entry["error_budget_um"], b["unmodelled"]))
+    summary["validation"].setdefault("heldout", {})["error_budget"] = {
+        k: b[k] for k in ("effects", "unmodelled", "combination")}
 
 
 def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth) -> dict:
