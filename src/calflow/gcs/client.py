@@ -291,6 +291,25 @@ class GCSController:
         lo, hi = self._values("TMN?", axes), self._values("TMX?", axes)
         return {a: (lo[a], hi[a]) for a in lo}
 
+    def parameter(self, axis: str, pid: int) -> float:
+        """``SPA? <axis> <pid>``: one parameter's value (e.g. 0x36, the C-863's settling
+        window in counts; 0x3F, its settling time in s; docs/gcs.md "Settling")."""
+        name, text = check_axis(axis), f"0x{int(pid):X}"
+        lines = check_text(self.query("SPA?", name, text), "SPA?")
+        key, sep, value = lines[0].rpartition("=") if len(lines) == 1 else ("", "", "")
+        if not sep or key.split() != [name, text]:
+            raise GCSProtocolError(f"unexpected reply to 'SPA? {name} {text}': {lines!r}",
+                                   command="SPA?")
+        try:
+            return float(value)
+        except ValueError:
+            raise GCSProtocolError(f"not a number in reply to 'SPA? {name} {text}': {value!r}",
+                                   command="SPA?") from None
+
+    def set_parameter(self, axis: str, pid: int, value: float) -> None:
+        """``SPA <axis> <pid> <value>`` (volatile memory), then the ERR? check."""
+        self.command("SPA", check_axis(axis), f"0x{int(pid):X}", float(value), axes=[axis])
+
     def wait_on_target(self, timeout: float = 30.0, poll: float = 0.05,
                        axes: Axes = None) -> dict[str, float]:
         """Poll ``ONT?`` until all axes are on target; return ``POS?``.
