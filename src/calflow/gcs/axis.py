@@ -72,17 +72,17 @@ class AxisConfig:
         return cls(**data)
 
 
-def axis_configs(axes: Any) -> dict[str, AxisConfig]:
-    """Normalise an axes spec: None, "1,2", ["1", "2"], or {name: AxisConfig | dict}."""
+def axis_configs(axes: Any, kind: type[AxisConfig] = AxisConfig) -> dict[str, AxisConfig]:
+    """Normalise an axes spec: None, "1,2", ["1", "2"], or {name: ``kind`` | dict}."""
     if axes is None:
-        return {"1": AxisConfig()}
+        return {"1": kind()}
     if isinstance(axes, str):
         axes = [a.strip() for a in axes.split(",") if a.strip()]
     if isinstance(axes, Mapping):
-        items = [(k, v if isinstance(v, AxisConfig) else AxisConfig.from_mapping(dict(v or {})))
+        items = [(k, v if isinstance(v, AxisConfig) else kind.from_mapping(dict(v or {})))
                  for k, v in axes.items()]
     else:
-        items = [(k, AxisConfig()) for k in axes]
+        items = [(k, kind()) for k in axes]
     if not items:
         raise ValueError("the emulator needs at least one axis")
     return {check_axis(k): cfg for k, cfg in items}

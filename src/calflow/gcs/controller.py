@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from calflow.gcs.axis import SimAxis, axis_configs
+from calflow.gcs.axis import AxisConfig, SimAxis, axis_configs
 from calflow.gcs.protocol import NOT_READY, READY, parse_bool, split_command
 
 TruePosition = Callable[[str, float], float]
@@ -52,6 +52,9 @@ class EmulatedController:
             "VEL {<AxisID> <Velocity>}", "VEL?", "MOV {<AxisID> <Position>}", "MOV?", "POS?",
             "ONT?", "TMN?", "TMX?", "SPA {<ItemID> <PamID> <PamValue>}",
             "SPA? [{<ItemID> <PamID>}]", "STP", "#5", "#7", "#24"]
+    IDN = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0"
+    AXIS: type[SimAxis] = SimAxis
+    AXIS_CONFIG: type[AxisConfig] = AxisConfig
     # MS249E parameter overview: settling window (counts) and time (s), counts per unit
     PARAMETERS: dict[int, Parameter] = {0x36: ("settle_window", _counts),
                                         0x3F: ("settle_time", _unit)}
@@ -60,11 +63,12 @@ class EmulatedController:
 
     def __init__(self, axes: Any = None, *, time_scale: float = 1.0,
                  true_position: TruePosition | None = None,
-                 idn: str = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0") -> None:
+                 idn: str | None = None) -> None:
         if not time_scale > 0:
             raise ValueError("time_scale must be > 0")
-        self.axes = {n: SimAxis(n, c) for n, c in axis_configs(axes).items()}
-        self.time_scale, self.true_position, self.idn = float(time_scale), true_position, idn
+        self.axes = {n: self.AXIS(n, c) for n, c in axis_configs(axes, self.AXIS_CONFIG).items()}
+        self.time_scale, self.true_position = float(time_scale), true_position
+        self.idn = idn or self.IDN
         self.error = 0
         self.lock = threading.RLock()
         self._t0 = time.monotonic()
@@ -143,13 +147,12 @@ class EmulatedController:
 
     def _axis_query(self, name: str, args: list[str], now: float) -> list[str] | None:
         """Per-axis queries answering ``axis=value`` (MS249E §8: SVO?, FRF?, POS?, ...)."""
-        hook = self.true_position or (lambda axis, commanded: commanded)
         getters: dict[str, Callable[[SimAxis], object]] = {
             "SVO?": lambda ax: ax.servo,
             "FRF?": lambda ax: (ax.update(now), ax.referenced)[1],
             "VEL?": lambda ax: ax.velocity,
             "MOV?": lambda ax: ax.target(),
-            "POS?": lambda ax: float(hook(ax.name, ax.position(now))),
+            "POS?": lambda ax: self.measured(ax, now),
             "ONT?": lambda ax: ax.on_target(now),
             "TMN?": lambda ax: float(ax.config.tmn),
             "TMX?": lambda ax: float(ax.config.tmx),
@@ -161,7 +164,7 @@ class EmulatedController:
     def _q_SPA(self, args: list[str], now: float) -> list[str]:
         if len(args) % 2:
             raise _Err(1)
-        items = ([(a, f"0x{p:X}") for a in self.axes for p in sorted({**self.READ_ONLY,
+        items = ([(a, f"0x{p:08X}" if p > 0xFFFF else f"0x{p:X}") for a in self.axes for p in sorted({**self.READ_ONLY,
                                                                          **self.PARAMETERS})]
                  if not args else list(zip(args[0::2], args[1::2])))
         out = []
@@ -204,6 +207,11 @@ class EmulatedController:
         if pid not in self.PARAMETERS and pid not in self.READ_ONLY:
             raise _Err(54)  # PI_CNTR_UNKNOWN_PARAMETER
         return self.axes[axis], pid
+
+    def measured(self, ax: SimAxis, now: float) -> float:
+        """``POS?``: what the controller's own sensor reads (the ``true_position`` hook)."""
+        hook = self.true_position or (lambda axis, commanded: commanded)
+        return float(hook(ax.name, ax.position(now)))
 
     def _c_h5(self, args: list[str], now: float) -> list[str]:
         mask = sum(1 << i for i, ax in enumerate(self.axes.values()) if ax.moving(now))

@@ -59,11 +59,12 @@ class GCSEmulator:
     def __init__(self, axes: Any = None, host: str = LOCALHOST, port: int = 0,
                  faults: Faults | None = None, *, time_scale: float = 1.0,
                  true_position: TruePosition | None = None,
-                 address_prefix: int | None = None) -> None:
+                 address_prefix: int | None = None,
+                 controller: EmulatedController | None = None) -> None:
         if host not in (LOCALHOST, "localhost"):
             raise ValueError(f"the GCS emulator binds to {LOCALHOST} only, not {host!r}")
-        self.controller = EmulatedController(axes, time_scale=time_scale,
-                                             true_position=true_position)
+        self.controller = controller or EmulatedController(axes, time_scale=time_scale,
+                                                           true_position=true_position)
         self.faults = faults or Faults()
         self.address_prefix = address_prefix  # replies start "0 <n> " (MS249E §8.3)
         self.commands_handled = 0

@@ -27,7 +27,9 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Iterator, TypeVar
+
+import numpy as np
 
 from calflow.errors import RigError
 from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionLost,
@@ -116,6 +118,8 @@ class GCSRig:
         self.tries, self.backoff_s, self.max_backoff_s = max(0, int(tries)), backoff_s, max_backoff_s
         self.time_scale, self.move_timeout_s, self.poll_s = time_scale, move_timeout_s, poll_s
         self.recoveries = 0  # link recoveries so far (for logs and tests)
+        self.recorder: Mapping[str, float] = {}  # data recorder options (stream())
+        self._recording = False
         self._closed = False
         self._t0 = time.monotonic()
 
@@ -135,22 +139,57 @@ class GCSRig:
         unknown = sorted(set(command) - set(self.joints))
         if unknown:
             raise RigError(f"gcs rig: command names joints {unknown}; the rig has {list(self.joints)}")
+        started = self.time()
         plan = [(link, {a: float(command[j]) / self.scale[j] for j, a in link.joints.items()
                         if j in command}) for link in self.links]
         plan = [(link, targets) for link, targets in plan if targets]
         for link, targets in plan:
             self._run(link, "MOV", lambda retry, link=link, t=targets: link.ctl.move(t))
+        settled: dict[str, float] = {}
         for link, targets in plan:
-            def settle(retry: bool, link: Link = link, t: dict = targets) -> None:
+            def settle(retry: bool, link: Link = link, t: dict = targets) -> dict[str, float]:
                 if retry:  # the interrupted move is sent again: MOV is idempotent
                     link.ctl.move(t)
-                link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
-                                        axes=list(t))
-            self._run(link, "wait on target", settle)
+                return link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
+                                               axes=list(t))
+            pos = self._run(link, "wait on target", settle)
+            settled.update({j: pos[a] * self.scale[j] for j, a in link.joints.items() if a in pos})
+        if hasattr(self.sensor, "moved"):  # e.g. a simulated sensor keeping its own clock
+            self.sensor.moved(settled, started)
 
     def wait(self, seconds: float) -> None:
         """Dwell: real time, divided by ``time_scale``."""
         time.sleep(max(0.0, float(seconds)) / self.time_scale)
+
+    def stream(self, seconds: float) -> Iterator[dict[str, np.ndarray]]:
+        """Dwell ``seconds`` and return the dwell's high-rate samples, one chunk.
+
+        The data recorder of the first controller is the clock (``DRC`` current position
+        of its axes, ``RTR`` for ``recorder.rate_hz``, ``DRT 0 2 0``, ``DRR?``): its points
+        are handed to the sensor's ``stream(times, positions)``. A sensor without ``stream``
+        gives one reading at the end of the dwell.
+        """
+        if not hasattr(self.sensor, "stream"):
+            self.wait(seconds)
+            return iter([{k: np.array([v]) for k, v in self.read().items()}])
+        link, rec = self.links[0], self.recorder
+        tables = {i + 1: (a, 2) for i, a in enumerate(link.axes)}
+        rate = max(1, round(1.0 / (float(rec.get("rate_hz", 10.0)) * float(rec.get("servo_cycle_s", 5e-5)))))
+        if not self._recording:
+            self._run(link, "DRC", lambda retry: link.ctl.configure_recorder(tables, rate))
+            self._recording = True
+        self._run(link, "DRT", lambda retry: link.ctl.arm_recorder(2))
+        start = self.time()
+        self.wait(seconds)
+        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables))
+        dt = float(header.get("SAMPLE_TIME", rate * 5e-5))
+        n = min(len(data) - 1, int(np.floor(seconds / dt + 1e-9)))
+        times = start + dt * np.arange(1, n + 1)
+        positions = {link.joint_of(a): data[1:n + 1, i] * self.scale[link.joint_of(a)]
+                     for i, a in enumerate(link.axes)}
+        values = self.sensor.stream(times, positions)
+        return iter([{"time": times, **{k: np.asarray(values[k], dtype=float)
+                                        for k in (*self.sensors, *self.thermometers)}}])
 
     def positions(self) -> dict[str, float]:
         """Actual joint positions (``POS?``) in rig units (µm, degree)."""
@@ -251,7 +290,8 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
         sensor: Mapping[str, Any] | None = None, reconnect: Mapping[str, Any] | None = None,
         reference: bool = True, servo: bool = True, scale: Mapping[str, float] | None = None,
         velocity: Mapping[str, float] | None = None, time_scale: float = 1.0,
-        move_timeout_s: float = 60.0, poll_s: float = 0.02) -> GCSRig:
+        move_timeout_s: float = 60.0, poll_s: float = 0.02,
+        recorder: Mapping[str, float] | None = None) -> GCSRig:
     """Factory of the ``gcs`` rig (docs/gcs.md, "The gcs rig").
 
     ``axes`` maps joint -> axis id on the controller at ``host``/``port`` (TCP) or
@@ -260,6 +300,8 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
     per controller unit, per joint (1000 for a stage in mm). ``velocity``: VEL per joint in
     controller units. ``reconnect``: ``{tries: 5, backoff_s: 0.2, max_backoff_s: 10}``.
     ``time_scale`` divides dwell times and multiplies reported time (emulators only).
+    ``recorder``: ``{rate_hz: 10, servo_cycle_s: 5e-5}``, the data recorder's rate for
+    :meth:`GCSRig.stream` (piezo controllers).
     """
     if not isinstance(axes, Mapping) or not axes:
         raise RigError("gcs rig: option 'axes' must map joint names to controller axis ids")
@@ -299,6 +341,7 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
                  max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
                  move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
     rig._locks = locks
+    rig.recorder = dict(recorder or {})
     return rig
 
 
