@@ -40,6 +40,8 @@ from calflow.gcs.sensors import load_sensor
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")
 LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
+RESUME = ("; the samples already taken are kept in the acquisition journal (<out>.journal): "
+          "fix the cause and run the same command again to continue after the last one")
 
 
 @dataclass
@@ -155,7 +157,7 @@ class GCSRig:
             pos = self._run(link, "wait on target", settle)
             settled.update({j: pos[a] * self.scale[j] for j, a in link.joints.items() if a in pos})
         if hasattr(self.sensor, "moved"):  # e.g. a simulated sensor keeping its own clock
-            self.sensor.moved(settled, started)
+            self._sensor("moved", settled, started)
 
     def wait(self, seconds: float) -> None:
         """Dwell: real time, divided by ``time_scale``."""
@@ -187,7 +189,7 @@ class GCSRig:
         times = start + dt * np.arange(1, n + 1)
         positions = {link.joint_of(a): data[1:n + 1, i] * self.scale[link.joint_of(a)]
                      for i, a in enumerate(link.axes)}
-        values = self.sensor.stream(times, positions)
+        values = self._sensor("stream", times, positions)
         return iter([{"time": times, **{k: np.asarray(values[k], dtype=float)
                                         for k in (*self.sensors, *self.thermometers)}}])
 
@@ -205,8 +207,14 @@ class GCSRig:
             raise RigError("gcs rig: read() after close()")
         positions = self.positions()
         now = self.time()
-        values = self.sensor.read(positions, now)
+        values = self._sensor("read", positions, now)
         return {"time": now, **{k: float(values[k]) for k in (*self.sensors, *self.thermometers)}}
+
+    def _sensor(self, method: str, *args: Any) -> Any:
+        try:
+            return getattr(self.sensor, method)(*args)
+        except RigError as exc:  # a sensor driver's failure (e.g. the camera is gone)
+            raise RigError(f"gcs rig: sensor: {exc}" + RESUME) from exc
 
     def close(self) -> None:
         if self._closed:
@@ -231,7 +239,7 @@ class GCSRig:
                 failures += 1
                 if failures > self.tries:
                     raise RigError(f"gcs rig: {link.name}: {what} failed {failures} times in a "
-                                   f"row, giving up (last: {exc})") from exc
+                                   f"row, giving up (last: {exc})" + RESUME) from exc
                 self._recover(link, what, failures, exc)
             except GCSError as exc:  # GCSControllerError and other controller-side failures
                 self._fail(link, what, exc)
@@ -246,7 +254,7 @@ class GCSRig:
                                max_backoff=self.max_backoff_s)
         except GCSConnectionLost as lost:
             raise RigError(f"gcs rig: {link.name}: link lost during {what} and reconnecting "
-                           f"failed: {lost}") from exc
+                           f"failed: {lost}" + RESUME) from exc
         self.recoveries += 1
 
     def stop_all(self) -> list[str]:
@@ -282,7 +290,7 @@ class GCSRig:
         failed = self.stop_all()
         stopped = ("all axes stopped (#24)" if not failed
                    else f"#24 could not be sent to {', '.join(failed)}")
-        raise RigError(f"gcs rig: {where}: {cause}; {stopped}") from exc
+        raise RigError(f"gcs rig: {where}: {cause}; {stopped}" + RESUME) from exc
 
 
 def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PORT,

@@ -1,0 +1,161 @@
+"""Reliability: every emulator fault during a campaign, and SIGKILLs of acquisitions.
+
+The fault table of docs/reliability.md: each fault is injected mid-run into a nano
+training through the E-727-class emulator; the run either survives (every sample once, in
+order) or fails with one message that says how to resume, with every acquired sample kept
+in the journal. The SIGKILL chain is the small version of benchmarks/reliability_sigkill.py.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import threading
+
+import numpy as np
+import pytest
+
+from calflow.acquisition.checkpoint import Journal, plan_digest
+from calflow.acquisition.runner import acquire
+from calflow.data.runs import RunMetadata
+from calflow.errors import RigError
+from calflow.gcs.rig import gcs
+from calflow.nano import plans
+from calflow.nano.emulate import emulated_rig_options
+from conftest import ROOT, SMALL_NANO1D
+
+META = RunMetadata(campaign="faults", robot="stage1d", source="gcs", plan="training",
+                   config_sha256="0" * 64)
+PLAN = plans.training_1d(np.arange(0.0, 481.0, 80.0), 2, 4.0, 2.0, 0.0)  # 28 samples
+
+
+class Dropout:
+    """Wraps the sensor: readings ``nan_at`` are NaN (no valid reading), ``fail_at`` raises."""
+
+    def __init__(self, sensor, nan_at=(), fail_at=None):
+        self.inner, self.nan_at, self.fail_at, self.n = sensor, set(nan_at), fail_at, 0
+        self.sensors, self.thermometers = sensor.sensors, sensor.thermometers
+
+    def moved(self, positions, time_s):
+        self.inner.moved(positions, time_s)
+
+    def read(self, positions, time_s):
+        return self._out(self.inner.read(positions, time_s), lambda v: math.nan)
+
+    def stream(self, times, positions):
+        return self._out(self.inner.stream(times, positions), lambda v: np.full_like(v, np.nan))
+
+    def _out(self, values, blank):
+        self.n += 1
+        if self.n - 1 == self.fail_at:
+            raise RigError("interferometer: laser signal lost (beam blocked)")
+        if self.n - 1 in self.nan_at:
+            return {k: (blank(v) if k in self.sensors else v) for k, v in values.items()}
+        return values
+
+    def close(self):
+        self.inner.close()
+
+
+def _run(tmp_path, inject, *, options=None, sensor=None):
+    """Acquire PLAN with ``inject(emu, rig)`` called after 10 samples; (ds | error, journal)."""
+    emu, opts = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0, timeout=0.2)
+    journal = Journal(tmp_path / "run.nc.journal", plan_digest(PLAN))
+    try:
+        rig = gcs(**{**opts, "reconnect": {"tries": 4, "backoff_s": 0.01}, **(options or {})})
+        if sensor:
+            rig.sensor = sensor(rig.sensor)
+
+        def progress(done, total):
+            if done == 10:
+                inject(emu, rig)
+        try:
+            return acquire(PLAN, rig, META, journal, progress), journal
+        except RigError as exc:
+            return exc, journal
+        finally:
+            rig.close()
+    finally:
+        emu.stop()
+
+
+def _intact(ds):
+    assert ds.sizes["sample"] == len(PLAN)
+    assert np.array_equal(ds["cmd_x"].values, PLAN.commands["x"])
+    assert np.array_equal(ds["pose"].values, PLAN.pose)
+    assert np.all(np.diff(ds["time"].values) > 0)
+
+
+def _slow_for(emu, seconds, delay):
+    emu.faults.delay = delay
+    threading.Timer(seconds, lambda: setattr(emu.faults, "delay", 0.0)).start()
+
+
+SURVIVED = {
+    "dropped connection": lambda emu, rig: setattr(emu.faults, "drop_after", 2),
+    "all connections dropped": lambda emu, rig: emu.drop_connections(),
+    "delay past the timeout": lambda emu, rig: _slow_for(emu, 0.3, 0.5),
+    "garbled reply": lambda emu, rig: setattr(emu.faults, "garbage", 1),
+    "refused reconnection": lambda emu, rig: (setattr(emu.faults, "refuse", 2),
+                                              emu.drop_connections()),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(SURVIVED))
+def test_link_faults_mid_campaign_are_survived(tmp_path, fault):
+    ds, _ = _run(tmp_path, SURVIVED[fault])
+    assert not isinstance(ds, Exception), ds
+    _intact(ds)
+    assert np.isfinite(ds["meas_x"].values).all()
+
+
+def test_sensor_dropout_is_recorded_as_missing_and_the_run_survives(tmp_path):
+    ds, _ = _run(tmp_path, lambda emu, rig: None,
+                 sensor=lambda s: Dropout(s, nan_at=(12, 13)))
+    _intact(ds)
+    bad = ~np.isfinite(ds["meas_x"].values)
+    assert list(np.flatnonzero(bad)) == [12, 13]
+
+
+FAILED = {
+    "garbled replies that persist": (
+        lambda emu, rig: setattr(emu.faults, "garbage", 10**6), None, "garbage in reply"),
+    "controller error code": (
+        lambda emu, rig: setattr(emu.faults, "error", 1), None, "GCS error 5"),
+    "controller gone": (
+        lambda emu, rig: (setattr(emu.faults, "refuse", 10**6), emu.drop_connections()), None,
+        "reconnecting failed"),
+    "sensor failure": (lambda emu, rig: None, lambda s: Dropout(s, fail_at=12), "laser signal lost"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(FAILED))
+def test_fatal_faults_fail_with_a_resume_message_and_keep_every_sample(tmp_path, fault):
+    inject, sensor, cause = FAILED[fault]
+    err, journal = _run(tmp_path, inject, sensor=sensor)
+    assert isinstance(err, RigError), err
+    message = str(err)
+    assert cause in message and "\n" not in message
+    assert "run the same command again to continue" in message
+    kept = journal.load()
+    assert len(kept) >= 10  # every sample acquired before the fault
+    assert [r["cmd_x"] for r in kept] == list(PLAN.commands["x"][:len(kept)])
+
+
+def _sigkill_module():
+    spec = importlib.util.spec_from_file_location(
+        "reliability_sigkill", ROOT / "benchmarks" / "reliability_sigkill.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_chain_of_sigkills_resumes_to_the_uninterrupted_dataset(tmp_path):
+    """Small version of the benchmark: 3 kills of one acquisition on the (slowed) simulated
+    rig, each resumed (a kill through the GCS emulator: tests/test_rigs_gcs.py)."""
+    bench = _sigkill_module()
+    result = bench.kill_chain("simulated", tmp_path, kills=3, rng=np.random.default_rng(5),
+                              poses=300, max_delay_s=0.1)
+    assert result["kills"] == 3
+    assert result["lost"] == 0 and result["duplicated"] == 0
+    assert result["journal_never_shrank"] and result["equal_to_uninterrupted"]
