@@ -376,3 +376,9 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
     except GCSError as exc:
         raise RigError(f"gcs rig: preparing controller {link.name} "
                        f"(joints {', '.join(link.joints)}) failed: {exc}") from exc
+
+
+# The config check calls this (calflow.rigs.plugin.check_rig): options checked, nothing opened.
+from calflow.gcs.rig_options import check_options as _check_options  # noqa: E402
+
+gcs.check_options = _check_options
