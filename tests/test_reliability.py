@@ -159,3 +159,135 @@ def test_a_chain_of_sigkills_resumes_to_the_uninterrupted_dataset(tmp_path):
     assert result["kills"] == 3
     assert result["lost"] == 0 and result["duplicated"] == 0
     assert result["journal_never_shrank"] and result["equal_to_uninterrupted"]
+
+
+# --------------------------------------------------------------------------- fuzzing the readers
+# Property: whatever the bytes, a reader gives a result or one calflow error line — never a
+# traceback — and a refused input leaves no output and no partial file.
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+from calflow.cli import main  # noqa: E402
+from conftest import SMALL_XYTHETA  # noqa: E402
+
+FUZZ = settings(max_examples=25, deadline=None,
+                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
+                   st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12),
+                   st.lists(st.floats(allow_nan=True), max_size=4),
+                   st.dictionaries(st.text(max_size=6), st.integers(), max_size=2))
+
+
+def _paths(node, prefix=()):
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield prefix + (k,)
+            yield from _paths(v, prefix + (k,))
+
+
+CAMPAIGN_PATHS = sorted(_paths(SMALL_XYTHETA), key=str)
+
+
+def _cli(argv, capsys):
+    status = main([str(a) for a in argv])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    return status, err
+
+
+@FUZZ
+@given(edits=st.lists(st.tuples(st.sampled_from(CAMPAIGN_PATHS), VALUES), min_size=1, max_size=3))
+def test_fuzzed_campaign_files_load_or_give_one_line(tmp_path_factory, edits):
+    import copy
+
+    import yaml
+
+    from calflow.config import load_campaign
+    from calflow.errors import CalflowError
+
+    c = copy.deepcopy(SMALL_XYTHETA)
+    for path, value in edits:
+        node = c
+        for key in path[:-1]:
+            node = node[key] if isinstance(node.get(key), dict) else node.setdefault(key, {})
+            if not isinstance(node, dict):
+                break
+        else:
+            node[path[-1]] = value
+    f = tmp_path_factory.mktemp("yaml") / "fuzz.yaml"
+    f.write_text(yaml.safe_dump(c))
+    try:
+        load_campaign(f, [])
+    except CalflowError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith(f"{f}: "), str(exc)
+
+
+@FUZZ
+@given(text=st.text(alphabet=st.sampled_from(list("0123456789.,;-e \nabcnaN:\t\"'#")), max_size=200))
+def test_fuzzed_yaml_text_loads_or_gives_one_line(tmp_path_factory, text):
+    import yaml
+
+    from calflow.config import load_campaign
+    from calflow.errors import CalflowError
+
+    f = tmp_path_factory.mktemp("yaml") / "fuzz.yaml"
+    f.write_text(yaml.safe_dump(SMALL_XYTHETA) + text)
+    try:
+        load_campaign(f, [])
+    except CalflowError as exc:
+        assert "\n" not in str(exc) and str(f) in str(exc), str(exc)
+
+
+CSV_HEADER = "t_s,X,Y,T,xv,yv,tv"
+CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr),
+                  st.text(alphabet=st.sampled_from(list("0123456789.-eE naN,;\"")), max_size=6))
+
+
+@FUZZ
+@given(rows=st.lists(st.lists(CELLS, min_size=5, max_size=8), max_size=5),
+       header=st.sampled_from([CSV_HEADER, CSV_HEADER.replace("yv", "yy"), "", CSV_HEADER + ",t_s"]))
+def test_fuzzed_csv_imports_or_gives_one_line_and_no_file(tmp_path_factory, capsys, rows, header):
+    import yaml
+
+    from test_bad_input import CSV_MAPPING
+
+    d = tmp_path_factory.mktemp("csv")
+    (d / "bench.csv").write_text("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    (d / "mapping.yaml").write_text(yaml.safe_dump(CSV_MAPPING))
+    (d / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
+    out = d / "runs" / "run.nc"
+    status, err = _cli(["import-csv", d / "bench.csv", "--mapping", d / "mapping.yaml",
+                        "--campaign", d / "c.yaml", "--out", out], capsys)
+    if status == 0:
+        assert out.exists()
+    else:
+        assert status == 2 and len(err) == 1 and "bench.csv" in err[0], err
+        assert not out.exists()
+    leftovers = [p.name for p in (d / "runs").iterdir()] if (d / "runs").exists() else []
+    assert not [n for n in leftovers if "partial" in n or n.startswith(".")], leftovers
+
+
+@pytest.fixture(scope="module")
+def good_run(tmp_path_factory):
+    from calflow.data.io import write_dataset
+    from calflow.xytheta import plans as xy_plans
+    from calflow.xytheta.rig import simulated_xytheta
+
+    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification",
+                       config_sha256="0" * 64)
+    ds = acquire(xy_plans.identification(6, seed=3), simulated_xytheta(seed=1, stream="id"), meta)
+    return write_dataset(ds, tmp_path_factory.mktemp("nc") / "identification.nc").read_bytes()
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzzed_netcdf_validates_or_gives_one_line(tmp_path_factory, capsys, good_run, data):
+    raw = bytearray(good_run)
+    cut = data.draw(st.integers(0, len(raw)), label="truncate at")
+    flips = data.draw(st.lists(st.tuples(st.integers(0, len(raw) - 1), st.integers(0, 255)),
+                               max_size=8), label="byte flips")
+    for i, b in flips:
+        raw[i] = b
+    f = tmp_path_factory.mktemp("nc") / "identification.nc"
+    f.write_bytes(bytes(raw[:cut]) if data.draw(st.booleans(), label="truncate") else bytes(raw))
+    status, err = _cli(["validate", f], capsys)
+    assert status in (0, 1, 2)
+    assert status == 0 or (err and all(str(f) in line or line.startswith("calflow") for line in err)), err
