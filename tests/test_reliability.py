@@ -291,3 +291,49 @@ def test_fuzzed_netcdf_validates_or_gives_one_line(tmp_path_factory, capsys, goo
     status, err = _cli(["validate", f], capsys)
     assert status in (0, 1, 2)
     assert status == 0 or (err and all(str(f) in line or line.startswith("calflow") for line in err)), err
+
+
+# --------------------------------------------------------------------------- user text, names
+EVIL_TEXT = ("<img src=x onerror=alert(1)> </td></table><script>x()</script> "
+             r"$\input{/etc/passwd}$ \def\x{1} {{ 7*7 }} & \\")
+
+
+def test_user_text_with_html_or_latex_reaches_the_index_escaped():
+    """HTML in a description is escaped; LaTeX and template syntax stay inert text (the
+    reports load no math renderer, and Jinja does not evaluate values)."""
+    from markupsafe import escape
+
+    from calflow.report import render_index
+
+    summary = {"campaign": "c1", "robot": "stage1d", "description": EVIL_TEXT, "rig": "gcs",
+               "seed": 1, "reference": {}, "tests": {}}
+    html = render_index([summary])
+    assert "<script>x()" not in html and "<img src=x" not in html and "</td></table><script>" not in html
+    assert str(escape(EVIL_TEXT)) in html
+    assert r"$\input{/etc/passwd}$" in html and "{{ 7*7 }}" in html and ">49<" not in html
+    assert "mathjax" not in html.lower() and "katex" not in html.lower()
+
+
+@pytest.mark.parametrize("name", ["..", "../evil", "a/b", "/abs", "x\n", ".hidden", "", "a" * 65,
+                                  "c:evil", "evil name"])
+def test_campaign_names_cannot_leave_results_or_reports(tmp_path, name):
+    """A name names folders under results/ and reports/: only letters, digits, '-', '_'."""
+    from calflow.config import check_campaign_name, load_workflow_config
+    from calflow.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="expected letters, digits"):
+        check_campaign_name(name)  # the workflow's gate (workflow/rules/common.smk)
+    if name != "x\n":  # JSON Schema's pattern is searched: "$" matches before a final newline
+        with pytest.raises(ConfigError):
+            load_workflow_config({"campaigns": [name]})
+
+
+def test_a_campaign_file_whose_stem_is_not_a_name_is_refused_by_the_workflow(tmp_path):
+    """``...yaml`` has the stem ``..``: the workflow's name check refuses it."""
+    from calflow.config import check_campaign_name
+    from calflow.errors import ConfigError
+
+    assert (tmp_path / "...yaml").stem == ".."
+    with pytest.raises(ConfigError):
+        check_campaign_name((tmp_path / "...yaml").stem)
+    assert check_campaign_name("nano1d-thesis") == "nano1d-thesis"
