@@ -1,0 +1,96 @@
+"""The thesis nano campaigns' training runs through the E-727-class emulator vs the simulated rig.
+
+For ``nano1d-thesis`` and ``nano2d-thesis`` (config/campaigns/), the training plan is
+acquired twice: on the ``simulated`` rig and with ``rig: gcs`` through the piezo controller
+emulation (:mod:`calflow.nano.emulate`), whose stage is the same physics with its own noise.
+Per pose and approach direction, the stage's error ``meas - cmd`` averaged over the cycles
+is compared: the figure is the fraction of (pose, direction, sensor) cells whose difference
+is within 3 combined standard errors, and the largest difference in those units.
+
+``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 2000]`` (a few minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cells(ds, sensors):
+    """{(pose, direction, sensor): (mean, standard error)} of meas - cmd over the cycles."""
+    out = {}
+    joints = {"meas_x": "x", "meas_y": "y"}
+    for s in sensors:
+        cmd = ds[f"cmd_{joints[s]}"].values if f"cmd_{joints[s]}" in ds else 0.0
+        err = ds[s].values - cmd
+        for p, d in sorted(set(zip(ds["pose"].values, ds["direction"].values))):
+            m = (ds["pose"].values == p) & (ds["direction"].values == d) & np.isfinite(err)
+            if m.sum() > 1:
+                out[(int(p), int(d), s)] = (float(err[m].mean()), float(err[m].std(ddof=1) / math.sqrt(m.sum())))
+    return out
+
+
+def compare(campaign: str, time_scale: float) -> dict:
+    from calflow.acquisition.runner import acquire
+    from calflow.commands.common import meta
+    from calflow.config import load_campaign
+    from calflow.family import family_of
+    from calflow.gcs.rig import gcs
+    from calflow.nano.emulate import emulated_rig_options
+    from calflow.rigs import load_rig
+
+    c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
+    fam = family_of(c["robot"])
+    job = fam.plan(c["robot"], "training")(c, argparse.Namespace(model=None))
+    plan = job.plan
+    from calflow.family import resolve
+
+    sim_opts = resolve(fam.rig_options)(c, "simulated", job.run_id, dict(c["rig"].get("options", {})), plan.start_s)
+    t0 = time.monotonic()
+    sim = acquire(plan, load_rig("simulated", c["robot"], sim_opts), meta(c, "simulated", "training", None))
+    t_sim = time.monotonic() - t0
+    emu, options = emulated_rig_options(c, time_scale=time_scale)
+    try:
+        options = resolve(fam.rig_options)(c, "gcs", job.run_id, options, plan.start_s)
+        t0 = time.monotonic()
+        rig = gcs(**options)
+        try:
+            run = acquire(plan, rig, meta(c, "gcs", "training", None))
+        finally:
+            rig.close()
+        t_gcs = time.monotonic() - t0
+    finally:
+        emu.stop()
+    a, b = _cells(sim, rig.sensors), _cells(run, rig.sensors)
+    z = np.array([abs(a[k][0] - b[k][0]) / math.hypot(a[k][1], b[k][1]) for k in a if k in b])
+    diff_nm = np.array([abs(a[k][0] - b[k][0]) * 1e3 for k in a if k in b])
+    ptp_nm = max(np.ptp([a[k][0] for k in a if k[2] == s]) for s in rig.sensors) * 1e3
+    return {"campaign": campaign, "samples": len(plan), "cells": int(z.size),
+            "within_3se": round(float(np.mean(z < 3)), 3), "max_z": round(float(z.max()), 2),
+            "median_abs_diff_nm": round(float(np.median(diff_nm)), 2),
+            "error_curve_ptp_nm": round(float(ptp_nm), 1),
+            "all_samples": bool(run.sizes["sample"] == len(plan)),
+            "wall_s_simulated": round(t_sim, 1), "wall_s_gcs": round(t_gcs, 1), "time_scale": time_scale}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--campaigns", nargs="+", default=["nano1d-thesis", "nano2d-thesis"])
+    p.add_argument("--time-scale", type=float, default=2000.0)
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args(argv)
+    results = [compare(name, a.time_scale) for name in a.campaigns]
+    print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
