@@ -55,7 +55,8 @@ def compare(campaign: str, time_scale: float) -> dict:
 
     sim_opts = resolve(fam.rig_options)(c, "simulated", job.run_id, dict(c["rig"].get("options", {})), plan.start_s)
     t0 = time.monotonic()
-    sim = acquire(plan, load_rig("simulated", c["robot"], sim_opts), meta(c, "simulated", "training", None))
+    sim_rig, _ = load_rig("simulated", c["robot"], sim_opts)
+    sim = acquire(plan, sim_rig, meta(c, "simulated", "training", None))
     t_sim = time.monotonic() - t0
     emu, options = emulated_rig_options(c, time_scale=time_scale)
     try:

@@ -168,3 +168,20 @@ def test_nano2d_stage_reads_both_interferometer_axes_through_the_emulator():
         emu.stop()
     assert chunk["time"].size == 30 and np.all(np.diff(chunk["time"]) > 0)
     assert abs(np.mean(chunk["meas_x"]) - 40.0) < 2.0 and abs(r["meas_y"] - 20.0) < 2.0
+
+
+def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys, tmp_path):
+    import yaml
+
+    from calflow.config import load_campaign
+    from calflow.nano.emulate import main
+
+    path = tmp_path / "small.yaml"
+    path.write_text(yaml.safe_dump(SMALL_NANO1D))
+    assert main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "500"]) == 0
+    rig = yaml.safe_load(capsys.readouterr().out.split("campaign rig section for it:\n", 1)[1])["rig"]
+    assert rig["options"]["axes"] == {"x": "1"} and rig["options"]["time_scale"] == 500
+    assert rig["runs"]["metrology"]["sensor"]["options"]["profile"] == "metrology"  # the run override
+    campaign = {**SMALL_NANO1D, "rig": rig}
+    path.write_text(yaml.safe_dump(campaign))
+    assert load_campaign(path, [])["rig"]["factory"] == "gcs"

@@ -21,15 +21,13 @@ rig's ``rise_time_s`` / 8, so a move is on target after about the simulated rig'
 
 from __future__ import annotations
 
-import argparse
-import math
 import threading
-import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
+from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
 from calflow.gcs.emulator import Faults, GCSEmulator
 from calflow.gcs.piezo import PiezoAxisConfig, piezo_emulator
 
@@ -38,12 +36,7 @@ JOINT_AXES = {"x": "1", "y": "2"}
 RATE_HZ = 10.0  # data recorder rate of the high-rate dwells (the simulated rig's default)
 
 
-def _load(campaign: Mapping[str, Any] | str | Path) -> dict:
-    if isinstance(campaign, (str, Path)):
-        from calflow.config import load_campaign
-
-        return load_campaign(campaign)
-    return dict(campaign)
+_load = load_campaign_arg
 
 
 def stage_of(campaign: Mapping[str, Any]) -> str:
@@ -131,41 +124,19 @@ def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int 
 
 
 def main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
-    import yaml
-
-    p = argparse.ArgumentParser(prog="python -m calflow.nano.emulate",
-                                description="Serve a nano campaign's stage as an E-727-class PI "
-                                            "GCS 2.0 controller on 127.0.0.1 (docs/gcs.md).")
-    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
-    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
-    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    a = p.parse_args(argv)
-    if not 0 <= a.port <= 65535:
-        raise CalflowError(f"emulate piezo: --port: expected a TCP port 0-65535, got {a.port}")
-    if not (a.time_scale > 0 and math.isfinite(a.time_scale)):
-        raise CalflowError(f"emulate piezo: --time-scale: expected a finite value > 0, got {a.time_scale}")
-    c = _load(a.campaign)
-    try:
-        emu = campaign_emulator(c, port=a.port, time_scale=a.time_scale).start()
-    except OSError as exc:
-        raise CalflowError(f"emulate piezo: --port {a.port}: cannot listen ({exc.strerror})") from None
-    stop_event = stop_event or threading.Event()
-    deadline = math.inf if a.duration is None else time.monotonic() + a.duration
-    try:
+    """``python -m calflow.nano.emulate``: serve a nano campaign's stage until Ctrl-C."""
+    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
-        print(f"E-727-class emulator of campaign {c.get('name', a.campaign)!r} on {host}:{port} "
-              f"(axes {', '.join(emu.controller.axes)}, um; time scale {a.time_scale:g})", flush=True)
-        print("campaign rig section for it:\n" + yaml.safe_dump(
-            {"rig": campaign_rig(rig_options(emu.address, c, time_scale=a.time_scale), c)},
-            sort_keys=False), flush=True)
-        while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:
-            stop_event.wait(min(0.5, left))
-    except KeyboardInterrupt:
-        pass
-    finally:
-        emu.stop()
-    return 0
+        return (f"E-727-class emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
+                f"(axes {', '.join(emu.controller.axes)}, um; time scale {time_scale:g})")
+
+    return serve_campaign(
+        argv, prog="python -m calflow.nano.emulate", stop_event=stop_event,
+        description="Serve a nano campaign's stage as an E-727-class PI GCS 2.0 controller on "
+                    "127.0.0.1 (docs/gcs.md).",
+        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
+        banner=banner,
+        rig_section=lambda emu, c, ts: campaign_rig(rig_options(emu.address, c, time_scale=ts), c))
 
 
 if __name__ == "__main__":
