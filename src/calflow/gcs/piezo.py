@@ -143,9 +143,12 @@ class PiezoController(EmulatedController):
         with self.lock:
             self._moved = False
             reply = super().handle(line)
-            if name != "DRT" and self.recorder.command_seen(self._moved, self.now()):
+            now = self.now()
+            started = name != "DRT" and self.recorder.command_seen(self._moved, now)
+            if started or self._moved:  # keep the history a recording can still ask for
+                keep = now if self.recorder.start is None else self.recorder.start
                 for ax in self.axes.values():
-                    ax.forget_before(self.recorder.start)
+                    ax.forget_before(keep)
             return reply
 
     @staticmethod
