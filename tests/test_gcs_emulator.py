@@ -395,3 +395,25 @@ def test_client_reads_and_writes_parameters(emu):
         assert ctl.parameter("2", 0x3F) == 0.25 and ctl.parameter("1", 0x3F) == 0.01
         with pytest.raises(GCSControllerError, match="60"):
             ctl.set_parameter("1", 0xF, 2)
+
+
+def test_the_gcs_rig_sets_settling_parameters_per_joint_at_open(monkeypatch):
+    from calflow.gcs.rig import gcs
+    from calflow.gcs.rig_options import check_options
+    from calflow.errors import OptionError
+
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_rigs_gcs")
+    with GCSEmulator(axes={"1": {"needs_reference": False}, "2": {"needs_reference": False}},
+                     time_scale=10.0) as e:
+        options = dict(axes={"x": "1", "y": "2"}, host="127.0.0.1", port=e.address[1], timeout=1.0,
+                       parameters={"x": {"0x3F": 0.2}, "y": {54: 40}},
+                       sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {}})
+        check_options(**options)
+        rig = gcs(**options)
+        rig.close()
+        assert e.controller.axes["1"].settle_time == 0.2
+        assert e.controller.axes["2"].settle_window == pytest.approx(0.002)  # 40 counts
+    with pytest.raises(OptionError, match="parameters.z"):
+        check_options(**{**options, "parameters": {"z": {"0x3F": 1}}})
+    with pytest.raises(OptionError, match="parameters.x.settle"):
+        check_options(**{**options, "parameters": {"x": {"settle": 1}}})

@@ -35,6 +35,7 @@ from calflow.errors import RigError
 from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionLost,
                          GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
                          GCSProtocolError, GCSTimeout)
+from calflow.gcs.controller import parse_parameter_id
 from calflow.gcs.sensors import load_sensor
 
 log = logging.getLogger("calflow.gcs.rig")
@@ -299,7 +300,8 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
         reference: bool = True, servo: bool = True, scale: Mapping[str, float] | None = None,
         velocity: Mapping[str, float] | None = None, time_scale: float = 1.0,
         move_timeout_s: float = 60.0, poll_s: float = 0.02,
-        recorder: Mapping[str, float] | None = None) -> GCSRig:
+        recorder: Mapping[str, float] | None = None,
+        parameters: Mapping[str, Mapping[Any, float]] | None = None) -> GCSRig:
     """Factory of the ``gcs`` rig (docs/gcs.md, "The gcs rig").
 
     ``axes`` maps joint -> axis id on the controller at ``host``/``port`` (TCP) or
@@ -309,7 +311,8 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
     controller units. ``reconnect``: ``{tries: 5, backoff_s: 0.2, max_backoff_s: 10}``.
     ``time_scale`` divides dwell times and multiplies reported time (emulators only).
     ``recorder``: ``{rate_hz: 10, servo_cycle_s: 5e-5}``, the data recorder's rate for
-    :meth:`GCSRig.stream` (piezo controllers).
+    :meth:`GCSRig.stream` (piezo controllers). ``parameters``: per joint, controller
+    parameters set with ``SPA`` at open, e.g. ``{x: {"0x3F": 0.05}}`` (docs/gcs.md "Settling").
     """
     if not isinstance(axes, Mapping) or not axes:
         raise RigError("gcs rig: option 'axes' must map joint names to controller axis ids")
@@ -338,7 +341,7 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
                 raise RigError(f"gcs rig: cannot open controller {name}: {exc}") from exc
             links.append(link)
             _prepare(link, servo=servo, reference=reference, velocity=velocity or {},
-                     timeout=move_timeout_s, poll=poll_s)
+                     timeout=move_timeout_s, poll=poll_s, parameters=parameters or {})
     except BaseException:
         for link in links:
             link.ctl.close()
@@ -354,8 +357,9 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
 
 
 def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str, float],
-             timeout: float, poll: float) -> None:
-    """Check the axes exist (SAI?), servo on (SVO), FRF what is not referenced, set VEL."""
+             timeout: float, poll: float, parameters: Mapping[str, Mapping[Any, float]]) -> None:
+    """Check the axes exist (SAI?), set parameters (SPA), servo on (SVO), FRF what is not
+    referenced, set VEL."""
     ctl = link.ctl
     try:
         known = ctl.axes()
@@ -363,6 +367,9 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
             if axis not in known:
                 raise RigError(f"gcs rig: axes.{joint}: controller {link.name} has no axis "
                                f"{axis!r} (SAI? lists {known})")
+        for joint, values in parameters.items():
+            for pid, value in (values.items() if joint in link.joints else ()):
+                ctl.set_parameter(link.joints[joint], parse_parameter_id(str(pid)), float(value))
         if servo:
             ctl.servo_on(link.axes)
         if reference:

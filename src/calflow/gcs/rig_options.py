@@ -14,11 +14,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from calflow.errors import OptionError, UnknownOptionError
+from calflow.gcs.controller import parse_parameter_id
 from calflow.gcs.protocol import check_axis
 
 OPTIONS = ("axes", "host", "port", "serial", "baudrate", "timeout", "sensor", "reconnect",
            "reference", "servo", "scale", "velocity", "time_scale", "move_timeout_s", "poll_s",
-           "recorder")
+           "recorder", "parameters")
 LINK = ("host", "port", "serial", "baudrate")
 RECONNECT = {"tries": "int", "backoff_s": ">=", "max_backoff_s": ">="}
 RECORDER = {"rate_hz": ">", "servo_cycle_s": ">"}
@@ -126,6 +127,15 @@ def check_options(**options: Any) -> dict[str, Any]:
         _section("reconnect", options["reconnect"], RECONNECT)
     if options.get("recorder") is not None:
         _section("recorder", options["recorder"], RECORDER)
+    for joint, values in _mapping("parameters", options.get("parameters") or {}).items():
+        if str(joint) not in joints:
+            raise OptionError(f"parameters.{joint}", f"one of the joints {joints}", joint)
+        for pid, value in _mapping(f"parameters.{joint}", values).items():
+            try:
+                parse_parameter_id(str(pid))
+            except ValueError:
+                raise OptionError(f"parameters.{joint}.{pid}", "a parameter ID (0x36 or 54)", pid) from None
+            _number(f"parameters.{joint}.{pid}", value, None)
     sensor = options.get("sensor")
     if not isinstance(sensor, Mapping) or not isinstance(sensor.get("factory"), str):
         raise OptionError("sensor", "{factory: 'simulated_vision' | 'package.module:callable', "
