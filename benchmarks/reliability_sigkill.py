@@ -1,7 +1,8 @@
 """SIGKILLs at random points of acquisitions, each resumed (docs/reliability.md).
 
 For each rig — the simulated XYΘ rig (slowed down so a kill can land mid-run) and the
-``gcs`` rig through the C-863 campaign emulator — one uninterrupted reference run, then
+``gcs`` rig through the C-863 campaign emulator — one uninterrupted reference run (in this
+process, as ``calflow acquire`` would run it), then
 chains of ``calflow acquire`` processes killed with SIGKILL at a random time after they
 journaled a new sample, each chain resumed by running the same command again until it
 completes. Counted per chain:
@@ -74,6 +75,24 @@ def _journal(out: Path) -> list[dict]:
     return Journal(path, digest).load()
 
 
+def _uninterrupted(campaign: Path):
+    """The run ``calflow acquire`` would write, acquired in this process (no kill)."""
+    import argparse
+
+    from calflow.acquisition.runner import acquire
+    from calflow.commands.common import meta, open_rig
+    from calflow.config import load_campaign
+    from calflow.family import family_of
+
+    c = load_campaign(campaign, ["toyrigs"])
+    job = family_of(c["robot"]).plan(c["robot"], "identification")(c, argparse.Namespace(model=None))
+    rig, source = open_rig(c, job.run_id, job.plan.start_s, ["toyrigs"])
+    try:
+        return acquire(job.plan, rig, meta(c, source, "identification", job.model))
+    finally:
+        rig.close()
+
+
 def _run_and_kill(campaign: Path, out: Path, had: int, rng: np.random.Generator,
                   max_delay_s: float) -> tuple[bool, int]:
     """Start an acquisition; SIGKILL it at a random time after it journaled a new sample.
@@ -108,10 +127,7 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
         options["poll_s"] = 0.002
     try:
         campaign = _campaign(rig, workdir, poses, options)
-        reference = workdir / f"{rig}-reference.nc"
-        proc = _start(campaign, reference)
-        if proc.wait(timeout=600) != 0:
-            raise RuntimeError(f"reference run failed: {proc.stderr.read().decode()[-500:]}")
+        a = _uninterrupted(campaign)
         out = workdir / f"{rig}-killed.nc"
         seen: list[list[dict]] = []
         never_shrank, done, had, t0 = True, 0, 0, time.monotonic()
@@ -131,7 +147,7 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
     finally:
         if emu is not None:
             emu.stop()
-    a, b = open_dataset(reference), open_dataset(out)
+    b = open_dataset(out)
     n_plan, n = a.sizes["sample"], b.sizes["sample"]
     lost = max(0, n_plan - n)
     for rows in seen:
