@@ -134,12 +134,56 @@ def compare_xytheta(campaign: str, time_scale: float) -> dict:
             "wall_s_gcs": round(wall, 1), "time_scale": time_scale}
 
 
+def workflow_small_nano1d(workdir: Path) -> dict:
+    """The small nano1d campaign of the tests through the whole workflow (training,
+    metrology, validation with its run-time models, summary) with ``rig: gcs`` and with the
+    simulated rig; the summaries' headline figures side by side (nm)."""
+    import shutil
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import SMALL_NANO1D, make_workdir, snakemake
+    from calflow.nano.emulate import campaign_rig, emulated_rig_options
+
+    shutil.rmtree(workdir, ignore_errors=True)
+    out = {}
+    for rig in ("gcs", "simulated"):
+        (workdir / rig).mkdir(parents=True)
+        emu = None
+        c = dict(SMALL_NANO1D)
+        if rig == "gcs":
+            emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0, timeout=2.0)
+            c["rig"] = campaign_rig(options, SMALL_NANO1D)
+        try:
+            work = make_workdir(workdir / rig, {"small": c})
+            t0 = time.monotonic()
+            proc = snakemake(work, "results/small/summary.json", "--resources", "rig=1")
+            if proc.returncode:
+                raise RuntimeError(proc.stderr[-2000:])
+            wall = time.monotonic() - t0
+        finally:
+            if emu is not None:
+                emu.stop()
+        s = json.loads((work / "results" / "small" / "summary.json").read_text())
+        out[rig] = {"wall_s": round(wall, 1),
+                    "intrinsic_ap_nm": round(s["intrinsic"]["accuracy_nm"], 1),
+                    "intrinsic_rp_nm": round(s["intrinsic"]["repeatability_nm"], 1),
+                    **{f"{m}_max_ap_nm": round(t["max_accuracy_nm"], 1) for m, t in s["tests"].items()},
+                    **{f"{m}_max_rp_nm": round(t["max_repeatability_nm"], 1) for m, t in s["tests"].items()}}
+    return {"campaign": "tests/conftest.py SMALL_NANO1D, whole workflow", **out}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--campaigns", nargs="+", default=["nano1d-thesis", "nano2d-thesis"])
     p.add_argument("--time-scale", type=float, default=500.0)
     p.add_argument("--json", action="store_true")
+    p.add_argument("--workflow", action="store_true",
+                   help="instead: the small nano1d campaign through Snakemake, gcs vs simulated")
     a = p.parse_args(argv)
+    if a.workflow:
+        r = workflow_small_nano1d(Path("/tmp/calflow-gcs-workflow"))
+        print(json.dumps(r, indent=1) if a.json else r)
+        return 0
     results = [compare_xytheta(name, min(a.time_scale, 100.0)) if name.startswith("xytheta")
                else compare(name, a.time_scale) for name in a.campaigns]
     print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
