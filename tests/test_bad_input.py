@@ -31,6 +31,10 @@ def _set(path: str, value):
     return edit
 
 
+GCS_XYTHETA = {**SMALL_XYTHETA, "rig": {"factory": "gcs", "options": {
+    "axes": {"x": "1", "y": "2", "theta": "3"}, "host": "127.0.0.1", "port": 50000,
+    "scale": {"x": 1000.0, "y": 1000.0}, "sensor": {"factory": "simulated_vision", "options": {}}}}}
+
 # (campaign, edit, expected substrings of the one line); every line also names the file.
 CAMPAIGN_CASES = {
     "nan dwell": (SMALL_XYTHETA, _set("identification.dwell_s", NAN),
@@ -75,6 +79,19 @@ CAMPAIGN_CASES = {
     "nano unknown profile in a run": (SMALL_NANO1D, _set("rig.runs.metrology.profile", "sauna"),
                                       ["key 'rig.runs.metrology.profile'", "sauna"]),
     "nano nan start": (SMALL_NANO1D, _set("validation.start_h", NAN), ["key 'validation.start_h'", "finite"]),
+    "gcs port out of range": (GCS_XYTHETA, _set("rig.options.port", 99999), ["key 'rig.options.port'", "1-65535"]),
+    "gcs axis id with a space": (GCS_XYTHETA, _set("rig.options.axes.x", "1 2"), ["key 'rig.options.axes.x.axis'"]),
+    "gcs zero timeout": (GCS_XYTHETA, _set("rig.options.timeout", 0), ["key 'rig.options.timeout'", "> 0"]),
+    "gcs scale of no joint": (GCS_XYTHETA, _set("rig.options.scale.z", 1000), ["key 'rig.options.scale.z'", "joints"]),
+    "gcs negative tries": (GCS_XYTHETA, _set("rig.options.reconnect.tries", -2), ["key 'rig.options.reconnect.tries'"]),
+    "gcs no sensor": (GCS_XYTHETA, _set("rig.options.sensor", None), ["key 'rig.options.sensor'"]),
+    "gcs both host and serial": (GCS_XYTHETA, _set("rig.options.serial", "/dev/ttyUSB0"),
+                                 ["key 'rig.options.axes.", "exactly one of 'host'"]),
+    "gcs misspelt option": (GCS_XYTHETA, _set("rig.options.time_scael", 10), ["unknown key 'rig.options.time_scael'"]),
+    "replay recordings not a path": (SMALL_XYTHETA, _set("rig", {"factory": "replay", "options": {"recordings": 3}}),
+                                     ["key 'rig.options.recordings'"]),
+    "replay negative tolerance": (SMALL_XYTHETA, _set("rig", {"factory": "replay", "options": {
+        "recordings": "results/x/runs", "tolerance_um": -1}}), ["key 'rig.options.tolerance_um'", ">= 0"]),
 }
 ALLOWED = ["toyrigs", "toyrigs_not_there"]  # allowed, so what is checked is import and callable
 
@@ -281,3 +298,125 @@ def test_dry_run_accepts_a_plugin_allowed_on_the_command_line(tmp_path):
     work = make_workdir(tmp_path, {"toy": campaign})
     proc = snakemake(work, "-n", "results/toy/runs/identification.nc", "--config", 'rig_plugins=["toyrigs"]')
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+# ------------------------------------------------------------------ GCS replies
+class Canned:
+    """A transport that answers every command line with the next canned reply."""
+
+    def __init__(self, replies):
+        self.replies = list(replies)
+        self.pending = b""
+
+    def write(self, data):
+        if data.endswith(b"\n") or len(data) == 1:
+            self.pending += self.replies.pop(0) if self.replies else b""
+
+    def read(self, timeout):
+        from calflow.gcs.protocol import GCSTimeout
+
+        if not self.pending:
+            raise GCSTimeout("no reply")
+        data, self.pending = self.pending, b""
+        return data
+
+    def close(self):
+        pass
+
+
+def _sai(*rest):
+    return [b"1 \n2\n", *rest]
+
+
+GCS_REPLY_CASES = {  # (call, replies, expected part of the one line)
+    "POS? not a number": (lambda c: c.position(["1"]), _sai(b"1=abc\n"), "cannot parse reply line '1=abc'"),
+    "POS? another axis": (lambda c: c.position(["1"]), _sai(b"2=1.0\n"), "names axes ['2'], expected ['1']"),
+    "POS? no '='": (lambda c: c.position(["1"]), _sai(b"1 1.0\n"), "no '='"),
+    "binary garbage": (lambda c: c.on_target(["1"]), _sai(b"\x00\x1b#~\x7f\n"), "garbage in reply to 'ONT?'"),
+    "ERR? not an integer": (lambda c: c.servo_on("1"), [b"x\n"], "expected one integer in reply to 'ERR?'"),
+    "#7 not B0/B1": (lambda c: c.ready(), [b"7\n"], "unexpected reply to #7"),
+    "ONT? not 0/1": (lambda c: c.on_target(["1"]), _sai(b"1=2\n"), "expected 0 or 1"),
+    "SPA? another parameter": (lambda c: c.parameter("1", 0x36), [b"1 0x3F=2\n"], "unexpected reply to 'SPA? 1 0x36'"),
+    "DRR? rows of the wrong width": (lambda c: c.read_recorder([1], 1, 2),
+                                     [b"# DIM = 1 \n# END_HEADER \n1 2 \n3\n"], "rows must have DIM = 1 columns"),
+    "DRR? without END_HEADER": (lambda c: c.read_recorder([1], 1, 2), [b"# DIM = 1 \n# NDATA = 1\n"], "no '# END_HEADER'"),
+    "no reply at all": (lambda c: c.idn(), [], "no reply to '*IDN?' within"),
+}
+
+
+@pytest.mark.parametrize("case", list(GCS_REPLY_CASES))
+def test_a_bad_gcs_reply_is_one_line_naming_the_command(case):
+    from calflow.gcs.client import GCSController
+    from calflow.gcs.protocol import GCSError
+
+    call, replies, expected = GCS_REPLY_CASES[case]
+    ctl = GCSController(lambda: Canned(replies), timeout=0.05)
+    with pytest.raises(GCSError) as info:
+        call(ctl)
+    assert "\n" not in str(info.value) and expected in str(info.value), str(info.value)
+
+
+# ------------------------------------------------------------------ CSV recordings and CLI arguments
+CSV_HEADER = "t_s,X,Y,T,xv,yv,tv"
+CSV_ROWS = ["0.0,0,0,0,1.0,2.0,0.0", "1.0,1,1,1,2.0,3.0,1.0"]
+CSV_MAPPING = {"robot": "xytheta", "plan": "identification", "columns": {
+    "time": {"column": "t_s"}, "cmd_x": {"column": "X"}, "cmd_y": {"column": "Y"},
+    "cmd_theta": {"column": "T"}, "meas_x": {"column": "xv"}, "meas_y": {"column": "yv"},
+    "meas_theta": {"column": "tv"}}}
+CSV_CASES = {  # (csv lines, mapping edit, expected part of the one line)
+    "csv: a column missing": ([CSV_HEADER.replace("yv", "yy"), *CSV_ROWS], None, "column 'yv' (for meas_y) missing"),
+    "csv: text in a command": ([CSV_HEADER, CSV_ROWS[0], "1.0,one,1,1,2.0,3.0,1.0"], None, "expected a number, got 'one'"),
+    "csv: empty file": ([], None, "the file is empty"),
+    "csv: time going backwards": ([CSV_HEADER, CSV_ROWS[1], CSV_ROWS[0]], None, "expected non-decreasing time"),
+    "csv: wrong delimiter": ([line.replace(",", ";") for line in (CSV_HEADER, *CSV_ROWS)], None, "row 1"),
+    "mapping: unknown key": ([CSV_HEADER, *CSV_ROWS], {"colums": {}}, "colums"),
+}
+
+
+@pytest.mark.parametrize("case", list(CSV_CASES))
+def test_import_csv_refuses_a_bad_recording_in_one_line_and_writes_nothing(tmp_path, capsys, case):
+    lines, extra, expected = CSV_CASES[case]
+    csv_path = tmp_path / "bench.csv"
+    csv_path.write_text("\n".join(lines) + ("\n" if lines else ""))
+    mapping = tmp_path / "mapping.yaml"
+    mapping.write_text(yaml.safe_dump({**CSV_MAPPING, **(extra or {})}))
+    campaign = _write(tmp_path, SMALL_XYTHETA, lambda c: None, "ok")
+    out = tmp_path / "runs" / "identification.nc"
+    status, err = _cli(capsys, "import-csv", csv_path, "--mapping", mapping, "--campaign", campaign, "--out", out)
+    assert status == 2 and len(err) == 1 and expected in err[0], err
+    assert not (tmp_path / "runs").exists()
+
+
+CLI_CASES = {  # argv (after ``calflow``), expected part of the one line
+    "acquire: unknown plan": (["acquire", "--campaign", "{ok}", "--plan", "nosuch", "--out", "{tmp}/r.nc"],
+                              "--plan 'nosuch' is not a plan"),
+    "acquire: missing campaign": (["acquire", "--campaign", "{tmp}/gone.yaml", "--plan", "identification",
+                                   "--out", "{tmp}/r.nc"], "gone.yaml"),
+    "validate: missing file": (["validate", "{tmp}/gone.nc"], "gone.nc"),
+    "emulate: zero time scale": (["emulate", "gcs", "--campaign", "{ok}", "--time-scale", "0"],
+                                 "--time-scale: expected a value > 0"),
+}
+
+
+@pytest.mark.parametrize("case", list(CLI_CASES))
+def test_bad_cli_arguments_are_one_line(tmp_path, capsys, case):
+    argv, expected = CLI_CASES[case]
+    ok = _write(tmp_path, SMALL_XYTHETA, lambda c: None, "ok")
+    status, err = _cli(capsys, *(a.format(ok=ok, tmp=tmp_path) for a in argv))
+    assert status in (1, 2) and len(err) == 1 and expected in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.yaml"]
+
+
+def test_the_catalogue_holds_at_least_40_bad_inputs():
+    """Issue 18: >= 40 bad inputs over campaign files, CLI arguments, netCDF and CSV
+    recordings and GCS replies (docs/reliability.md gives the count)."""
+    counts = catalogue_counts()
+    assert all(counts.values()) and sum(counts.values()) >= 40, counts
+
+
+def catalogue_counts() -> dict[str, int]:
+    return {"campaign files": len(CAMPAIGN_CASES) + 2,  # + the NaN written as YAML text, --out under a file
+            "CLI arguments": len(CLI_CASES) + 3,  # + the emulator's --port/--time-scale cases above
+            "netCDF recordings": len(RECORDING_CASES),
+            "CSV recordings and mappings": len(CSV_CASES),
+            "GCS replies": len(GCS_REPLY_CASES)}

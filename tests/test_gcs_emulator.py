@@ -336,3 +336,84 @@ def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
     x, y = world_from_pattern(r["meas_x"], r["meas_y"], 0.0, home["meas_x"], home["meas_y"])
     ideal = forward(pos["1"] * 1000, pos["2"] * 1000, 0.0, vision.truth_model.parameters)
     assert 1.0 < float(abs(x - ideal[0]) + abs(y - ideal[1])) < 30.0  # lead screw, coupling, scale...
+
+
+# --------------------------------------------------------------------------- settling (ONT?)
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(distance=st.floats(-14.0, 14.0).filter(lambda d: abs(d) > 1e-3),
+       window=st.floats(1e-5, 0.5))
+def test_window_entry_is_where_the_trajectory_enters_the_settle_window(distance, window):
+    ax = SimAxis("1", AxisConfig(tmn=-7.5, tmx=7.5, start_position=0.0, settle_window=window))
+    ax.move(distance, 0.0)
+    entry = ax.window_entry()
+    assert 0.0 <= entry <= profile_time(distance, ax.velocity, ax.config.accel) + 1e-12
+    assert abs(distance - ax.position(entry)) <= window * (1 + 1e-9) + 1e-12
+    if abs(distance) > window:  # just before, it was outside
+        assert abs(distance - ax.position(entry - 1e-6)) > window * (1 - 1e-6)
+
+
+def test_ont_turns_true_after_the_settling_time_in_the_window():
+    """Settling time 0x3F = 2 s: the axis is on target 2 s after it entered the window,
+    not when the trajectory ends (C-863 parameters, MS249E)."""
+    c = EmulatedController({"1": AxisConfig(settle_window=0.001, settle_time=2.0,
+                                            needs_reference=False, servo=True)})
+    t = {"now": 0.0}
+    c.now = lambda: t["now"]
+    assert c.handle("ONT? 1") == ["1=1"]  # at rest since power-up
+    assert c.handle("MOV 1 3") is None and c.handle("ERR?") == ["0"]
+    end = profile_time(3.0, 1.5, AxisConfig().accel)
+    entry = c.axes["1"].window_entry()
+    assert end - 0.1 < entry < end
+    for when, expected in ((end, "0"), (entry + 1.99, "0"), (entry + 2.0, "1")):
+        t["now"] = when
+        assert c.handle("ONT? 1") == [f"1={expected}"], when
+
+
+def test_spa_sets_and_reports_the_settle_window_and_time_per_axis():
+    c = EmulatedController({"1": AxisConfig(counts_per_unit=20000.0), "2": AxisConfig()})
+    assert c.handle("SPA? 1 0x36 1 0x3F 1 0xE") == ["1 0x36=10", "1 0x3F=0.01", "1 0xE=20000"]
+    assert c.handle("SPA 1 0x36 40 2 0x3F 0.5") is None and c.handle("ERR?") == ["0"]
+    assert c.axes["1"].settle_window == pytest.approx(0.002)  # 40 counts of 50 nm
+    assert c.axes["2"].settle_time == 0.5 and c.axes["2"].settle_window == 0.0005
+    assert c.handle("SPA? 1 54") == ["1 54=40"]  # decimal IDs too
+    for line, code in (("SPA 1 0xE 5", "60"), ("SPA 1 0x99 5", "54"), ("SPA 1 0x36 -1", "17"),
+                       ("SPA 9 0x36 1", "15"), ("SPA 1 0x36", "1"), ("SPA 1 0x3F nan", "17")):
+        assert c.handle(line) is None and c.handle("ERR?") == [code], line
+    assert c.handle("SPA? 1 0x99") is None and c.handle("ERR?") == ["54"]  # no reply, error set
+    assert c.axes["1"].settle_window == pytest.approx(0.002)  # failed lines changed nothing
+
+
+def test_client_reads_and_writes_parameters(emu):
+    from calflow.gcs.client import GCSController
+    from calflow.gcs.protocol import GCSControllerError
+
+    with GCSController.connect_tcp(*emu.address, timeout=1.0) as ctl:
+        ctl.set_parameter("2", 0x3F, 0.25)
+        assert ctl.parameter("2", 0x3F) == 0.25 and ctl.parameter("1", 0x3F) == 0.01
+        with pytest.raises(GCSControllerError, match="60"):
+            ctl.set_parameter("1", 0xF, 2)
+
+
+def test_the_gcs_rig_sets_settling_parameters_per_joint_at_open(monkeypatch):
+    from calflow.gcs.rig import gcs
+    from calflow.gcs.rig_options import check_options
+    from calflow.errors import OptionError
+
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_rigs_gcs")
+    with GCSEmulator(axes={"1": {"needs_reference": False}, "2": {"needs_reference": False}},
+                     time_scale=10.0) as e:
+        options = dict(axes={"x": "1", "y": "2"}, host="127.0.0.1", port=e.address[1], timeout=1.0,
+                       parameters={"x": {"0x3F": 0.2}, "y": {54: 40}},
+                       sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {}})
+        check_options(**options)
+        rig = gcs(**options)
+        rig.close()
+        assert e.controller.axes["1"].settle_time == 0.2
+        assert e.controller.axes["2"].settle_window == pytest.approx(0.002)  # 40 counts
+    with pytest.raises(OptionError, match="parameters.z"):
+        check_options(**{**options, "parameters": {"z": {"0x3F": 1}}})
+    with pytest.raises(OptionError, match="parameters.x.settle"):
+        check_options(**{**options, "parameters": {"x": {"settle": 1}}})

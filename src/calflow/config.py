@@ -189,7 +189,7 @@ def validate(data: Any, name: str, file: str | Path) -> dict:
 
 def check_campaign_name(name: str) -> str:
     """Return ``name`` if it is a safe campaign name (it names folders under results/ and reports/)."""
-    if not isinstance(name, str) or not CAMPAIGN_NAME.match(name):
+    if not isinstance(name, str) or not CAMPAIGN_NAME.fullmatch(name):  # "$" alone lets "x\n" in
         raise ConfigError(
             f"campaign name {name!r}: expected letters, digits, '-' or '_' (at most 64), starting with a letter or digit"
         )

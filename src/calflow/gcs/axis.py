@@ -6,6 +6,12 @@ referenced state (``FRF``/``FNL``/``FPL``, answered by ``FRF?``), commanded targ
 (``MOV``/``MOV?``), trajectory position and on-target state (``POS?``/``ONT?``), and the
 moving / referencing flags behind ``#5`` and ``#7``.
 
+On target (``ONT?``) follows the controllers' settling rule (MS249E §8, ONT?; parameters
+"Settling Window" and "Settling Time"): the axis is on target once its position has stayed
+within ``settle_window`` (axis units) of the target for ``settle_time`` seconds, with the
+servo on. Both are per axis and can be changed at run time (``SPA``, see
+:mod:`calflow.gcs.controller`).
+
 Motion follows a symmetric trapezoidal velocity profile (acceleration ``accel``, cruise
 velocity ``VEL``), so the move time is ``d/v + v/a`` for long moves and ``2*sqrt(d/a)`` for
 short ones. All times are *simulation* seconds supplied by the caller; the emulator maps
@@ -42,8 +48,14 @@ class AxisConfig:
     ref_overhead: float = 0.3
     needs_reference: bool = True
     servo: bool = False
+    settle_window: float = 0.0005
+    settle_time: float = 0.01
+    counts_per_unit: float = 20000.0  # encoder: 50 nm counts on a stage in mm (Table 4.1)
 
     def __post_init__(self) -> None:
+        if not (self.settle_window > 0 and self.settle_time >= 0 and self.counts_per_unit > 0):
+            raise ValueError("axis needs settle_window > 0, settle_time >= 0 and counts_per_unit > 0, "
+                             f"got {self.settle_window}, {self.settle_time}, {self.counts_per_unit}")
         if not self.tmn < self.tmx:
             raise ValueError(f"axis travel limits need tmn < tmx, got {self.tmn}, {self.tmx}")
         if not (0 < self.velocity <= self.max_velocity and self.accel > 0):
@@ -60,17 +72,17 @@ class AxisConfig:
         return cls(**data)
 
 
-def axis_configs(axes: Any) -> dict[str, AxisConfig]:
-    """Normalise an axes spec: None, "1,2", ["1", "2"], or {name: AxisConfig | dict}."""
+def axis_configs(axes: Any, kind: type[AxisConfig] = AxisConfig) -> dict[str, AxisConfig]:
+    """Normalise an axes spec: None, "1,2", ["1", "2"], or {name: ``kind`` | dict}."""
     if axes is None:
-        return {"1": AxisConfig()}
+        return {"1": kind()}
     if isinstance(axes, str):
         axes = [a.strip() for a in axes.split(",") if a.strip()]
     if isinstance(axes, Mapping):
-        items = [(k, v if isinstance(v, AxisConfig) else AxisConfig.from_mapping(dict(v or {})))
+        items = [(k, v if isinstance(v, AxisConfig) else kind.from_mapping(dict(v or {})))
                  for k, v in axes.items()]
     else:
-        items = [(k, AxisConfig()) for k in axes]
+        items = [(k, kind()) for k in axes]
     if not items:
         raise ValueError("the emulator needs at least one axis")
     return {check_axis(k): cfg for k, cfg in items}
@@ -115,8 +127,10 @@ class SimAxis:
         self.servo = self.config.servo
         self.referenced = not self.config.needs_reference
         self.velocity = self.config.velocity
+        self.settle_window = self.config.settle_window
+        self.settle_time = self.config.settle_time
         self._start = self._target = self.config.start_position
-        self._t0 = self._t1 = 0.0
+        self._t0 = self._t1 = -math.inf  # at rest since power-up: on target
         self._referencing = False
 
     # ---------------------------------------------------------------- state queries
@@ -144,8 +158,28 @@ class SimAxis:
         self.update(now)
         return self._referencing
 
+    def window_entry(self) -> float:
+        """Simulation time at which the position entered the settle window for good.
+
+        The trapezoidal profile approaches its target monotonically, so the entry is the
+        root of ``|target - position(t)| = settle_window`` on the move, found by bisection.
+        """
+        if abs(self._target - self._start) <= self.settle_window:
+            return self._t0
+        lo, hi = self._t0, self._t1
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if abs(self._target - self.position(mid)) <= self.settle_window:
+                hi = mid
+            else:
+                lo = mid
+        return hi
+
     def on_target(self, now: float) -> bool:
-        return not self.moving(now)
+        """ONT?: not referencing, inside the window for ``settle_time`` s (at power-up: on)."""
+        if self.referencing(now):
+            return False
+        return now >= self.window_entry() + self.settle_time
 
     def within_limits(self, value: float) -> bool:
         return self.config.tmn <= value <= self.config.tmx

@@ -291,6 +291,55 @@ class GCSController:
         lo, hi = self._values("TMN?", axes), self._values("TMX?", axes)
         return {a: (lo[a], hi[a]) for a in lo}
 
+    def parameter(self, axis: str, pid: int) -> float:
+        """``SPA? <axis> <pid>``: one parameter's value (e.g. 0x36, the C-863's settling
+        window in counts; 0x3F, its settling time in s; docs/gcs.md "Settling")."""
+        name, text = check_axis(axis), f"0x{int(pid):X}"
+        lines = check_text(self.query("SPA?", name, text), "SPA?")
+        key, sep, value = lines[0].rpartition("=") if len(lines) == 1 else ("", "", "")
+        if not sep or key.split() != [name, text]:
+            raise GCSProtocolError(f"unexpected reply to 'SPA? {name} {text}': {lines!r}",
+                                   command="SPA?")
+        try:
+            return float(value)
+        except ValueError:
+            raise GCSProtocolError(f"not a number in reply to 'SPA? {name} {text}': {value!r}",
+                                   command="SPA?") from None
+
+    def set_parameter(self, axis: str, pid: int, value: float) -> None:
+        """``SPA <axis> <pid> <value>`` (volatile memory), then the ERR? check."""
+        self.command("SPA", check_axis(axis), f"0x{int(pid):X}", float(value), axes=[axis])
+
+    # ------------------------------------------------------------------ data recorder
+    def configure_recorder(self, tables: Mapping[int, tuple[str, int]],
+                           rate: int | None = None) -> None:
+        """``DRC`` table -> (axis, option: 1 target, 2 current position); ``RTR`` rate."""
+        args = [x for t, (axis, opt) in tables.items() for x in (int(t), check_axis(axis), int(opt))]
+        self.command("DRC", *args)
+        if rate is not None:
+            self.command("RTR", int(rate))
+
+    def arm_recorder(self, trigger: int = 2) -> None:
+        """``DRT 0 <trigger> 0``: 2 starts recording with the next command (the ERR? check)."""
+        self.command("DRT", 0, int(trigger), 0)
+
+    def recorded_points(self, table: int = 1) -> int:
+        """``DRL? <table>``: points recorded so far."""
+        return parse_axis_values(self.query("DRL?", int(table)), int, command="DRL?")[str(table)]
+
+    def read_recorder(self, tables: Iterable[int], first: int = 1,
+                      count: int | None = None) -> tuple[dict[str, str], Any]:
+        """``DRR?``: (header, points x tables array) in the GCS array format."""
+        from calflow.gcs.datarecorder import parse_array
+
+        tables = [int(t) for t in tables]
+        n = self.recorded_points(tables[0]) - first + 1 if count is None else int(count)
+        lines = self.query("DRR?", int(first), n, *tables)
+        try:
+            return parse_array(lines)
+        except ValueError as exc:
+            raise GCSProtocolError(f"reply to DRR?: {exc}", command="DRR?") from None
+
     def wait_on_target(self, timeout: float = 30.0, poll: float = 0.05,
                        axes: Axes = None) -> dict[str, float]:
         """Poll ``ONT?`` until all axes are on target; return ``POS?``.

@@ -1,6 +1,15 @@
 """The emulated controller behind :class:`calflow.gcs.emulator.GCSEmulator`: GCS 2.0
 command semantics (PI MS249E §8), the error register (ERR? returns and clears the last
-error, §8.7) and the simulated axes (:mod:`calflow.gcs.axis`)."""
+error, §8.7) and the simulated axes (:mod:`calflow.gcs.axis`).
+
+Parameters (``SPA {<ItemID> <PamID> <PamValue>}``, ``SPA? [{<ItemID> <PamID>}]``, answered
+``<ItemID> <PamID>=<Value>``) are those of the C-863 Mercury (MS249E §9, parameter
+overview): 0xE/0xF, the numerator and denominator of the encoder counts per physical unit
+(read-only here); 0x36, the settling window in encoder counts; 0x3F, the settling time in
+seconds. ``ONT?`` turns true once the position has stayed inside the window for the
+settling time (:meth:`calflow.gcs.axis.SimAxis.on_target`). A subclass lists its own
+parameter IDs in ``PARAMETERS`` (the piezo controller: :mod:`calflow.gcs.piezo`).
+"""
 
 from __future__ import annotations
 
@@ -10,10 +19,25 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from calflow.gcs.axis import SimAxis, axis_configs
+from calflow.gcs.axis import AxisConfig, SimAxis, axis_configs
 from calflow.gcs.protocol import NOT_READY, READY, parse_bool, split_command
 
 TruePosition = Callable[[str, float], float]
+# parameter ID -> (SimAxis attribute, axis units per parameter unit, or a callable of the axis)
+Parameter = tuple[str, Callable[[SimAxis], float]]
+
+
+def _counts(ax: SimAxis) -> float:
+    return 1.0 / ax.config.counts_per_unit
+
+
+def _unit(ax: SimAxis) -> float:
+    return 1.0
+
+
+def parse_parameter_id(text: str) -> int:
+    """A GCS parameter ID, hexadecimal (``0x36``) or decimal (``54``)."""
+    return int(text, 16) if text.lower().startswith("0x") else int(text)
 
 
 class _Err(Exception):
@@ -26,15 +50,25 @@ class EmulatedController:
     HELP = ["*IDN?", "CSV?", "SAI? [ALL]", "HLP?", "ERR?", "SVO {<AxisID> <State>}", "SVO?",
             "FRF [{<AxisID>}]", "FNL [{<AxisID>}]", "FPL [{<AxisID>}]", "FRF?",
             "VEL {<AxisID> <Velocity>}", "VEL?", "MOV {<AxisID> <Position>}", "MOV?", "POS?",
-            "ONT?", "TMN?", "TMX?", "STP", "#5", "#7", "#24"]
+            "ONT?", "TMN?", "TMX?", "SPA {<ItemID> <PamID> <PamValue>}",
+            "SPA? [{<ItemID> <PamID>}]", "STP", "#5", "#7", "#24"]
+    IDN = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0"
+    AXIS: type[SimAxis] = SimAxis
+    AXIS_CONFIG: type[AxisConfig] = AxisConfig
+    # MS249E parameter overview: settling window (counts) and time (s), counts per unit
+    PARAMETERS: dict[int, Parameter] = {0x36: ("settle_window", _counts),
+                                        0x3F: ("settle_time", _unit)}
+    READ_ONLY: dict[int, Callable[[SimAxis], float]] = {
+        0xE: lambda ax: ax.config.counts_per_unit, 0xF: lambda ax: 1.0}
 
     def __init__(self, axes: Any = None, *, time_scale: float = 1.0,
                  true_position: TruePosition | None = None,
-                 idn: str = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0") -> None:
+                 idn: str | None = None) -> None:
         if not time_scale > 0:
             raise ValueError("time_scale must be > 0")
-        self.axes = {n: SimAxis(n, c) for n, c in axis_configs(axes).items()}
-        self.time_scale, self.true_position, self.idn = float(time_scale), true_position, idn
+        self.axes = {n: self.AXIS(n, c) for n, c in axis_configs(axes, self.AXIS_CONFIG).items()}
+        self.time_scale, self.true_position = float(time_scale), true_position
+        self.idn = idn or self.IDN
         self.error = 0
         self.lock = threading.RLock()
         self._t0 = time.monotonic()
@@ -113,13 +147,12 @@ class EmulatedController:
 
     def _axis_query(self, name: str, args: list[str], now: float) -> list[str] | None:
         """Per-axis queries answering ``axis=value`` (MS249E §8: SVO?, FRF?, POS?, ...)."""
-        hook = self.true_position or (lambda axis, commanded: commanded)
         getters: dict[str, Callable[[SimAxis], object]] = {
             "SVO?": lambda ax: ax.servo,
             "FRF?": lambda ax: (ax.update(now), ax.referenced)[1],
             "VEL?": lambda ax: ax.velocity,
             "MOV?": lambda ax: ax.target(),
-            "POS?": lambda ax: float(hook(ax.name, ax.position(now))),
+            "POS?": lambda ax: self.measured(ax, now),
             "ONT?": lambda ax: ax.on_target(now),
             "TMN?": lambda ax: float(ax.config.tmn),
             "TMX?": lambda ax: float(ax.config.tmx),
@@ -127,6 +160,58 @@ class EmulatedController:
         if name not in getters:
             return None
         return self._answer(self._select(args), getters[name])
+
+    def _q_SPA(self, args: list[str], now: float) -> list[str]:
+        if len(args) % 2:
+            raise _Err(1)
+        items = ([(a, f"0x{p:08X}" if p > 0xFFFF else f"0x{p:X}") for a in self.axes for p in sorted({**self.READ_ONLY,
+                                                                         **self.PARAMETERS})]
+                 if not args else list(zip(args[0::2], args[1::2])))
+        out = []
+        for axis, raw in items:
+            ax, pid = self._parameter(axis, raw)
+            if pid in self.PARAMETERS:
+                attr, unit = self.PARAMETERS[pid]
+                value = getattr(ax, attr) / unit(ax)
+            else:
+                value = self.READ_ONLY[pid](ax)
+            out.append(f"{axis} {raw}={value:.6g}")
+        return out
+
+    def _c_SPA(self, args: list[str], now: float) -> None:
+        if not args or len(args) % 3:
+            raise _Err(1)
+        changes = []
+        for axis, raw, value in zip(args[0::3], args[1::3], args[2::3]):
+            ax, pid = self._parameter(axis, raw)
+            if pid not in self.PARAMETERS:
+                raise _Err(60)  # PI_CNTR_PARAM_PROTECTION: read-only here
+            try:
+                v = float(value)
+            except ValueError:
+                raise _Err(1) from None
+            attr, unit = self.PARAMETERS[pid]
+            if not math.isfinite(v) or v < 0 or (attr == "settle_window" and v == 0):
+                raise _Err(17)  # PI_CNTR_PARAM_OUT_OF_RANGE
+            changes.append((ax, attr, v * unit(ax)))
+        for ax, attr, v in changes:  # all or nothing (MS249E §8.2)
+            setattr(ax, attr, v)
+
+    def _parameter(self, axis: str, raw: str) -> tuple[SimAxis, int]:
+        if axis not in self.axes:
+            raise _Err(15)
+        try:
+            pid = parse_parameter_id(raw)
+        except ValueError:
+            raise _Err(1) from None
+        if pid not in self.PARAMETERS and pid not in self.READ_ONLY:
+            raise _Err(54)  # PI_CNTR_UNKNOWN_PARAMETER
+        return self.axes[axis], pid
+
+    def measured(self, ax: SimAxis, now: float) -> float:
+        """``POS?``: what the controller's own sensor reads (the ``true_position`` hook)."""
+        hook = self.true_position or (lambda axis, commanded: commanded)
+        return float(hook(ax.name, ax.position(now)))
 
     def _c_h5(self, args: list[str], now: float) -> list[str]:
         mask = sum(1 << i for i, ax in enumerate(self.axes.values()) if ax.moving(now))

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from calflow.gcs.controller import EmulatedController, TruePosition  # noqa: F401 (re-exported)
-from calflow.gcs.protocol import CommandFramer
+from calflow.gcs.protocol import CommandFramer, is_query, split_command
 
 log = logging.getLogger("calflow.gcs.emulator")
 LOCALHOST = "127.0.0.1"
@@ -44,13 +44,17 @@ class Faults:
     drop_after: answer this many more commands, then close the connection when the next
         one arrives (it is not executed). delay: seconds to wait before every reply.
     garbage: the next N replies are replaced by binary garbage. refuse: the next N new
-        connections are closed right after accept.
+        connections are closed right after accept. error: the next N motion commands
+        (MOV, SVO, FRF, ...: lines that are not queries) are refused with GCS error
+        ``error_code`` (default 5: servo off, as after a sensor or amplifier fault).
     """
 
     drop_after: int | None = None
     delay: float = 0.0
     garbage: int = 0
     refuse: int = 0
+    error: int = 0
+    error_code: int = 5
 
 
 class GCSEmulator:
@@ -59,11 +63,12 @@ class GCSEmulator:
     def __init__(self, axes: Any = None, host: str = LOCALHOST, port: int = 0,
                  faults: Faults | None = None, *, time_scale: float = 1.0,
                  true_position: TruePosition | None = None,
-                 address_prefix: int | None = None) -> None:
+                 address_prefix: int | None = None,
+                 controller: EmulatedController | None = None) -> None:
         if host not in (LOCALHOST, "localhost"):
             raise ValueError(f"the GCS emulator binds to {LOCALHOST} only, not {host!r}")
-        self.controller = EmulatedController(axes, time_scale=time_scale,
-                                             true_position=true_position)
+        self.controller = controller or EmulatedController(axes, time_scale=time_scale,
+                                                           true_position=true_position)
         self.faults = faults or Faults()
         self.address_prefix = address_prefix  # replies start "0 <n> " (MS249E §8.3)
         self.commands_handled = 0
@@ -181,7 +186,17 @@ class GCSEmulator:
                 if drop:
                     log.info("fault: dropping connection at %r", line)
                     return
-                reply = self.controller.handle(line)
+                with self._lock:
+                    refuse = self.faults.error > 0 and not is_query(split_command(line)[0]) \
+                        and split_command(line)[0] not in ("#24", "STP")
+                    self.faults.error -= int(refuse)
+                if refuse:
+                    log.info("fault: refusing %r with error %d", line, self.faults.error_code)
+                    with self.controller.lock:
+                        self.controller.error = self.faults.error_code
+                    reply = None
+                else:
+                    reply = self.controller.handle(line)
                 with self._lock:
                     self.commands_handled += 1
                 if reply is None:

@@ -38,7 +38,7 @@ READY, NOT_READY = "\xb1", "\xb0"
 _AXIS_RE = re.compile(r"^[A-Za-z0-9_]{1,16}$")  # MS249E §8.2: alphanumerics and "_"
 _ADDRESS_RE = re.compile(r"^0 \d{1,3} (?=\S)")  # MS249E §8.3: "<target=0> <sender> "
 
-# MS249E §8.7 "Error Codes" (controller errors 0..16).
+# MS249E §8.7 "Error Codes" (the controller errors the emulators and the client use).
 ERROR_NAMES: dict[int, tuple[str, str]] = {
     0: ("PI_CNTR_NO_ERROR", "no error"),
     1: ("PI_CNTR_PARAM_SYNTAX", "parameter syntax error"),
@@ -58,6 +58,12 @@ ERROR_NAMES: dict[int, tuple[str, str]] = {
     14: ("PI_CNTR_INVALID_ANALOG_INPUT", "invalid analog channel"),
     15: ("PI_CNTR_INVALID_AXIS_IDENTIFIER", "invalid axis identifier"),
     16: ("PI_CNTR_INVALID_STAGE_NAME", "unknown stage name"),
+    17: ("PI_CNTR_PARAM_OUT_OF_RANGE", "parameter out of range"),
+    54: ("PI_CNTR_UNKNOWN_PARAMETER", "unknown parameter"),
+    57: ("PI_CNTR_INVALID_RECORDER_CHAN", "data record table does not exist"),
+    58: ("PI_CNTR_INVALID_RECORDER_SRC_OPT", "source does not exist; number too low or too high"),
+    59: ("PI_CNTR_INVALID_RECORDER_SRC_CHAN", "source record table number too low or too high"),
+    60: ("PI_CNTR_PARAM_PROTECTION", "protected parameter: cannot be changed"),
 }
 
 

@@ -27,17 +27,22 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Iterator, TypeVar
+
+import numpy as np
 
 from calflow.errors import RigError
 from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionLost,
                          GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
                          GCSProtocolError, GCSTimeout)
+from calflow.gcs.controller import parse_parameter_id
 from calflow.gcs.sensors import load_sensor
 
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")
 LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
+RESUME = ("; the samples already taken are kept in the acquisition journal (<out>.journal): "
+          "fix the cause and run the same command again to continue after the last one")
 
 
 @dataclass
@@ -116,6 +121,8 @@ class GCSRig:
         self.tries, self.backoff_s, self.max_backoff_s = max(0, int(tries)), backoff_s, max_backoff_s
         self.time_scale, self.move_timeout_s, self.poll_s = time_scale, move_timeout_s, poll_s
         self.recoveries = 0  # link recoveries so far (for logs and tests)
+        self.recorder: Mapping[str, float] = {}  # data recorder options (stream())
+        self._recording = False
         self._closed = False
         self._t0 = time.monotonic()
 
@@ -135,22 +142,57 @@ class GCSRig:
         unknown = sorted(set(command) - set(self.joints))
         if unknown:
             raise RigError(f"gcs rig: command names joints {unknown}; the rig has {list(self.joints)}")
+        started = self.time()
         plan = [(link, {a: float(command[j]) / self.scale[j] for j, a in link.joints.items()
                         if j in command}) for link in self.links]
         plan = [(link, targets) for link, targets in plan if targets]
         for link, targets in plan:
             self._run(link, "MOV", lambda retry, link=link, t=targets: link.ctl.move(t))
+        settled: dict[str, float] = {}
         for link, targets in plan:
-            def settle(retry: bool, link: Link = link, t: dict = targets) -> None:
+            def settle(retry: bool, link: Link = link, t: dict = targets) -> dict[str, float]:
                 if retry:  # the interrupted move is sent again: MOV is idempotent
                     link.ctl.move(t)
-                link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
-                                        axes=list(t))
-            self._run(link, "wait on target", settle)
+                return link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
+                                               axes=list(t))
+            pos = self._run(link, "wait on target", settle)
+            settled.update({j: pos[a] * self.scale[j] for j, a in link.joints.items() if a in pos})
+        if hasattr(self.sensor, "moved"):  # e.g. a simulated sensor keeping its own clock
+            self._sensor("moved", settled, started)
 
     def wait(self, seconds: float) -> None:
         """Dwell: real time, divided by ``time_scale``."""
         time.sleep(max(0.0, float(seconds)) / self.time_scale)
+
+    def stream(self, seconds: float) -> Iterator[dict[str, np.ndarray]]:
+        """Dwell ``seconds`` and return the dwell's high-rate samples, one chunk.
+
+        The data recorder of the first controller is the clock (``DRC`` current position
+        of its axes, ``RTR`` for ``recorder.rate_hz``, ``DRT 0 2 0``, ``DRR?``): its points
+        are handed to the sensor's ``stream(times, positions)``. A sensor without ``stream``
+        gives one reading at the end of the dwell.
+        """
+        if not hasattr(self.sensor, "stream"):
+            self.wait(seconds)
+            return iter([{k: np.array([v]) for k, v in self.read().items()}])
+        link, rec = self.links[0], self.recorder
+        tables = {i + 1: (a, 2) for i, a in enumerate(link.axes)}
+        rate = max(1, round(1.0 / (float(rec.get("rate_hz", 10.0)) * float(rec.get("servo_cycle_s", 5e-5)))))
+        if not self._recording:
+            self._run(link, "DRC", lambda retry: link.ctl.configure_recorder(tables, rate))
+            self._recording = True
+        self._run(link, "DRT", lambda retry: link.ctl.arm_recorder(2))
+        start = self.time()
+        self.wait(seconds)
+        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables))
+        dt = float(header.get("SAMPLE_TIME", rate * 5e-5))
+        n = min(len(data) - 1, int(np.floor(seconds / dt + 1e-9)))
+        times = start + dt * np.arange(1, n + 1)
+        positions = {link.joint_of(a): data[1:n + 1, i] * self.scale[link.joint_of(a)]
+                     for i, a in enumerate(link.axes)}
+        values = self._sensor("stream", times, positions)
+        return iter([{"time": times, **{k: np.asarray(values[k], dtype=float)
+                                        for k in (*self.sensors, *self.thermometers)}}])
 
     def positions(self) -> dict[str, float]:
         """Actual joint positions (``POS?``) in rig units (µm, degree)."""
@@ -166,8 +208,14 @@ class GCSRig:
             raise RigError("gcs rig: read() after close()")
         positions = self.positions()
         now = self.time()
-        values = self.sensor.read(positions, now)
+        values = self._sensor("read", positions, now)
         return {"time": now, **{k: float(values[k]) for k in (*self.sensors, *self.thermometers)}}
+
+    def _sensor(self, method: str, *args: Any) -> Any:
+        try:
+            return getattr(self.sensor, method)(*args)
+        except RigError as exc:  # a sensor driver's failure (e.g. the camera is gone)
+            raise RigError(f"gcs rig: sensor: {exc}" + RESUME) from exc
 
     def close(self) -> None:
         if self._closed:
@@ -192,7 +240,7 @@ class GCSRig:
                 failures += 1
                 if failures > self.tries:
                     raise RigError(f"gcs rig: {link.name}: {what} failed {failures} times in a "
-                                   f"row, giving up (last: {exc})") from exc
+                                   f"row, giving up (last: {exc})" + RESUME) from exc
                 self._recover(link, what, failures, exc)
             except GCSError as exc:  # GCSControllerError and other controller-side failures
                 self._fail(link, what, exc)
@@ -207,7 +255,7 @@ class GCSRig:
                                max_backoff=self.max_backoff_s)
         except GCSConnectionLost as lost:
             raise RigError(f"gcs rig: {link.name}: link lost during {what} and reconnecting "
-                           f"failed: {lost}") from exc
+                           f"failed: {lost}" + RESUME) from exc
         self.recoveries += 1
 
     def stop_all(self) -> list[str]:
@@ -243,7 +291,7 @@ class GCSRig:
         failed = self.stop_all()
         stopped = ("all axes stopped (#24)" if not failed
                    else f"#24 could not be sent to {', '.join(failed)}")
-        raise RigError(f"gcs rig: {where}: {cause}; {stopped}") from exc
+        raise RigError(f"gcs rig: {where}: {cause}; {stopped}" + RESUME) from exc
 
 
 def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PORT,
@@ -251,7 +299,9 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
         sensor: Mapping[str, Any] | None = None, reconnect: Mapping[str, Any] | None = None,
         reference: bool = True, servo: bool = True, scale: Mapping[str, float] | None = None,
         velocity: Mapping[str, float] | None = None, time_scale: float = 1.0,
-        move_timeout_s: float = 60.0, poll_s: float = 0.02) -> GCSRig:
+        move_timeout_s: float = 60.0, poll_s: float = 0.02,
+        recorder: Mapping[str, float] | None = None,
+        parameters: Mapping[str, Mapping[Any, float]] | None = None) -> GCSRig:
     """Factory of the ``gcs`` rig (docs/gcs.md, "The gcs rig").
 
     ``axes`` maps joint -> axis id on the controller at ``host``/``port`` (TCP) or
@@ -260,6 +310,9 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
     per controller unit, per joint (1000 for a stage in mm). ``velocity``: VEL per joint in
     controller units. ``reconnect``: ``{tries: 5, backoff_s: 0.2, max_backoff_s: 10}``.
     ``time_scale`` divides dwell times and multiplies reported time (emulators only).
+    ``recorder``: ``{rate_hz: 10, servo_cycle_s: 5e-5}``, the data recorder's rate for
+    :meth:`GCSRig.stream` (piezo controllers). ``parameters``: per joint, controller
+    parameters set with ``SPA`` at open, e.g. ``{x: {"0x3F": 0.05}}`` (docs/gcs.md "Settling").
     """
     if not isinstance(axes, Mapping) or not axes:
         raise RigError("gcs rig: option 'axes' must map joint names to controller axis ids")
@@ -288,7 +341,7 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
                 raise RigError(f"gcs rig: cannot open controller {name}: {exc}") from exc
             links.append(link)
             _prepare(link, servo=servo, reference=reference, velocity=velocity or {},
-                     timeout=move_timeout_s, poll=poll_s)
+                     timeout=move_timeout_s, poll=poll_s, parameters=parameters or {})
     except BaseException:
         for link in links:
             link.ctl.close()
@@ -299,12 +352,14 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
                  max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
                  move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
     rig._locks = locks
+    rig.recorder = dict(recorder or {})
     return rig
 
 
 def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str, float],
-             timeout: float, poll: float) -> None:
-    """Check the axes exist (SAI?), servo on (SVO), FRF what is not referenced, set VEL."""
+             timeout: float, poll: float, parameters: Mapping[str, Mapping[Any, float]]) -> None:
+    """Check the axes exist (SAI?), set parameters (SPA), servo on (SVO), FRF what is not
+    referenced, set VEL."""
     ctl = link.ctl
     try:
         known = ctl.axes()
@@ -312,6 +367,9 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
             if axis not in known:
                 raise RigError(f"gcs rig: axes.{joint}: controller {link.name} has no axis "
                                f"{axis!r} (SAI? lists {known})")
+        for joint, values in parameters.items():
+            for pid, value in (values.items() if joint in link.joints else ()):
+                ctl.set_parameter(link.joints[joint], parse_parameter_id(str(pid)), float(value))
         if servo:
             ctl.servo_on(link.axes)
         if reference:
@@ -325,3 +383,9 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
     except GCSError as exc:
         raise RigError(f"gcs rig: preparing controller {link.name} "
                        f"(joints {', '.join(link.joints)}) failed: {exc}") from exc
+
+
+# The config check calls this (calflow.rigs.plugin.check_rig): options checked, nothing opened.
+from calflow.gcs.rig_options import check_options as _check_options  # noqa: E402
+
+gcs.check_options = _check_options

@@ -22,6 +22,12 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
         options.setdefault("world_seed", c["seed"])
         options["seed"] = zlib.crc32(f"{c['seed']}:{run_id}".encode())
         options["start_offset_s"] = start_s
+    elif factory == "gcs" and (options.get("sensor") or {}).get("factory") == "simulated_interferometer":
+        sensor = dict(options["sensor"])  # the world behind the emulated controller: same rule
+        sensor["options"] = {"world_seed": c["seed"], **(sensor.get("options") or {}),
+                             "seed": zlib.crc32(f"{c['seed']}:{run_id}:gcs".encode()),
+                             "start_offset_s": start_s}
+        options["sensor"] = sensor
     return options
 
 
@@ -46,10 +52,12 @@ FAMILY = Family(
         "figures": "calflow.nano.figures:build",
     },
     templates="calflow.nano",
+    sensors={"simulated_interferometer": "calflow.nano.interferometer_sensor:simulated_interferometer"},
     modules={
         "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
                                       "calflow.nano.campaign_plans", "calflow.nano.rig", "calflow.nano.rig_options",
-                                      "calflow.nano.controllers", "calflow.nano.family"),
+                                      "calflow.nano.controllers", "calflow.nano.family",
+                                      "calflow.nano.interferometer_sensor"),
         "identify": _CORE + _MODELS + ("calflow.nano.commands",),
         "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.commands"),
         "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",

@@ -200,3 +200,30 @@ def replay(recordings: str | os.PathLike | Mapping[str, str], stream: str = "",
     if not tolerance >= 0:
         raise RigError(f"rig.options.tolerance_um: expected a number >= 0, got {tolerance_um!r}")
     return ReplayRig(_resolve(recordings, stream), stream=stream, tolerance=tolerance)
+
+
+def check_replay_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6,
+                         seed: int | None = None) -> dict:
+    """The config check of the replay rig's options (types and ranges; the files are read
+    when the rig opens): ``recordings`` a folder or a mapping run id -> file, ``stream`` a
+    run id, ``tolerance_um`` finite and >= 0, ``seed`` an integer or absent."""
+    from calflow.errors import OptionError
+
+    if isinstance(recordings, Mapping):
+        bad = [k for k, v in recordings.items() if not isinstance(v, str) or not v]
+        if not recordings or bad:
+            raise OptionError("recordings", "a mapping of run ids to run files", recordings)
+    elif not isinstance(recordings, str) or not recordings:
+        raise OptionError("recordings", "a folder of <run id>.nc files or a mapping run id -> file",
+                          recordings)
+    if not isinstance(stream, str):
+        raise OptionError("stream", "a run id (string)", stream)
+    if isinstance(tolerance_um, bool) or not isinstance(tolerance_um, (int, float)) \
+            or not math.isfinite(tolerance_um) or tolerance_um < 0:
+        raise OptionError("tolerance_um", "a finite number >= 0", tolerance_um)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise OptionError("seed", "an integer", seed)
+    return {"recordings": recordings, "stream": stream, "tolerance_um": float(tolerance_um)}
+
+
+replay.check_options = check_replay_options

@@ -24,16 +24,14 @@ stages' timing, limits and faults of a controller (the emulator's ``faults``).
 
 from __future__ import annotations
 
-import argparse
-import math
 import threading
-import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.gcs.axis import AxisConfig
+from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
 from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
 from calflow.xytheta.vision_sensor import truth_from_options
 from calflow.xytheta.rig import XYThetaTruth
@@ -67,12 +65,7 @@ class StagePhysics:
         return float(q) / SCALE[joint]
 
 
-def _load(campaign: Mapping[str, Any] | str | Path) -> dict:
-    if isinstance(campaign, (str, Path)):
-        from calflow.config import load_campaign
-
-        return load_campaign(campaign)
-    return dict(campaign)
+_load = load_campaign_arg
 
 
 def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
@@ -134,42 +127,19 @@ def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int 
 
 def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
     """``calflow emulate gcs``: serve a campaign's simulated stages until Ctrl-C or --duration."""
-    import yaml
-
-    p = argparse.ArgumentParser(prog="calflow emulate gcs",
-                                description="Serve a campaign's simulated XYΘ stages as a PI GCS "
-                                            "2.0 controller on 127.0.0.1 (docs/gcs.md).")
-    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
-    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
-    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    a = p.parse_args(argv)
-    if not 0 <= a.port <= 65535:
-        raise CalflowError(f"emulate gcs: --port: expected a TCP port 0-65535 (0 = any free port), got {a.port}")
-    if not a.time_scale > 0:
-        raise CalflowError(f"emulate gcs: --time-scale: expected a value > 0, got {a.time_scale}")
-    c = _load(a.campaign)
-    try:
-        emu = campaign_emulator(c, port=a.port, time_scale=a.time_scale).start()
-    except OSError as exc:
-        raise CalflowError(f"emulate gcs: --port {a.port}: cannot listen ({exc.strerror})") from None
-    stop_event = stop_event or threading.Event()
-    deadline = math.inf if a.duration is None else time.monotonic() + a.duration
-    try:
+    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
-        print(f"GCS emulator of campaign {c.get('name', a.campaign)!r} on {host}:{port} "
-              f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {a.time_scale:g})", flush=True)
-        print("campaign rig section for it:\n" + yaml.safe_dump(
-            {"rig": {"factory": "gcs", "options": rig_options(emu.address, c,
-                                                              time_scale=a.time_scale)}},
-            sort_keys=False), flush=True)
-        while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:
-            stop_event.wait(min(0.5, left))
-    except KeyboardInterrupt:
-        pass
-    finally:
-        emu.stop()
-    return 0
+        return (f"GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
+                f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {time_scale:g})")
+
+    return serve_campaign(
+        argv, prog="calflow emulate gcs", stop_event=stop_event,
+        description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
+                    "127.0.0.1 (docs/gcs.md).",
+        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
+        banner=banner,
+        rig_section=lambda emu, c, ts: {"factory": "gcs", "options": rig_options(
+            emu.address, c, time_scale=ts)})
 
 
 def emulate_command(args) -> int:

@@ -1,0 +1,194 @@
+"""The thesis nano campaigns' training runs through the E-727-class emulator vs the simulated rig.
+
+For ``nano1d-thesis`` and ``nano2d-thesis`` (config/campaigns/), the training plan is
+acquired twice: on the ``simulated`` rig and with ``rig: gcs`` through the piezo controller
+emulation (:mod:`calflow.nano.emulate`), whose stage is the same physics with its own noise.
+Per pose and approach direction, the stage's error ``meas - cmd`` averaged over the cycles
+is compared: the figure is the fraction of (pose, direction, sensor) cells whose difference
+is within 3 combined standard errors, and the largest difference in those units.
+
+For ``xytheta-thesis`` (``--campaigns xytheta-thesis``), the identification run goes through
+the C-863 campaign emulator (time scale at most 100) and Model II is identified on both
+runs; the figure is each parameter's difference in combined standard deviations.
+
+``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 500]`` (about 5 min).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cells(ds, sensors):
+    """{(pose, direction, sensor): (mean, standard error)} of meas - cmd over the cycles."""
+    out = {}
+    joints = {"meas_x": "x", "meas_y": "y"}
+    for s in sensors:
+        cmd = ds[f"cmd_{joints[s]}"].values if f"cmd_{joints[s]}" in ds else 0.0
+        err = ds[s].values - cmd
+        for p, d in sorted(set(zip(ds["pose"].values, ds["direction"].values))):
+            m = (ds["pose"].values == p) & (ds["direction"].values == d) & np.isfinite(err)
+            if m.sum() > 1:
+                out[(int(p), int(d), s)] = (float(err[m].mean()), float(err[m].std(ddof=1) / math.sqrt(m.sum())))
+    return out
+
+
+def compare(campaign: str, time_scale: float) -> dict:
+    from calflow.acquisition.runner import acquire
+    from calflow.commands.common import meta
+    from calflow.config import load_campaign
+    from calflow.family import family_of
+    from calflow.gcs.rig import gcs
+    from calflow.nano.emulate import emulated_rig_options
+    from calflow.rigs import load_rig
+
+    c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
+    fam = family_of(c["robot"])
+    job = fam.plan(c["robot"], "training")(c, argparse.Namespace(model=None))
+    plan = job.plan
+    from calflow.family import resolve
+
+    sim_opts = resolve(fam.rig_options)(c, "simulated", job.run_id, dict(c["rig"].get("options", {})), plan.start_s)
+    t0 = time.monotonic()
+    sim_rig, _ = load_rig("simulated", c["robot"], sim_opts)
+    sim = acquire(plan, sim_rig, meta(c, "simulated", "training", None))
+    t_sim = time.monotonic() - t0
+    emu, options = emulated_rig_options(c, time_scale=time_scale)
+    try:
+        options = resolve(fam.rig_options)(c, "gcs", job.run_id, options, plan.start_s)
+        t0 = time.monotonic()
+        rig = gcs(**options)
+        try:
+            run = acquire(plan, rig, meta(c, "gcs", "training", None))
+        finally:
+            rig.close()
+        t_gcs = time.monotonic() - t0
+    finally:
+        emu.stop()
+    a, b = _cells(sim, rig.sensors), _cells(run, rig.sensors)
+    z = np.array([abs(a[k][0] - b[k][0]) / math.hypot(a[k][1], b[k][1]) for k in a if k in b])
+    diff_nm = np.array([abs(a[k][0] - b[k][0]) * 1e3 for k in a if k in b])
+    ptp_nm = max(np.ptp([a[k][0] for k in a if k[2] == s]) for s in rig.sensors) * 1e3
+    return {"campaign": campaign, "samples": len(plan), "cells": int(z.size),
+            "within_3se": round(float(np.mean(z < 3)), 3), "max_z": round(float(z.max()), 2),
+            "median_abs_diff_nm": round(float(np.median(diff_nm)), 2),
+            "error_curve_ptp_nm": round(float(ptp_nm), 1),
+            "all_samples": bool(run.sizes["sample"] == len(plan)),
+            "wall_s_simulated": round(t_sim, 1), "wall_s_gcs": round(t_gcs, 1), "time_scale": time_scale}
+
+
+def compare_xytheta(campaign: str, time_scale: float) -> dict:
+    """The identification run of an XYΘ campaign through the C-863 campaign emulator vs the
+    simulated rig: Model II identified on both, parameters compared in combined sigma."""
+    from calflow.acquisition.runner import acquire
+    from calflow.commands.common import meta
+    from calflow.config import load_campaign
+    from calflow.family import family_of, resolve
+    from calflow.gcs.rig import gcs
+    from calflow.rigs import load_rig
+    from calflow.xytheta import cost
+    from calflow.xytheta.emulate import emulated_rig_options
+    from calflow.xytheta.identification import identify
+    from calflow.xytheta.kinematics import Parameters
+
+    c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
+    fam = family_of(c["robot"])
+    job = fam.plan(c["robot"], "identification")(c, argparse.Namespace(model=None))
+    plan, opts = job.plan, dict(c["rig"].get("options", {}))
+    sim_rig, _ = load_rig("simulated", c["robot"], resolve(fam.rig_options)(c, "simulated", job.run_id, opts, 0.0))
+    sim = acquire(plan, sim_rig, meta(c, "simulated", "identification", None))
+    emu, options = emulated_rig_options(c, time_scale=time_scale, timeout=2.0)
+    try:
+        t0 = time.monotonic()
+        rig = gcs(**{**resolve(fam.rig_options)(c, "gcs", job.run_id, options, 0.0), "poll_s": 0.002})
+        try:
+            run = acquire(plan, rig, meta(c, "gcs", "identification", None))
+        finally:
+            rig.close()
+        wall = time.monotonic() - t0
+    finally:
+        emu.stop()
+
+    def fit(ds):
+        theta = ds["meas_theta"].values - ds["meas_theta"].values[0]
+        pm = cost.measured_points(ds["meas_x"].values, ds["meas_y"].values, theta)
+        return identify(ds["cmd_x"].values, ds["cmd_y"].values, theta, *pm,
+                        free=("x_R", "y_R", "alpha", "beta"),
+                        initial=Parameters(**c["identification"]["initial"]))
+    a, b = fit(sim), fit(run)
+    z = {k: round(abs(getattr(a.parameters, k) - getattr(b.parameters, k)) / math.hypot(a.std[k], b.std[k]), 2)
+         for k in ("x_R", "y_R", "alpha", "beta")}
+    d = np.abs(sim["meas_x"].values - run["meas_x"].values)
+    return {"campaign": campaign, "plan": "identification", "samples": len(plan),
+            "all_samples": bool(run.sizes["sample"] == len(plan)), "model_II_z": z,
+            "median_abs_meas_x_diff_um": round(float(np.nanmedian(d)), 3),
+            "wall_s_gcs": round(wall, 1), "time_scale": time_scale}
+
+
+def workflow_small_nano1d(workdir: Path) -> dict:
+    """The small nano1d campaign of the tests through the whole workflow (training,
+    metrology, validation with its run-time models, summary) with ``rig: gcs`` and with the
+    simulated rig; the summaries' headline figures side by side (nm)."""
+    import shutil
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import SMALL_NANO1D, make_workdir, snakemake
+    from calflow.nano.emulate import campaign_rig, emulated_rig_options
+
+    shutil.rmtree(workdir, ignore_errors=True)
+    out = {}
+    for rig in ("gcs", "simulated"):
+        (workdir / rig).mkdir(parents=True)
+        emu = None
+        c = dict(SMALL_NANO1D)
+        if rig == "gcs":
+            emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0, timeout=2.0)
+            c["rig"] = campaign_rig(options, SMALL_NANO1D)
+        try:
+            work = make_workdir(workdir / rig, {"small": c})
+            t0 = time.monotonic()
+            proc = snakemake(work, "results/small/summary.json", "--resources", "rig=1")
+            if proc.returncode:
+                raise RuntimeError(proc.stderr[-2000:])
+            wall = time.monotonic() - t0
+        finally:
+            if emu is not None:
+                emu.stop()
+        s = json.loads((work / "results" / "small" / "summary.json").read_text())
+        out[rig] = {"wall_s": round(wall, 1),
+                    "intrinsic_ap_nm": round(s["intrinsic"]["accuracy_nm"], 1),
+                    "intrinsic_rp_nm": round(s["intrinsic"]["repeatability_nm"], 1),
+                    **{f"{m}_max_ap_nm": round(t["max_accuracy_nm"], 1) for m, t in s["tests"].items()},
+                    **{f"{m}_max_rp_nm": round(t["max_repeatability_nm"], 1) for m, t in s["tests"].items()}}
+    return {"campaign": "tests/conftest.py SMALL_NANO1D, whole workflow", **out}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--campaigns", nargs="+", default=["nano1d-thesis", "nano2d-thesis"])
+    p.add_argument("--time-scale", type=float, default=500.0)
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--workflow", action="store_true",
+                   help="instead: the small nano1d campaign through Snakemake, gcs vs simulated")
+    a = p.parse_args(argv)
+    if a.workflow:
+        r = workflow_small_nano1d(Path("/tmp/calflow-gcs-workflow"))
+        print(json.dumps(r, indent=1) if a.json else r)
+        return 0
+    results = [compare_xytheta(name, min(a.time_scale, 100.0)) if name.startswith("xytheta")
+               else compare(name, a.time_scale) for name in a.campaigns]
+    print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,70 @@
+"""Serving a campaign's stages from a controller emulator until Ctrl-C or ``--duration``.
+
+The command-line side shared by the C-863 campaign emulator (``calflow emulate gcs``,
+:mod:`calflow.xytheta.emulate`) and the E-727-class one (``python -m calflow.nano.emulate``):
+arguments ``--campaign``, ``--port``, ``--time-scale``, ``--duration``, checked in one line
+each; the emulator's address and the campaign ``rig:`` section that drives it are printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from calflow.errors import CalflowError
+from calflow.gcs.emulator import GCSEmulator
+
+
+def load_campaign_arg(campaign: Mapping[str, Any] | str | Path) -> dict:
+    """A campaign given as a file (loaded and checked) or as a mapping (copied)."""
+    if isinstance(campaign, (str, Path)):
+        from calflow.config import load_campaign
+
+        return load_campaign(campaign)
+    return dict(campaign)
+
+
+def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
+                   start: Callable[[dict, int, float], GCSEmulator],
+                   banner: Callable[[GCSEmulator, dict, float], str],
+                   rig_section: Callable[[GCSEmulator, dict, float], dict],
+                   stop_event: threading.Event | None = None) -> int:
+    """Parse the arguments, start the emulator (``start(campaign, port, time_scale)``),
+    print ``banner`` and the ``rig:`` section, serve until Ctrl-C, ``stop_event`` or
+    ``--duration`` seconds."""
+    import yaml
+
+    p = argparse.ArgumentParser(prog=prog, description=description)
+    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
+    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    a = p.parse_args(argv)
+    who = prog.removeprefix("calflow ").removeprefix("python -m ")
+    if not 0 <= a.port <= 65535:
+        raise CalflowError(f"{who}: --port: expected a TCP port 0-65535 (0 = any free port), got {a.port}")
+    if not (a.time_scale > 0 and math.isfinite(a.time_scale)):
+        raise CalflowError(f"{who}: --time-scale: expected a value > 0 (finite), got {a.time_scale}")
+    c = load_campaign_arg(a.campaign)
+    try:
+        emu = start(c, a.port, a.time_scale)
+    except OSError as exc:
+        raise CalflowError(f"{who}: --port {a.port}: cannot listen ({exc.strerror})") from None
+    stop_event = stop_event or threading.Event()
+    deadline = math.inf if a.duration is None else time.monotonic() + a.duration
+    try:
+        print(banner(emu, c, a.time_scale), flush=True)
+        print("campaign rig section for it:\n" + yaml.safe_dump(
+            {"rig": rig_section(emu, c, a.time_scale)}, sort_keys=False), flush=True)
+        while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:
+            stop_event.wait(min(0.5, left))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        emu.stop()
+    return 0
