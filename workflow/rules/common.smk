@@ -143,7 +143,7 @@ def results_of(name):
             for t in ("square", "random_points")
             for k in tests
         ]
-        return files
+        return files + export_results(name)  # workflow/rules/export.smk
     files = [f"{base}/models/{m}.nc" for m in nano_models(c)]
     files += [
         f"{base}/metrics/training.nc",

@@ -1,0 +1,86 @@
+# Export of each XYΘ model to controllers and users' code, and its closed-loop check on
+# the rig (docs/export.md): the held-out targets commanded through the exported files.
+
+
+def export_results(name):
+    """The export metrics the summary draws on: every model of an XYΘ campaign whose rig
+    can run new plans (a replayed recording holds no export run)."""
+    c = CAMPAIGN[name]
+    if c["robot"] != "xytheta" or c["rig"]["factory"] == "replay":
+        return []
+    return [f"results/{name}/metrics/export_{m}.nc" for m in xytheta_models(c)]
+
+
+rule export_model:
+    input:
+        model="results/{campaign}/models/{model}.nc",
+    output:
+        bundle="results/{campaign}/export/{model}/bundle.json",
+    log:
+        "results/{campaign}/logs/export_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/export_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, output: os.path.dirname(output.bundle),
+        digest=section("export"),
+    shell:
+        "calflow export --campaign {params.campaign} --model {input.model}"
+        " --out {params.folder} > {log} 2>&1"
+
+
+rule acquire_validation_export:
+    input:
+        model="results/{campaign}/models/{model}.nc",
+        bundle="results/{campaign}/export/{model}/bundle.json",
+    output:
+        run="results/{campaign}/runs/export_{model}.nc",
+    log:
+        "results/{campaign}/logs/acquire_export_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, input: os.path.dirname(input.bundle),
+        digest=lambda w: digest(
+            [
+                rig_digest(f"validation_export_{w.model}")(w),
+                code_digest("export", "xytheta"),
+                CAMPAIGN[w.campaign]["validation"],
+                CAMPAIGN[w.campaign]["identification"],
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation_export"
+        " --model {input.model} --export {params.folder} --out {output.run} > {log} 2>&1"
+
+
+rule export_verify:
+    input:
+        run="results/{campaign}/runs/export_{model}.nc",
+        heldout="results/{campaign}/metrics/validation_heldout_{model}.nc",
+    output:
+        metrics="results/{campaign}/metrics/export_{model}.nc",
+    log:
+        "results/{campaign}/logs/export_verify_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/export_verify_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=section("export"),
+    shell:
+        "calflow export-verify --campaign {params.campaign} --run {input.run}"
+        " --heldout {input.heldout} --out {output.metrics} > {log} 2>&1"
