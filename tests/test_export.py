@@ -117,7 +117,7 @@ def test_bad_twincat_list_is_refused(tmp_path):
         ctl.read_twincat(path)
 
 
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(st.integers(0, 10_000))
 def test_controller_correction_reproduces_the_model_command_at_the_entries(seed):
     """nominal + t(nominal) solves X = N + e(X) — the model's inverse — at every table entry."""

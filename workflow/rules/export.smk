@@ -3,12 +3,15 @@
 
 
 def export_results(name):
-    """The export metrics the summary draws on: every model of an XYΘ campaign whose rig
-    can run new plans (a replayed recording holds no export run)."""
+    """The export metrics the summary draws on: every model of an XYΘ campaign; on a
+    replayed rig, those whose export run was recorded (run id ``export_<model>``)."""
     c = CAMPAIGN[name]
-    if c["robot"] != "xytheta" or c["rig"]["factory"] == "replay":
-        return []
-    return [f"results/{name}/metrics/export_{m}.nc" for m in xytheta_models(c)]
+    models = xytheta_models(c) if c["robot"] == "xytheta" else []
+    if c["rig"]["factory"] == "replay":
+        rec = c["rig"].get("options", {}).get("recordings", "")
+        recorded = set(rec) if isinstance(rec, dict) else {p[:-3] for p in os.listdir(rec)} if os.path.isdir(rec) else set()
+        models = [m for m in models if f"export_{m}" in recorded]
+    return [f"results/{name}/metrics/export_{m}.nc" for m in models]
 
 
 rule export_model:
@@ -53,9 +56,10 @@ rule acquire_validation_export:
         folder=lambda w, input: os.path.dirname(input.bundle),
         digest=lambda w: digest(
             [
-                rig_digest(f"validation_export_{w.model}")(w),
+                rig_digest(f"export_{w.model}")(w),
                 code_digest("export", "xytheta"),
-                CAMPAIGN[w.campaign]["validation"],
+                CAMPAIGN[w.campaign]["validation"]["heldout"],
+                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
                 CAMPAIGN[w.campaign]["identification"],
             ]
         ),

@@ -12,15 +12,22 @@ every validation run):
   the file read back by its loader, interpolated linearly at the nominal command, by the
   direction of travel of the nominal command.
 
-Agreement (:func:`compare`): per held-out target j, the distance between the barycentre
-of the path's visits and that of the in-process held-out run, s_j (µm). The path is
-*verified* when max_j s_j ≤ RP, the in-process held-out run's repeatability (ISO 9283 RP,
-max over the targets). Since |AP_path,j − AP_model,j| ≤ s_j, a verified path's accuracy
-agrees with the model's within RP at every target.
+Agreement (:func:`compare`): a path is *verified* when its accuracy (ISO 9283 AP, max over
+the held-out targets) agrees with the in-process held-out run's within that run's
+repeatability RP (ISO 9283 RP, max over the targets): |AP_path − AP_model| ≤ RP. Beside it,
+the stricter per-target check: s_j, the distance between the barycentre of the path's
+visits to target j and that of the in-process run's (µm), and whether max_j s_j ≤ RP
+(``barycentres_within_tolerance``); |AP_path − AP_model| ≤ max_j s_j always. Identical
+commands still give s_j of the order of the noise: two barycentres, and two home readings
+that each define their run's world frame (Eq. 4.27) — about 1–2 µm on the default rig,
+close to RP, which is why the per-target check is reported rather than required.
 
 Cycles: ``CYCLES`` visits per target (fewer than the held-out run's five): a barycentre
 of three visits has a standard error of σ/√3 per axis, so the noise of s_j stays well
 below RP ≈ mean + 3 s of the visit scatter, at 3/5 of a held-out run's acquisition per path.
+
+The run's id (its noise stream on the simulated rig, its file in a recording) is
+``export_<model>``, the stem of ``results/<campaign>/runs/export_<model>.nc``.
 """
 
 from __future__ import annotations
@@ -107,7 +114,7 @@ def validation_export(c: dict, args) -> Acquisition:
     n = m * cycles
     first = plan.extra["mode"] == 0  # the bundle's segment, commanded like the in-process run
     diff = max(float(np.max(np.abs(plan.commands[j][first][1:] - inproc[j][1:n + 1]))) for j in ("x", "y"))
-    return Acquisition(plan, f"validation_export_{heldout.model}", heldout.model,
+    return Acquisition(plan, f"export_{heldout.model}", heldout.model,
                        attrs={"export_paths": " ".join(paths), "export_cycles": cycles,
                               "bundle_command_difference_um": diff})
 
@@ -137,7 +144,10 @@ def compare(run: xr.Dataset, heldout_metrics: xr.Dataset, meta) -> xr.Dataset:
          "rp": var([rows[p][0]["rp"].values for p in paths], "um", "ISO 9283 RP through the export path"),
          "shift": var([rows[p][1] for p in paths], "um", "barycentre distance to the in-process held-out run"),
          "ap_model": xr.Variable(("target",), ref["ap"].values, attrs={"units": "um", "long_name": "in-process AP"})},
-        coords={"path": xr.Variable(("path",), np.array(paths, dtype=object)), "target": ref["target"].values},
+        coords={"path": xr.Variable(("path",), np.array(paths, dtype=object),
+                                    attrs={"long_name": "export path: bundle (Compensator), linuxcnc, twincat"}),
+                "target": xr.Variable(("target",), ref["target"].values,
+                                      attrs={"units": "1", "long_name": "held-out validation target index"})},
         attrs=meta.attrs("metrics"))
     ds.attrs.update(model_accuracy_um=float(ref.attrs["accuracy_um"]), tolerance_um=tol,
                     export_cycles=int(run.attrs["export_cycles"]),
@@ -146,13 +156,15 @@ def compare(run: xr.Dataset, heldout_metrics: xr.Dataset, meta) -> xr.Dataset:
         ds.attrs[f"{p}_accuracy_um"] = float(rows[p][0].attrs["accuracy_um"])
         ds.attrs[f"{p}_repeatability_um"] = float(rows[p][0].attrs["repeatability_um"])
         ds.attrs[f"{p}_max_shift_um"] = float(np.max(rows[p][1]))
-        ds.attrs[f"{p}_verified"] = int(np.max(rows[p][1]) <= tol)
+        ds.attrs[f"{p}_verified"] = int(abs(ds.attrs[f"{p}_accuracy_um"] - ds.attrs["model_accuracy_um"]) <= tol)
+        ds.attrs[f"{p}_barycentres_within_tolerance"] = int(np.max(rows[p][1]) <= tol)
     return ds
 
 
-DEFINITION = ("verified: for every held-out target, the barycentre of the visits through the export path lies "
-              "within the in-process held-out run's repeatability (ISO 9283 RP, max over the targets) of the "
-              "in-process barycentre; accuracy_um is ISO 9283 AP (max over the targets) through the path")
+DEFINITION = ("accuracy_um: ISO 9283 AP (max over the held-out targets) through the export path; verified: "
+              "|accuracy_um - in_process_accuracy_um| <= tolerance_um, the in-process held-out run's repeatability "
+              "(ISO 9283 RP, max over the targets); barycentres_within_tolerance: every target's barycentre through "
+              "the path lies within tolerance_um of the in-process run's (max_barycentre_shift_um)")
 
 
 def summary_entry(ds: xr.Dataset) -> dict:
@@ -164,7 +176,8 @@ def summary_entry(ds: xr.Dataset) -> dict:
 
     def path(p: str) -> dict:
         return {"accuracy_um": jsonable(a[f"{p}_accuracy_um"]), "repeatability_um": jsonable(a[f"{p}_repeatability_um"]),
-                "max_barycentre_shift_um": jsonable(a[f"{p}_max_shift_um"]), "verified": bool(a[f"{p}_verified"])}
+                "max_barycentre_shift_um": jsonable(a[f"{p}_max_shift_um"]), "verified": bool(a[f"{p}_verified"]),
+                "barycentres_within_tolerance": bool(a[f"{p}_barycentres_within_tolerance"])}
 
     paths = [str(p) for p in ds["path"].values]
     return {**path("bundle"), "in_process_accuracy_um": jsonable(a["model_accuracy_um"]),
