@@ -2,18 +2,6 @@
 # the rig (docs/export.md): the held-out targets commanded through the exported files.
 
 
-def export_results(name):
-    """The export metrics the summary draws on: every model of an XYΘ campaign; on a
-    replayed rig, those whose export run was recorded (run id ``export_<model>``)."""
-    c = CAMPAIGN[name]
-    models = xytheta_models(c) if c["robot"] == "xytheta" else []
-    if c["rig"]["factory"] == "replay":
-        rec = c["rig"].get("options", {}).get("recordings", "")
-        recorded = set(rec) if isinstance(rec, dict) else {p[:-3] for p in os.listdir(rec)} if os.path.isdir(rec) else set()
-        models = [m for m in models if f"export_{m}" in recorded]
-    return [f"results/{name}/metrics/export_{m}.nc" for m in models]
-
-
 rule export_model:
     input:
         model="results/{campaign}/models/{model}.nc",
