@@ -227,3 +227,54 @@ def test_export_writes_every_file_and_the_plan_commands_through_them(tmp_path):
     # (own-axis terms kept, cross-axis terms and the file's resolution not)
     lc = plan.commands["x"][mode == 1][1:]
     assert 0 < np.max(np.abs(lc - Xm)) < 5.0
+
+
+def _meta():
+    from calflow.data.runs import RunMetadata
+
+    return RunMetadata(campaign="test", robot="xytheta", source="simulated", plan="validation_export",
+                       config_sha256="1" * 64, start="2026-01-01T00:00:00+00:00", model="V")
+
+
+def _visits(targets, offset, cycles, rng):
+    """Rows (home first) of a validation segment whose tool points land at target + offset + noise (µm).
+    At Θ = 0 with a home reading of (0, 0), Eq. 4.27 gives the tool point −(x_m, y_m)."""
+    t = np.tile(targets, (cycles, 1))
+    p = t[:, :2] + offset + rng.normal(0, 0.2, (len(t), 2))
+    pose = np.concatenate([[0], np.tile(np.arange(1, len(targets) + 1), cycles)])
+    nan = [np.nan]
+    return {"pose": pose, "meas_x": np.concatenate([[0.0], -p[:, 0]]), "meas_y": np.concatenate([[0.0], -p[:, 1]]),
+            "meas_theta": np.zeros(len(pose)), "target_x": np.concatenate([nan, t[:, 0]]),
+            "target_y": np.concatenate([nan, t[:, 1]]), "target_theta": np.zeros(len(pose))}
+
+
+def test_verification_compares_accuracies_and_barycentres_with_the_repeatability():
+    """Hand-made runs: the in-process model lands 3 µm off in x; the bundle path lands the same;
+    the controller path 2 µm further: its AP differs by 2 µm, more than RP, and so does every
+    barycentre."""
+    from calflow.xytheta.evaluation import xytheta_validation_metrics
+    from calflow.xytheta.export.verification import compare, summary_entry
+
+    rng = np.random.default_rng(0)
+    targets = np.array([[-1000.0, -200.0, 0.0], [-1500.0, -300.0, 0.0], [-2000.0, -100.0, 0.0]])
+    model = _visits(targets, (3.0, 0.0), 5, rng)
+    held = xytheta_validation_metrics(xr.Dataset({k: ("sample", v) for k, v in model.items()},
+                                                 attrs={"plan": "validation_heldout"}), _meta())
+    segments = [_visits(targets, off, 3, rng) for off in ((3.0, 0.0), (5.0, 0.0))]
+    rows = {k: np.concatenate([s[k] for s in segments]) for k in segments[0]}
+    rows["test_mode"] = np.repeat([0, 1], len(segments[0]["pose"]))
+    run = xr.Dataset({k: ("sample", v) for k, v in rows.items()},
+                     attrs={"plan": "validation_export", "export_paths": "bundle linuxcnc", "export_cycles": 3,
+                            "bundle_command_difference_um": 0.0})
+    ds = compare(run, held, _meta())
+    rp = held.attrs["repeatability_um"]
+    assert 0.2 < rp < 1.5
+    assert ds.attrs["bundle_verified"] == 1 and ds.attrs["linuxcnc_verified"] == 0
+    assert np.all(ds["shift"].sel(path="bundle").values < rp)
+    assert np.allclose(ds["shift"].sel(path="linuxcnc").values, 2.0, atol=0.6)
+    e = summary_entry(ds)
+    assert e["verified"] is True and e["barycentres_within_tolerance"] is True
+    assert e["controllers"]["linuxcnc"]["barycentres_within_tolerance"] is False
+    assert e["accuracy_um"] == pytest.approx(3.0, abs=0.4) and e["controllers"]["linuxcnc"]["accuracy_um"] == \
+        pytest.approx(5.0, abs=0.4)
+    assert e["in_process_accuracy_um"] == held.attrs["accuracy_um"] and e["tolerance_um"] == rp
