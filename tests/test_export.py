@@ -102,7 +102,8 @@ def test_twincat_values_are_errors_the_controller_subtracts(tmp_path):
 
 
 @pytest.mark.parametrize("text, field", [("0 0 0\n# comment\n1 0 0\n", "line 2"), ("1 0 0\n0 0 0\n", "ascending"),
-                                         ("0 0\n1 0 0\n", "line 1")])
+                                         ("0 0\n1 0 0\n", "line 1"),
+                                         ("0 0 0\n\n1 0 0\n", "line 2")])
 def test_bad_linuxcnc_files_are_refused_naming_the_problem(tmp_path, text, field):
     path = tmp_path / "bad.comp"
     path.write_text(text)

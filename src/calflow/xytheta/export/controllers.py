@@ -134,11 +134,11 @@ def write_linuxcnc(comp: AxisCompensation, path) -> Path:
 
 
 def read_linuxcnc(path, axis: str) -> AxisCompensation:
-    """A ``COMP_FILE_TYPE = 1`` file (mm) back as µm; every line must be three numbers."""
+    """A ``COMP_FILE_TYPE = 1`` file (mm) back as µm; every line must be three numbers (LinuxCNC
+    would silently stop reading at the first that is not)."""
     rows = []
-    for k, line in enumerate(Path(path).read_text().splitlines(), start=1):
-        if not line.strip():
-            continue
+    lines = Path(path).read_text().rstrip().splitlines()
+    for k, line in enumerate(lines, start=1):  # LinuxCNC stops at a blank line too: refused here
         try:
             values = [float(v) for v in line.split()]
         except ValueError:
