@@ -1,33 +1,38 @@
 # Export of each XYΘ model to controllers and users' code, and its closed-loop check on
 # the rig (docs/export.md): the held-out targets commanded through the exported files.
+# The export takes every model in one job (a job's time is mostly its imports).
 
 
-rule export_model:
+rule export_models:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        models=lambda w: expand(
+            "results/{c}/models/{m}.nc",
+            c=w.campaign,
+            m=xytheta_models(CAMPAIGN[w.campaign]),
+        ),
     output:
-        bundle="results/{campaign}/export/{model}/bundle.json",
+        manifest="results/{campaign}/export/manifest.json",
     log:
-        "results/{campaign}/logs/export_{model}.log",
+        "results/{campaign}/logs/export.log",
     benchmark:
-        "results/{campaign}/benchmarks/export_{model}.tsv"
+        "results/{campaign}/benchmarks/export.tsv"
     conda:
         "../envs/calflow.yaml"
     resources:
         mem_mb=1000,
     params:
         campaign=campaign_file,
-        folder=lambda w, output: os.path.dirname(output.bundle),
+        folder=lambda w, output: os.path.dirname(output.manifest),
         digest=section("export"),
     shell:
-        "calflow export --campaign {params.campaign} --model {input.model}"
+        "calflow export --campaign {params.campaign} --model {input.models}"
         " --out {params.folder} > {log} 2>&1"
 
 
 rule acquire_validation_export:
     input:
         model="results/{campaign}/models/{model}.nc",
-        bundle="results/{campaign}/export/{model}/bundle.json",
+        manifest="results/{campaign}/export/manifest.json",
     output:
         run="results/{campaign}/runs/export_{model}.nc",
     log:
@@ -41,7 +46,7 @@ rule acquire_validation_export:
         rig=rig_slots,
     params:
         campaign=campaign_file,
-        folder=lambda w, input: os.path.dirname(input.bundle),
+        folder=lambda w, input: os.path.join(os.path.dirname(input.manifest), w.model),
         digest=lambda w: digest(
             [
                 rig_digest(f"export_{w.model}")(w),

@@ -55,15 +55,15 @@ def _emulate_arguments(p: argparse.ArgumentParser) -> None:
 
 def _export_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
-    p.add_argument("--model", required=True, help="the model file, results/<campaign>/models/<model>.nc")
-    p.add_argument("--out", required=True, help="the export folder, results/<campaign>/export/<model>")
+    p.add_argument("--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc")
+    p.add_argument("--out", required=True, help="folder of the exports; each model's in <out>/<model file's stem>")
 
 
 def _export_verify_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
-    p.add_argument("--run", required=True, help="the validation_export run")
-    p.add_argument("--heldout", required=True, help="the metrics of the model's in-process held-out run")
-    p.add_argument("--out", required=True)
+    p.add_argument("--run", nargs="+", required=True, help="validation_export runs")
+    p.add_argument("--heldout", nargs="+", required=True, help="metrics of the models' in-process held-out runs")
+    p.add_argument("--out", nargs="+", required=True, help="one metrics file per --run, in the same order")
 
 
 def _study(p: argparse.ArgumentParser) -> None:
