@@ -279,3 +279,34 @@ def test_verification_compares_accuracies_and_barycentres_with_the_repeatability
     assert e["accuracy_um"] == pytest.approx(3.0, abs=0.4) and e["controllers"]["linuxcnc"]["accuracy_um"] == \
         pytest.approx(5.0, abs=0.4)
     assert e["in_process_accuracy_um"] == held.attrs["accuracy_um"] and e["tolerance_um"] == rp
+
+
+def test_cli_exports_every_model_and_writes_the_manifest_last(tmp_path, capsys):
+    """``calflow export`` over two models: each folder, then manifest.json; a missing model
+    file is one line naming it, and nothing is exported."""
+    import yaml
+
+    from calflow.cli import main
+    from calflow.data.runs import RunMetadata
+    from conftest import SMALL_XYTHETA
+
+    campaign = tmp_path / "c.yaml"
+    campaign.write_text(yaml.safe_dump(SMALL_XYTHETA))
+    meta = RunMetadata(campaign="c", robot="xytheta", source="simulated", plan="identification",
+                       config_sha256="1" * 64, start="2026-01-01T00:00:00+00:00")
+    paths = []
+    for name, position in (("II", None), ("III", _lut(2))):
+        model = _model(position)
+        model.name = name
+        model.write(tmp_path / f"{name}.nc", meta)
+        paths.append(tmp_path / f"{name}.nc")
+    assert main(["export", "--campaign", str(campaign), "--model", *map(str, paths), "--out", str(tmp_path / "x")]) == 0
+    manifest = json.loads((tmp_path / "x/manifest.json").read_text())
+    assert set(manifest) == {"II", "III"} and "linuxcnc_x.comp" in manifest["III"]
+    assert "linuxcnc_x.comp" not in manifest["II"] and "bundle.json" in manifest["II"]
+    assert load(tmp_path / "x/III")["model"] == "III"
+    status = main(["export", "--campaign", str(campaign), "--model", str(tmp_path / "nope.nc"), "--out",
+                   str(tmp_path / "y")])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert status != 0 and len(err) == 1 and "nope.nc" in err[0]
+    assert not (tmp_path / "y/manifest.json").exists()
