@@ -13,6 +13,7 @@ include: "workflow/rules/acquire.smk"
 include: "workflow/rules/characterise.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/validate.smk"
+include: "workflow/rules/export.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/montecarlo.smk"
 

@@ -143,7 +143,7 @@ def results_of(name):
             for t in ("square", "random_points")
             for k in tests
         ]
-        return files
+        return files + export_results(name)
     files = [f"{base}/models/{m}.nc" for m in nano_models(c)]
     files += [
         f"{base}/metrics/training.nc",
@@ -219,6 +219,23 @@ def identify_digest(w):
     if "base" in spec:
         sections.append(c["angle_residuals"])
     return digest([code_digest("identify", c["robot"]), c["seed"]] + sections)
+
+
+def export_results(name):
+    """The export metrics the summary draws on: every model of an XYΘ campaign; on a
+    replayed rig, those whose export run was recorded (run id ``export_<model>``)."""
+    c = CAMPAIGN[name]
+    models = xytheta_models(c) if c["robot"] == "xytheta" else []
+    if c["rig"]["factory"] == "replay":
+        rec = c["rig"].get("options", {}).get("recordings", "")
+        if isinstance(rec, dict):
+            recorded = set(rec)
+        elif os.path.isdir(rec):
+            recorded = {f[: -len(".nc")] for f in os.listdir(rec) if f.endswith(".nc")}
+        else:
+            recorded = set()
+        models = [m for m in models if f"export_{m}" in recorded]
+    return [f"results/{name}/metrics/export_{m}.nc" for m in models]
 
 
 def report_files(name):

@@ -32,6 +32,7 @@ def _acquire_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
     p.add_argument("--compensation", choices=["none", "linear", "cubic"], default="none",
                    help="lookup-table compensation of the square / random-points runs (Sec. 4.4.2)")
+    p.add_argument("--export", help="a model's export folder, for --plan validation_export (docs/export.md)")
 
 
 def _characterise_arguments(p: argparse.ArgumentParser) -> None:
@@ -56,6 +57,19 @@ def _emulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("kind", choices=["gcs"])
     p.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
                                                           "[--duration S]")
+
+
+def _export_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc")
+    p.add_argument("--out", required=True, help="folder of the exports; each model's in <out>/<model file's stem>")
+
+
+def _export_verify_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--run", nargs="+", required=True, help="validation_export runs")
+    p.add_argument("--heldout", nargs="+", required=True, help="metrics of the models' in-process held-out runs")
+    p.add_argument("--out", nargs="+", required=True, help="one metrics file per --run, in the same order")
 
 
 def _study(p: argparse.ArgumentParser) -> None:
@@ -93,7 +107,8 @@ FAMILY = Family(
     rigs={"xytheta": {"simulated": "calflow.xytheta.rig:simulated_xytheta"}},
     plans={"xytheta": {name: f"{_P}:{name}" for name in (
         "identification", "validation", "validation_heldout", "characterisation_x", "characterisation_y", "angle_residuals",
-        "square", "random_points")}},
+        "square", "random_points")}
+                | {"validation_export": "calflow.xytheta.export.verification:validation_export"}},
     rig_options="calflow.xytheta.family:rig_options",
     steps={
         "identify": f"{_C}:identify",
@@ -117,8 +132,12 @@ FAMILY = Family(
                             "calflow.xytheta.kinematics", "calflow.xytheta.commands"),
         "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary", "calflow.xytheta.oracle",
                               "calflow.xytheta.rig", "calflow.xytheta.rig_physics", "calflow.acquisition",
-                              "calflow.xytheta.characterisation", "calflow.xytheta.kinematics"),
+                              "calflow.xytheta.characterisation", "calflow.xytheta.kinematics",
+                              "calflow.xytheta.export.verification"),
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
+        "export": _CORE + ("calflow.xytheta.export", "calflow.xytheta.models", "calflow.xytheta.lookup",
+                           "calflow.xytheta.pose_lookup", "calflow.xytheta.angle_table", "calflow.xytheta.kinematics",
+                           "calflow.xytheta.evaluation", "calflow.xytheta.campaign_plans", "calflow.xytheta.plans"),
         "report": _CORE + ("calflow.report", "calflow.xytheta.figures", "calflow.xytheta.templates",
                            "calflow.xytheta.models"),
     },
@@ -132,6 +151,10 @@ FAMILY = Family(
                 _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
         Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1",
                 _emulate_arguments, "calflow.xytheta.emulate:emulate_command"),
+        Command("export", "a model's controller files and bundle for users' code (docs/export.md)",
+                _export_arguments, "calflow.xytheta.export.command:export"),
+        Command("export-verify", "accuracy through the exported files beside the in-process model's",
+                _export_verify_arguments, "calflow.xytheta.export.command:verify"),
         Command("mc-point", "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
                 _point_arguments, f"{_S}:point"),
         Command("mc-aggregate", "aggregate the points of a Monte-Carlo study", _aggregate_arguments,

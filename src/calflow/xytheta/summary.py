@@ -198,6 +198,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     """Assemble the summary of an XYΘ campaign from its result files."""
     models, paths, ref, heldout, xy, luts, obs, iso = {}, {}, {}, {}, {}, None, None, {}
     heldout_runs, training_runs = [], []
+    exported = {}  # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
     for path in files:
         with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
             ds = ds.load()
@@ -218,6 +219,8 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             iso[plan[-1]] = _iso230_2_of_sweep(ds, plan[-1])
         elif kind == "run" and plan == "validation_heldout":
             heldout_runs.append(ds)
+        elif kind == "metrics" and plan == "validation_export":
+            exported[ds.attrs["model"]] = ds
         elif kind == "run" and plan in ("identification", "angle_residuals"):
             training_runs.append(ds)
     order = [name for name in campaign["models"] if name in models]
@@ -235,6 +238,12 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "reference": reference.BY_ROBOT["xytheta"],
         "inputs": {str(p): sha256_file(p) for p in files},
     }
+    if exported:
+        from calflow.xytheta.export.verification import summary_entry
+
+        for name, ds in exported.items():
+            if name in summary["models"]:
+                summary["models"][name]["export"] = summary_entry(ds)
     if luts is not None:
         summary["characterisation"] = _characterisation(luts)
     if xy:

@@ -1,0 +1,105 @@
+"""The controller-neutral export of an XYΘ model: ``bundle.json`` and CSV tables.
+
+``bundle.json`` holds the identified parameters φ = {x_R, y_R, α, β} (value, σ, units,
+free or fixed), their correlation, the interpolation in the tables, a description of
+every table (CSV files with ``name [unit]`` headers, :mod:`.tables`) and the provenance
+(campaign, configuration hash, calflow version of the model and of the export, the model
+file's SHA-256). :func:`read_model` rebuilds the :class:`MicroModel` — the same tables,
+the same inverse (Eq. 4.19) — for :class:`calflow.xytheta.export.Compensator`.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from calflow import __version__
+from calflow.data.io import jsonable, sha256_file, write_json
+from calflow.errors import DataError
+from calflow.xytheta import kinematics as kin
+from calflow.xytheta.export.tables import rebuild, write_tables
+
+FORMAT = "calflow-xytheta-bundle"
+VERSION = 1
+BUNDLE = "bundle.json"
+
+LIMITS = ("The bundle is the whole model: parameters, position tables (own-axis and cross-axis terms) and the "
+          "angle table; the Compensator applies all of them as calflow's in-process model does. Controller files "
+          "(LinuxCNC, TwinCAT) hold the own-axis terms only.")
+
+
+def provenance(model_path) -> dict:
+    """Where the model came from: the model file's metadata and hash, and this calflow."""
+    import xarray as xr
+
+    with xr.open_dataset(model_path, engine="netcdf4", decode_times=False) as ds:
+        attrs = dict(ds.attrs)
+    return {"campaign": attrs.get("campaign"), "config_sha256": attrs.get("config_sha256"),
+            "source": attrs.get("source"), "model_created": attrs.get("created"),
+            "model_calflow_version": attrs.get("calflow_version"), "export_calflow_version": __version__,
+            "model_file": Path(model_path).name, "model_sha256": sha256_file(model_path)}
+
+
+def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> Path:
+    """Write ``model`` (a :class:`MicroModel`) as a bundle in ``folder``; returns bundle.json.
+
+    ``controllers``: what the controller files written beside it hold (:mod:`.writer`)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    params = {name: {"value": float(getattr(model.parameters, name)), "std": jsonable(model.std.get(name, np.nan)),
+                     "units": kin.PARAMETER_UNITS[name], "free": name in model.free}
+              for name in kin.PARAMETER_NAMES}
+    tables = {name: write_tables(ds, folder, name) for name, ds in model.groups().items()}
+    doc = {"format": FORMAT, "version": VERSION, "model": model.name, "parameters": params,
+           "free": list(model.free), "correlation": jsonable(np.asarray(model.correlation, dtype=float)),
+           "interpolation": model.method, "tables": tables, "provenance": jsonable(prov),
+           "conventions": {"units": "um for positions and errors, degree for angles",
+                           "errors": "target - measured; joint command = inverse kinematics + table error (Eq. 4.19)",
+                           "kinematics": "thesis Eq. 4.18 (forward) and 4.19 (inverse)"},
+           "limits": LIMITS, "controllers": jsonable(controllers or {})}
+    return write_json(doc, folder / BUNDLE)
+
+
+def load(folder) -> dict:
+    """``bundle.json`` of ``folder`` (or the file itself), checked for format and version."""
+    path = Path(folder)
+    path = path / BUNDLE if path.is_dir() else path
+    if not path.exists():
+        raise DataError(f"{path}: file not found")
+    try:
+        doc = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}: not JSON ({exc})") from None
+    if doc.get("format") != FORMAT or doc.get("version") != VERSION:
+        raise DataError(f"{path}: fields 'format', 'version': expected {FORMAT!r} {VERSION}, "
+                        f"got {doc.get('format')!r} {doc.get('version')!r}")
+    for name in kin.PARAMETER_NAMES:
+        if not isinstance(doc.get("parameters", {}).get(name, {}).get("value"), (int, float)):
+            raise DataError(f"{path}: field 'parameters.{name}.value': expected a number")
+    return doc
+
+
+def read_model(folder):
+    """The :class:`MicroModel` of a bundle, tables and all."""
+    from calflow.xytheta.angle_table import AngleTable
+    from calflow.xytheta.lookup import AngleLUT, PositionLUT
+    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.pose_lookup import PoseAngleLUT
+
+    path = Path(folder)
+    folder = path if path.is_dir() else path.parent
+    doc = load(path)
+    p = doc["parameters"]
+    params = kin.Parameters(**{n: float(p[n]["value"]) for n in kin.PARAMETER_NAMES})
+    std = {n: float("nan") if p[n].get("std") is None else float(p[n]["std"]) for n in kin.PARAMETER_NAMES}
+    tables = {name: rebuild(folder, spec) for name, spec in doc["tables"].items()}
+    position = PositionLUT.from_dataset(tables["position_table"]) if "position_table" in tables else None
+    angle = None
+    if "angle_table" in tables:
+        t = tables["angle_table"]
+        angle = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(t.attrs.get("table"), AngleLUT) \
+            .from_dataset(t)
+    return MicroModel(doc["model"], params, tuple(doc["free"]), std, np.asarray(doc["correlation"], dtype=float),
+                      {}, position, angle, doc["interpolation"])

@@ -1,0 +1,83 @@
+# Export of each XYΘ model to controllers and users' code, and its closed-loop check on
+# the rig (docs/export.md): the held-out targets commanded through the exported files.
+# The export takes every model in one job (a job's time is mostly its imports).
+
+
+rule export_models:
+    input:
+        models=lambda w: expand(
+            "results/{c}/models/{m}.nc",
+            c=w.campaign,
+            m=xytheta_models(CAMPAIGN[w.campaign]),
+        ),
+    output:
+        manifest="results/{campaign}/export/manifest.json",
+    log:
+        "results/{campaign}/logs/export.log",
+    benchmark:
+        "results/{campaign}/benchmarks/export.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, output: os.path.dirname(output.manifest),
+        digest=section("export"),
+    shell:
+        "calflow export --campaign {params.campaign} --model {input.models}"
+        " --out {params.folder} > {log} 2>&1"
+
+
+rule acquire_validation_export:
+    input:
+        model="results/{campaign}/models/{model}.nc",
+        manifest="results/{campaign}/export/manifest.json",
+    output:
+        run="results/{campaign}/runs/export_{model}.nc",
+    log:
+        "results/{campaign}/logs/acquire_export_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, input: os.path.join(os.path.dirname(input.manifest), w.model),
+        digest=lambda w: digest(
+            [
+                rig_digest(f"export_{w.model}")(w),
+                code_digest("export", "xytheta"),
+                CAMPAIGN[w.campaign]["validation"]["heldout"],
+                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
+                CAMPAIGN[w.campaign]["identification"],
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation_export"
+        " --model {input.model} --export {params.folder} --out {output.run} > {log} 2>&1"
+
+
+rule export_verify:
+    input:
+        run="results/{campaign}/runs/export_{model}.nc",
+        heldout="results/{campaign}/metrics/validation_heldout_{model}.nc",
+    output:
+        metrics="results/{campaign}/metrics/export_{model}.nc",
+    log:
+        "results/{campaign}/logs/export_verify_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/export_verify_{model}.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=section("export"),
+    shell:
+        "calflow export-verify --campaign {params.campaign} --run {input.run}"
+        " --heldout {input.heldout} --out {output.metrics} > {log} 2>&1"
