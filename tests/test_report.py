@@ -327,6 +327,16 @@ def _nano(tmp_path_factory, robot):
         "validation": {"start_h": 18.0, "end_h": 40.0, "duration_h": 22.0, "days": 2, "n_tests": ntest,
                        "training_temperature_range_c": [20.38, 20.5], "drift_estimator": "per-cycle mean"},
     }
+    no_stream = "not supported by this data: no stream <recorded>"
+    summary["iso9283"] = {"standard": "ISO 9283:1998", "source": "validation run", "axes": ["x"], "modes": {
+        m: {**{k: {"value": 10.0 * (j + 1) + k_m, "unit": "nm", "clause": c} for j, (k, c) in
+               enumerate((("AD", "7.4.1"), ("RD", "7.4.2"), ("dRP", "7.7")))},
+            "vAP": ({"value": 3.25, "unit": "nm", "clause": "7.3"} if robot == "stage1d" else
+                    {"value": None, "unit": "nm", "clause": "7.3", "reason": "not supported by this data: one direction"}),
+            "dAP": {"value": 55.5, "unit": "nm", "clause": "7.7", "first_test": 0, "last_test": 4, "period_h": 20.0},
+            "stabilisation_time_s": {"value": None, "unit": "s", "clause": "7.5", "reason": no_stream},
+            "overshoot": {"value": None, "unit": "nm", "clause": "7.6", "reason": no_stream}}
+        for k_m, m in enumerate(modes)}}
     if robot == "stage1d":
         summary["intrinsic"] = {"accuracy_nm": 401.4468, "repeatability_nm": 41.2433, "temperature_c": 20.5,
                                 "temperature_range_c": 0.009,
@@ -371,6 +381,21 @@ def test_stage2d_report(stage2d):
     assert_figures(html, ["fig-geometric", "fig-drift", "fig-poses-time", "fig-max", "fig-temperature", "fig-acc-temp"])
     assert "Fig. 5.23" in html and "Fig. 5.24" in html
     assert_escaped(html)
+    assert "multi-directional pose accuracy variation vAP (clause 7.3) — not supported by this data: one direction" in html
+
+
+def test_nano_reports_show_iso9283_with_clauses_and_say_what_is_missing(stage1d, stage2d):
+    for summary, _, html in (stage1d, stage2d):
+        modes = summary["iso9283"]["modes"]
+        keys = [f"iso9283.modes.{m}.{k}.value" for m in modes for k in ("AD", "RD", "dAP", "dRP")]
+        assert_headline_equals_summary(html, summary, keys)
+        section = html[html.index('<section id="iso9283">'):]
+        section = section[:section.index("</section>")]
+        for clause in ("7.3", "7.4.1", "7.4.2", "7.5", "7.6", "7.7"):
+            assert f"<td class=\"text\">{clause}</td>" in section, clause
+        assert ("Not computed: position stabilisation time (clause 7.5); position overshoot OV (clause 7.6) — "
+                "not supported by this data: no stream &lt;recorded&gt;.") in section
+        assert "Drift compares test 0 with test 4, 20.0 h apart" in section
 
 
 def test_index_links_and_headlines(xytheta, stage1d, stage2d):
