@@ -30,7 +30,7 @@ import numpy as np
 import xarray as xr
 
 from calflow.metrics import iso9283_distance, iso9283_drift, iso9283_vap
-from calflow.nano.evaluation import mode_names, run_seconds
+from calflow.nano.evaluation import mode_names, run_columns
 
 __all__ = ["iso9283_block"]
 
@@ -133,20 +133,10 @@ def _drift(meas, tgt, pose, test, tests, hours):
 def iso9283_block(run: xr.Dataset) -> dict:
     """ISO 9283 vAP, AD, RD, dAP, dRP, stabilisation time and overshoot per test type of a
     nano validation run (see the module docstring); JSON-ready except for numpy scalars."""
-    axes = [a for a in ("x", "y") if f"target_{a}" in run and f"meas_{a}" in run]
-    meas = np.column_stack([run[f"meas_{a}"].values.astype(float) for a in axes])
-    tgt = np.column_stack([run[f"target_{a}"].values.astype(float) for a in axes])
-    n = run.sizes["sample"]
-    valid = np.all(np.isfinite(meas), axis=1) & np.all(np.isfinite(tgt), axis=1)
-    pose = run["pose"].values.astype(int)
-    cycle = run["cycle"].values.astype(int)
-    direction = run["direction"].values.astype(int) if "direction" in run else np.zeros(n, int)
-    test = run["test"].values.astype(int) if "test" in run else np.zeros(n, int)
-    mode_var = "test_mode" if "test_mode" in run else "mode" if "mode" in run else None
-    mode = run[mode_var].values.astype(int) if mode_var else np.zeros(n, int)
-    hours = run_seconds(run) / 3600.0
-    meas, tgt, pose, cycle, direction, test, mode, hours = (
-        v[valid] for v in (meas, tgt, pose, cycle, direction, test, mode, hours))
+    axes = [a for a in ("x", "y") if f"target_{a}" in run]
+    columns = run_columns(run, axes)
+    valid = np.all(np.isfinite(columns[0]), axis=1) & np.all(np.isfinite(columns[1]), axis=1)
+    meas, tgt, pose, cycle, direction, test, mode, hours = (v[valid] for v in columns)
     modes = {}
     for k, name in enumerate(mode_names(run)):
         tests = np.unique(test[mode == k])
