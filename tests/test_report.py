@@ -17,6 +17,7 @@ from calflow.report import render_campaign, render_index, write_pdf
 from calflow.report.render import num, sig
 
 EVIL = "Stage <script>alert('x')</script> & friends"
+ISO230_KEYS = ("A", "A_fwd", "A_bwd", "E", "E_fwd", "E_bwd", "R", "R_fwd", "R_bwd", "M", "B", "B_mean")
 CAMPAIGN_CMD = "snakemake --cores 2 --config 'campaigns=[\"t\"]'"
 
 
@@ -189,6 +190,9 @@ def xytheta(tmp_path_factory, strict):
                                              (("O1", 0.5), ("O2", -0.1), ("O3", 0.3), ("O4", 0.2))},
                           "O2_plateau_poses": 30},
         "truth": {"parameters": {"x_R_um": 9572.9, "y_R_um": 7795.9, "alpha_deg": 177.69, "beta_deg": -0.11}},
+        "iso230_2": {a: {"units": "um", "targets": 41, "cycles_forward": 5, "cycles_backward": 5,
+                         **{f"{k}_um": 1.0 + 0.1 * j + (0.05 if a == "y" else 0.0) for j, k in enumerate(ISO230_KEYS)}}
+                     for a in "xy"},
     }
     for name, (_, pos, ang) in MODELS.items():
         summary["models"][name].update(position_table=pos, angle_table=ang)
@@ -202,6 +206,12 @@ def test_xytheta_headline_equals_summary(xytheta):
     must += [f"models.{m}.reference_targets.accuracy_um" for m in MODELS]
     must += [f"xy_tests.{p}.{c}.accuracy_um" for p in ("square", "random_points") for c in ("none", "linear", "cubic")]
     assert_headline_equals_summary(html, summary, must + ["observability.O2_plateau_poses"])
+
+
+def test_xytheta_characterisation_has_every_iso230_2_value_per_axis(xytheta):
+    summary, _, html = xytheta
+    assert_headline_equals_summary(html, summary, [f"iso230_2.{a}.{k}_um" for a in "xy" for k in ISO230_KEYS])
+    assert "B = max |B_i|" in html and "B̄" in html and "E↑" in html and "A↓" in html
 
 
 def test_xytheta_report_shows_both_protocols_and_says_when_a_model_does_not_fit(xytheta):
@@ -317,14 +327,23 @@ def _nano(tmp_path_factory, robot):
         "validation": {"start_h": 18.0, "end_h": 40.0, "duration_h": 22.0, "days": 2, "n_tests": ntest,
                        "training_temperature_range_c": [20.38, 20.5], "drift_estimator": "per-cycle mean"},
     }
+    no_stream = "not supported by this data: no stream <recorded>"
+    summary["iso9283"] = {"standard": "ISO 9283:1998", "source": "validation run", "axes": ["x"], "modes": {
+        m: {**{k: {"value": 10.0 * (j + 1) + k_m, "unit": "nm", "clause": c} for j, (k, c) in
+               enumerate((("AD", "7.4.1"), ("RD", "7.4.2"), ("dRP", "7.7")))},
+            "vAP": ({"value": 3.25, "unit": "nm", "clause": "7.3"} if robot == "stage1d" else
+                    {"value": None, "unit": "nm", "clause": "7.3", "reason": "not supported by this data: one direction"}),
+            "dAP": {"value": 55.5, "unit": "nm", "clause": "7.7", "first_test": 0, "last_test": 4, "period_h": 20.0},
+            "stabilisation_time_s": {"value": None, "unit": "s", "clause": "7.5", "reason": no_stream},
+            "overshoot": {"value": None, "unit": "nm", "clause": "7.6", "reason": no_stream}}
+        for k_m, m in enumerate(modes)}}
     if robot == "stage1d":
         summary["intrinsic"] = {"accuracy_nm": 401.4468, "repeatability_nm": 41.2433, "temperature_c": 20.5,
                                 "temperature_range_c": 0.009,
                                 "per_pose": [{"pose": i, "direction": d, "target_x_um": tx, "ap_nm": 100.0 + i,
                                               "rp_nm": 30.0 + i} for i, (d, tx) in
                                              enumerate([(1, 0.0), (1, 80.0), (1, 160.0), (-1, 160.0), (-1, 80.0), (-1, 0.0)])]}
-        summary["iso230_2"] = {k: 100.0 for k in ("A_nm", "A_fwd_nm", "A_bwd_nm", "E_nm", "E_fwd_nm", "E_bwd_nm", "R_nm",
-                                                  "R_fwd_nm", "R_bwd_nm", "M_nm", "B_nm", "B_mean_nm")}
+        summary["iso230_2"] = {f"{k}_nm": 100.0 + j for j, k in enumerate(ISO230_KEYS)}
         summary["iso230_2"].update(cycles_forward=4, cycles_backward=4, excluded_targets_um=[])
     html = render_campaign(summary, {"name": "t", "robot": robot}, CAMPAIGN_CMD, files)
     return summary, files, html
@@ -345,6 +364,7 @@ def test_stage1d_report(stage1d):
     must = ["intrinsic.accuracy_nm", "intrinsic.repeatability_nm", "budget.combined_nm"]
     must += [f"tests.{m}.max_accuracy_nm" for m in summary["tests"]]
     must += [f"robustness.{m}.{k}" for m in summary["robustness"] for k in ("space", "time")]
+    must += [f"iso230_2.{k}_nm" for k in ISO230_KEYS]
     assert_headline_equals_summary(html, summary, must)
     assert_figures(html, ["fig-geometric", "fig-drift", "fig-metrology", "fig-poses-time", "fig-max",
                           "fig-temperature", "fig-acc-temp"])
@@ -361,6 +381,21 @@ def test_stage2d_report(stage2d):
     assert_figures(html, ["fig-geometric", "fig-drift", "fig-poses-time", "fig-max", "fig-temperature", "fig-acc-temp"])
     assert "Fig. 5.23" in html and "Fig. 5.24" in html
     assert_escaped(html)
+    assert "multi-directional pose accuracy variation vAP (clause 7.3) — not supported by this data: one direction" in html
+
+
+def test_nano_reports_show_iso9283_with_clauses_and_say_what_is_missing(stage1d, stage2d):
+    for summary, _, html in (stage1d, stage2d):
+        modes = summary["iso9283"]["modes"]
+        keys = [f"iso9283.modes.{m}.{k}.value" for m in modes for k in ("AD", "RD", "dAP", "dRP")]
+        assert_headline_equals_summary(html, summary, keys)
+        section = html[html.index('<section id="iso9283">'):]
+        section = section[:section.index("</section>")]
+        for clause in ("7.3", "7.4.1", "7.4.2", "7.5", "7.6", "7.7"):
+            assert f"<td class=\"text\">{clause}</td>" in section, clause
+        assert ("Not computed: position stabilisation time (clause 7.5); position overshoot OV (clause 7.6) — "
+                "not supported by this data: no stream &lt;recorded&gt;.") in section
+        assert "Drift compares test 0 with test 4, 20.0 h apart" in section
 
 
 def test_index_links_and_headlines(xytheta, stage1d, stage2d):

@@ -6,9 +6,9 @@ in cycles j = 1..n in the forward (↑) and backward (↓) direction:
 * positional deviation x_ij = P_ij - P_i (attained minus target);
 * mean unidirectional positional deviation x̄↑_i = (1/n) sum_j x↑_ij (likewise x̄↓_i);
 * mean bidirectional positional deviation x̄_i = (x̄↑_i + x̄↓_i) / 2;
-* reversal value at a position B_i = x̄↑_i - x̄↓_i; reversal value of the axis
-  B = max |B_i| (reported here with the sign of that B_i); mean reversal value
-  B̄ = (1/m) sum_i B_i;
+* reversal value at a position B_i = x̄↑_i - x̄↓_i (signed); reversal value of the axis
+  B = max |B_i| (an absolute value, never negative); mean reversal value of the axis
+  B̄ = (1/m) sum_i B_i (signed: it says which direction lies above the other);
 * estimator of the unidirectional axis positioning repeatability at a position
   s↑_i = sqrt(sum_j (x↑_ij - x̄↑_i)^2 / (n - 1)) (likewise s↓_i);
 * unidirectional positioning repeatability at a position R↑_i = 4 s↑_i (likewise R↓_i);
@@ -41,8 +41,8 @@ class ISO230_2Result:
     """ISO 230-2 axis values (floats) and per-position arrays (shape (m,)), input unit.
 
     Axis values: ``E, E_fwd, E_bwd`` (systematic positioning error), ``M`` (range of mean
-    bidirectional positional deviation), ``B`` (reversal value, the B_i of largest
-    magnitude, sign kept), ``B_mean`` (B̄), ``R, R_fwd, R_bwd`` (repeatability),
+    bidirectional positional deviation), ``B`` (axis reversal value max |B_i| >= 0),
+    ``B_mean`` (mean reversal value B̄, signed), ``R, R_fwd, R_bwd`` (repeatability),
     ``A, A_fwd, A_bwd`` (accuracy).
 
     Per position i: ``x_fwd`` = x̄↑_i, ``x_bwd`` = x̄↓_i, ``x_bidir`` = x̄_i, ``s_fwd`` = s↑_i,
@@ -157,7 +157,7 @@ def iso230_2(targets, forward, backward) -> ISO230_2Result:
         E_fwd=_span(x_f),
         E_bwd=_span(x_b),
         M=_span(x_bi),
-        B=float(b_i[np.argmax(np.abs(b_i))]),
+        B=float(np.abs(b_i).max()),
         B_mean=float(b_i.mean()),
         R=float(r_i.max()),
         R_fwd=float(r_f_i.max()),

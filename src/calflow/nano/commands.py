@@ -66,6 +66,7 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
     if c["robot"] == "stage1d":
         iso = iso230_2_of_run(training) if training is not None else None
         return stage1d_summary(c, metrics.get("metrology"), metrics["validation"], models, budget, files,
-                               training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"))
+                               training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
+                               validation_run=runs.get("validation"))
     return stage2d_summary(c, metrics["validation"], models, budget, files, training_metrics=metrics.get("training"),
-                           training_range_c=t_range)
+                           training_range_c=t_range, validation_run=runs.get("validation"))

@@ -53,6 +53,7 @@ __all__ = [
     "pose_metrics_1d",
     "pose_metrics_2d",
     "robustness_by_mode",
+    "run_columns",
     "run_seconds",
     "temperature_range",
 ]
@@ -146,6 +147,23 @@ def _decompose(att: np.ndarray, target: np.ndarray, ext: np.ndarray) -> tuple[fl
     return iso9283(target, corrected).rp, i_term, e_term, i_term + e_term + 3.0 * full.s_l
 
 
+def run_columns(run: xr.Dataset, axes) -> tuple[np.ndarray, ...]:
+    """The per-sample columns of a nano run over ``axes``: ``meas``, ``target`` (n, d) in µm,
+    then ``pose``, ``cycle``, ``direction``, ``test``, ``mode`` (int; 0 where the run has no
+    such variable) and ``hours`` since the campaign start.  A missing reading, target,
+    pose, cycle or time is a :class:`DataError` naming the run and the variable."""
+    for name in [f"meas_{a}" for a in axes] + [f"target_{a}" for a in axes] + ["pose", "cycle", "time"]:
+        if name not in run:
+            raise DataError(f"{_where(run)}: variable {name!r} is missing; a nano run needs it")
+    n = run.sizes["sample"]
+    meas = np.column_stack([run[f"meas_{a}"].values.astype(float) for a in axes])
+    tgt = np.column_stack([run[f"target_{a}"].values.astype(float) for a in axes])
+    mode_var = "test_mode" if "test_mode" in run else "mode" if "mode" in run else None
+    ints = [run[v].values.astype(int) if v is not None and v in run else np.zeros(n, int)
+            for v in ("pose", "cycle", "direction", "test", mode_var)]
+    return (meas, tgt, *ints, run_seconds(run) / 3600.0)
+
+
 def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
     """ISO 9283 AP and RP (nm) per test and pose of a nano run over ``axes`` (d = len(axes)).
 
@@ -154,19 +172,8 @@ def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
     campaign start), first/last sample time (h), mean of the thermocouples (degC) and its
     range, min and max within the test, the mode, and the maxima of AP and RP over poses.
     """
-    for name in [f"meas_{a}" for a in axes] + [f"target_{a}" for a in axes] + ["pose", "cycle", "time"]:
-        if name not in run:
-            raise DataError(f"{_where(run)}: variable {name!r} is missing; a nano run needs it")
     n = run.sizes["sample"]
-    meas = np.column_stack([run[f"meas_{a}"].values.astype(float) for a in axes])
-    tgt = np.column_stack([run[f"target_{a}"].values.astype(float) for a in axes])
-    pose = run["pose"].values.astype(int)
-    cycle = run["cycle"].values.astype(int)
-    direction = run["direction"].values.astype(int) if "direction" in run else np.zeros(n, int)
-    test = run["test"].values.astype(int) if "test" in run else np.zeros(n, int)
-    mode_var = "test_mode" if "test_mode" in run else "mode" if "mode" in run else None
-    mode = run[mode_var].values.astype(int) if mode_var else np.zeros(n, int)
-    hours = run_seconds(run) / 3600.0
+    meas, tgt, pose, cycle, direction, test, mode, hours = run_columns(run, axes)
     temp = _sensor_mean(run)
     names = mode_names(run)
 

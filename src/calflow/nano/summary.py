@@ -20,6 +20,7 @@ import xarray as xr
 
 from calflow import __version__, reference
 from calflow.nano.evaluation import accuracy_vs_temperature, mode_names, robustness_by_mode
+from calflow.nano.iso9283_summary import iso9283_block
 from calflow.data.io import jsonable  # noqa: F401 (re-exported)
 from calflow.data.io import sha256_file
 
@@ -179,7 +180,7 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
 def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, validation_metrics: xr.Dataset,
                     models: dict, budget=None, inputs: list[str] = (), *,
                     training_range_c: tuple[float, float] | None = None, iso230_2: dict | None = None,
-                    training_metrics: xr.Dataset | None = None) -> dict:
+                    training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None) -> dict:
     """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
@@ -188,7 +189,9 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     (training-run AP/RP, Fig. 5.13) when ``training_metrics`` is given; ``iso230_2`` as
     given (:func:`calflow.nano.evaluation.iso230_2_of_run` of the training run);
     ``models`` coefficient tables and ``budget`` rows as given; ``reference`` = the thesis
-    values (``calflow.reference.STAGE1D``); ``inputs`` {path: sha256}.
+    values (``calflow.reference.STAGE1D``); ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
+    RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
+    the ``validation_run`` is given.
     """
     tests, validation = mode_block(validation_metrics, training_range_c)
     validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
@@ -201,15 +204,19 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
         robustness=robustness_by_mode(validation_metrics),
         iso230_2=iso230_2,
     )
+    if validation_run is not None:
+        summary["iso9283"] = iso9283_block(validation_run)
     return jsonable(summary)
 
 
 def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict, budget=None,
                     inputs: list[str] = (), *, training_metrics: xr.Dataset | None = None,
-                    training_range_c: tuple[float, float] | None = None) -> dict:
+                    training_range_c: tuple[float, float] | None = None,
+                    validation_run: xr.Dataset | None = None) -> dict:
     """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
-    ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``."""
+    ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,
+    ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
     tests, validation = mode_block(validation_metrics, training_range_c)
     validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
     summary = _common(campaign, "stage2d", models, budget, inputs)
@@ -219,4 +226,6 @@ def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict
         tests=tests,
         robustness=robustness_by_mode(validation_metrics),
     )
+    if validation_run is not None:
+        summary["iso9283"] = iso9283_block(validation_run)
     return jsonable(summary)
