@@ -112,7 +112,7 @@ def identify(args) -> None:
         "n_poses": result.n_poses,
         "dof": result.dof,
         "condition_number": float(np.linalg.cond(result.jacobian)),
-        "optimizer": f"scipy.optimize.least_squares(method='lm'), nfev={result.nfev}: {result.message}",
+        "optimizer": f"nfev={result.nfev}: {result.message}",
         "uncertainty": c["identification"]["uncertainty"],
         "sigma_um": result.sigma_um,
         "robust_loss": result.loss,

@@ -1,9 +1,11 @@
 """Nonlinear least squares identification of the XYΘ parameters (Sec. 4.5.4).
 
 The thesis uses MATLAB's ``lsqnonlin`` on the pose differences of Eq. (4.28)–(4.30); calflow
-uses :func:`scipy.optimize.least_squares` with an analytic Jacobian on the readings of
-Eq. (4.28) with the initial reading as a nuisance parameter — the generalised least squares
-of the same differences — so that σ reaches the Cramér–Rao bound at linear cost.
+fits the readings of Eq. (4.28) with the initial reading as a nuisance parameter — the
+generalised least squares of the same differences — so that σ reaches the Cramér–Rao
+bound at linear cost: Gauss–Newton with an analytic Jacobian
+(:mod:`calflow.identification.gauss_newton`; :func:`scipy.optimize.least_squares` as its
+fallback).
 """
 
 from __future__ import annotations
@@ -11,8 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
+from calflow.identification import gauss_newton
 from calflow.identification.robust import Robust, mad_sigma, outliers
 from calflow.xytheta import cost
 from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters
@@ -21,6 +23,11 @@ from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters
 #: Smallest noise scale (µm) the outlier screening uses: below any sensor's resolution, so
 #: rounding-level residuals of exact data are never called outliers.
 SIGMA_FLOOR_UM = 1e-6
+
+
+#: Relative tolerance of the robust screening fit: it only has to tell outliers (many σ)
+#: from the rest; the estimate is the least-squares refit on the kept readings.
+SCREEN_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -129,11 +136,8 @@ def parameter_covariance(J: np.ndarray, r: np.ndarray, n_free: int) -> tuple[np.
     return (nan if inv is None else sigma2 * inv), dof, float(np.sqrt(sigma2))
 
 
-def _least_squares(fun, jac, start, loss="linear", f_scale=1.0):
-    if loss == "linear":
-        return least_squares(fun, start, jac=jac, method="lm", x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    return least_squares(fun, start, jac=jac, method="trf", loss=loss, f_scale=f_scale, x_scale="jac",
-                         xtol=1e-12, ftol=1e-12, gtol=1e-12)
+def _least_squares(fun, jac, start, loss="linear", f_scale=1.0, rtol=gauss_newton.RTOL):
+    return gauss_newton.solve(fun, jac, start, loss, f_scale, rtol=rtol)
 
 
 def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters | None = None,
@@ -162,6 +166,7 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
     initial = initial or Parameters(x_R=0.0, y_R=0.0)
     idx = _columns(free)
     p = len(free)
+    every_column = idx == list(range(6))
     base = np.concatenate([initial.as_array(), [0.0, 0.0]])
 
     def full(values):
@@ -170,13 +175,16 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
         return Parameters.from_array(phi[:4]), phi[4:]
 
     def problem(keep):
+        x, y, t, px, py, dx, dy, fx, fy = ((a[keep] for a in (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
+                                           if not keep.all() else (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
+
         def fun(values):
             phi, offset = full(values)
-            return cost.reading_residuals(phi, X[keep], Y[keep], theta[keep], P_mx[keep], P_my[keep], offset,
-                                          ex[keep], ey[keep], f_ax[keep], f_ay[keep])
+            return cost.reading_residuals(phi, x, y, t, px, py, offset, dx, dy, fx, fy)
 
         def jac(values):
-            return cost.reading_jacobian(full(values)[0], X[keep], Y[keep], theta[keep], ex[keep], ey[keep])[:, idx]
+            J = cost.reading_jacobian(full(values)[0], x, y, t, dx, dy)
+            return J if every_column else J[:, idx]
 
         return fun, jac
 
@@ -226,7 +234,7 @@ def _screen(problem, sol, robust: Robust):
     x = sol.x
     if robust.loss != "linear":
         scale = max(mad_sigma(sol.fun), SIGMA_FLOOR_UM)
-        x = _least_squares(fun_all, jac_all, x, robust.loss, robust.f_scale_sigma * scale).x
+        x = _least_squares(fun_all, jac_all, x, robust.loss, robust.f_scale_sigma * scale, SCREEN_RTOL).x
     keep = None
     for _ in range(robust.max_rounds):
         r = fun_all(x).reshape(-1, 2)
