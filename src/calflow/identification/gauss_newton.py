@@ -79,6 +79,8 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
         if not np.all(np.isfinite(step)):
             break
         change = float(np.linalg.norm(A @ step))
+        if change <= rtol * float(np.linalg.norm(r)) + ATOL * np.sqrt(r.size):
+            return Solution(x, r, nfev, True, f"Gauss-Newton converged ({loss} loss)")  # the step is below tolerance
         t = 1.0
         while t > 1e-6:
             trial = x - t * step
@@ -91,8 +93,6 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
         else:
             break
         x, r, c = trial, r_new, c_new
-        if t * change <= rtol * float(np.linalg.norm(r)) + ATOL * np.sqrt(r.size):
-            return Solution(x, r, nfev, True, f"Gauss-Newton converged ({loss} loss)")
     method = "lm" if loss == "linear" else "trf"
     kw = {} if loss == "linear" else {"loss": loss, "f_scale": float(f_scale)}
     sol = least_squares(fun, x, jac=jac, method=method, x_scale="jac", xtol=1e-15 if method == "lm" else 1e-12,
