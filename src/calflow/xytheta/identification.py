@@ -252,9 +252,9 @@ def _screen(problem, sol, robust: Robust):
 def noise_sigma(eps: np.ndarray, n_poses: int, n_free: int) -> float:
     """σ̂ (µm): the noise per reading and axis that the residuals ε imply, Cov(ε) = σ² D Dᵀ.
 
-    ``E[εᵀε] ≈ σ² (tr(D Dᵀ) − 2 p)``, tr(D Dᵀ) = 4 (n − 1) (:func:`parameter_covariance`
-    gives the exact correction); this is what a model-adequacy test compares with the
-    repeatability floor.
+    ``E[εᵀε] ≈ σ² (tr(D Dᵀ) − 2 p)``, tr(D Dᵀ) = 4 (n − 1) (the fit's own ``sigma_um``,
+    from the independent per-reading residuals, is exact: rᵀr / (2n − p − 2)); this is
+    what a model-adequacy test compares with the repeatability floor.
     """
     effective = 4.0 * (n_poses - 1) - 2.0 * n_free
     return float(np.sqrt(float(eps @ eps) / effective)) if effective > 0 else float("nan")
