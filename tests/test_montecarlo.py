@@ -88,6 +88,24 @@ def test_error_shrinks_with_poses_and_grows_with_noise():
     assert 0.6 < np.sqrt(np.mean(z**2)) < 1.6
 
 
+def test_points_carry_the_cramer_rao_bound_and_the_estimator_reaches_it():
+    """Each point scores the bound at the rig's truth (its noise: sensor, repeatability,
+    resolution); on a rig whose errors Model II represents, the spread over seeds divided
+    by it is near 1 (30 seeds: ± ~13 %; the 200-seed figure is in docs/benchmarks.md)."""
+    rig = {**clean_rig(), "stage_repeatability_um": 0.3}
+    pts = [run_point(small_campaign(), s, 0.4, 60, validation_cycles=2, rig_options=rig) for s in range(30)]
+    for pt in pts:
+        for key in PARAMS:
+            p = pt["parameters"][key]
+            assert p["crlb"] > 0 and p["std"] == pytest.approx(p["crlb"], rel=0.3)
+    c = aggregate(pts)["cells"][0]
+    for key in PARAMS:
+        p = c["parameters"][key]
+        assert p["crlb_rms"] == pytest.approx(np.sqrt(np.mean([pt["parameters"][key]["crlb"] ** 2 for pt in pts])))
+        assert p["sigma_ratio_crlb"] == pytest.approx(p["spread"] / p["crlb_rms"])
+        assert 0.7 < p["sigma_ratio_crlb"] < 1.3, (key, p["sigma_ratio_crlb"])
+
+
 # ---------------------------------------------------------------------------- aggregate
 
 
@@ -119,6 +137,7 @@ def test_aggregate_math_on_hand_built_points():
     assert p["reported_std_rms"] == pytest.approx(2.0)
     assert p["std_ratio"] == pytest.approx(np.std(errs, ddof=1) / 2.0)
     assert p["rms_z"] == pytest.approx(np.sqrt(np.mean(np.square(errs) / 4.0)))
+    assert p["crlb_rms"] is None and p["sigma_ratio_crlb"] is None  # hand-built points carry no bound
     assert a["accuracy_um"]["median"] == 12.0 and a["accuracy_um"]["n"] == 5
     assert a["O2"]["median"] == pytest.approx(0.1) and a["failed"] == 0
     b = cell(agg, 0.5, 100)

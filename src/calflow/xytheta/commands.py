@@ -28,6 +28,13 @@ def _measured(run):
     return run["cmd_x"].values, run["cmd_y"].values, theta, P_mx, P_my
 
 
+def _without(a, rows):
+    """``a`` as floats with the rows ``rows`` set to NaN (dropped by the fit-quality figures)."""
+    out = np.array(a, dtype=float)
+    out[np.asarray(rows, dtype=int)] = np.nan
+    return out
+
+
 def _fit_quality(c: dict, X, Y, theta, P_mx, P_my, free, initial, ex, ey, f_ax=0.0, f_ay=0.0) -> dict:
     """Residual RMS and σ̂ of a model on the identification poses, and its k-fold CV RMS."""
     from calflow.xytheta import cost
@@ -57,6 +64,7 @@ def identify(args) -> None:
     cross-validated prediction RMS (``identification.cv_folds``).
     """
     from calflow.identification import diagnostics
+    from calflow.identification.robust import Robust
     from calflow.xytheta.identification import bootstrap_std
     from calflow.xytheta.identification import identify as fit
     from calflow.xytheta.kinematics import Parameters
@@ -78,7 +86,8 @@ def identify(args) -> None:
         x0, y0 = kin.forward(X, Y, theta, base.parameters, ex=ex, ey=ey)
         commanded = run["cmd_theta"].values  # the table is indexed by the commanded angle
         f_ax, f_ay = model.angle_errors(x0, y0, commanded, infer_directions(commanded))
-        initial = Parameters(**{**c["identification"]["initial"], **c["models"][spec["base"]].get("fixed", {})})
+        rejected = [int(i) for i in str(base.diagnostics.get("rejected_poses", "")).split(",") if i.strip()]
+        X = _without(X, np.flatnonzero(np.isin(run["pose"].values, rejected)))
         model.diagnostics.update(_fit_quality(c, X, Y, theta, P_mx, P_my, base.free, base.parameters, ex, ey,
                                               f_ax, f_ay))
         model.write(args.out, meta(c, open_dataset(args.base).attrs["source"], "angle_residuals", args.model_name))
@@ -91,7 +100,9 @@ def identify(args) -> None:
         position = PositionLUT.from_dataset(open_dataset(args.luts, kind="luts"))
         ex, ey = position.errors(X, Y, *joint_directions(X, Y), method=method, trends=False)
     initial = Parameters(**{**c["identification"]["initial"], **spec.get("fixed", {})})
-    result = fit(X, Y, theta, P_mx, P_my, free=tuple(spec["free"]), initial=initial, ex=ex, ey=ey)
+    result = fit(X, Y, theta, P_mx, P_my, free=tuple(spec["free"]), initial=initial, ex=ex, ey=ey,
+                 robust=Robust.from_config(c["identification"]["robust"]))
+    X, Y = _without(X, result.rejected), _without(Y, result.rejected)  # outliers out of the fit-quality figures
     if not result.success or not np.all(np.isfinite(result.parameters.as_array())):
         raise CalflowError(f"{args.run}: identification of model {args.model_name} failed ({result.message})")
     r_diag, not_identifiable = diagnostics.identifiability(result.jacobian, result.free)
@@ -101,8 +112,11 @@ def identify(args) -> None:
         "n_poses": result.n_poses,
         "dof": result.dof,
         "condition_number": float(np.linalg.cond(result.jacobian)),
-        "optimizer": f"scipy.optimize.least_squares(method='lm'), nfev={result.nfev}: {result.message}",
+        "optimizer": f"nfev={result.nfev}: {result.message}",
         "uncertainty": c["identification"]["uncertainty"],
+        "sigma_um": result.sigma_um,
+        "robust_loss": result.loss,
+        "rejected_poses": ", ".join(str(int(run["pose"].values[i])) for i in result.rejected),
         **diagnostics.observability(result.jacobian),
         **_fit_quality(c, X, Y, theta, P_mx, P_my, result.free, result.parameters, ex, ey),
     }

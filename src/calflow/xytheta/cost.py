@@ -40,15 +40,32 @@ def jacobian(p: Parameters, X, Y, theta, ex=0.0, ey=0.0) -> np.ndarray:
     return np.stack([dx, dy], axis=1).reshape(-1, 4)
 
 
-def difference_operator_gram(n: int) -> np.ndarray:
-    """D Dᵀ for the interleaved pose-difference operator of Eq. (4.29), shape (2(n−1), 2(n−1)).
+def reading_residuals(p: Parameters, X, Y, theta, P_mx, P_my, offset=(0.0, 0.0), ex=0.0, ey=0.0,
+                      f_ax=0.0, f_ay=0.0) -> np.ndarray:
+    """Eq. (4.28) per reading with the initial reading (x_m0, y_m0) = ``offset`` as an unknown, µm.
 
-    If each measured point carries independent noise of variance σ² per coordinate, the
-    covariance of ε is σ² D Dᵀ: 2 on the diagonal, −1 between consecutive pairs of the
-    same coordinate.
+    [ε_x,1, ε_y,1, ε_x,2, ...], 2n elements: the calculated minus the measured tool point
+    minus the offset. Estimating the offset beside φ (a nuisance parameter) instead of
+    differencing it away, Eq. (4.29), leaves the residuals independent when the readings
+    are: least squares on them is the generalised least squares of the differences, whose
+    covariance σ² D Dᵀ is banded (the projection orthogonal to a constant offset per axis
+    is what (D Dᵀ)⁻¹ weighting does), at linear cost.
     """
-    m = 2 * (n - 1)
-    g = 2.0 * np.eye(m)
-    idx = np.arange(m - 2)
-    g[idx, idx + 2] = g[idx + 2, idx] = -1.0
-    return g
+    x_c, y_c = forward(X, Y, theta, p, ex=ex, ey=ey, f_ax=f_ax, f_ay=f_ay)
+    return np.column_stack([np.asarray(x_c - P_mx, dtype=float) - offset[0],
+                            np.asarray(y_c - P_my, dtype=float) - offset[1]]).ravel()
+
+
+def reading_jacobian(p: Parameters, X, Y, theta, ex=0.0, ey=0.0) -> np.ndarray:
+    """∂ε/∂(φ, x_m0, y_m0) of :func:`reading_residuals`, shape (2n, 6); φ as in :func:`jacobian`."""
+    jx, jy = forward_jacobian(X, Y, theta, p, ex=ex, ey=ey)
+    n = jx.shape[0]
+    out = np.zeros((n, 2, 6))
+    out[:, 0, :4], out[:, 1, :4] = jx, jy
+    out[:, 0, 4] = out[:, 1, 5] = -1.0
+    return out.reshape(-1, 6)
+
+
+def differences_of_readings(r: np.ndarray) -> np.ndarray:
+    """ε of Eq. (4.30) from the per-reading residuals of :func:`reading_residuals` (the offset cancels)."""
+    return _difference(np.asarray(r).reshape(-1, 2)).ravel()

@@ -163,6 +163,7 @@ class MicroModel:
         free = tuple(str(v) for v in ds["parameter"].values)
         std = {name: float(ds[name].attrs.get("std", np.nan)) for name in kin.PARAMETER_NAMES}
         diagnostics = {k: v for k, v in ds.attrs.items() if k != "angle_table"
-                       and k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty"))}
+                       and k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty",
+                                                "rejected", "robust"))}
         return cls(str(ds.attrs["model"]), params, free, std, ds["correlation"].values, diagnostics,
                    position, angle, str(ds.attrs.get("interpolation", "linear")))

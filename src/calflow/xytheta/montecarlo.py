@@ -186,6 +186,7 @@ def identify_run(run, campaign: dict, model: str):
     Returns ``(MicroModel or None, diagnostics)``; None when the least squares failed.
     """
     from calflow.identification import diagnostics
+    from calflow.identification.robust import Robust
     from calflow.xytheta import cost
     from calflow.xytheta.identification import identify as fit
     from calflow.xytheta.kinematics import Parameters
@@ -196,8 +197,8 @@ def identify_run(run, campaign: dict, model: str):
     P_mx, P_my = cost.measured_points(run["meas_x"].values, run["meas_y"].values, theta)
     initial = Parameters(**{**campaign["identification"]["initial"], **spec.get("fixed", {})})
     result = fit(run["cmd_x"].values, run["cmd_y"].values, theta, P_mx, P_my, free=tuple(spec["free"]),
-                 initial=initial)
-    diag = {"n_poses": result.n_poses, "residual_rms_um": result.residual_rms_um,
+                 initial=initial, robust=Robust.from_config(campaign["identification"].get("robust")))
+    diag = {"n_poses": result.n_poses, "residual_rms_um": result.residual_rms_um, "rejected": len(result.rejected),
             "condition_number": float(np.linalg.cond(result.jacobian)), **diagnostics.observability(result.jacobian)}
     if not result.success or not np.all(np.isfinite(result.parameters.as_array())):
         return None, {**diag, "failed": result.message}
@@ -215,17 +216,40 @@ def validation_accuracy(run, campaign: dict) -> dict:
 
 # ---------------------------------------------------------------------------- scoring (the only use of truth)
 
-def score(model, truth: dict) -> dict:
-    """Per parameter: estimate, reported std, truth, signed and absolute error, z = error/std."""
+def score(model, truth: dict, bound: dict | None = None) -> dict:
+    """Per parameter: estimate, reported std, truth, signed and absolute error, z = error/std,
+    and the Cramér–Rao bound on its σ (``bound``, from :func:`truth_bound`; NaN without)."""
     out = {}
+    bound = bound or {}
     for name, key, units in PARAMETERS:
         free = model is not None and name in model.free
         est = getattr(model.parameters, name) if model is not None else math.nan
         std = model.std.get(name, math.nan) if free else math.nan
         err = est - float(truth[key])
         out[key] = {"units": units, "free": free, "estimate": est, "std": std, "truth": float(truth[key]),
-                    "error": err, "abs_error": abs(err), "z": err / std if std and std > 0 else math.nan}
+                    "error": err, "abs_error": abs(err), "z": err / std if std and std > 0 else math.nan,
+                    "crlb": bound.get(name, math.nan) if free else math.nan}
     return out
+
+
+def truth_bound(run, truth: dict, free) -> dict:
+    """Cramér–Rao bound (µm or degree) of the ``free`` parameters at the rig's true geometry
+    for the poses of an identification run, with the rig's true noise per reading and axis:
+    the vision sensor's noise, the stage's repeatability and the rounding to the sensor's
+    resolution (uniform, res/√12) in quadrature; the angle reading's noise is not in it.
+    Scoring only (truth)."""
+    from calflow.xytheta.identification import crlb
+    from calflow.xytheta.kinematics import Parameters
+
+    theta = run["meas_theta"].values - run["meas_theta"].values[0]
+    X, Y = run["cmd_x"].values, run["cmd_y"].values
+    ok = np.isfinite(run["meas_x"].values) & np.isfinite(run["meas_y"].values) & np.isfinite(theta)
+    sigma = math.hypot(float(truth["sensor_noise_um"]), float(truth["stage_repeatability_um"]),
+                       float(truth["sensor_resolution_um"]) / math.sqrt(12.0))
+    if sigma <= 0 or ok.sum() < 3:
+        return {}
+    p = Parameters(*(float(truth[key]) for _, key, _ in PARAMETERS))
+    return crlb(p, X[ok], Y[ok], theta[ok], sigma, free=tuple(free)).std
 
 
 # ---------------------------------------------------------------------------- one point
@@ -259,7 +283,7 @@ def run_point(base_campaign: dict, seed: int, noise_um: float, poses: int, model
     return jsonable({
         "campaign": c["name"], "model": model, "seed": int(seed), "noise_um": float(noise_um), "poses": int(poses),
         "rig_seed": rig_seed, "failed": diag.pop("failed", None), "diagnostics": diag, **accuracy,
-        "parameters": score(identified, truth),
+        "parameters": score(identified, truth, truth_bound(ident_run, truth, c["models"][model]["free"])),
     })
 
 
@@ -291,11 +315,14 @@ def parameter_stats(points: list[dict], key: str) -> dict:
     RMS of the std each identification reported; ``std_ratio`` = spread / reported_std_rms
     is 1 when the reported uncertainty is honest, above 1 when it is optimistic (e.g.
     unmodelled errors). ``rms_z`` = RMS of error/std includes the bias.
+    ``sigma_ratio_crlb`` = spread / RMS of the Cramér–Rao bound of each point: 1 for an
+    efficient estimator on a rig whose errors the model represents.
     """
     rows = [pt["parameters"][key] for pt in points if not pt.get("failed")]
     err = [r["error"] for r in rows]
     spread = _stats(err)["std"]
     rep = _rms([r["std"] for r in rows])
+    bound = _rms([r.get("crlb") for r in rows])
     return {
         "free": any(r["free"] for r in rows),
         "units": rows[0]["units"] if rows else None,
@@ -306,6 +333,8 @@ def parameter_stats(points: list[dict], key: str) -> dict:
         "reported_std": _stats([r["std"] for r in rows]),
         "reported_std_rms": rep,
         "std_ratio": spread / rep if spread is not None and rep else None,
+        "crlb_rms": bound,
+        "sigma_ratio_crlb": spread / bound if spread is not None and bound else None,
         "rms_z": _rms([r["z"] for r in rows]),
         "coverage_95": coverage(rows),
     }

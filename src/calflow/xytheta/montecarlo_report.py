@@ -60,13 +60,16 @@ TEMPLATE = """<!DOCTYPE html>
 <table>
 <caption>Median over seeds (n per cell); spread/std = sample std of the error over seeds divided by the RMS of the
 reported std (1 when the reported uncertainty is honest); coverage = fraction of seeds whose 95 % interval
-(estimate ± 1.96 σ) holds the rig's truth (0.95 when σ are honest and the model is the rig's); O2, O4 of the identification Jacobian (Eq. 4.11, 4.13).</caption>
+(estimate ± 1.96 σ) holds the rig's truth (0.95 when σ are honest and the model is the rig's); σ/CRLB = sample std of
+the error over seeds divided by the RMS of the Cramér–Rao bound at the rig's true geometry and noise (1 for an
+efficient estimator when the model is the rig's; above where errors the model lacks add to the noise); O2, O4 of the identification Jacobian (Eq. 4.11, 4.13).</caption>
 <thead><tr><th>noise (µm)</th><th>poses</th><th>n</th>{% for k in params %}<th>|Δ{{ labels[k][0] }}|</th>{% endfor %}
-{% for k in params %}<th>spread/std {{ labels[k][0] }}</th>{% endfor %}{% for k in params %}<th>coverage {{ labels[k][0] }}</th>{% endfor %}<th>AP max (µm)</th><th>RP max (µm)</th><th>O2</th><th>O4</th></tr></thead>
+{% for k in params %}<th>spread/std {{ labels[k][0] }}</th>{% endfor %}{% for k in params %}<th>coverage {{ labels[k][0] }}</th>{% endfor %}{% for k in params %}<th>σ/CRLB {{ labels[k][0] }}</th>{% endfor %}<th>AP max (µm)</th><th>RP max (µm)</th><th>O2</th><th>O4</th></tr></thead>
 <tbody>{% for c in agg.cells %}<tr><td>{{ c.noise_um }}</td><td>{{ c.poses }}</td><td>{{ c.n - c.failed }}</td>
 {% for k in params %}<td>{{ c.parameters[k].abs_error.median | num(4) }}</td>{% endfor %}
 {% for k in params %}<td>{{ c.parameters[k].std_ratio | num(2) }}</td>{% endfor %}
 {% for k in params %}<td>{{ c.parameters[k].coverage_95 | num(2) }}</td>{% endfor %}
+{% for k in params %}<td>{{ c.parameters[k].sigma_ratio_crlb | num(2) }}</td>{% endfor %}
 <td>{{ c.accuracy_um.median | num(3) }}</td><td>{{ c.repeatability_um.median | num(3) }}</td>
 <td>{{ c.O2.median | sci }}</td><td>{{ c.O4.median | sci }}</td></tr>{% endfor %}</tbody>
 </table>

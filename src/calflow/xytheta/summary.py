@@ -51,10 +51,13 @@ def _model_entry(name: str, model: xr.Dataset, heldout: xr.Dataset | None, ref: 
                             "not_identifiable": model.attrs.get("not_identifiable", "")},
         "identification": {k: jsonable(v) for k, v in model.attrs.items()
                            if k in ("residual_rms_um", "sigma_fit_um", "cv_rms_um", "cv_folds", "n_poses", "dof",
-                                    "condition_number", "uncertainty", "O1", "O2", "O3", "O4")},
+                                    "condition_number", "uncertainty", "O1", "O2", "O3", "O4", "sigma_um",
+                                    "robust_loss")},
         "per_target": _per_target(main) if main is not None else [],
         "adequacy": adequacy(model.attrs.get("sigma_fit_um"), model.attrs.get("n_poses"), len(model["parameter"]), floor),
     }
+    rejected = str(model.attrs.get("rejected_poses", ""))
+    entry["identification"]["rejected_poses"] = [int(i) for i in rejected.split(",") if i.strip()]
     if ref is not None:
         entry["reference_targets"] = {
             "accuracy_um": jsonable(float(ref.attrs["accuracy_um"])),
