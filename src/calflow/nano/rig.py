@@ -35,7 +35,7 @@ import numpy as np
 
 from calflow.errors import RigError
 from calflow.nano import interferometer as ifm
-from calflow.nano.piezo import PlayHysteresis, loop_residual, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.piezo import PlayHysteresis, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
 from calflow.nano.rig_options import _COMMON, EFFECTS, _Walk, check_options
 from calflow.nano.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
@@ -63,8 +63,9 @@ class _NanoRig:
         self.thermometers = tuple(f"T{j + 1}" for j in range(n_tc))
         self.room = room_profile(o["profile"], base_c=o["base_temperature_c"],
                                  seed=o["world_seed"], **o["profile_params"])
+        self._comp_lag = o["compensation_sensor_tau_s"] > 0  # else the compensation reads the beam's air
         net = ThermalNetwork.from_options({**o, "thermocouple_tau_s": (*o["thermocouple_tau_s"],
-                                                                      o["compensation_sensor_tau_s"]),
+                                                                      o["compensation_sensor_tau_s"] or 1.0),
                                            "thermocouple_air_weight": (*o["thermocouple_air_weight"], 1.0)})
         self._bank = network_bank(net, self.room, earliest_s=o["start_offset_s"])
         self._n_tc = n_tc
@@ -80,7 +81,7 @@ class _NanoRig:
         self._sig_c = o["thermocouple_noise_mk"] * 1e-3
         self._rep_sig = o["repeatability_nm"] * 1e-3 * np.array(self._REP_FACTOR)
         self.play = PlayHysteresis(o["stroke_um"], o["hysteresis_nm"])
-        self._loop = loop_residual(o["hysteresis_nm"], o["open_loop_hysteresis_pct"], o["stroke_um"])
+        self._loop = o["loop_residual_pct"] * 1e-2
         ss = np.random.SeedSequence(o["seed"])
         s_moves, s_reads, self._ss_streams = ss.spawn(3)
         self._rng_moves = np.random.default_rng(s_moves)
@@ -270,7 +271,8 @@ class _NanoRig:
         o = self.options
         p, rh = self._weather_at(t_campaign)
         n_air = ifm.refractive_index(nodes[..., _AIR], p, rh)
-        n_comp = ifm.refractive_index(nodes[..., -1] + o["compensation_bias_k"], p + o["compensation_bias_pa"],
+        t_comp = nodes[..., -1] if self._comp_lag else nodes[..., _AIR]
+        n_comp = ifm.refractive_index(t_comp + o["compensation_bias_k"], p + o["compensation_bias_pa"],
                                       rh + o["compensation_bias_pct"])
         return n_air, n_comp
 
@@ -331,7 +333,8 @@ class Nano1DRig(_NanoRig):
 
     joints = ("x",)
     _NAME = "nano1d"
-    _EXTRA = {"stroke_um": 500.0, "coupling_y_nm": 75.0, "stage_coeff_um_per_c": (-1.5, 0.0)}
+    _EXTRA = {"stroke_um": 500.0, "coupling_y_nm": 75.0, "stage_coeff_um_per_c": (-1.5, 0.0),
+              "loop_residual_pct": loop_residual_pct(10.0, 500.0)}
     _REP_FACTOR = (1.0, 0.25)
     _AXIS = (0, None)
     # um, s = x/500 um: -(Table 5.1 cubic - x) = -(2.454e-8 x^3 - 2.167e-5 x^2 + 0.005 x)
@@ -364,7 +367,8 @@ class Nano2DRig(_NanoRig):
 
     joints = ("x", "y")
     _NAME = "nano2d"
-    _EXTRA = {"stroke_um": 80.0, "coupling_scale": 1.0, "stage_coeff_um_per_c": (-1.5, -1.5)}
+    _EXTRA = {"stroke_um": 80.0, "coupling_scale": 1.0, "stage_coeff_um_per_c": (-1.5, -1.5),
+              "loop_residual_pct": loop_residual_pct(10.0, 80.0)}
     _REP_FACTOR = (1.0, 1.0)
     _AXIS = (0, 1)
     # own axis (um): scale*s + cubic*T3(2s-1) + quad*(2s-1)^2

@@ -28,7 +28,7 @@ _COMMON = {
     "compensation_bias_k": 0.0577,  # compensation sensors' errors: Table 3.4 bounds / sqrt(3)
     "compensation_bias_pa": 173.0,  # (0.1 K, 300 Pa, 3 %RH)
     "compensation_bias_pct": 1.73,
-    "compensation_sensor_tau_s": 300.0,  # its Pt100's time constant behind the beam's air
+    "compensation_sensor_tau_s": 300.0,  # its Pt100's lag behind the beam's air (0: reads it exactly)
     "cosine_deg": 0.1,  # beam-to-axis angle (Table 3.4, U8)
     "abbe_offset_mm": 10.0,  # Abbe offset (Table 3.4, U7) ...
     "abbe_pitch_urad": 6.0,  # ... and the stage's pitch over the stroke
@@ -40,7 +40,6 @@ _COMMON = {
     "repeatability_nm": 12.0,  # 1 sigma per visit along the moving axis -> RP ~ 35 nm (Sec. 5.3.3)
     "repeatability_correlation": 0.2,  # AR(1) correlation of successive visits
     "hysteresis_nm": 10.0,  # forward/backward difference after the loop (Sec. 5.3.3: ~10 nm)
-    "open_loop_hysteresis_pct": 12.0,  # of the travel, piezo class figure (10-15 %)
     "creep_pct_per_decade": 1.0,  # open-loop log creep per time decade (1-2 %)
     "sensor_linearity_pct": 0.02,  # capacitive sensor nonlinearity, of the stroke
     "settle_fraction": 1e-3,  # overshoot as a fraction of the step, decaying ...
@@ -68,12 +67,12 @@ _COMMON = {
 }
 _POSITIVE = ("rise_time_s", "stream_rate_hz", "settle_tau_s", "interferometer_resolution_nm",
              "thermocouple_resolution_mk", "stroke_um", "stage_capacity_j_per_k", "base_capacity_j_per_k",
-             "air_capacity_j_per_k", "compensation_sensor_tau_s", "pressure_pa")
+             "air_capacity_j_per_k", "pressure_pa")
 _NON_NEGATIVE = ("seed", "world_seed", "interferometer_noise_nm", "repeatability_nm", "thermocouple_noise_mk",
                  "drift_walk_nm_per_sqrt_day", "settle_fraction", "stroke_margin_um", "stage_air_w_per_k",
                  "stage_base_w_per_k", "base_air_w_per_k", "base_room_w_per_k", "air_room_w_per_k",
-                 "wavelength_stability_ppm", "deadpath_m", "hysteresis_nm", "open_loop_hysteresis_pct",
-                 "creep_pct_per_decade", "sensor_linearity_pct", "humidity_pct")
+                 "wavelength_stability_ppm", "deadpath_m", "hysteresis_nm", "loop_residual_pct",
+                 "creep_pct_per_decade", "compensation_sensor_tau_s", "sensor_linearity_pct", "humidity_pct")
 
 # Each effect of the nano rigs: its option keys (all off = effect off) and whether a calflow
 # nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials in the
@@ -88,7 +87,8 @@ EFFECTS = {
     "expansion": ("expansion_ppm_per_c",),
     "optics_drift": ("optics_drift_um_per_c",),
     "deadpath": ("deadpath_m",),
-    "compensation": ("compensation_bias_k", "compensation_bias_pa", "compensation_bias_pct"),
+    "compensation": ("compensation_bias_k", "compensation_bias_pa", "compensation_bias_pct",
+                     "compensation_sensor_tau_s"),
     "cosine": ("cosine_deg",),
     "abbe": ("abbe_pitch_urad",),
     "walk": ("drift_walk_nm_per_sqrt_day",),

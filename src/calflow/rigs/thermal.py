@@ -30,6 +30,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import lfilter
 
 __all__ = ["PROFILES", "RoomProfile", "room_profile", "LinearBank", "LagBank"]
 
@@ -172,9 +173,30 @@ class LinearBank:
         e = expm(m)
         # x[k+1] = phi x[k] + g0 u[k] + g1 (u[k+1] - u[k])
         self._phi, self._g0, self._g1 = e[:n, :n].T.copy(), e[:n, n].copy(), e[:n, n + 1].copy()
+        lam, V = np.linalg.eig(self._phi)
+        ok = np.all(np.abs(lam.imag) < 1e-12) and np.linalg.cond(V) < 1e8
+        self._modes = (lam.real, V.real, np.linalg.inv(V.real)) if ok else None
         u0 = float(room(self.t0))
         self._u_last = u0
         self._y = np.full((1, n), u0)
+
+    def _run(self, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        """States after each step of ``x[k+1] = x[k] phi + drive[k]`` (row vectors): one scalar
+        recursion per mode of phi (scipy.signal.lfilter), or step by step if phi has no real
+        well-conditioned eigenbasis."""
+        if self._modes is not None:
+            lam, V, Vi = self._modes
+            m0, dm = x0 @ V, drive @ V
+            out = np.empty_like(dm)
+            for i, a in enumerate(lam):
+                out[:, i], _ = lfilter([1.0], [1.0, -a], dm[:, i], zi=[a * m0[i]])
+            return out @ Vi
+        block = np.empty_like(drive)
+        x = x0
+        for k in range(drive.shape[0]):
+            x = x @ self._phi + drive[k]
+            block[k] = x
+        return block
 
     @property
     def t_end(self) -> float:
@@ -187,11 +209,7 @@ class LinearBank:
             u = np.asarray(self.room(self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)), dtype=float)
             du = np.diff(np.concatenate(([self._u_last], u)))
             drive = np.outer(u - du, self._g0) + np.outer(du, self._g1)  # u[k] g0 + (u[k+1]-u[k]) g1
-            block = np.empty((self._BLOCK, self._y.shape[1]))
-            x, phi = self._y[-1], self._phi
-            for k in range(self._BLOCK):
-                x = x @ phi + drive[k]
-                block[k] = x
+            block = self._run(self._y[-1], drive)
             self._y = np.concatenate((self._y, block))
             self._u_last = float(u[-1])
 
