@@ -28,8 +28,7 @@ HENE_VACUUM_UM = 0.632991  # He-Ne vacuum wavelength (um), the SP-S 120's ~633 n
 def saturation_vapour_pressure_pa(t_c):
     """Saturation vapour pressure over water (Pa) at ``t_c`` degC, Magnus form with the
     coefficients of Sonntag (1990), within 0.1 % from 0 to 40 degC."""
-    t = np.asarray(t_c, dtype=float)
-    return 611.2 * np.exp(17.62 * t / (243.12 + t))
+    return 611.2 * np.exp(17.62 * t_c / (243.12 + t_c))
 
 
 def refractive_index(t_c, p_pa, rh_pct, wavelength_um: float = HENE_VACUUM_UM):
@@ -44,12 +43,11 @@ def refractive_index(t_c, p_pa, rh_pct, wavelength_um: float = HENE_VACUUM_UM):
     (f = rh/100 x saturation pressure). About -0.93 ppm/K, +2.7 ppm/kPa and -0.009 ppm/%RH
     at 20 degC, 101.3 kPa, 50 %RH (Table 3.4's 1 ppm per 1 degC, 2.5 mmHg, 80 %RH).
     """
-    t = np.asarray(t_c, dtype=float)
-    p = np.asarray(p_pa, dtype=float)
+    t, p = t_c, p_pa
     s2 = 1.0 / wavelength_um ** 2
     n_s = 1e-8 * (8342.54 + 2406147.0 / (130.0 - s2) + 15998.0 / (38.9 - s2))
     n_tp = p * n_s * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (96095.43 * (1.0 + 0.003661 * t))
-    f = np.asarray(rh_pct, dtype=float) / 100.0 * saturation_vapour_pressure_pa(t)
+    f = rh_pct / 100.0 * saturation_vapour_pressure_pa(t)
     return 1.0 + n_tp - f * (3.7345 - 0.0401 * s2) * 1e-10
 
 
@@ -58,7 +56,7 @@ def reading_error_um(x_um, n_air, n_comp, n_air0, n_comp0, deadpath_um: float, c
     ``n_air``/``n_comp`` now, ``n_air0``/``n_comp0`` at the zeroing. Returns ``(deadpath, path)``."""
     e, e0 = n_air - n_comp, n_air0 - n_comp0
     dead = ((e - e0) if corrected else (n_air - n_air0)) * deadpath_um
-    return dead, e * np.asarray(x_um, dtype=float)
+    return dead, e * x_um
 
 
 def cosine_error_um(x_um, angle_deg: float):

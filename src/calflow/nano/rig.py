@@ -221,7 +221,8 @@ class _NanoRig:
         tc = o["start_offset_s"] + np.asarray(t_rig, dtype=float)
         nodes = self._nodes(tc) if nodes is None else nodes
         d = nodes - self._nodes0
-        zero = np.zeros(np.broadcast(tc, *cmds).shape)
+        shape = np.broadcast(tc, *cmds).shape
+        zero = np.zeros(shape) if shape else 0.0  # broadcasts every term to the query's shape
         L = o["stroke_um"]
         geo = self._geometry(cmds)
         n_air, n_comp = self._indices(tc, nodes)
