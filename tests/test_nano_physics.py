@@ -165,3 +165,58 @@ def test_creep_grows_with_log_time_and_step_and_sensor_nonlinearity_vanishes_at_
     e = sensor_nonlinearity_um(np.linspace(0, 1, 101), 500.0, 0.02)
     assert e[0] == pytest.approx(0.0, abs=1e-12) and e[-1] == pytest.approx(0.0, abs=1e-12)
     assert np.ptp(e) == pytest.approx(0.1, rel=1e-3)  # 0.02 % of 500 um
+
+
+# ------------------------------------------------------------- error budget and ordering (summary step)
+def test_effect_samples_replay_the_rig_exactly():
+    """The budget's replay of a run (same commands, times, move history) gives the rig's readings."""
+    import xarray as xr
+
+    from calflow.nano.error_budget import effect_samples
+
+    quiet = dict(interferometer_noise_nm=0.0, repeatability_nm=0.0, settle_fraction=0.0, wavelength_stability_ppm=0.0,
+                 thermocouple_noise_mk=0.0, profile="lab5day", start_offset_s=3600.0)
+    rig = nano1d(**quiet)
+    cmds = [0.0, 80.0, 160.0, 40.0, 200.0, 190.0, 480.0, 0.0, 240.0]
+    times, meas = [], []
+    for q in cmds:
+        rig.move({"x": q})
+        rig.wait(19.0)
+        r = rig.read()
+        times.append(r["time"] + 3600.0)
+        meas.append(r["meas_x"])
+    run = xr.Dataset({"cmd_x": ("sample", cmds), "time": ("sample", times)})
+    terms = effect_samples(nano1d(**{**quiet, "start_offset_s": 0.0}), run, since_s=23.0)["samples"]  # campaign time
+    rebuilt = np.array(cmds) + sum(v[:, 0] for v in terms.values())
+    np.testing.assert_allclose(rebuilt, meas, atol=0.3e-3)
+    assert np.ptp(terms["hysteresis"][:, 0]) > 5e-3 and np.ptp(terms["creep"][:, 0]) > 0
+
+
+def test_budget_combination_adds_in_quadrature_when_uncorrelated():
+    from calflow.nano.error_budget import _combine
+
+    rng = np.random.default_rng(1)
+    a, b = rng.standard_normal((4000, 1)) * 0.02, rng.standard_normal((4000, 1)) * 0.01
+    noise = rng.standard_normal((4000, 1)) * 0.005
+    out = _combine({"a": a, "b": b}, a + b + noise)
+    assert out["a"] == pytest.approx(20.0, rel=0.05) and out["b"] == pytest.approx(10.0, rel=0.05)
+    assert out["noise_and_estimation"] == pytest.approx(5.0, rel=0.05)
+    assert abs(out["interaction"]) < 0.3 * out["b"]
+    same = _combine({"a": a, "b": a}, 2 * a)  # fully correlated: the interaction is large and positive
+    assert same["interaction"] > same["a"]
+
+
+def test_ordering_paragraph_follows_the_numbers_not_the_thesis():
+    from calflow.nano.ordering import ordering_block
+
+    ref = {"tests": {"no_calibration": {"max_accuracy_nm": 1000.0}, "single": {"max_accuracy_nm": 400.0},
+                     "adaptive_kmz": {"max_accuracy_nm": 200.0}}}
+    def tests(single, kmz):
+        return {"no_calibration": {"max_accuracy_nm": 1500.0}, "single": {"max_accuracy_nm": single},
+                "adaptive_kmz": {"max_accuracy_nm": kmz}}
+
+    a = ordering_block(tests(30.0, 80.0), {}, ref)
+    assert a["order"] == ["single", "adaptive_kmz", "no_calibration"] and a["agrees"] is False
+    assert "different" in a["statement"] and "30 nm" in a["statement"]
+    b = ordering_block(tests(300.0, 80.0), {}, ref)
+    assert b["order"] == ["adaptive_kmz", "single", "no_calibration"] and b["agrees"] is True
