@@ -36,12 +36,13 @@ import numpy as np
 from calflow.errors import RigError
 from calflow.nano import interferometer as ifm
 from calflow.nano.piezo import PlayHysteresis, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
-from calflow.nano.rig_options import _COMMON, EFFECTS, _Walk, check_options
+from calflow.nano.rig_options import _COMMON, EFFECTS, NOISE, _Walk, check_options
 from calflow.nano.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]
 
+_DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE)
 _STAGE, _BASE, _AIR = 0, 1, 2  # structural nodes of the network; thermocouples, compensation sensor follow
 
 
@@ -219,16 +220,17 @@ class _NanoRig:
         The summary step's error budget evaluates these at a run's samples."""
         o = self.options
         tc = o["start_offset_s"] + np.asarray(t_rig, dtype=float)
+        shape = np.broadcast(tc, *cmds).shape
+        if not shape:  # one reading: plain floats are several times faster than 0-d arrays
+            tc, cmds = float(tc), tuple(float(c) for c in cmds)
         nodes = self._nodes(tc) if nodes is None else nodes
         d = nodes - self._nodes0
-        shape = np.broadcast(tc, *cmds).shape
         zero = np.zeros(shape) if shape else 0.0  # broadcasts every term to the query's shape
         L = o["stroke_um"]
         geo = self._geometry(cmds)
         n_air, n_comp = self._indices(tc, nodes)
-        out = {name: [] for name in EFFECTS if name not in ("interferometer_noise", "wavelength_stability",
-                                                            "repeatability", "settling", "thermocouple_noise")}
-        walk = self._walk(tc)
+        out = {name: [] for name in _DETERMINISTIC}
+        walk = self._walk(tc) if o["drift_walk_nm_per_sqrt_day"] else None
         for k, axis in enumerate(self._AXIS):
             x = cmds[axis] if axis is not None else zero
             s = x / L
@@ -250,7 +252,7 @@ class _NanoRig:
             out["cosine"].append(ifm.cosine_error_um(x, o["cosine_deg"]) + zero if on_axis else zero)
             out["abbe"].append(ifm.abbe_error_um(s, o["abbe_offset_mm"], o["abbe_pitch_urad"]) + zero
                                if on_axis else zero)
-            out["walk"].append(walk[..., k] + zero)
+            out["walk"].append(walk[..., k] + zero if walk is not None else zero)
         return out
 
     def _nodes(self, t_campaign):
