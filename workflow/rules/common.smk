@@ -149,6 +149,7 @@ def results_of(name):
         f"{base}/metrics/training.nc",
         f"{base}/metrics/validation.nc",
         f"{base}/runs/training.nc",
+        f"{base}/runs/validation.nc",  # the error budget replays its commands (issue 14)
     ]
     if c["robot"] == "stage1d":
         files.append(f"{base}/metrics/metrology.nc")

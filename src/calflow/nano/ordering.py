@@ -49,7 +49,7 @@ def ordering_block(tests: dict, robustness: dict, reference: dict) -> dict:
         th_k = sum(kmz["error_budget_nm"].get(e, 0.0) ** 2 for e in _THERMAL) ** 0.5
         th_s = sum(single["error_budget_nm"].get(e, 0.0) ** 2 for e in _THERMAL) ** 0.5
         better = "single" if th_s < th_k else "adaptive_kmz"
-        parts.append(f"Thermal terms left: {th_s:.0f} nm rms with the single model, {th_k:.0f} nm with KMZ — "
+        parts.append(f"Thermal terms left (root-sum-square): {th_s:.0f} nm rms with the single model, {th_k:.0f} nm with KMZ — "
                      + ("the thermocouples, read at every pose, follow the rig's drift better than one KMZ visit per "
                         "test, which misses the drift during the test" if better == "single" else
                         "one KMZ visit per test follows the drift better than the thermocouples, whose readings "
