@@ -40,7 +40,7 @@ def test_each_effect_is_present_and_switching_it_off_removes_it(factory, effect)
     on = _terms(factory(profile="lab5day"))
     assert _size(on, effect) > 1e-5, effect  # > 0.01 nm somewhere on the grid
     off = _terms(factory(profile="lab5day", **{k: v for k, v in without(factory().options, effect).items()
-                                                if k in sum((EFFECTS[effect],), ())}))
+                                                if k in EFFECTS[effect]}))
     assert _size(off, effect) == 0.0
     others = [e for e in DETERMINISTIC if e != effect and e not in ("deadpath", "compensation")]
     for name in others:  # the other effects do not change (refraction terms share the air)

@@ -43,7 +43,9 @@ def ordering_block(tests: dict, robustness: dict, reference: dict) -> dict:
         name, nm = top
         kind = "thermal" if name in _THERMAL else "noise" if name == "noise_and_estimation" else "position"
         parts.append(f"At the held-out positions, what is left with {_LABEL.get(k, k)} (rms {b['total']:.0f} nm) is "
-                     f"mostly {name.replace('_', ' ')} ({nm:.0f} nm rms, a {kind} term).")
+                     f"mostly {name.replace('_', ' ')} ({nm:.0f} nm rms, a {kind} term)"
+                     + (f", partly cancelled by others (interaction {b['interaction']:.0f} nm)."
+                        if b.get("interaction", 0.0) < -0.5 * b["total"] else "."))
     kmz, single = tests.get("adaptive_kmz"), tests.get("single")
     if kmz and single and kmz.get("error_budget_nm") and single.get("error_budget_nm"):
         th_k = sum(kmz["error_budget_nm"].get(e, 0.0) ** 2 for e in _THERMAL) ** 0.5
