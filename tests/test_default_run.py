@@ -228,8 +228,11 @@ def test_nano1d_five_days_follow_the_thesis(thesis):
     s = thesis["nano1d-thesis"]
     tests = s["tests"]
     none, kmz, single = (tests[k]["series"] for k in ("no_calibration", "adaptive_kmz", "single"))
-    # no calibration stays above 400 nm; KMZ below 200 nm throughout (Fig. 5.18)
-    assert min(none["max_ap_nm"]) > 400
+    # no calibration stays at the stage's geometric error or above (Fig. 5.18: > 400 nm; here the
+    # unscaled Table 5.1 cubic, ~0.34 um p-v, plus the sensor's nonlinearity: > 300 nm), far above
+    # both calibrations; KMZ below 200 nm throughout (Fig. 5.18)
+    assert min(none["max_ap_nm"]) > 300
+    assert min(none["max_ap_nm"]) > 2 * max(max(kmz["max_ap_nm"]), max(single["max_ap_nm"]))
     assert max(kmz["max_ap_nm"]) < 200
     # single: below 400 nm while the temperature is within the training range, worse after
     inside = np.array(single["in_training_range"], dtype=bool)
@@ -237,10 +240,16 @@ def test_nano1d_five_days_follow_the_thesis(thesis):
     assert inside.any() and (~inside).any()
     assert ap[inside].max() < 400
     assert np.median(ap[~inside]) > 1.5 * np.median(ap[inside])
-    # robustness orders as in Table 5.2: no calibration worst in space and time; KMZ best in time
+    # robustness: no calibration worst in space and time (Table 5.2). Which calibration is best in
+    # time is the rig's physics (issue 14): the thermocouples read at every pose follow the lumped
+    # network's drift better than one KMZ visit per test here, unlike the thesis; the summary's
+    # ordering block must state whichever it is
     r = s["robustness"]
     assert r["no_calibration"]["space"] > max(r["adaptive_kmz"]["space"], r["single"]["space"])
-    assert r["no_calibration"]["time"] > r["single"]["time"] > r["adaptive_kmz"]["time"]
+    assert r["no_calibration"]["time"] > 5 * max(r["single"]["time"], r["adaptive_kmz"]["time"])
+    best_in_time = min(("single", "adaptive_kmz"), key=lambda k: r[k]["time"])
+    label = {"single": "the single model", "adaptive_kmz": "the adaptive KMZ model"}[best_in_time]
+    assert f"Time robustness R_T from best to worst: {label}" in s["ordering"]["statement"]
     # intrinsic (metrology room): AP of the order of 350 nm, RP of the order of 35 nm (Sec. 5.3.3)
     assert 175 < s["intrinsic"]["accuracy_nm"] < 700
     assert 15 < s["intrinsic"]["repeatability_nm"] < 70
@@ -287,6 +296,28 @@ def test_iso230_2_reversal_is_never_negative_and_the_xytheta_report_shows_it(the
         assert block[f"B_{unit}"] >= abs(block[f"B_mean_{unit}"]) >= 0
     html = (thesis["work"] / f"reports/{CAMPAIGN}/report.html").read_text()
     assert 'id="iso230-x"' in html and 'id="iso230-y"' in html and "B = max |B_i|" in html
+
+
+def test_nano_error_budget_and_ordering_follow_the_numbers(thesis):
+    """Issue 14: per test type an error budget by effect at the held-out positions whose parts
+    combine into its total (root-sum-square plus the signed interaction), and an ordering that
+    is the one of the max AP, beside the thesis's."""
+    for name in ("nano1d-thesis", "nano2d-thesis"):
+        s = thesis[name]
+        assert s["validation"]["error_budget_method"]
+        for mode, t in s["tests"].items():
+            b = t["error_budget_nm"]
+            parts = {k: v for k, v in b.items() if k not in ("total", "interaction")}
+            assert {"geometry", "stage_drift", "hysteresis", "noise_and_estimation"} <= set(parts), (name, mode)
+            ss = sum(v * v for v in parts.values()) + np.sign(b["interaction"]) * b["interaction"] ** 2
+            assert np.sqrt(ss) == pytest.approx(b["total"], rel=1e-6), (name, mode)
+        none, cal = s["tests"]["no_calibration"]["error_budget_nm"], s["tests"]["single"]["error_budget_nm"]
+        assert none["total"] > 5 * cal["total"]  # calibration removes most of what the effects do
+        assert cal["geometry"] < 0.1 * none["geometry"]  # the polynomial compensates the geometry
+        order = s["ordering"]["order"]
+        ap = {k: t["max_accuracy_nm"] for k, t in s["tests"].items()}
+        assert order == sorted(ap, key=ap.get) and order[-1] == "no_calibration"
+        assert "thesis" in s["ordering"]["statement"]
 
 
 def test_nano2d_model_brings_micrometres_to_hundreds_of_nanometres(thesis):

@@ -149,7 +149,7 @@ def results_of(name):
         f"{base}/metrics/training.nc",
         f"{base}/metrics/validation.nc",
         f"{base}/runs/training.nc",
-        f"{base}/runs/validation.nc",  # ISO 9283 vAP, AD/RD, drift (summary.iso9283)
+        f"{base}/runs/validation.nc",  # ISO 9283 vAP, AD/RD, drift; the error budget replays its commands
     ]
     if c["robot"] == "stage1d":
         files.append(f"{base}/metrics/metrology.nc")

@@ -7,7 +7,7 @@ rule summarise:
         truth=lambda w: (
             f"results/{w.campaign}/truth/identification.json"
             if CAMPAIGN[w.campaign]["robot"] == "xytheta"
-            else []
+            else f"results/{w.campaign}/truth/validation.json"
         ),
         budget=lambda w: budget_file(w.campaign),
     output:

@@ -42,7 +42,8 @@ def metrics(args) -> None:
 
 
 def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
-    """The stage1d / stage2d summary from the campaign's model, metrics and run files (``truth`` unused)."""
+    """The stage1d / stage2d summary from the campaign's model, metrics and run files; with the
+    simulated rig's ``truth``, each test type's error budget (:mod:`calflow.nano.error_budget`)."""
     from calflow.nano.evaluation import iso230_2_of_run, temperature_range
     from calflow.nano.summary import stage1d_summary, stage2d_summary
     from calflow.uncertainty import interferometer_budget
@@ -63,10 +64,15 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
     budget = interferometer_budget(**c.get("uncertainty", {}))
     training = runs.get("training")
     t_range = temperature_range(training) if training is not None else None
+    physics = None
+    if truth is not None and training is not None and "validation" in runs and truth.get("rig") in ("nano1d", "nano2d"):
+        from calflow.nano.error_budget import error_budget
+
+        physics = error_budget(truth, c, training, runs["validation"])
     if c["robot"] == "stage1d":
         iso = iso230_2_of_run(training) if training is not None else None
         return stage1d_summary(c, metrics.get("metrology"), metrics["validation"], models, budget, files,
                                training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
-                               validation_run=runs.get("validation"))
+                               validation_run=runs.get("validation"), error_budget=physics)
     return stage2d_summary(c, metrics["validation"], models, budget, files, training_metrics=metrics.get("training"),
-                           training_range_c=t_range, validation_run=runs.get("validation"))
+                           training_range_c=t_range, validation_run=runs.get("validation"), error_budget=physics)

@@ -56,12 +56,16 @@ FAMILY = Family(
     modules={
         "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
                                       "calflow.nano.campaign_plans", "calflow.nano.rig", "calflow.nano.rig_options",
+                                      "calflow.nano.piezo", "calflow.nano.interferometer", "calflow.nano.thermal_network",
                                       "calflow.nano.controllers", "calflow.nano.family",
                                       "calflow.nano.interferometer_sensor"),
         "identify": _CORE + _MODELS + ("calflow.nano.commands",),
         "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.commands"),
         "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",
-                                        "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands"),
+                                        "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands",
+                                        "calflow.nano.error_budget", "calflow.nano.ordering", "calflow.nano.rig",
+                                        "calflow.nano.rig_options", "calflow.nano.piezo", "calflow.nano.interferometer",
+                                        "calflow.nano.thermal_network", "calflow.rigs"),
         "report": _CORE + ("calflow.report", "calflow.nano.figures", "calflow.nano.templates"),
     },
 )

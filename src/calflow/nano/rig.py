@@ -1,24 +1,29 @@
 """Simulated 1-DoF and 2-DoF nanopositioning rigs (thesis Chapter 5, Sec. 5.2-5.4).
 
 Both rigs follow the rig protocol of DESIGN.md (``move``/``wait``/``read``/``close``) on a
-virtual clock, plus ``stream`` (raw high-rate samples of a dwell), ``truth()`` and
-``true_position()`` for tests and reports. Lengths in um, temperatures in degC, time in s.
+virtual clock, plus ``stream`` (raw high-rate samples of a dwell), ``truth()``,
+``true_position()`` and ``effect_terms()`` for tests and the summary step. Lengths in um,
+temperatures in degC, time in s.
 
-Physics of a reading of sensor k (richer than Eq. 5.1-5.3, 5.6 and 5.10 on purpose):
+A reading of sensor k is the commanded position plus one named term per effect
+(:data:`calflow.nano.rig_options.EFFECTS`, each switched off in ``options``):
 
-    meas_k = geometry_k(command, approach direction)                 (Fig. 5.1, Sec. 5.4)
-           + c_stage_k (1 + kappa s_k) (T_stage - T_ref) + c_frame_k (T_frame - T_ref)
-           + walk_k(t) + creep_k(t)          (slow drift that no thermocouple explains)
-           + repeatability offset drawn at each move (~35 nm ISO RP, Sec. 5.3.3)
-           + settling tail of the last move + white interferometer noise (Table 3.4)
-    quantised to the interferometer resolution (0.3 nm, Sec. 3.5.2).
+    geometry, coupling        lever/flexure errors and cross-axis coupling (Fig. 5.1, Sec. 5.4)
+    sensor_nonlinearity       capacitive sensor left after linearisation (calflow.nano.piezo)
+    hysteresis, creep         what the closed loop leaves of the piezo's (calflow.nano.piezo)
+    stage_drift, expansion    the stage's thermal expansion: offset and along the stroke
+    optics_drift              the interferometer optics on the base (Table 3.4, U5)
+    deadpath, compensation    the air's refractive index (calflow.nano.interferometer)
+    cosine, abbe              installation (Table 3.4, U7, U8)
+    walk                      a random walk, off by default (no physical source)
 
-T_stage and T_frame are first-order lags of the room (profiles of Fig. 5.10 / 5.19, see
-``calflow.rigs.thermal``) with time constants that no thermocouple shares; thermocouple j
-reads ``T_ref + gain_j (lag_j - T_ref) + offset_j`` + noise (~5 mK), quantised to 1 mK.
-``s_k`` is the normalised position along the axis, so expansion grows with distance from
-the fixed end. The world (room, walk, creep) is fixed by ``world_seed`` and anchored in
-campaign time; the noise ``seed`` drives only noise and per-move repeatability.
+plus per-move repeatability, the settling tail, white interferometer noise and the laser's
+wavelength instability (noise), quantised to the interferometer resolution (0.3 nm).
+Temperatures come from the lumped thermal network (:mod:`calflow.nano.thermal_network`)
+driven by the room profile; thermocouple j reads its own node plus its offset and noise,
+quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
+when the interferometer was zeroed (Sec. 5.3.1). The world (room, weather, walk) is fixed by
+``world_seed`` and anchored in campaign time; ``seed`` drives only noise and repeatability.
 """
 
 from __future__ import annotations
@@ -29,15 +34,20 @@ from typing import Iterator, Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.nano.rig_options import _COMMON, _Walk, check_options
-from calflow.rigs.thermal import LagBank, room_profile
+from calflow.nano import interferometer as ifm
+from calflow.nano.piezo import PlayHysteresis, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.rig_options import _COMMON, EFFECTS, NOISE, _Walk, check_options
+from calflow.nano.thermal_network import ThermalNetwork, network_bank
+from calflow.rigs.thermal import room_profile
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]
 
+_DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE)
+_STAGE, _BASE, _AIR = 0, 1, 2  # structural nodes of the network; thermocouples, compensation sensor follow
 
 
 class _NanoRig:
-    """Common machinery of the nano rigs: options, virtual clock, noise, thermal state."""
+    """Common machinery of the nano rigs: options, virtual clock, noise, physics."""
 
     joints: tuple[str, ...] = ()
     replayable = True  # deterministic given its seeds: acquisition may replay it to resume
@@ -45,36 +55,42 @@ class _NanoRig:
     _NAME = ""
     _EXTRA: dict = {}
     _REP_FACTOR: tuple[float, ...] = ()  # repeatability per sensor, relative
-    _DRIFT_FACTOR: tuple[float, ...] = ()  # walk and creep per sensor, relative
+    _AXIS: tuple = ()  # joint index each sensor measures along (None: across)
 
     def __init__(self, **options):
         o = check_options(self._NAME, {**_COMMON, **self._EXTRA}, len(self.sensors), options)
-        n_s, n_tc = len(self.sensors), len(o["thermocouple_tau_h"])
+        n_tc = len(o["thermocouple_tau_s"])
         self.options = o
         self.thermometers = tuple(f"T{j + 1}" for j in range(n_tc))
         self.room = room_profile(o["profile"], base_c=o["base_temperature_c"],
                                  seed=o["world_seed"], **o["profile_params"])
-        taus = [o["stage_tau_h"], o["frame_tau_h"], *o["thermocouple_tau_h"]]
-        self._bank = LagBank(self.room, np.array(taus) * 3600.0, earliest_s=o["start_offset_s"])
-        self._drift_f = np.array(self._DRIFT_FACTOR)
-        self._walk = _Walk(o["world_seed"], o["drift_walk_nm_per_sqrt_day"] * 1e-3 * self._drift_f)
+        self._comp_lag = o["compensation_sensor_tau_s"] > 0  # else the compensation reads the beam's air
+        net = ThermalNetwork.from_options({**o, "thermocouple_tau_s": (*o["thermocouple_tau_s"],
+                                                                      o["compensation_sensor_tau_s"] or 1.0),
+                                           "thermocouple_air_weight": (*o["thermocouple_air_weight"], 1.0)})
+        self._bank = network_bank(net, self.room, earliest_s=o["start_offset_s"])
+        self._n_tc = n_tc
+        self._walk = _Walk(o["world_seed"], o["drift_walk_nm_per_sqrt_day"] * 1e-3 * np.ones(len(self.sensors)))
+        self._weather = np.random.default_rng(np.random.SeedSequence([int(o["world_seed"]), 3_4])).uniform(0, 2 * np.pi, 2)
+        self._nodes0 = self._bank.at(0.0)  # the zeroing (campaign time 0)
+        self._n0 = self._indices(0.0, self._nodes0)
         self._c_stage = np.array(o["stage_coeff_um_per_c"])
-        self._c_frame = np.array(o["frame_coeff_um_per_c"])
-        self._tc_gain = np.array(o["thermocouple_gain"])
         self._tc_off = np.array(o["thermocouple_offset_c"])
         self._q_um = o["interferometer_resolution_nm"] * 1e-3
         self._q_c = o["thermocouple_resolution_mk"] * 1e-3
         self._sig_um = o["interferometer_noise_nm"] * 1e-3
         self._sig_c = o["thermocouple_noise_mk"] * 1e-3
         self._rep_sig = o["repeatability_nm"] * 1e-3 * np.array(self._REP_FACTOR)
+        self.play = PlayHysteresis(o["stroke_um"], o["hysteresis_nm"])
+        self._loop = o["loop_residual_pct"] * 1e-2
         ss = np.random.SeedSequence(o["seed"])
         s_moves, s_reads, self._ss_streams = ss.spawn(3)
         self._rng_moves = np.random.default_rng(s_moves)
         self._rng_reads = np.random.default_rng(s_reads)
         self._t = 0.0
         self._cmd = tuple(0.0 for _ in self.joints)
-        self._dir = tuple(0 for _ in self.joints)
-        self._rep = np.zeros(n_s)
+        self._z = tuple(self.play.initial() for _ in self.joints)
+        self._rep = np.zeros(len(self.sensors))
         self._settle = (-math.inf, tuple(0.0 for _ in self.joints))  # (start time, steps)
         self._closed = False
 
@@ -94,8 +110,8 @@ class _NanoRig:
                 raise ValueError(f"{self._NAME}: command {j}={v!r} um outside [{lo}, {hi}] um")
             new.append(v)
         steps = tuple(n - c for n, c in zip(new, self._cmd))
-        self._dir = tuple(d if s == 0 else (1 if s > 0 else -1) for d, s in zip(self._dir, steps))
         self._cmd = tuple(new)
+        self._z = tuple(self.play.step(z, v) for z, v in zip(self._z, new))
         rho = self.options["repeatability_correlation"]
         e = self._rng_moves.standard_normal(len(self.sensors)) * self._rep_sig
         self._rep = rho * self._rep + math.sqrt(1.0 - rho * rho) * e
@@ -114,10 +130,10 @@ class _NanoRig:
         """``time`` (s since start), each sensor (um), each thermometer (degC), now."""
         self._check_open()
         t = self._t
-        pos, temps = self._state(t, self._cmd, self._dir, self._settle, self._rep)
+        pos, temps = self._state(t, self._snapshot())
         n = len(pos)
         noise = self._rng_reads.standard_normal(n + temps.size)
-        xs = np.round((np.array(pos) + self._sig_um * noise[:n]) / self._q_um) * self._q_um
+        xs = np.round((np.array(pos) + self._noise_sd(pos) * noise[:n]) / self._q_um) * self._q_um
         ts = np.round((temps + self._sig_c * noise[n:]) / self._q_c) * self._q_c
         return {"time": t, **dict(zip(self.sensors, xs.tolist())),
                 **dict(zip(self.thermometers, ts.tolist()))}
@@ -156,17 +172,16 @@ class _NanoRig:
         t0 = self._t
         self._t += seconds
         rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
-        state = (self._cmd, self._dir, self._settle, self._rep.copy())
-        return self._stream_iter(t0, n, rate, int(chunk), state, rng)
+        return self._stream_iter(t0, n, rate, int(chunk), self._snapshot(), rng)
 
     def _stream_iter(self, t0, n, rate, chunk, state, rng):
         for start in range(0, n, chunk):
             i = np.arange(start, min(n, start + chunk), dtype=float)
             t = t0 + (i + 1.0) / rate
-            pos, temps = self._state(t, *state)
+            pos, temps = self._state(t, state)
             out = {"time": t}
             for k, name in enumerate(self.sensors):
-                v = pos[k] + self._sig_um * rng.standard_normal(t.size)
+                v = pos[k] + self._noise_sd(pos)[k] * rng.standard_normal(t.size)
                 out[name] = np.round(v / self._q_um) * self._q_um
             for j, name in enumerate(self.thermometers):
                 v = temps[..., j] + self._sig_c * rng.standard_normal(t.size)
@@ -177,18 +192,15 @@ class _NanoRig:
                       direction: int | Mapping[str, int] = 0) -> dict[str, float | np.ndarray]:
         """Noise-free sensor values (um) for ``command`` at rig ``time`` (s, default now).
 
-        Includes geometry, coupling, thermal drift, the world's walk and creep and, if
-        ``direction`` is +1/-1 (per joint or for all), the hysteresis of that approach;
-        excludes noise, quantisation, per-move repeatability and settling. ``command``
-        (a mapping joint -> um, or a number for a 1-DoF rig) and ``time`` may be arrays.
+        Every deterministic effect, with the hysteresis of a long approach in ``direction``
+        (+1/-1 per joint or for all; 0: none); excludes noise, quantisation, per-move
+        repeatability, settling and creep (transients of a move). ``command`` (a mapping
+        joint -> um, or a number for a 1-DoF rig) and ``time`` may be arrays.
         """
-        if not isinstance(command, Mapping):
-            command = {self.joints[0]: command}
-        cmds = tuple(np.asarray(command[j], dtype=float) for j in self.joints)
-        dirs = tuple(int(direction.get(j, 0)) if isinstance(direction, Mapping) else int(direction)
-                     for j in self.joints)
+        cmds, z = self._long_approach(command, direction)
         t = self._t if time is None else np.asarray(time, dtype=float)
-        pos = self._true(cmds, t, dirs)
+        terms = self.effect_terms(cmds, t, z)
+        pos = self._sum(cmds, terms)
         return {name: (p if np.ndim(p) else float(p)) for name, p in zip(self.sensors, pos)}
 
     def truth(self) -> dict:
@@ -198,56 +210,116 @@ class _NanoRig:
                 if k not in ("seed", "start_offset_s", "profile", "profile_params", "world_seed")}
         return {"rig": self._NAME, "joints": list(self.joints), "sensors": list(self.sensors),
                 "thermometers": list(self.thermometers), "room": self.room.describe(),
-                "geometry": self._geometry_truth(), "options": keep}
+                "world_seed": int(o["world_seed"]), "geometry": self._geometry_truth(), "options": keep}
 
     # ------------------------------------------------------------------ physics
-    def _check_open(self):
-        if self._closed:
-            raise RigError(f"{self._NAME}: the rig is closed")
+    def effect_terms(self, cmds, t_rig, z, steps=None, since_s=None, nodes=None) -> dict[str, list]:
+        """Each deterministic effect's term (um) per sensor, at commands ``cmds`` (one array per
+        joint) and rig times ``t_rig``: play states ``z`` (one (..., n) array per joint), last
+        ``steps`` (um per joint) and the time ``since_s`` the move started (creep; None: no creep).
+        The summary step's error budget evaluates these at a run's samples."""
+        o = self.options
+        tc = o["start_offset_s"] + np.asarray(t_rig, dtype=float)
+        shape = np.broadcast(tc, *cmds).shape
+        if not shape:  # one reading: plain floats are several times faster than 0-d arrays
+            tc, cmds = float(tc), tuple(float(c) for c in cmds)
+        nodes = self._nodes(tc) if nodes is None else nodes
+        d = nodes - self._nodes0
+        zero = np.zeros(shape) if shape else 0.0  # broadcasts every term to the query's shape
+        L = o["stroke_um"]
+        geo = self._geometry(cmds)
+        n_air, n_comp = self._indices(tc, nodes)
+        out = {name: [] for name in _DETERMINISTIC}
+        walk = self._walk(tc) if o["drift_walk_nm_per_sqrt_day"] else None
+        for k, axis in enumerate(self._AXIS):
+            x = cmds[axis] if axis is not None else zero
+            s = x / L
+            on_axis = axis is not None
+            out["geometry"].append(geo["geometry"][k] + zero)
+            out["coupling"].append(geo["coupling"][k] + zero)
+            out["sensor_nonlinearity"].append(sensor_nonlinearity_um(s, L, o["sensor_linearity_pct"]) + zero
+                                              if on_axis else zero)
+            out["hysteresis"].append(self.play.error(z[axis], x) + zero if on_axis else zero)
+            out["creep"].append(residual_creep_um(steps[axis], since_s, o["creep_pct_per_decade"], self._loop) + zero
+                                if on_axis and steps is not None and since_s is not None else zero)
+            out["stage_drift"].append(self._c_stage[k] * d[..., _STAGE])
+            out["expansion"].append(o["expansion_ppm_per_c"] * 1e-6 * x * d[..., _STAGE])
+            out["optics_drift"].append(o["optics_drift_um_per_c"] * d[..., _BASE])
+            dead, path = ifm.reading_error_um(x, n_air, n_comp, *self._n0, o["deadpath_m"] * 1e6,
+                                              o["deadpath_corrected"])
+            out["deadpath"].append(dead + zero)
+            out["compensation"].append(path + zero)
+            out["cosine"].append(ifm.cosine_error_um(x, o["cosine_deg"]) + zero if on_axis else zero)
+            out["abbe"].append(ifm.abbe_error_um(s, o["abbe_offset_mm"], o["abbe_pitch_urad"]) + zero
+                               if on_axis else zero)
+            out["walk"].append(walk[..., k] + zero if walk is not None else zero)
+        return out
 
-    def _lags(self, t_campaign):
+    def _nodes(self, t_campaign):
         if np.ndim(t_campaign) == 0:
             return self._bank.at(float(t_campaign))
         return self._bank(t_campaign)
 
-    def _true(self, cmds, t_rig, dirs, lags=None):
-        """Noise-free sensor values: geometry + thermal drift + walk + creep (um)."""
+    def _weather_at(self, t_campaign):
+        """Air pressure (Pa) and relative humidity (%) at campaign time (s): a 3.3-day weather
+        swing and a daily humidity swing, phases from ``world_seed``."""
         o = self.options
-        tc = o["start_offset_s"] + t_rig
-        if lags is None:
-            lags = self._lags(tc)
-        t_ref = o["base_temperature_c"] + o["reference_offset_c"]
-        d_stage = lags[..., 0] - t_ref
-        d_frame = lags[..., 1] - t_ref
-        geo = self._geometry(cmds, dirs)
-        spos = self._thermal_positions(cmds)
-        walk = self._walk(tc)
-        creep = o["creep_nm"] * 1e-3 * -np.expm1(-np.maximum(tc, 0.0) / (o["creep_tau_h"] * 3600.0))
-        kappa = o["position_thermal_gain"]
-        return [geo[k] + self._c_stage[k] * (1.0 + kappa * spos[k]) * d_stage
-                + self._c_frame[k] * d_frame + walk[..., k] + creep * self._drift_f[k]
-                for k in range(len(self.sensors))]
+        h = np.asarray(t_campaign, dtype=float) / 3600.0
+        p = o["pressure_pa"] + o["pressure_swing_pa"] * np.sin(2 * np.pi * h / 79.0 + self._weather[0])
+        rh = o["humidity_pct"] + o["humidity_swing_pct"] * np.sin(2 * np.pi * h / 24.0 + self._weather[1])
+        return p, rh
 
-    def _state(self, t_rig, cmds, dirs, settle, rep):
-        """Noise-free sensor values incl. repeatability and settling, and thermocouples."""
-        lags = self._lags(self.options["start_offset_s"] + t_rig)
-        pos = self._true(cmds, t_rig, dirs, lags)
-        t_start, steps = settle
-        decay = self.options["settle_fraction"] * np.exp(-(t_rig - t_start) / self.options["settle_tau_s"])
-        tail = self._settle_map(steps)
-        pos = [p + rep[k] + tail[k] * decay for k, p in enumerate(pos)]
-        base = self.options["base_temperature_c"]
-        temps = base + self._tc_gain * (lags[..., 2:] - base) + self._tc_off
+    def _indices(self, t_campaign, nodes):
+        """Refractive index of the beam's air and the one the compensation unit computes."""
+        o = self.options
+        p, rh = self._weather_at(t_campaign)
+        n_air = ifm.refractive_index(nodes[..., _AIR], p, rh)
+        t_comp = nodes[..., -1] if self._comp_lag else nodes[..., _AIR]
+        n_comp = ifm.refractive_index(t_comp + o["compensation_bias_k"], p + o["compensation_bias_pa"],
+                                      rh + o["compensation_bias_pct"])
+        return n_air, n_comp
+
+    def _sum(self, cmds, terms):
+        return [(cmds[a] if a is not None else 0.0) + sum(terms[name][k] for name in terms)
+                for k, a in enumerate(self._AXIS)]
+
+    def _long_approach(self, command, direction):
+        if not isinstance(command, Mapping):
+            command = {self.joints[0]: command}
+        cmds = tuple(np.asarray(command[j], dtype=float) for j in self.joints)
+        dirs = [int(direction.get(j, 0)) if isinstance(direction, Mapping) else int(direction) for j in self.joints]
+        z = tuple(self.play.long_approach(c, d) for c, d in zip(cmds, dirs))
+        return cmds, z
+
+    def _noise_sd(self, pos):
+        """Per-sensor noise sd (um): white noise (U3) and the laser's wavelength instability (U1,
+        a uniform relative error of the measured distance)."""
+        u1 = self.options["wavelength_stability_ppm"] * 1e-6 / math.sqrt(3.0)
+        return [np.hypot(self._sig_um, u1 * np.abs(p)) for p in pos]
+
+    def _snapshot(self):
+        return self._cmd, self._z, self._settle, self._rep.copy()
+
+    def _check_open(self):
+        if self._closed:
+            raise RigError(f"{self._NAME}: the rig is closed")
+
+    def _state(self, t_rig, state):
+        """Noise-free sensor values incl. repeatability, settling and creep, and thermocouples."""
+        cmds, z, (t_start, steps), rep = state
+        o = self.options
+        nodes = self._nodes(o["start_offset_s"] + t_rig)
+        cmds = tuple(np.asarray(c, dtype=float) for c in cmds)
+        since = t_rig - t_start if math.isfinite(t_start) else None
+        terms = self.effect_terms(cmds, t_rig, z, steps, since, nodes)
+        pos = self._sum(cmds, terms)
+        decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
+        pos = [p + rep[k] + (steps[a] * decay if a is not None else 0.0) for k, (p, a) in enumerate(zip(pos, self._AXIS))]
+        temps = nodes[..., 3:3 + self._n_tc] + self._tc_off
         return pos, temps
 
     # subclass hooks -----------------------------------------------------------
-    def _geometry(self, cmds, dirs):  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def _thermal_positions(self, cmds):  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def _settle_map(self, steps):  # pragma: no cover - abstract
+    def _geometry(self, cmds) -> dict:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def _geometry_truth(self) -> dict:  # pragma: no cover - abstract
@@ -257,93 +329,71 @@ class _NanoRig:
 class Nano1DRig(_NanoRig):
     """P-625.1CD-like single-axis stage, 0-500 um, two interferometer beams (Sec. 5.3.1).
 
-    ``meas_x`` = x + g(x): the cubic of Table 5.1 inverted (two critical points inside the
-    stroke, ~380 nm peak to valley, Fig. 5.1 a) plus a small non-polynomial ripple, and a
-    ~10 nm forward/backward difference. ``meas_y`` is the coupling seen by the second beam,
-    ~75 nm over the stroke (Fig. 5.1 b), with its own (frame) thermal drift.
+    Geometry of ``meas_x``: minus the cubic of Table 5.1 (the identified inverse model's
+    deviation from q = x, two critical points inside the stroke, Fig. 5.1 a), unscaled.
+    ``meas_y`` is the coupling seen by the second beam, ~75 nm over the stroke (Fig. 5.1 b).
     """
 
     joints = ("x",)
     _NAME = "nano1d"
-    _EXTRA = {"stroke_um": 500.0, "coupling_y_nm": 75.0,
-              "stage_coeff_um_per_c": (-1.25, 0.0), "frame_coeff_um_per_c": (0.25, -0.1)}
+    _EXTRA = {"stroke_um": 500.0, "coupling_y_nm": 75.0, "stage_coeff_um_per_c": (-1.5, 0.0),
+              "loop_residual_pct": loop_residual_pct(10.0, 500.0)}
     _REP_FACTOR = (1.0, 0.25)
-    _DRIFT_FACTOR = (1.0, 0.3)
-    _POLY = (0.0, -2.825, 6.122, -3.466)  # um, s = x/500 um: -(Table 5.1 cubic - x) x 1.13
-    _RIPPLE = (0.012, 3.0)  # um amplitude, half periods over the stroke
+    _AXIS = (0, None)
+    # um, s = x/500 um: -(Table 5.1 cubic - x) = -(2.454e-8 x^3 - 2.167e-5 x^2 + 0.005 x)
+    _POLY = (0.0, -2.5, 5.4175, -3.0675)
     _COUPLING = (1.3, -0.3, 0.004)  # shape s(1.3 - 0.3 s), + 4 nm sin(2 pi s)
 
-    def _geometry(self, cmds, dirs):
-        x = cmds[0]
-        s = x / self.options["stroke_um"]
-        p0, p1, p2, p3 = self._POLY
-        amp, half = self._RIPPLE
-        g = self.options["geometric_scale"] * (p0 + s * (p1 + s * (p2 + s * p3))
-                                                + amp * np.sin(np.pi * half * s))
-        hyst = dirs[0] * 0.5e-3 * self.options["hysteresis_nm"] * (0.5 + 0.5 * np.sin(np.pi * s))
-        c1, c2, wig = self._COUPLING
-        y = 1e-3 * self.options["coupling_y_nm"] * s * (c1 + c2 * s) + wig * np.sin(2 * np.pi * s)
-        return [x + g + hyst, y]
-
-    def _thermal_positions(self, cmds):
+    def _geometry(self, cmds):
         s = cmds[0] / self.options["stroke_um"]
-        return [s, s]
-
-    def _settle_map(self, steps):
-        return [steps[0], 0.0]
+        p0, p1, p2, p3 = self._POLY
+        g = self.options["geometric_scale"] * (p0 + s * (p1 + s * (p2 + s * p3)))
+        c1, c2, wig = self._COUPLING
+        y = 1e-3 * self.options["coupling_y_nm"] * s * (c1 + c2 * s) + wig * np.sin(2 * np.pi * s) * (
+            self.options["coupling_y_nm"] > 0)
+        return {"geometry": [g, 0.0], "coupling": [0.0, y]}
 
     def _geometry_truth(self):
-        return {"meas_x": "x + geometric_scale*(sum_i poly[i] s^i + ripple[0] sin(pi ripple[1] s))"
-                          " + direction*hysteresis/2*(0.5 + 0.5 sin(pi s)), s = x/stroke",
+        return {"meas_x": "geometric_scale * sum_i poly[i] s^i, s = x/stroke",
                 "meas_y": "coupling_y*s*(c[0] + c[1] s) + c[2] sin(2 pi s)",
-                "poly_um": list(self._POLY), "ripple": list(self._RIPPLE),
-                "coupling": list(self._COUPLING)}
+                "poly_um": list(self._POLY), "coupling": list(self._COUPLING)}
 
 
 class Nano2DRig(_NanoRig):
     """80 x 80 um two-axis nanocube (Sec. 5.4): per-axis cubic errors, cross-axis coupling.
 
-    Each axis has a scale error, a cubic with a non-polynomial ripple, and couples into the
-    other through a linear term (axis non-orthogonality), a quadratic and a bilinear
-    ``x*y`` term that Eq. 5.10 cannot represent; uncalibrated accuracy is ~1.2-1.4 um.
+    Each axis has a scale error and a cubic, and couples into the other through a linear
+    term (axis non-orthogonality), a quadratic and a bilinear ``x*y`` term that Eq. 5.10
+    cannot represent. The thesis gives only the resulting accuracy (1.2-1.4 um without
+    calibration), not the shape: these coefficients are an assumption.
     """
 
     joints = ("x", "y")
     _NAME = "nano2d"
-    _EXTRA = {"stroke_um": 80.0, "coupling_scale": 1.0,
-              "stage_coeff_um_per_c": (-1.0, -0.8), "frame_coeff_um_per_c": (0.2, 0.15)}
+    _EXTRA = {"stroke_um": 80.0, "coupling_scale": 1.0, "stage_coeff_um_per_c": (-1.5, -1.5),
+              "loop_residual_pct": loop_residual_pct(10.0, 80.0)}
     _REP_FACTOR = (1.0, 1.0)
-    _DRIFT_FACTOR = (1.0, 1.0)
-    # own axis (um): scale*s + cubic*T3(2s-1) + quad*(2s-1)^2 + ripple*sin(3 pi s)
-    _OWN = {"meas_x": (0.30, 0.10, 0.03, 0.015), "meas_y": (-0.20, 0.08, -0.03, 0.015)}
+    _AXIS = (0, 1)
+    # own axis (um): scale*s + cubic*T3(2s-1) + quad*(2s-1)^2
+    _OWN = {"meas_x": (0.30, 0.10, 0.03), "meas_y": (-0.20, 0.08, -0.03)}
     # other axis (um): lin*o + bilinear*s*o + quad*o^2, o = other axis / stroke
     _CROSS = {"meas_x": (0.75, 0.10, -0.06), "meas_y": (-0.55, 0.08, 0.05)}
 
-    def _geometry(self, cmds, dirs):
+    def _geometry(self, cmds):
         L = self.options["stroke_um"]
         G, C = self.options["geometric_scale"], self.options["coupling_scale"]
-        h = 0.5e-3 * self.options["hysteresis_nm"]
-        out = []
+        geo, cpl = [], []
         for k, name in enumerate(self.sensors):
             s, o = cmds[k] / L, cmds[1 - k] / L
             u = 2 * s - 1
-            a, b, c, d = self._OWN[name]
+            a, b, c = self._OWN[name]
             lin, bil, quad = self._CROSS[name]
-            own = a * s + b * (4 * u ** 3 - 3 * u) + c * u * u + d * np.sin(3 * np.pi * s)
-            cross = lin * o + bil * s * o + quad * o * o
-            hyst = dirs[k] * h * (0.5 + 0.5 * np.sin(np.pi * s))
-            out.append(cmds[k] + G * own + C * cross + hyst)
-        return out
-
-    def _thermal_positions(self, cmds):
-        L = self.options["stroke_um"]
-        return [cmds[0] / L, cmds[1] / L]
-
-    def _settle_map(self, steps):
-        return [steps[0], steps[1]]
+            geo.append(G * (a * s + b * (4 * u ** 3 - 3 * u) + c * u * u))
+            cpl.append(C * (lin * o + bil * s * o + quad * o * o))
+        return {"geometry": geo, "coupling": cpl}
 
     def _geometry_truth(self):
-        return {"own_axis": "a s + b T3(2s-1) + c (2s-1)^2 + d sin(3 pi s), s = own/stroke",
+        return {"own_axis": "a s + b T3(2s-1) + c (2s-1)^2, s = own/stroke",
                 "cross_axis": "lin o + bilinear s o + quad o^2, o = other/stroke",
                 "own_um": {k: list(v) for k, v in self._OWN.items()},
                 "cross_um": {k: list(v) for k, v in self._CROSS.items()}}

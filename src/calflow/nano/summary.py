@@ -180,7 +180,8 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
 def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, validation_metrics: xr.Dataset,
                     models: dict, budget=None, inputs: list[str] = (), *,
                     training_range_c: tuple[float, float] | None = None, iso230_2: dict | None = None,
-                    training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None) -> dict:
+                    training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None,
+                    error_budget: dict | None = None) -> dict:
     """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
@@ -206,13 +207,14 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run)
+    _physics_blocks(summary, error_budget)
     return jsonable(summary)
 
 
 def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict, budget=None,
                     inputs: list[str] = (), *, training_metrics: xr.Dataset | None = None,
                     training_range_c: tuple[float, float] | None = None,
-                    validation_run: xr.Dataset | None = None) -> dict:
+                    validation_run: xr.Dataset | None = None, error_budget: dict | None = None) -> dict:
     """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,
@@ -228,4 +230,19 @@ def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run)
+    _physics_blocks(summary, error_budget)
     return jsonable(summary)
+
+
+def _physics_blocks(summary: dict, error_budget: dict | None) -> None:
+    """Issue 14: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
+    calibration, :mod:`calflow.nano.error_budget`), ``validation.error_budget_method`` and the
+    ``ordering`` paragraph (:mod:`calflow.nano.ordering`)."""
+    from calflow.nano.ordering import ordering_block
+
+    if error_budget:
+        for mode, t in summary["tests"].items():
+            if mode in error_budget:
+                t["error_budget_nm"] = error_budget[mode]
+        summary["validation"]["error_budget_method"] = error_budget.get("method")
+    summary["ordering"] = ordering_block(summary["tests"], summary.get("robustness"), summary["reference"])

@@ -14,14 +14,13 @@ Profiles (all deterministic given ``seed``, vectorised over time):
   the first ``step_start_h`` (default 50 h), then a smooth change of ``step_c``
   (default -1.1 °C, a cooling) over ``step_duration_h`` (default 12 h) while the daily
   swings continue, so the temperature range of the latter days is ~1.3 °C as in
-  Fig. 5.19. With the stage's negative coefficient the drift grows by ~+1.1 um and,
-  against the negative geometric error, uncalibrated accuracy reaches ~1-1.3 um
-  (Fig. 5.18).
+  Fig. 5.19. These describe the room (the input), taken from the text of Sec. 5.3.3;
+  what the stage does with it is the thermal network's business.
 
-:class:`LagBank` turns a room profile into structure / thermocouple temperatures that
-follow the room through first-order lags (time constant tau, unit gain), integrated
-exactly for a piecewise-linear input on a fixed grid and interpolated linearly between
-grid points. The grid is anchored in profile time (not rig time), so two rigs started at
+:class:`LinearBank` integrates any linear network driven by the room (the lumped thermal
+network of the nano rigs, :mod:`calflow.nano.thermal_network`) exactly for a
+piecewise-linear input on a fixed grid, interpolated linearly between grid points;
+:class:`LagBank` is its special case of independent first-order lags. The grid is anchored in profile time (not rig time), so two rigs started at
 different offsets see the same structure temperatures at the same campaign time.
 """
 
@@ -33,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import lfilter
 
-__all__ = ["PROFILES", "RoomProfile", "room_profile", "LagBank"]
+__all__ = ["PROFILES", "RoomProfile", "room_profile", "LinearBank", "LagBank"]
 
 PROFILES = ("constant", "metrology", "lab5day")
 
@@ -142,35 +141,62 @@ def room_profile(name: str, *, base_c: float = 20.5, seed: int = 0, **params) ->
     return RoomProfile(name, float(base_c), int(seed), merged, amps, phases)
 
 
-class LagBank:
-    """First-order lags ``dT_k/dt = (T_room(t) - T_k) / tau_k`` of a room profile.
+class LinearBank:
+    """States of a linear network ``dx/dt = A x + b T_room(t)`` on a fixed time grid.
 
-    ``taus_s`` are the time constants (s). The state is integrated exactly for a room
-    temperature that is linear between grid points (first-order hold, step ``dt_s``,
-    default 30 s; the room changes over hours so the error is far below a mK), starting
-    in equilibrium with the room ``warmup_taus`` time constants before
-    ``min(0, earliest_s)``. The grid is extended lazily in whole days, so evaluation is
-    cheap and independent of the order of queries. ``bank(t)`` returns an array of shape
-    ``t.shape + (len(taus_s),)`` in degC.
+    ``A`` (1/s, n x n) and ``b`` (1/s, n) describe the network; the room profile drives it.
+    The state is integrated exactly for a room temperature that is linear between grid
+    points (first-order hold, step ``dt_s``, default 30 s: the matrix exponential of the
+    augmented system, Franklin, Powell & Workman, *Digital Control of Dynamic Systems*,
+    Sec. 6.3), starting in equilibrium with the room ``warmup_s`` before ``min(0,
+    earliest_s)`` (every node of a network that conducts to the room settles at the room's
+    temperature). Values between grid points are interpolated linearly. The grid is anchored
+    in profile time and extended lazily in whole days, so evaluation is cheap and
+    independent of the order of queries. ``bank(t)`` returns ``t.shape + (n,)`` in degC.
     """
 
     _BLOCK = 2880  # grid points added per extension (one day at 30 s)
 
-    def __init__(self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0,
-                 warmup_taus: float = 12.0):
+    def __init__(self, room, A, b, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_s: float = 86400.0):
+        from scipy.linalg import expm
+
+        A = np.atleast_2d(np.asarray(A, dtype=float))
+        b = np.asarray(b, dtype=float).reshape(-1)
+        n = A.shape[0]
+        if A.shape != (n, n) or b.size != n or not np.all(np.isfinite(A)) or not np.all(np.isfinite(b)):
+            raise ValueError("LinearBank needs a finite square A (n x n) and b of n values")
         self.room = room
-        self.taus = np.asarray(taus_s, dtype=float)
-        if self.taus.ndim != 1 or not np.all(self.taus > 0):
-            raise ValueError("LagBank time constants must be a 1-D array of positive seconds")
         self.dt = float(dt_s)
-        self.t0 = min(0.0, float(earliest_s)) - warmup_taus * float(self.taus.max())
-        self.t0 = math.floor(self.t0 / 3600.0) * 3600.0  # anchor on a whole hour
-        a = np.exp(-self.dt / self.taus)
-        c = self.taus * (1.0 - a) / self.dt
-        self._coef = [(np.array([1.0 - ci, ci - ai]), np.array([1.0, -ai])) for ai, ci in zip(a, c)]
+        self.t0 = math.floor((min(0.0, float(earliest_s)) - float(warmup_s)) / 3600.0) * 3600.0
+        m = np.zeros((n + 2, n + 2))
+        m[:n, :n], m[:n, n], m[n, n + 1] = A * self.dt, b * self.dt, 1.0
+        e = expm(m)
+        # x[k+1] = phi x[k] + g0 u[k] + g1 (u[k+1] - u[k])
+        self._phi, self._g0, self._g1 = e[:n, :n].T.copy(), e[:n, n].copy(), e[:n, n + 1].copy()
+        lam, V = np.linalg.eig(self._phi)
+        ok = np.all(np.abs(lam.imag) < 1e-12) and np.linalg.cond(V) < 1e8
+        self._modes = (lam.real, V.real, np.linalg.inv(V.real)) if ok else None
         u0 = float(room(self.t0))
         self._u_last = u0
-        self._y = np.full((1, self.taus.size), u0)
+        self._y = np.full((1, n), u0)
+
+    def _run(self, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        """States after each step of ``x[k+1] = x[k] phi + drive[k]`` (row vectors): one scalar
+        recursion per mode of phi (scipy.signal.lfilter), or step by step if phi has no real
+        well-conditioned eigenbasis."""
+        if self._modes is not None:
+            lam, V, Vi = self._modes
+            m0, dm = x0 @ V, drive @ V
+            out = np.empty_like(dm)
+            for i, a in enumerate(lam):
+                out[:, i], _ = lfilter([1.0], [1.0, -a], dm[:, i], zi=[a * m0[i]])
+            return out @ Vi
+        block = np.empty_like(drive)
+        x = x0
+        for k in range(drive.shape[0]):
+            x = x @ self._phi + drive[k]
+            block[k] = x
+        return block
 
     @property
     def t_end(self) -> float:
@@ -180,15 +206,10 @@ class LagBank:
     def _extend_to(self, t_max: float) -> None:
         while self.t_end < t_max:
             n0 = self._y.shape[0]
-            times = self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)
-            u = np.asarray(self.room(times), dtype=float)
-            u_full = np.concatenate(([self._u_last], u))
-            block = np.empty((self._BLOCK, self.taus.size))
-            for k, (b, a) in enumerate(self._coef):
-                # y[n] = a y[n-1] + b0 u[n] + b1 u[n-1]; initial condition from the last state
-                zi = np.array([self._y[-1, k] * (-a[1]) + b[1] * u_full[0]])
-                yk, _ = lfilter(b, a, u_full[1:], zi=zi)
-                block[:, k] = yk
+            u = np.asarray(self.room(self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)), dtype=float)
+            du = np.diff(np.concatenate(([self._u_last], u)))
+            drive = np.outer(u - du, self._g0) + np.outer(du, self._g1)  # u[k] g0 + (u[k+1]-u[k]) g1
+            block = self._run(self._y[-1], drive)
             self._y = np.concatenate((self._y, block))
             self._u_last = float(u[-1])
 
@@ -201,7 +222,7 @@ class LagBank:
         return self._y[i] * (1.0 - w) + self._y[i + 1] * w
 
     def at(self, t_s: float) -> np.ndarray:
-        """Fast scalar evaluation: the lag temperatures (degC) at one profile time."""
+        """Fast scalar evaluation: the node temperatures (degC) at one profile time."""
         t = float(t_s)
         if t + self.dt > self.t_end:
             self._extend_to(t + self.dt)
@@ -209,3 +230,16 @@ class LagBank:
         i = int(pos)
         w = pos - i
         return self._y[i] * (1.0 - w) + self._y[i + 1] * w
+
+
+class LagBank(LinearBank):
+    """Independent first-order lags ``dT_k/dt = (T_room(t) - T_k) / tau_k`` of a room profile
+    (``taus_s`` in s), starting in equilibrium ``warmup_taus`` time constants early."""
+
+    def __init__(self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_taus: float = 12.0):
+        taus = np.asarray(taus_s, dtype=float)
+        if taus.ndim != 1 or not np.all(taus > 0):
+            raise ValueError("LagBank time constants must be a 1-D array of positive seconds")
+        self.taus = taus
+        super().__init__(room, np.diag(-1.0 / taus), 1.0 / taus, dt_s=dt_s, earliest_s=earliest_s,
+                         warmup_s=warmup_taus * float(taus.max()))
