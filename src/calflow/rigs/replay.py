@@ -32,10 +32,11 @@ from calflow.data.io import open_dataset
 from calflow.errors import CalflowError, RigError
 
 
-def _resolve(recordings: str | os.PathLike | Mapping[str, str], stream: str) -> Path:
-    """The run file of run id ``stream`` among ``recordings``."""
+def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
+    """The recording of run id ``stream`` among ``recordings``: a run file's path, or a
+    recording entry of a mapping (:func:`calflow.data.recordings.load`)."""
     if isinstance(recordings, Mapping):
-        files = {str(k): Path(v) for k, v in recordings.items()}
+        files = {str(k): v for k, v in recordings.items()}
         where = "replay recordings"
     else:
         folder = Path(recordings)
@@ -61,12 +62,16 @@ class ReplayRig:
     own unit (µm for translations, degree for rotations).
     """
 
-    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6):
+    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6,
+                 dataset=None, recorded_plan=None):
         self.path = Path(path)
         self.stream = stream or self.path.stem
         self.tolerance = float(tolerance)
+        #: the plan an instrument's own recording ran (ISO 230-2 file, tracker export, CSV):
+        #: acquisition commands it instead of the campaign's; None for calflow run files.
+        self.recorded_plan = recorded_plan
         try:
-            ds = open_dataset(self.path, kind="run")
+            ds = open_dataset(self.path, kind="run") if dataset is None else dataset
         except CalflowError as exc:
             raise RigError(f"replay: {exc}") from None
         from calflow.data.validate import validate_dataset
@@ -184,12 +189,15 @@ class ReplayRig:
         return {"available": False}
 
 
-def replay(recordings: str | os.PathLike | Mapping[str, str], stream: str = "",
+def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "",
            tolerance_um: float = 1e-6, seed: int | None = None) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
 
     ``recordings`` is a folder of ``<run id>.nc`` run files (a campaign's
-    ``results/<campaign>/runs/``) or a mapping run id → file; ``stream`` is the run id
+    ``results/<campaign>/runs/``) or a mapping run id → recording: a run file, or an
+    instrument's file (``{file, format[, mapping]}``, :mod:`calflow.data.recordings`:
+    ISO 230-2 ``.dat``, laser-tracker or mapped CSV), served with the plan it recorded
+    (``ReplayRig.recorded_plan``); ``stream`` is the run id
     to serve (``identification``, ``validation_<model>``, …), optional when there is a
     single recording. ``tolerance_um`` is the largest accepted difference between a
     command and the recorded one, in each joint's unit (µm; degree for rotations).
@@ -199,4 +207,13 @@ def replay(recordings: str | os.PathLike | Mapping[str, str], stream: str = "",
     tolerance = float(tolerance_um)
     if not tolerance >= 0:
         raise RigError(f"rig.options.tolerance_um: expected a number >= 0, got {tolerance_um!r}")
-    return ReplayRig(_resolve(recordings, stream), stream=stream, tolerance=tolerance)
+    entry = _resolve(recordings, stream)
+    if not isinstance(recordings, Mapping):
+        return ReplayRig(entry, stream=stream, tolerance=tolerance)
+    from calflow.data.recordings import load
+
+    try:
+        path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
+    except CalflowError as exc:
+        raise RigError(str(exc)) from None
+    return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
