@@ -174,7 +174,7 @@ def format_text(rec: Iso230Recording, comments: tuple[str, ...] = ()) -> str:
     lines = [f"# {c}" for c in comments]
     p, c = rec.forward.shape
     lines += [f"UNIT={rec.unit}", f"CYCLES={c}", f"POSITIONS={p}"]
-    lines += [f"TGT_DATA[{i + 1}]={rec.targets[i]!r}" for i in range(p)]
+    lines += [f"TGT_DATA[{i + 1}]={float(rec.targets[i])!r}" for i in range(p)]
     for key, data in (("REF_DATA_FWD", rec.forward), ("REF_DATA_BWD", rec.backward)):
         lines += [f"{key}[{i + 1},{j + 1}]={float(data[i, j])!r}" for j in range(c) for i in range(p)]
     return "\n".join(lines) + "\n"

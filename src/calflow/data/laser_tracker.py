@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calflow.data.importing import refuse_duplicate_rows
 from calflow.errors import DataError
 
 REQUIRED = ("timestamp", "pose", "X_cmd_mm", "Y_cmd_mm", "Z_cmd_mm", "X_mm", "Y_mm", "Z_mm")
@@ -87,23 +88,6 @@ def _rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
         if len(row) != len(header):
             raise DataError(f"{path}: row {r}: expected {len(header)} fields as in the header, got {len(row)}")
     return header, data
-
-
-def refuse_duplicate_rows(path, rows: list[tuple[int, list[str]]]) -> None:
-    """Refuse a data row that repeats an earlier one cell for cell (issue 18).
-
-    A real repeated measurement differs at least in its time stamp; an identical row is
-    an export or copy error, and taking it as a new pose would count one reading twice
-    (repeatability RP and every mean would be computed from a sample that is not there).
-    ``rows`` are (row number, cells).
-    """
-    seen: dict[tuple[str, ...], int] = {}
-    for r, cells in rows:
-        key = tuple(c.strip() for c in cells)
-        if key in seen:
-            raise DataError(f"{path}: row {r}: repeats row {seen[key]} cell for cell; a duplicated row would count "
-                            "one measurement twice — remove it (or the export's duplicate) and import again")
-        seen[key] = r
 
 
 def read(path: str | os.PathLike) -> TrackerRecording:
@@ -160,7 +144,7 @@ def read(path: str | os.PathLike) -> TrackerRecording:
     z = command[:, 2]
     if np.any(z != z[0]):
         k = int(np.argmax(z != z[0]))
-        raise fail(data[k][0], "Z_cmd_mm", f"the commanded Z of every row ({z[0]!r} mm): the stage is planar",
+        raise fail(data[k][0], "Z_cmd_mm", f"the commanded Z of every row ({float(z[0])!r} mm): the stage is planar",
                    data[k][1][col["Z_cmd_mm"]].strip())
     return TrackerRecording(stamps[0].isoformat(), seconds, pose, cycle, command, measured)
 
