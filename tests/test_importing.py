@@ -412,11 +412,11 @@ def test_tracker_header_problems(tmp_path):
 
 
 @pytest.mark.parametrize("spec,message", [
-    ("run.txt", "recordings.metrology: 'run.txt': expected a .nc run file or *ISO230.dat"),
+    ("run.txt", "recordings.metrology: expected a .nc run file, an *ISO230.dat file or"),
     ({"file": "a.dat", "format": "ecmc"}, "recordings.metrology.format: expected one of"),
-    ({"file": "a.csv", "format": "csv"}, "recordings.metrology.mapping: a csv recording needs its column mapping"),
-    ({"file": "a.dat", "format": "ecmc_iso230", "mapping": "m.yaml"}, "mapping: applies to format 'csv' only"),
-    ({"file": "a.dat", "fmt": "ecmc_iso230"}, "recordings.metrology: key 'fmt': unknown"),
+    ({"file": "a.csv", "format": "csv"}, "recordings.metrology.mapping: expected the column mapping file"),
+    ({"file": "a.dat", "format": "ecmc_iso230", "mapping": "m.yaml"}, "mapping: expected no mapping: it applies to format 'csv' only"),
+    ({"file": "a.dat", "fmt": "ecmc_iso230"}, "recordings.metrology.fmt: expected no such key"),
     ({"file": "nowhere_ISO230.dat", "format": "ecmc_iso230"}, "nowhere_ISO230.dat: file not found"),
 ])
 def test_bad_recording_entries_are_named(spec, message):

@@ -1,6 +1,7 @@
 """Replay of recorded runs: a replayed campaign reproduces its run datasets exactly."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -168,3 +169,98 @@ def test_replay_through_load_rig(recorded):
     rig, source = load_rig("calflow.rigs.replay:replay", "xytheta",
                            {"recordings": str(recorded["runs"]), "stream": "identification", "seed": 7})
     assert rig.joints == ("x", "y", "theta") and source == "plugin"  # the lead maps "replay" -> "replay"
+
+
+# ------------------------------------------------- instruments' recordings (ISO 230-2 .dat, tracker CSV)
+
+from pathlib import Path  # noqa: E402
+
+import yaml  # noqa: E402
+
+from calflow.cli import main  # noqa: E402
+from calflow.data import ecmc_iso230  # noqa: E402
+from conftest import ROOT, make_workdir, snakemake  # noqa: E402
+
+RECORDINGS = ROOT / "tests" / "data" / "recordings"
+ISO_ENTRY = {"file": str(RECORDINGS / "axis1_ISO230.dat"), "format": "ecmc_iso230"}
+
+
+def campaign(tmp_path, robot, recordings, name="rec"):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump({"robot": robot, "rig": {"factory": "replay", "options": {"recordings": recordings}}}))
+    return str(path)
+
+
+def test_acquire_replays_an_iso230_file_with_the_plan_it_recorded(tmp_path):
+    out = tmp_path / "runs" / "metrology.nc"
+    c = campaign(tmp_path, "stage1d", {"metrology": ISO_ENTRY})
+    assert main(["acquire", "--campaign", c, "--plan", "metrology", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert validate_dataset(ds) == []
+    assert ds.attrs["source"] == "replay" and ds.attrs["plan"] == "metrology" and ds.attrs["campaign"] == "rec"
+    assert ds.attrs["imported_from"] == "axis1_ISO230.dat"
+    rows = ecmc_iso230.standard_cycle(ecmc_iso230.read(ISO_ENTRY["file"]))
+    assert np.array_equal(ds["cmd_x"].values, rows["target"]) and np.array_equal(ds["meas_x"].values, rows["reading"])
+    assert np.array_equal(ds["direction"].values, rows["direction"]) and np.array_equal(ds["cycle"].values, rows["cycle"])
+    assert not list(out.parent.glob("*.journal"))
+
+
+def test_an_instrument_recording_is_refused_where_it_cannot_stand(tmp_path, capsys):
+    out = tmp_path / "runs" / "x.nc"
+    # an ISO 230-2 (1-DoF) recording in a 2-DoF campaign
+    c = campaign(tmp_path, "stage2d", {"training": ISO_ENTRY}, "planar")
+    assert main(["acquire", "--campaign", c, "--plan", "training", "--out", str(out)]) != 0
+    line = capsys.readouterr().err.strip()
+    assert "axis1_ISO230.dat: rig.options.recordings.training: holds a stage1d recording" in line
+    assert "\n" not in line
+    assert not out.exists() and not list(tmp_path.glob("runs/*"))
+    # a validation run is commanded through the models at run time: no recording can replay it
+    from calflow.commands.acquire import _recorded
+    from calflow.plan import Acquisition
+
+    rig = replay({"validation": ISO_ENTRY}, stream="validation")
+    job = Acquisition(rig.recorded_plan, "validation", controller=object())
+    with pytest.raises(RigError, match=r"recordings\.validation: is an instrument's recording, which cannot replay "
+                                       r"a run commanded through the models"):
+        _recorded(job, rig, {"robot": "stage1d"})
+
+
+def test_the_config_check_names_a_bad_recording_entry(tmp_path):
+    from calflow.config import load_campaign
+    from calflow.errors import ConfigError
+
+    for recordings, key in (({"metrology": {"file": str(tmp_path / "gone_ISO230.dat"), "format": "ecmc_iso230"}},
+                             "rig.options.recordings.metrology.file': expected an existing file"),
+                            ({"metrology": {"file": ISO_ENTRY["file"], "format": "dat"}},
+                             "rig.options.recordings.metrology.format': expected one of"),
+                            ({"metrology": "notes.txt"}, "rig.options.recordings.metrology': expected a .nc run file")):
+        with pytest.raises(ConfigError) as err:
+            load_campaign(campaign(tmp_path, "stage1d", recordings))
+        assert key in str(err.value) and "rec.yaml" in str(err.value)
+
+
+def test_both_recorded_campaigns_run_end_to_end(tmp_path):
+    """The shipped recorded campaigns, one Snakemake run: reports, and what the data do not support."""
+    bodies = {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in ("recorded-iso230", "recorded-tracker")}
+    work = make_workdir(tmp_path, bodies)
+    shutil.copytree(RECORDINGS, work / "tests" / "data" / "recordings")
+    proc = snakemake(work)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    iso = json.loads((work / "results" / "recorded-iso230" / "summary.json").read_text())
+    rec = ecmc_iso230.read(RECORDINGS / "axis1_ISO230.dat")
+    from calflow.metrics import iso230_2
+
+    want = iso230_2(rec.targets * 1000, rec.forward * 1000, rec.backward * 1000)
+    assert iso["iso230_2"]["run"] == "metrology"
+    assert iso["iso230_2"]["B_nm"] == pytest.approx(float(want.B) * 1000)
+    assert iso["intrinsic"]["accuracy_nm"] > 0 and iso["models"] == {} and iso["validation"] is None
+    assert set(iso["unsupported"]) == {"models", "training", "validation", "robustness", "temperature", "budget"}
+    tracker = json.loads((work / "results" / "recorded-tracker" / "summary.json").read_text())
+    assert list(tracker["models"]) == ["two_dof"] and tracker["training"]["accuracy_nm"] > 0
+    assert set(tracker["unsupported"]) == {"validation", "robustness", "temperature", "budget"}
+    for name, summary in (("recorded-iso230", iso), ("recorded-tracker", tracker)):
+        html = (work / "reports" / name / "report.html").read_text()
+        assert (work / "reports" / name / "report.pdf").stat().st_size > 1000
+        assert "What these data do not support" in html
+        for reason in summary["unsupported"].values():
+            assert f"Not supported by these data: {reason.replace(chr(39), '&#39;')}." in html

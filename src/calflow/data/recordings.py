@@ -30,29 +30,48 @@ FORMATS = {"nc": None, "ecmc_iso230": "stage1d", "laser_tracker": "stage2d", "cs
 RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
 
 
-def _spec(spec: Any, where: str) -> dict:
-    """Normalise a recording entry to {file, format, mapping}."""
+class BadEntry(ValueError):
+    """A recording entry that is not one: ``key`` (``""``, ``.file``, ``.format``, …), what was expected, the value."""
+
+    def __init__(self, key: str, expected: str, value: Any):
+        super().__init__(f"{key}: expected {expected}, got {value!r}")
+        self.key, self.expected, self.value = key, expected, value
+
+
+def entry(spec: Any) -> dict:
+    """A recording entry normalised to {file, format, mapping}; raises :class:`BadEntry`."""
     if isinstance(spec, (str, Path)):
         name = Path(spec).name
         fmt = "ecmc_iso230" if name.upper().endswith("ISO230.DAT") else "nc" if name.endswith(".nc") else None
         if fmt is None:
-            raise DataError(f"{where}: {str(spec)!r}: expected a .nc run file or *ISO230.dat, or "
-                            f"{{file: ..., format: one of {list(FORMATS)}}}")
+            raise BadEntry("", f"a .nc run file, an *ISO230.dat file or {{file: ..., format: one of {list(FORMATS)}}}",
+                           str(spec))
         return {"file": str(spec), "format": fmt, "mapping": None}
     if not isinstance(spec, Mapping):
-        raise DataError(f"{where}: expected a file name or {{file: ..., format: ...}}, got {spec!r}")
+        raise BadEntry("", "a file name or {file: ..., format: ...}", spec)
     unknown = sorted(set(spec) - {"file", "format", "mapping"})
     if unknown:
-        raise DataError(f"{where}: key {unknown[0]!r}: unknown; expected file, format, mapping")
+        raise BadEntry(f".{unknown[0]}", "no such key (the keys are file, format, mapping)", spec[unknown[0]])
     if not isinstance(spec.get("file"), str) or not spec["file"]:
-        raise DataError(f"{where}.file: expected the path of the recording, got {spec.get('file')!r}")
+        raise BadEntry(".file", "the path of the recording", spec.get("file"))
     fmt = spec.get("format")
     if fmt not in FORMATS:
-        raise DataError(f"{where}.format: expected one of {list(FORMATS)}, got {fmt!r}")
-    if (fmt == "csv") != ("mapping" in spec):
-        raise DataError(f"{where}.mapping: " + ("a csv recording needs its column mapping file (docs/data.md)"
-                                                if fmt == "csv" else f"applies to format 'csv' only, not {fmt!r}"))
+        raise BadEntry(".format", f"one of {list(FORMATS)}", fmt)
+    if fmt == "csv" and not (isinstance(spec.get("mapping"), str) and spec["mapping"]):
+        raise BadEntry(".mapping", "the column mapping file of a csv recording (docs/data.md)", spec.get("mapping"))
+    if fmt != "csv" and "mapping" in spec:
+        raise BadEntry(".mapping", f"no mapping: it applies to format 'csv' only, not {fmt!r}", spec["mapping"])
     return {"file": spec["file"], "format": fmt, "mapping": spec.get("mapping")}
+
+
+def check_entry(spec: Any) -> None:
+    """The config check of one entry: its shape, and that its files exist (relative paths
+    are from the project folder, where Snakemake runs). The file is read at acquisition."""
+    e = entry(spec)
+    for key in ("file", "mapping"):
+        if e[key] is not None and not Path(e[key]).is_file():
+            raise BadEntry("" if isinstance(spec, (str, Path)) else f".{key}",
+                           "an existing file (paths are relative to the project folder)", e[key])
 
 
 def _meta(robot: str, plan: str, path: Path, start: str = RECORDING_START) -> RunMetadata:
@@ -123,7 +142,10 @@ def plan_of(ds: xr.Dataset, name: str) -> Plan:
 def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Dataset | None, Plan | None]:
     """The recording ``spec`` of run ``run_id``: (path, run dataset or None for a ``.nc``
     file the replay rig opens itself, the instrument's plan or None)."""
-    s = _spec(spec, f"{where}.{run_id}")
+    try:
+        s = entry(spec)
+    except BadEntry as exc:
+        raise DataError(f"{where}.{run_id}{exc.key}: expected {exc.expected}, got {exc.value!r}") from None
     path = Path(s["file"])
     if s["format"] == "nc":
         return path, None, None

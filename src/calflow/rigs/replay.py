@@ -29,7 +29,7 @@ import numpy as np
 
 from calflow.data.conventions import ROBOT_JOINTS
 from calflow.data.io import open_dataset
-from calflow.errors import CalflowError, RigError
+from calflow.errors import CalflowError, OptionError, RigError
 
 
 def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
@@ -217,3 +217,26 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
     except CalflowError as exc:
         raise RigError(str(exc)) from None
     return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
+
+
+def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None) -> None:
+    """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
+    ``recordings`` given, each entry of a mapping well formed and its files present, the
+    tolerance a number >= 0. Recordings are read when a run is acquired, not here."""
+    from calflow.data.recordings import BadEntry, check_entry
+
+    if isinstance(recordings, Mapping):
+        for run_id, spec in recordings.items():
+            try:
+                check_entry(spec)
+            except BadEntry as exc:
+                raise OptionError(f"recordings.{run_id}{exc.key}", exc.expected, exc.value) from None
+    elif not isinstance(recordings, (str, os.PathLike)) or not str(recordings):
+        raise OptionError("recordings", "a folder of <run id>.nc run files or a mapping run id -> recording",
+                          recordings)
+    if isinstance(tolerance_um, bool) or not isinstance(tolerance_um, (int, float)) or not tolerance_um >= 0 \
+            or not math.isfinite(tolerance_um):
+        raise OptionError("tolerance_um", "a finite number >= 0 (µm; degree for rotations)", tolerance_um)
+
+
+replay.check_options = check_options
