@@ -264,3 +264,17 @@ def test_both_recorded_campaigns_run_end_to_end(tmp_path):
         assert "What these data do not support" in html
         for reason in summary["unsupported"].values():
             assert f"Not supported by these data: {reason.replace(chr(39), '&#39;')}." in html
+
+
+def test_a_tracker_clock_is_served_in_campaign_time():
+    entry = {"file": str(RECORDINGS / "stage2d_tracker.csv"), "format": "laser_tracker"}
+    own = replay({"training": entry}, stream="training")
+    later = replay({"training": entry}, stream="training", campaign_start="2026-03-02T09:00:00+00:00")
+    same = replay({"training": entry}, stream="training", campaign_start="2026-03-02T10:00:00Z")
+    iso = replay({"metrology": ISO_ENTRY}, stream="metrology", campaign_start="2026-03-02T09:00:00+00:00")
+    times = []
+    for rig in (own, later, same, iso):
+        rig.move(rig.recorded_plan.row(0))
+        rig.move(rig.recorded_plan.row(1))
+        times.append(rig.read()["time"])
+    assert times == [10.0, 3610.0, 10.0, 0.0]  # the ISO 230-2 file has no clock to shift

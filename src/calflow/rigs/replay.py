@@ -189,8 +189,23 @@ class ReplayRig:
         return {"available": False}
 
 
+def _shift_s(ds, campaign_start: str | None) -> float:
+    """Seconds from the campaign start to an instrument recording's clock origin (its
+    ``recording_start`` attribute); 0 for a file without a clock or no campaign start."""
+    import datetime as dt
+
+    origin = ds.attrs.get("recording_start")
+    if not origin or not campaign_start:
+        return 0.0
+    try:
+        start = dt.datetime.fromisoformat(str(campaign_start).replace("Z", "+00:00"))
+    except ValueError:
+        raise RigError(f"rig.options.campaign_start: expected an ISO 8601 time, got {campaign_start!r}") from None
+    return (dt.datetime.fromisoformat(origin) - start).total_seconds()
+
+
 def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "",
-           tolerance_um: float = 1e-6, seed: int | None = None) -> ReplayRig:
+           tolerance_um: float = 1e-6, seed: int | None = None, campaign_start: str | None = None) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
 
     ``recordings`` is a folder of ``<run id>.nc`` run files (a campaign's
@@ -202,6 +217,8 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
     single recording. ``tolerance_um`` is the largest accepted difference between a
     command and the recorded one, in each joint's unit (µm; degree for rotations).
     ``seed`` is accepted and ignored: a recording has no randomness left.
+    ``campaign_start`` (ISO 8601, given by ``calflow acquire``): an instrument's recording
+    with a clock is served in seconds since it, not since its own first timestamp.
     """
     del seed
     tolerance = float(tolerance_um)
@@ -216,10 +233,18 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
         path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
     except CalflowError as exc:
         raise RigError(str(exc)) from None
+    if ds is not None:
+        shift = _shift_s(ds, campaign_start)
+        if shift:
+            from calflow.data.conventions import time_units
+
+            t = ds["time"]
+            ds = ds.assign(time=t.copy(data=t.values + shift).assign_attrs(units=time_units(campaign_start)))
     return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
 
 
-def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None) -> None:
+def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None,
+                  campaign_start=None) -> None:
     """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
     ``recordings`` given, each entry of a mapping well formed and its files present, the
     tolerance a number >= 0. Recordings are read when a run is acquired, not here."""
