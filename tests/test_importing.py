@@ -430,3 +430,28 @@ def test_a_mapped_csv_recording_carries_its_plan(tmp_path):
                                     "identification")
     assert validate_dataset(ds) == [] and plan.name == "identification"
     assert np.allclose(plan.commands["x"], [0, 1500, 3250, 400]) and list(plan.pose) == [0, 1, 2, 3]
+
+
+def test_import_recording_cli_writes_a_valid_run_or_one_line(tmp_path, monkeypatch, capsys):
+    from calflow.cli import main
+
+    root = DATA.parents[2]
+    monkeypatch.chdir(root)  # the shipped campaigns name their recordings from the project folder
+    out = tmp_path / "metrology.nc"
+    assert main(["import-recording", str(DATA / "axis1_ISO230.dat"), "--format", "ecmc_iso230", "--plan",
+                 "metrology", "--campaign", "config/campaigns/recorded-iso230.yaml", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert validate_dataset(ds) == [] and ds.attrs["campaign"] == "recorded-iso230"
+    assert ds.attrs["imported_from"] == "axis1_ISO230.dat" and ds.sizes["sample"] == 60
+    out = tmp_path / "training.nc"
+    assert main(["import-recording", str(DATA / "stage2d_tracker.csv"), "--format", "laser_tracker", "--plan",
+                 "training", "--campaign", "config/campaigns/recorded-tracker.yaml", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert ds["time"].attrs["units"] == "seconds since 2026-03-02T10:00:00+00:00" and ds["time"].values[-1] == 350.0
+    capsys.readouterr()
+    bad = tmp_path / "bad.nc"
+    assert main(["import-recording", str(DATA / "stage2d_tracker.csv"), "--format", "laser_tracker", "--plan",
+                 "training", "--campaign", "config/campaigns/recorded-iso230.yaml", "--out", str(bad)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("holds a stage2d recording; campaign config/campaigns/recorded-iso230.yaml is 'stage1d'")
+    assert "\n" not in err and not bad.exists()

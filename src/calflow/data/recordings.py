@@ -156,3 +156,23 @@ def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Da
     if s["format"] == "laser_tracker":
         return (path, *tracker_run(path, run_id))
     return (path, *csv_run(path, s["mapping"], run_id))
+
+
+def in_campaign_time(ds: xr.Dataset, campaign_start: str) -> xr.Dataset:
+    """``ds`` with ``time`` in seconds since ``campaign_start`` (ISO 8601), when the
+    recording has a clock (its ``recording_start`` attribute); unchanged otherwise (an
+    ISO 230-2 file has none)."""
+    import datetime as dt
+
+    from calflow.data.conventions import time_units
+
+    origin = ds.attrs.get("recording_start")
+    if not origin:
+        return ds
+    try:
+        start = dt.datetime.fromisoformat(str(campaign_start).replace("Z", "+00:00"))
+    except ValueError:
+        raise DataError(f"campaign start: expected an ISO 8601 time, got {campaign_start!r}") from None
+    shift = (dt.datetime.fromisoformat(origin) - start).total_seconds()
+    t = ds["time"]
+    return ds.assign(time=t.copy(data=t.values + shift).assign_attrs(units=time_units(campaign_start)))

@@ -189,21 +189,6 @@ class ReplayRig:
         return {"available": False}
 
 
-def _shift_s(ds, campaign_start: str | None) -> float:
-    """Seconds from the campaign start to an instrument recording's clock origin (its
-    ``recording_start`` attribute); 0 for a file without a clock or no campaign start."""
-    import datetime as dt
-
-    origin = ds.attrs.get("recording_start")
-    if not origin or not campaign_start:
-        return 0.0
-    try:
-        start = dt.datetime.fromisoformat(str(campaign_start).replace("Z", "+00:00"))
-    except ValueError:
-        raise RigError(f"rig.options.campaign_start: expected an ISO 8601 time, got {campaign_start!r}") from None
-    return (dt.datetime.fromisoformat(origin) - start).total_seconds()
-
-
 def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "",
            tolerance_um: float = 1e-6, seed: int | None = None, campaign_start: str | None = None) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
@@ -233,13 +218,13 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
         path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
     except CalflowError as exc:
         raise RigError(str(exc)) from None
-    if ds is not None:
-        shift = _shift_s(ds, campaign_start)
-        if shift:
-            from calflow.data.conventions import time_units
+    if ds is not None and campaign_start:
+        from calflow.data.recordings import in_campaign_time
 
-            t = ds["time"]
-            ds = ds.assign(time=t.copy(data=t.values + shift).assign_attrs(units=time_units(campaign_start)))
+        try:
+            ds = in_campaign_time(ds, campaign_start)
+        except CalflowError as exc:
+            raise RigError(str(exc)) from None
     return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
 
 
