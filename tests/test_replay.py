@@ -283,3 +283,17 @@ def test_a_tracker_clock_is_served_in_campaign_time():
         rig.move(rig.recorded_plan.row(1))
         times.append(rig.read()["time"])
     assert times == [10.0, 3610.0, 10.0, 0.0]  # the ISO 230-2 file has no clock to shift
+
+
+def test_unsupported_sections_say_what_each_missing_run_costs():
+    from calflow.nano.summary import unsupported_sections
+
+    assert unsupported_sections("stage1d", {"training", "metrology", "validation"}, True) == {}
+    assert set(unsupported_sections("stage2d", {"training"}, False, budget=False)) == {
+        "validation", "robustness", "temperature", "budget"}
+    only_metrology = unsupported_sections("stage1d", {"metrology"}, True)
+    assert set(only_metrology) == {"models", "training", "validation", "robustness"}
+    assert "Eq. 5.3-5.6" in only_metrology["models"]
+    assert "Eq. 5.10" in unsupported_sections("stage2d", set(), True)["models"]
+    assert "metrology" in unsupported_sections("stage1d", {"training", "validation"}, True)
+    assert "metrology" not in unsupported_sections("stage2d", {"training", "validation"}, True)
