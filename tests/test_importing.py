@@ -269,6 +269,7 @@ def test_standard_cycle_rows_and_iso230_2_of_the_run_match_the_file():
     (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[2,3]"), "line 10: REF_DATA_FWD[2,3]: index 3 is beyond CYCLES=2"),
     (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[1,1]"), "line 10: REF_DATA_FWD[1,1] given again (first on line 8)"),
     (("REF_DATA_BWD[3,2]=30.0005", ""), "REF_DATA_BWD[3,2] missing; expected POSITIONS=3 x CYCLES=2 readings"),
+    (("POSITIONS=3", "POSITIONS=100000"), "TGT_DATA[4] missing; expected POSITIONS=100000 targets"),
     (("DEC=5", "CYCELS=5"), "line 5: unknown key 'CYCELS'"),
     (("DEC=5", "just words"), "line 5: expected '# comment' or KEY=value, got 'just words'"),
     (("UNIT=mm", "UNIT=mm\nUNIT=um"), "line 3: UNIT given again (first on line 2)"),
@@ -455,3 +456,9 @@ def test_import_recording_cli_writes_a_valid_run_or_one_line(tmp_path, monkeypat
     err = capsys.readouterr().err.strip()
     assert err.endswith("holds a stage2d recording; campaign config/campaigns/recorded-iso230.yaml is 'stage1d'")
     assert "\n" not in err and not bad.exists()
+
+
+def test_huge_declared_sizes_are_refused_without_allocating():
+    """20000 x 100000 readings declared (16 GB as floats), none given: refused, nothing allocated."""
+    text = "UNIT=mm\nCYCLES=100000\nPOSITIONS=20000\n" + "".join(f"TGT_DATA[{i}]={i}\n" for i in range(1, 20001))
+    expect("REF_DATA_FWD[1,1] missing; expected POSITIONS=20000 x CYCLES=100000", ecmc_iso230.parse, text, "big.dat")
