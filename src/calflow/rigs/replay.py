@@ -212,19 +212,14 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
     entry = _resolve(recordings, stream)
     if not isinstance(recordings, Mapping):
         return ReplayRig(entry, stream=stream, tolerance=tolerance)
-    from calflow.data.recordings import load
+    from calflow.data.recordings import in_campaign_time, load
 
     try:
         path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
+        if ds is not None and campaign_start:
+            ds = in_campaign_time(ds, campaign_start)
     except CalflowError as exc:
         raise RigError(str(exc)) from None
-    if ds is not None and campaign_start:
-        from calflow.data.recordings import in_campaign_time
-
-        try:
-            ds = in_campaign_time(ds, campaign_start)
-        except CalflowError as exc:
-            raise RigError(str(exc)) from None
     return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
 
 
