@@ -416,7 +416,8 @@ def test_tracker_header_problems(tmp_path):
     ("run.txt", "recordings.metrology: expected a .nc run file, an *ISO230.dat file or"),
     ({"file": "a.dat", "format": "ecmc"}, "recordings.metrology.format: expected one of"),
     ({"file": "a.csv", "format": "csv"}, "recordings.metrology.mapping: expected the column mapping file"),
-    ({"file": "a.dat", "format": "ecmc_iso230", "mapping": "m.yaml"}, "mapping: expected no mapping: it applies to format 'csv' only"),
+    ({"file": "a.dat", "format": "ecmc_iso230", "mapping": "m.yaml"},
+     "mapping: expected no mapping: it applies to format 'csv' only"),
     ({"file": "a.dat", "fmt": "ecmc_iso230"}, "recordings.metrology.fmt: expected no such key"),
     ({"file": "nowhere_ISO230.dat", "format": "ecmc_iso230"}, "nowhere_ISO230.dat: file not found"),
 ])

@@ -187,7 +187,8 @@ ISO_ENTRY = {"file": str(RECORDINGS / "axis1_ISO230.dat"), "format": "ecmc_iso23
 
 def campaign(tmp_path, robot, recordings, name="rec"):
     path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({"robot": robot, "rig": {"factory": "replay", "options": {"recordings": recordings}}}))
+    rig = {"factory": "replay", "options": {"recordings": recordings}}
+    path.write_text(yaml.safe_dump({"robot": robot, "rig": rig}))
     return str(path)
 
 
@@ -200,8 +201,8 @@ def test_acquire_replays_an_iso230_file_with_the_plan_it_recorded(tmp_path):
     assert ds.attrs["source"] == "replay" and ds.attrs["plan"] == "metrology" and ds.attrs["campaign"] == "rec"
     assert ds.attrs["imported_from"] == "axis1_ISO230.dat"
     rows = ecmc_iso230.standard_cycle(ecmc_iso230.read(ISO_ENTRY["file"]))
-    assert np.array_equal(ds["cmd_x"].values, rows["target"]) and np.array_equal(ds["meas_x"].values, rows["reading"])
-    assert np.array_equal(ds["direction"].values, rows["direction"]) and np.array_equal(ds["cycle"].values, rows["cycle"])
+    for var, key in (("cmd_x", "target"), ("meas_x", "reading"), ("direction", "direction"), ("cycle", "cycle")):
+        assert np.array_equal(ds[var].values, rows[key]), var
     assert not list(out.parent.glob("*.journal"))
 
 

@@ -137,10 +137,10 @@ def parse(text: str, where: str = "ISO 230-2 file") -> Iso230Recording:
     def table(key: str, shape: tuple[int, ...]) -> np.ndarray:
         given = {k[1:] for k in cells if k[0] == key}  # every index is in range: complete iff the count is
         if len(given) < math.prod(shape):
-            one = next(tuple(k + 1 for k in idx) for idx in np.ndindex(*shape) if tuple(k + 1 for k in idx) not in given)
-            what = "targets" if key == "TGT_DATA" else "readings per direction"
-            raise DataError(f"{where}: line {end}: {key}[{','.join(map(str, one))}] missing; expected "
-                            f"POSITIONS={positions}" + ("" if key == "TGT_DATA" else f" x CYCLES={cycles}") + f" {what}")
+            one = next(i for i in (tuple(k + 1 for k in idx) for idx in np.ndindex(*shape)) if i not in given)
+            what = "targets" if key == "TGT_DATA" else f"x CYCLES={cycles} readings per direction"
+            raise DataError(f"{where}: line {end}: {key}[{','.join(map(str, one))}] missing; "
+                            f"expected POSITIONS={positions} {what}")
         out = np.empty(shape)  # bounded by the file's own lines
         for idx in given:
             out[tuple(k - 1 for k in idx)] = cells[(key, *idx)][0]

@@ -208,7 +208,8 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
     }
 
 
-def _validation(validation_metrics: xr.Dataset | None, training_metrics, training_range_c) -> tuple[dict, dict | None, dict]:
+def _validation(validation_metrics: xr.Dataset | None, training_metrics,
+                training_range_c) -> tuple[dict, dict | None, dict]:
     """(tests, validation, robustness) of a validation run; empty when the campaign has none."""
     if validation_metrics is None:
         return {}, None, {}
