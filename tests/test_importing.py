@@ -189,3 +189,277 @@ def test_check_mapping_normalises_and_is_idempotent():
     m = check_mapping(MAPPING)
     assert m["columns"]["cmd_x"] == {"column": "X_cmd_mm", "scale": 1000.0, "offset": 0.0, "format": "number"}
     assert check_mapping(m) == m
+
+
+def test_a_duplicated_row_is_refused_naming_both_rows(tmp_path):
+    rows = ROWS[:3] + [ROWS[2]] + ROWS[3:]
+    msg = expect("bench.csv: row 5: repeats row 4 cell for cell", import_csv, write(tmp_path, HEADER, rows),
+                 MAPPING, META)
+    assert "count one measurement twice" in msg
+    assert not list(tmp_path.glob("*.nc"))
+
+
+# ---------------------------------------------------------------- ecmc ISO 230-2 (.dat) files
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+from calflow.data import ecmc_iso230, laser_tracker  # noqa: E402
+from calflow.data.recordings import iso230_run, load as load_recording, tracker_run  # noqa: E402
+from calflow.metrics import iso230_2  # noqa: E402
+from calflow.metrics.iso230_2_runs import iso230_2_of_run  # noqa: E402
+
+DATA = __import__("pathlib").Path(__file__).parent / "data" / "recordings"
+
+ISO_TEXT = """# axis 1, by hand
+UNIT=mm
+CYCLES=2
+POSITIONS=3
+DEC=5
+TGT_DATA[1]=10
+TGT_DATA[2]=20
+REF_DATA_FWD[1,1]=10.001
+TGT_DATA[3]=30
+REF_DATA_FWD[2,1]=20.002
+REF_DATA_FWD[3,1]=29.999
+REF_DATA_FWD[1,2]=10.0015
+REF_DATA_FWD[2,2]=20.0025
+REF_DATA_FWD[3,2]=29.9985
+REF_DATA_BWD[1,1]=10.003
+REF_DATA_BWD[2,1]=20.004 
+REF_DATA_BWD[3,1]=30.001
+REF_DATA_BWD[1,2]=10.0035
+REF_DATA_BWD[2,2]=20.0045
+REF_DATA_BWD[3,2]=30.0005
+"""
+
+
+def test_ecmc_file_parses_by_hand():
+    rec = ecmc_iso230.parse(ISO_TEXT, "a_ISO230.dat")
+    assert rec.unit == "mm" and rec.scale_um == 1000.0
+    assert rec.targets.tolist() == [10, 20, 30]
+    assert rec.forward.tolist() == [[10.001, 10.0015], [20.002, 20.0025], [29.999, 29.9985]]
+    assert rec.backward[:, 1].tolist() == [10.0035, 20.0045, 30.0005]
+
+
+def test_standard_cycle_rows_and_iso230_2_of_the_run_match_the_file():
+    rec = ecmc_iso230.read(DATA / "axis1_ISO230.dat")
+    rows = ecmc_iso230.standard_cycle(rec)
+    p, c = rec.forward.shape
+    assert len(rows["target"]) == 2 * p * c
+    # cycle 1: forward 1..P then backward P..1; the reading of backward approach to position P-1 of cycle 2
+    assert rows["target"][p] == rec.targets[-1] * 1000 and rows["direction"][p] == -1
+    assert rows["reading"][2 * p + p + 1] == rec.backward[p - 2, 1] * 1000
+    ds, plan = iso230_run(DATA / "axis1_ISO230.dat", "metrology")
+    assert validate_dataset(ds) == [] and ds.attrs["robot"] == "stage1d" and len(plan) == 2 * p * c
+    got = iso230_2_of_run(ds)
+    want = iso230_2(rec.targets * 1000, rec.forward * 1000, rec.backward * 1000)
+    for key in ("E", "M", "B", "R", "A", "R_fwd", "B_mean"):
+        assert got[f"{key}_nm"] == pytest.approx(float(getattr(want, key)) * 1000, rel=1e-9, abs=1e-9), key
+
+
+@pytest.mark.parametrize("change,message", [
+    (("UNIT=mm", "UNIT=deg"), "line 2: UNIT: expected a length unit"),
+    (("CYCLES=2", "CYCLES=two"), "line 3: CYCLES: expected a whole number >= 1, got 'two'"),
+    (("CYCLES=2", "CYCLES=0"), "line 3: CYCLES: expected a whole number from 1 to 100000"),
+    (("TGT_DATA[2]=20", "TGT_DATA[2]=abc"), "line 7: TGT_DATA[2]: expected a number, got 'abc'"),
+    (("TGT_DATA[2]=20", "TGT_DATA[2]=nan"), "line 7: TGT_DATA[2]: expected a finite number"),
+    (("TGT_DATA[2]=20", "TGT_DATA[2]=35"), "TGT_DATA[3]: expected targets strictly increasing or decreasing"),
+    (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[2]"), "line 10: REF_DATA_FWD: expected 1-based indices REF_DATA_FWD[i,j]"),
+    (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[0,1]"), "line 10: REF_DATA_FWD: expected 1-based indices"),
+    (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[2,3]"), "line 10: REF_DATA_FWD[2,3]: index 3 is beyond CYCLES=2"),
+    (("REF_DATA_FWD[2,1]", "REF_DATA_FWD[1,1]"), "line 10: REF_DATA_FWD[1,1] given again (first on line 8)"),
+    (("REF_DATA_BWD[3,2]=30.0005", ""), "REF_DATA_BWD[3,2] missing; expected POSITIONS=3 x CYCLES=2 readings"),
+    (("POSITIONS=3", "POSITIONS=100000"), "TGT_DATA[4] missing; expected POSITIONS=100000 targets"),
+    (("DEC=5", "CYCELS=5"), "line 5: unknown key 'CYCELS'"),
+    (("DEC=5", "just words"), "line 5: expected '# comment' or KEY=value, got 'just words'"),
+    (("UNIT=mm", "UNIT=mm\nUNIT=um"), "line 3: UNIT given again (first on line 2)"),
+])
+def test_bad_ecmc_files_give_one_line_naming_file_and_line(tmp_path, change, message):
+    path = tmp_path / "bad_ISO230.dat"
+    path.write_text(ISO_TEXT.replace(*change, 1))
+    msg = expect(message, ecmc_iso230.read, path)
+    assert msg.startswith(f"{path}: ")
+
+
+def test_unreadable_ecmc_files(tmp_path):
+    expect("gone_ISO230.dat: file not found", ecmc_iso230.read, tmp_path / "gone_ISO230.dat")
+    (tmp_path / "bin_ISO230.dat").write_bytes(b"UNIT=mm\n\xff\xfe")
+    expect("bin_ISO230.dat: not UTF-8 text", ecmc_iso230.read, tmp_path / "bin_ISO230.dat")
+
+
+finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(p=st.integers(1, 5), c=st.integers(1, 4), unit=st.sampled_from(sorted(ecmc_iso230.UM_PER_UNIT)),
+       start=finite, step=st.floats(1e-3, 1e3), data=st.data())
+def test_ecmc_writer_and_parser_round_trip(tmp_path, p, c, unit, start, step, data):
+    targets = start + step * np.arange(p)
+    fwd = np.array(data.draw(st.lists(finite, min_size=p * c, max_size=p * c))).reshape(p, c)
+    bwd = np.array(data.draw(st.lists(finite, min_size=p * c, max_size=p * c))).reshape(p, c)
+    rec = ecmc_iso230.Iso230Recording(unit, targets, fwd, bwd)
+    back = ecmc_iso230.read(ecmc_iso230.write(rec, tmp_path / "rt_ISO230.dat", ("round trip",)))
+    assert back.unit == unit
+    assert np.array_equal(back.targets, targets) and np.array_equal(back.forward, fwd)
+    assert np.array_equal(back.backward, bwd)
+
+
+@settings(max_examples=120, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 21), st.sampled_from(["drop", "dup", "swap", "text", "cut"]),
+                          st.text(max_size=12)), max_size=4))
+def test_ecmc_parser_fuzz_never_gives_a_traceback(edits):
+    """Mutated files (lines dropped, repeated, swapped, garbled, cut) parse or give calflow's one line."""
+    lines = ISO_TEXT.splitlines()
+    for k, op, junk in edits:
+        k %= max(len(lines), 1)
+        if not lines:
+            break
+        if op == "drop":
+            del lines[k]
+        elif op == "dup":
+            lines.insert(k, lines[k])
+        elif op == "swap":
+            lines[k], lines[-1] = lines[-1], lines[k]
+        elif op == "text":
+            lines[k] = lines[k][: len(lines[k]) // 2] + junk
+        else:
+            lines[k] = lines[k][: len(junk)]
+    try:
+        rec = ecmc_iso230.parse("\n".join(lines), "fuzz_ISO230.dat")
+    except DataError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("fuzz_ISO230.dat: ")
+    else:
+        assert rec.forward.shape == rec.backward.shape == (len(rec.targets), rec.forward.shape[1])
+        assert np.all(np.isfinite(rec.forward)) and np.all(np.isfinite(rec.backward))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=300))
+def test_ecmc_parser_fuzz_on_any_text(text):
+    try:
+        ecmc_iso230.parse(text, "any.dat")
+    except DataError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("any.dat: ")
+
+
+# ---------------------------------------------------------------- laser-tracker exports (CSV)
+
+def test_tracker_fixture_reads_in_mm_and_becomes_a_stage2d_run():
+    rec = laser_tracker.read(DATA / "stage2d_tracker.csv")
+    assert rec.start == "2026-03-02T10:00:00+00:00" and rec.time[0] == 0.0 and rec.time[1] == 10.0
+    assert rec.command.shape == rec.measured.shape == (36, 3)
+    assert sorted(set(rec.pose.tolist())) == list(range(9)) and rec.cycle.max() == 3
+    ds, plan = tracker_run(DATA / "stage2d_tracker.csv", "training")
+    assert validate_dataset(ds) == [] and ds.attrs["robot"] == "stage2d"
+    assert np.allclose(ds["cmd_x"].values, rec.command[:, 0] * 1000)
+    assert np.allclose(ds["meas_y"].values, rec.measured[:, 1] * 1000)
+    z = rec.measured[:, 2] * 1000
+    assert ds.attrs["z_range_um"] == pytest.approx(z.max() - z.min())
+    assert list(plan.commands) == ["x", "y"] and len(plan) == 36
+
+
+def test_tracker_round_trip_and_default_cycles(tmp_path):
+    rec = laser_tracker.read(DATA / "stage2d_tracker.csv")
+    lost = rec.measured.copy()
+    lost[3, 1] = np.nan  # a lost reading survives as an empty cell
+    rec = laser_tracker.TrackerRecording(rec.start, rec.time, rec.pose, rec.cycle, rec.command, lost)
+    back = laser_tracker.read(laser_tracker.write(rec, tmp_path / "t.csv"))
+    assert np.array_equal(back.measured, lost, equal_nan=True) and np.array_equal(back.cycle, rec.cycle)
+    text = (tmp_path / "t.csv").read_text().replace(",cycle\n", "\n", 1)
+    (tmp_path / "nocycle.csv").write_text("\n".join(line.rsplit(",", 1)[0] if k else line
+                                                    for k, line in enumerate(text.splitlines())) + "\n")
+    assert np.array_equal(laser_tracker.read(tmp_path / "nocycle.csv").cycle, rec.cycle)
+
+
+TRACKER = ["timestamp,pose,X_cmd_mm,Y_cmd_mm,Z_cmd_mm,X_mm,Y_mm,Z_mm",
+           "2026-03-02T10:00:00Z,0,0,0,5,0.001,0.002,5.001",
+           "2026-03-02T10:00:10Z,1,1,0,5,1.001,0.002,5.001",
+           "2026-03-02T10:00:20Z,0,0,0,5,0.0012,0.0021,5.0009"]
+
+
+@pytest.mark.parametrize("row,cells,message", [
+    (3, None, "t.csv: row 4: repeats row 3 cell for cell"),
+    (2, {0: "10:00"}, "t.csv: row 2, column 'timestamp': expected an ISO 8601 timestamp"),
+    (2, {0: "2026-03-02T10:00:00"}, "t.csv: row 2, column 'timestamp': expected a timestamp with its time zone"),
+    (3, {0: "2026-03-02T09:00:00Z"}, "t.csv: row 3, column 'timestamp': expected a time not before"),
+    (3, {1: "-1"}, "t.csv: row 3, column 'pose': expected an integer >= 0, got '-1'"),
+    (3, {2: "1mm"}, "t.csv: row 3, column 'X_cmd_mm': expected a number (mm), got '1mm'"),
+    (3, {2: ""}, "t.csv: row 3, column 'X_cmd_mm': expected a number (mm), got ''"),
+    (3, {6: "inf"}, "t.csv: row 3, column 'Y_mm': expected a finite number (mm), got 'inf'"),
+    (3, {4: "6"}, "t.csv: row 3, column 'Z_cmd_mm': expected the commanded Z of every row (5.0 mm)"),
+    (3, {7: "5.0,1"}, "t.csv: row 3: expected 8 fields as in the header, got 9"),
+])
+def test_bad_tracker_exports_give_one_line(tmp_path, row, cells, message):
+    lines = list(TRACKER)
+    if cells is None:
+        lines.insert(row, lines[row - 1])
+    else:
+        parts = lines[row - 1].split(",")
+        for k, v in cells.items():
+            parts[k] = v
+        lines[row - 1] = ",".join(parts)
+    (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
+    expect(message, laser_tracker.read, tmp_path / "t.csv")
+
+
+def test_tracker_header_problems(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text("# only a comment\n")
+    expect("t.csv: row 1: expected a header row", laser_tracker.read, path)
+    path.write_text("# exported\n" + TRACKER[0].replace("Z_mm", "Zmm") + "\n")
+    expect("t.csv: row 2: column 'Z_mm' missing from the header", laser_tracker.read, path)
+    path.write_text(TRACKER[0] + "\n")
+    expect("t.csv: row 2: expected a data row after the header", laser_tracker.read, path)
+
+
+@pytest.mark.parametrize("spec,message", [
+    ("run.txt", "recordings.metrology: expected a .nc run file, an *ISO230.dat file or"),
+    ({"file": "a.dat", "format": "ecmc"}, "recordings.metrology.format: expected one of"),
+    ({"file": "a.csv", "format": "csv"}, "recordings.metrology.mapping: expected the column mapping file"),
+    ({"file": "a.dat", "format": "ecmc_iso230", "mapping": "m.yaml"},
+     "mapping: expected no mapping: it applies to format 'csv' only"),
+    ({"file": "a.dat", "fmt": "ecmc_iso230"}, "recordings.metrology.fmt: expected no such key"),
+    ({"file": "nowhere_ISO230.dat", "format": "ecmc_iso230"}, "nowhere_ISO230.dat: file not found"),
+])
+def test_bad_recording_entries_are_named(spec, message):
+    expect(message, load_recording, spec, "metrology")
+
+
+def test_a_mapped_csv_recording_carries_its_plan(tmp_path):
+    mfile = tmp_path / "m.yaml"
+    mfile.write_text(yaml.safe_dump(MAPPING))
+    path, ds, plan = load_recording({"file": str(write(tmp_path)), "format": "csv", "mapping": str(mfile)},
+                                    "identification")
+    assert validate_dataset(ds) == [] and plan.name == "identification"
+    assert np.allclose(plan.commands["x"], [0, 1500, 3250, 400]) and list(plan.pose) == [0, 1, 2, 3]
+
+
+def test_import_recording_cli_writes_a_valid_run_or_one_line(tmp_path, monkeypatch, capsys):
+    from calflow.cli import main
+
+    root = DATA.parents[2]
+    monkeypatch.chdir(root)  # the shipped campaigns name their recordings from the project folder
+    out = tmp_path / "metrology.nc"
+    assert main(["import-recording", str(DATA / "axis1_ISO230.dat"), "--format", "ecmc_iso230", "--plan",
+                 "metrology", "--campaign", "config/campaigns/recorded-iso230.yaml", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert validate_dataset(ds) == [] and ds.attrs["campaign"] == "recorded-iso230"
+    assert ds.attrs["imported_from"] == "axis1_ISO230.dat" and ds.sizes["sample"] == 60
+    out = tmp_path / "training.nc"
+    assert main(["import-recording", str(DATA / "stage2d_tracker.csv"), "--format", "laser_tracker", "--plan",
+                 "training", "--campaign", "config/campaigns/recorded-tracker.yaml", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert ds["time"].attrs["units"] == "seconds since 2026-03-02T10:00:00+00:00" and ds["time"].values[-1] == 350.0
+    capsys.readouterr()
+    bad = tmp_path / "bad.nc"
+    assert main(["import-recording", str(DATA / "stage2d_tracker.csv"), "--format", "laser_tracker", "--plan",
+                 "training", "--campaign", "config/campaigns/recorded-iso230.yaml", "--out", str(bad)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("holds a stage2d recording; campaign config/campaigns/recorded-iso230.yaml is 'stage1d'")
+    assert "\n" not in err and not bad.exists()
+
+
+def test_huge_declared_sizes_are_refused_without_allocating():
+    """20000 x 100000 readings declared (16 GB as floats), none given: refused, nothing allocated."""
+    text = "UNIT=mm\nCYCLES=100000\nPOSITIONS=20000\n" + "".join(f"TGT_DATA[{i}]={i}\n" for i in range(1, 20001))
+    expect("REF_DATA_FWD[1,1] missing; expected POSITIONS=20000 x CYCLES=100000", ecmc_iso230.parse, text, "big.dat")

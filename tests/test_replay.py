@@ -1,6 +1,7 @@
 """Replay of recorded runs: a replayed campaign reproduces its run datasets exactly."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -168,3 +169,132 @@ def test_replay_through_load_rig(recorded):
     rig, source = load_rig("calflow.rigs.replay:replay", "xytheta",
                            {"recordings": str(recorded["runs"]), "stream": "identification", "seed": 7})
     assert rig.joints == ("x", "y", "theta") and source == "plugin"  # the lead maps "replay" -> "replay"
+
+
+# ------------------------------------------------- instruments' recordings (ISO 230-2 .dat, tracker CSV)
+
+from pathlib import Path  # noqa: E402
+
+import yaml  # noqa: E402
+
+from calflow.cli import main  # noqa: E402
+from calflow.data import ecmc_iso230  # noqa: E402
+from conftest import ROOT, make_workdir, snakemake  # noqa: E402
+
+RECORDINGS = ROOT / "tests" / "data" / "recordings"
+ISO_ENTRY = {"file": str(RECORDINGS / "axis1_ISO230.dat"), "format": "ecmc_iso230"}
+
+
+def campaign(tmp_path, robot, recordings, name="rec"):
+    path = tmp_path / f"{name}.yaml"
+    rig = {"factory": "replay", "options": {"recordings": recordings}}
+    path.write_text(yaml.safe_dump({"robot": robot, "rig": rig}))
+    return str(path)
+
+
+def test_acquire_replays_an_iso230_file_with_the_plan_it_recorded(tmp_path):
+    out = tmp_path / "runs" / "metrology.nc"
+    c = campaign(tmp_path, "stage1d", {"metrology": ISO_ENTRY})
+    assert main(["acquire", "--campaign", c, "--plan", "metrology", "--out", str(out)]) == 0
+    ds = open_dataset(out, kind="run")
+    assert validate_dataset(ds) == []
+    assert ds.attrs["source"] == "replay" and ds.attrs["plan"] == "metrology" and ds.attrs["campaign"] == "rec"
+    assert ds.attrs["imported_from"] == "axis1_ISO230.dat"
+    rows = ecmc_iso230.standard_cycle(ecmc_iso230.read(ISO_ENTRY["file"]))
+    for var, key in (("cmd_x", "target"), ("meas_x", "reading"), ("direction", "direction"), ("cycle", "cycle")):
+        assert np.array_equal(ds[var].values, rows[key]), var
+    assert not list(out.parent.glob("*.journal"))
+
+
+def test_an_instrument_recording_is_refused_where_it_cannot_stand(tmp_path, capsys):
+    out = tmp_path / "runs" / "x.nc"
+    # an ISO 230-2 (1-DoF) recording in a 2-DoF campaign
+    c = campaign(tmp_path, "stage2d", {"training": ISO_ENTRY}, "planar")
+    assert main(["acquire", "--campaign", c, "--plan", "training", "--out", str(out)]) != 0
+    line = capsys.readouterr().err.strip()
+    assert "axis1_ISO230.dat: rig.options.recordings.training: holds a stage1d recording" in line
+    assert "\n" not in line
+    assert not out.exists() and not list(tmp_path.glob("runs/*"))
+    # a validation run is commanded through the models at run time: no recording can replay it
+    from calflow.commands.acquire import _recorded
+    from calflow.plan import Acquisition
+
+    rig = replay({"validation": ISO_ENTRY}, stream="validation")
+    job = Acquisition(rig.recorded_plan, "validation", controller=object())
+    with pytest.raises(RigError, match=r"recordings\.validation: is an instrument's recording, which cannot replay "
+                                       r"a run commanded through the models"):
+        _recorded(job, rig, {"robot": "stage1d"})
+
+
+def test_the_config_check_names_a_bad_recording_entry(tmp_path):
+    from calflow.config import load_campaign
+    from calflow.errors import ConfigError
+
+    for recordings, key in (({"metrology": {"file": str(tmp_path / "gone_ISO230.dat"), "format": "ecmc_iso230"}},
+                             "rig.options.recordings.metrology.file': expected an existing file"),
+                            ({"metrology": {"file": ISO_ENTRY["file"], "format": "dat"}},
+                             "rig.options.recordings.metrology.format': expected one of"),
+                            ({"metrology": "notes.txt"}, "rig.options.recordings.metrology': expected a .nc run file")):
+        with pytest.raises(ConfigError) as err:
+            load_campaign(campaign(tmp_path, "stage1d", recordings))
+        assert key in str(err.value) and "rec.yaml" in str(err.value)
+
+
+def test_both_recorded_campaigns_run_end_to_end(tmp_path):
+    """The shipped recorded campaigns, one Snakemake run: reports, and what the data do not support."""
+    names = ("recorded-iso230", "recorded-tracker", "recorded-csv")
+    work = make_workdir(tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names})
+    shutil.copytree(RECORDINGS, work / "tests" / "data" / "recordings")
+    # the CSV campaign (training with temperatures + ISO 230-2 metrology): planned, not run (its models cost time)
+    dry = snakemake(work, "-n", "--config", 'campaigns=["recorded-csv"]')
+    assert dry.returncode == 0, dry.stderr[-2000:]
+    jobs = dry.stdout + dry.stderr
+    assert "rule identify:" in jobs and "rule acquire:" in jobs and "acquire_validation" not in jobs
+    proc = snakemake(work, "--config", 'campaigns=["recorded-iso230", "recorded-tracker"]')
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    iso = json.loads((work / "results" / "recorded-iso230" / "summary.json").read_text())
+    rec = ecmc_iso230.read(RECORDINGS / "axis1_ISO230.dat")
+    from calflow.metrics import iso230_2
+
+    want = iso230_2(rec.targets * 1000, rec.forward * 1000, rec.backward * 1000)
+    assert iso["iso230_2"]["run"] == "metrology"
+    assert iso["iso230_2"]["B_nm"] == pytest.approx(float(want.B) * 1000)
+    assert iso["intrinsic"]["accuracy_nm"] > 0 and iso["models"] == {} and iso["validation"] is None
+    assert set(iso["unsupported"]) == {"models", "training", "validation", "robustness", "temperature", "budget"}
+    tracker = json.loads((work / "results" / "recorded-tracker" / "summary.json").read_text())
+    assert list(tracker["models"]) == ["two_dof"] and tracker["training"]["accuracy_nm"] > 0
+    assert set(tracker["unsupported"]) == {"validation", "robustness", "temperature", "budget"}
+    for name, summary in (("recorded-iso230", iso), ("recorded-tracker", tracker)):
+        html = (work / "reports" / name / "report.html").read_text()
+        assert (work / "reports" / name / "report.pdf").stat().st_size > 1000
+        assert "What these data do not support" in html
+        for reason in summary["unsupported"].values():
+            assert f"Not supported by these data: {reason.replace(chr(39), '&#39;')}." in html
+
+
+def test_a_tracker_clock_is_served_in_campaign_time():
+    entry = {"file": str(RECORDINGS / "stage2d_tracker.csv"), "format": "laser_tracker"}
+    own = replay({"training": entry}, stream="training")
+    later = replay({"training": entry}, stream="training", campaign_start="2026-03-02T09:00:00+00:00")
+    same = replay({"training": entry}, stream="training", campaign_start="2026-03-02T10:00:00Z")
+    iso = replay({"metrology": ISO_ENTRY}, stream="metrology", campaign_start="2026-03-02T09:00:00+00:00")
+    times = []
+    for rig in (own, later, same, iso):
+        rig.move(rig.recorded_plan.row(0))
+        rig.move(rig.recorded_plan.row(1))
+        times.append(rig.read()["time"])
+    assert times == [10.0, 3610.0, 10.0, 0.0]  # the ISO 230-2 file has no clock to shift
+
+
+def test_unsupported_sections_say_what_each_missing_run_costs():
+    from calflow.nano.summary import unsupported_sections
+
+    assert unsupported_sections("stage1d", {"training", "metrology", "validation"}, True) == {}
+    assert set(unsupported_sections("stage2d", {"training"}, False, budget=False)) == {
+        "validation", "robustness", "temperature", "budget"}
+    only_metrology = unsupported_sections("stage1d", {"metrology"}, True)
+    assert set(only_metrology) == {"models", "training", "validation", "robustness"}
+    assert "Eq. 5.3-5.6" in only_metrology["models"]
+    assert "Eq. 5.10" in unsupported_sections("stage2d", set(), True)["models"]
+    assert "metrology" in unsupported_sections("stage1d", {"training", "validation"}, True)
+    assert "metrology" not in unsupported_sections("stage2d", {"training", "validation"}, True)

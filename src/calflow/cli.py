@@ -82,6 +82,22 @@ def cmd_import_csv(args) -> None:
     write_dataset(import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out)
 
 
+def cmd_import_recording(args) -> None:
+    from calflow.commands.common import campaign, meta
+    from calflow.data.io import write_dataset
+    from calflow.data.recordings import in_campaign_time, load
+
+    c = campaign(args.campaign)
+    spec = {"file": args.file, "format": args.format, **({"mapping": args.mapping} if args.mapping else {})}
+    path, ds, _ = load(spec, args.plan, "calflow import-recording")
+    ds = in_campaign_time(ds, c["start"])
+    if ds.attrs["robot"] != c["robot"]:
+        raise CalflowError(f"{path}: holds a {ds.attrs['robot']} recording; campaign {args.campaign} is {c['robot']!r}")
+    kept = {k: ds.attrs[k] for k in ("imported_from", "z_range_um", "recording_start") if k in ds.attrs}
+    ds.attrs = {**meta(c, "replay", args.plan).attrs("run"), **kept}
+    write_dataset(ds, args.out)
+
+
 def cmd_validate(args) -> int:
     from calflow.data.validate import validate_file
 
@@ -176,6 +192,16 @@ def parser() -> argparse.ArgumentParser:
     ic.add_argument("--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)")
     ic.add_argument("--campaign", required=True)
     ic.add_argument("--out", required=True)
+
+    ir = _sub(sub, "import-recording", cmd_import_recording,
+              "turn an instrument's file (ISO 230-2 .dat, laser-tracker CSV) into a run dataset")
+    ir.add_argument("file")
+    ir.add_argument("--format", required=True, choices=["ecmc_iso230", "laser_tracker", "csv"],
+                    help="docs/data.md, 'Recorded campaigns'")
+    ir.add_argument("--mapping", help="column mapping of a csv recording")
+    ir.add_argument("--plan", required=True, help="the run's plan (e.g. metrology, training)")
+    ir.add_argument("--campaign", required=True)
+    ir.add_argument("--out", required=True)
 
     v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")

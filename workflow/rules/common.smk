@@ -117,6 +117,17 @@ def nano_models(c):
     return ["single", "adaptive_kmz"] if c["robot"] == "stage1d" else ["two_dof"]
 
 
+def recorded_runs(c):
+    """The run ids a replay campaign has recordings of (``rig.options.recordings`` as a
+    mapping), or None when every run is acquired (or replayed from a whole runs/ folder).
+    A recorded campaign analyses what its recordings hold; the summary says what is not
+    supported (docs/data.md)."""
+    recordings = c["rig"].get("options", {}).get("recordings")
+    if c["rig"]["factory"] == "replay" and isinstance(recordings, dict):
+        return set(recordings)
+    return None
+
+
 def results_of(name):
     """Every result file of campaign ``name`` that its summary and report draw on."""
     c = CAMPAIGN[name]
@@ -144,16 +155,32 @@ def results_of(name):
             for k in tests
         ]
         return files + export_results(name)
-    files = [f"{base}/models/{m}.nc" for m in nano_models(c)]
-    files += [
-        f"{base}/metrics/training.nc",
-        f"{base}/metrics/validation.nc",
-        f"{base}/runs/training.nc",
-        f"{base}/runs/validation.nc",  # ISO 9283 vAP, AD/RD, drift; the error budget replays its commands
-    ]
-    if c["robot"] == "stage1d":
+    recorded = recorded_runs(c)
+    has = lambda run: recorded is None or run in recorded
+    files = []
+    if has("training"):
+        files += [f"{base}/models/{m}.nc" for m in nano_models(c)]
+        files += [f"{base}/metrics/training.nc", f"{base}/runs/training.nc"]
+    if has("validation"):
+        files.append(f"{base}/metrics/validation.nc")
+        files.append(f"{base}/runs/validation.nc")  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
+    if c["robot"] == "stage1d" and has("metrology"):
         files.append(f"{base}/metrics/metrology.nc")
+        if not has("training"):  # the ISO 230-2 figures then come from the metrology run
+            files.append(f"{base}/runs/metrology.nc")
     return files
+
+
+def summary_truth(w):
+    """The rig's truth the summary step reads (tests and reports only): the identification's
+    for XYΘ, the validation's for the nano stages when the campaign has a validation run."""
+    c = CAMPAIGN[w.campaign]
+    if c["robot"] == "xytheta":
+        return f"results/{w.campaign}/truth/identification.json"
+    recorded = recorded_runs(c)
+    if recorded is not None and "validation" not in recorded:
+        return []
+    return f"results/{w.campaign}/truth/validation.json"
 
 
 def budget_file(name):

@@ -4,11 +4,7 @@
 rule summarise:
     input:
         files=lambda w: results_of(w.campaign),
-        truth=lambda w: (
-            f"results/{w.campaign}/truth/identification.json"
-            if CAMPAIGN[w.campaign]["robot"] == "xytheta"
-            else f"results/{w.campaign}/truth/validation.json"
-        ),
+        truth=summary_truth,
         budget=lambda w: budget_file(w.campaign),
     output:
         summary=report(

@@ -12,6 +12,20 @@ from calflow.errors import RigError
 from calflow.family import family_of
 
 
+def _recorded(job, rig, c: dict):
+    """The acquisition of a replayed instrument recording: its own plan, no controller."""
+    from calflow.plan import Acquisition
+
+    robot = rig.attrs.get("robot")
+    if robot != c["robot"] or job.controller is not None:
+        rig.close()
+        why = (f"holds a {robot} recording, the campaign's robot is {c['robot']!r}" if robot != c["robot"] else
+               "is an instrument's recording, which cannot replay a run commanded through the models at run time")
+        raise RigError(f"{rig.path}: rig.options.recordings.{job.run_id}: {why}")
+    return Acquisition(rig.recorded_plan, job.run_id, job.model, None,
+                       {**job.attrs, "imported_from": rig.attrs.get("imported_from", rig.path.name)})
+
+
 def run(args) -> None:
     from calflow.acquisition.checkpoint import Journal, plan_digest
     from calflow.acquisition.progress import progress
@@ -25,6 +39,8 @@ def run(args) -> None:
         output_folder(out)
     job = family_of(c["robot"]).plan(c["robot"], args.plan)(c, args)
     rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
+    if getattr(rig, "recorded_plan", None) is not None:  # an instrument's file: replay the poses it chose
+        job = _recorded(job, rig, c)
     journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
     try:
         with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:

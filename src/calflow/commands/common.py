@@ -40,6 +40,7 @@ def open_rig(c: dict, run_id: str, start_s: float = 0.0, rig_plugins=None):
     options = {**rig_cfg.get("options", {}), **rig_cfg.get("runs", {}).get(run_id, {})}
     if rig_cfg["factory"] == "replay":
         options["stream"] = run_id
+        options["campaign_start"] = c["start"]  # an instrument's clock is served in campaign time
     else:
         options = resolve(family_of(c["robot"]).rig_options)(c, rig_cfg["factory"], run_id, options, start_s)
     return load_rig(rig_cfg["factory"], c["robot"], options, rig_plugins)

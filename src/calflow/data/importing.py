@@ -163,6 +163,23 @@ def _parse_start(start: str, where: str) -> _dt.datetime:
     return t0 if t0.tzinfo else t0.replace(tzinfo=_dt.timezone.utc)
 
 
+def refuse_duplicate_rows(path, rows: list[tuple[int, list[str]]]) -> None:
+    """Refuse a data row that repeats an earlier one cell for cell.
+
+    A real repeated measurement differs at least in its time stamp; an identical row is
+    an export or copy error, and taking it as a new pose would count one reading twice
+    (repeatability RP and every mean would be computed from a sample that is not there).
+    ``rows`` are (row number, cells).
+    """
+    seen: dict[tuple[str, ...], int] = {}
+    for r, cells in rows:
+        key = tuple(c.strip() for c in cells)
+        if key in seen:
+            raise DataError(f"{path}: row {r}: repeats row {seen[key]} cell for cell; a duplicated row would count "
+                            "one measurement twice — remove it (or the export's duplicate) and import again")
+        seen[key] = r
+
+
 class _Table:
     """The CSV cells, with one-line errors naming file, row and column."""
 
@@ -196,6 +213,7 @@ class _Table:
             if len(row) != len(self.header):
                 raise DataError(f"{path}: row {r}: expected {len(self.header)} fields as in the header, "
                                 f"got {len(row)} (check the delimiter)")
+        refuse_duplicate_rows(path, list(enumerate(self.rows, start=2)))
 
     def cells(self, column: str, target: str) -> list[str]:
         if column not in self.header:

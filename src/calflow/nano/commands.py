@@ -15,7 +15,7 @@ def identify(args) -> None:
 
     c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
-    temps = run["temperature"].values
+    temps = run["temperature"].values if "temperature" in run else None  # a recording may have none
     s = c["model"]
     if c["robot"] == "stage1d":
         model = SingleModel.fit(run["cmd_x"].values, run["meas_x"].values, temps, order=s["order"],
@@ -45,7 +45,7 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
     """The stage1d / stage2d summary from the campaign's model, metrics and run files; with the
     simulated rig's ``truth``, each test type's error budget (:mod:`calflow.nano.error_budget`)."""
     from calflow.nano.evaluation import iso230_2_of_run, temperature_range
-    from calflow.nano.summary import stage1d_summary, stage2d_summary
+    from calflow.nano.summary import stage1d_summary, stage2d_summary, unsupported_sections
     from calflow.uncertainty import interferometer_budget
 
     metrics, models, runs = {}, {}, {}
@@ -61,18 +61,27 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
             models[ds.attrs["model"]] = m.coefficients.to_dict(orient="records")
         elif kind == "run":
             runs[ds.attrs["plan"]] = ds
-    budget = interferometer_budget(**c.get("uncertainty", {}))
+    recordings = c["rig"].get("options", {}).get("recordings")
+    recorded = c["rig"]["factory"] == "replay" and isinstance(recordings, dict)  # an instrument's files
+    # the thesis's interferometer inputs describe the simulated rig, not another lab's instrument
+    budget = interferometer_budget(**c.get("uncertainty", {})) if c.get("uncertainty") or not recorded else None
     training = runs.get("training")
-    t_range = temperature_range(training) if training is not None else None
+    heated = any("temperature" in ds for ds in runs.values())
+    t_range = temperature_range(training) if training is not None and "temperature" in training else None
+    unsupported = unsupported_sections(c["robot"], set(metrics) | set(runs), heated, budget is not None)
     physics = None
     if truth is not None and training is not None and "validation" in runs and truth.get("rig") in ("nano1d", "nano2d"):
         from calflow.nano.error_budget import error_budget
 
         physics = error_budget(truth, c, training, runs["validation"])
     if c["robot"] == "stage1d":
-        iso = iso230_2_of_run(training) if training is not None else None
-        return stage1d_summary(c, metrics.get("metrology"), metrics["validation"], models, budget, files,
-                               training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
-                               validation_run=runs.get("validation"), error_budget=physics)
-    return stage2d_summary(c, metrics["validation"], models, budget, files, training_metrics=metrics.get("training"),
-                           training_range_c=t_range, validation_run=runs.get("validation"), error_budget=physics)
+        iso_run = training if training is not None else runs.get("metrology")  # a recorded ISO 230-2 test
+        iso = {**iso230_2_of_run(iso_run), "run": iso_run.attrs["plan"]} if iso_run is not None else None
+        summary = stage1d_summary(c, metrics.get("metrology"), metrics.get("validation"), models, budget, files,
+                                  training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
+                                  validation_run=runs.get("validation"), error_budget=physics)
+    else:
+        summary = stage2d_summary(c, metrics.get("validation"), models, budget, files,
+                                  training_metrics=metrics.get("training"), training_range_c=t_range,
+                                  validation_run=runs.get("validation"), error_budget=physics)
+    return {**summary, "unsupported": unsupported}

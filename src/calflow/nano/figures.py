@@ -111,9 +111,11 @@ def metrology(summary: dict) -> Figure | None:
         a.legend(loc="best")
     ax[0, 0].set_title("(a) accuracy (Fig. 5.11)")
     ax[0, 1].set_title("(b) repeatability (Fig. 5.12)")
+    spread = intrinsic.get("temperature_range_c")
+    where = (f"in the metrology room (temperature range {spread:.3f} °C)" if spread is not None
+             else "in the recorded test (no temperature readings)")
     return finish(fig, "fig-metrology", "metrology",
-                  f"Accuracy and repeatability of the uncalibrated stage per pose in the metrology room "
-                  f"(temperature range {intrinsic.get('temperature_range_c') or 0:.3f} °C).", "Fig. 5.11, 5.12")
+                  f"Accuracy and repeatability of the uncalibrated stage per pose {where}.", "Fig. 5.11, 5.12")
 
 
 def _modes(metrics: xr.Dataset) -> list[str]:
@@ -258,12 +260,13 @@ def accuracy_vs_temperature(summary: dict) -> Figure | None:
 def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
     """The report's figures in order, and notes on figures that could not be drawn."""
     notes = []
+    unsupported = summary.get("unsupported") or {}  # said in the report's own words; no note twice
     run = inputs.runs.get("training")
-    if run is None:
+    if run is None and "training" not in unsupported:
         notes.append("The training run (runs/training.nc) is not among the report inputs: Fig. 5.1, 5.2 analogs "
                      "and the training temperature are omitted.")
     val = (inputs.metrics.get("validation") or {}).get("")
-    if val is None:
+    if val is None and "validation" not in unsupported:
         notes.append("The validation metrics (metrics/validation.nc) are not among the report inputs: "
                      "Fig. 5.17 analog omitted.")
     robot = summary.get("robot", "stage1d")

@@ -24,7 +24,7 @@ from calflow.nano.iso9283_summary import iso9283_block
 from calflow.data.io import jsonable  # noqa: F401 (re-exported)
 from calflow.data.io import sha256_file
 
-__all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary"]
+__all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 
 
 def _budget(budget):
@@ -162,6 +162,38 @@ def _headline(metrics: xr.Dataset) -> dict:
     }
 
 
+def unsupported_sections(robot: str, plans, temperatures: bool, budget: bool = True) -> dict[str, str]:
+    """Report sections the campaign's runs cannot support, each with the reason in plain words.
+
+    ``plans``: the plans of the runs the summary has (``training``, ``metrology``,
+    ``validation``); ``temperatures``: whether any of them holds thermocouple readings;
+    ``budget``: whether the interferometer's uncertainty inputs are known.
+    Empty for a complete campaign; a recorded campaign (docs/data.md) lists what its
+    recordings do not allow, and the report prints it.
+    """
+    plans = set(plans)
+    out: dict[str, str] = {}
+    if "training" not in plans:
+        eqs = "Eq. 5.10" if robot == "stage2d" else "Eq. 5.3-5.6"
+        out["models"] = (f"no training run was recorded, and the models (thesis {eqs}) are fitted "
+                         "to a training run over the stroke, so no model is identified")
+        out["training"] = "no training run was recorded, so its accuracy, repeatability and error plots are absent"
+    if "validation" not in plans:
+        out["validation"] = ("no validation run was recorded: validation commands the stage through each model at "
+                             "run time, which a recording made without those models cannot replay")
+        out["robustness"] = ("space and time robustness (Eq. 5.8, 5.9) are computed over the validation tests, "
+                             "and there are none")
+    if robot == "stage1d" and "metrology" not in plans:
+        out["metrology"] = "no metrology run was recorded, so the intrinsic accuracy and repeatability are absent"
+    if not temperatures:
+        out["temperature"] = ("the recordings hold no temperature readings, so thermal drift and accuracy against "
+                              "temperature cannot be shown")
+    if not budget:
+        out["budget"] = ("the measuring instrument's uncertainty inputs are not given (campaign key 'uncertainty'), "
+                         "and the thesis's interferometer budget (Table 3.4) would describe another instrument")
+    return out
+
+
 def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str]) -> dict:
     return {
         "campaign": campaign["name"],
@@ -177,7 +209,17 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
     }
 
 
-def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, validation_metrics: xr.Dataset,
+def _validation(validation_metrics: xr.Dataset | None, training_metrics,
+                training_range_c) -> tuple[dict, dict | None, dict]:
+    """(tests, validation, robustness) of a validation run; empty when the campaign has none."""
+    if validation_metrics is None:
+        return {}, None, {}
+    tests, validation = mode_block(validation_metrics, training_range_c)
+    validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
+    return tests, validation, robustness_by_mode(validation_metrics)
+
+
+def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, validation_metrics: xr.Dataset | None,
                     models: dict, budget=None, inputs: list[str] = (), *,
                     training_range_c: tuple[float, float] | None = None, iso230_2: dict | None = None,
                     training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None,
@@ -194,15 +236,14 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
     the ``validation_run`` is given.
     """
-    tests, validation = mode_block(validation_metrics, training_range_c)
-    validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
+    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage1d", models, budget, inputs)
     summary.update(
         intrinsic=_headline(metrology_metrics) if metrology_metrics is not None else None,
         training=_headline(training_metrics) if training_metrics is not None else None,
         validation=validation,
         tests=tests,
-        robustness=robustness_by_mode(validation_metrics),
+        robustness=robustness,
         iso230_2=iso230_2,
     )
     if validation_run is not None:
@@ -211,7 +252,7 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     return jsonable(summary)
 
 
-def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict, budget=None,
+def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset | None, models: dict, budget=None,
                     inputs: list[str] = (), *, training_metrics: xr.Dataset | None = None,
                     training_range_c: tuple[float, float] | None = None,
                     validation_run: xr.Dataset | None = None, error_budget: dict | None = None) -> dict:
@@ -219,14 +260,13 @@ def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset, models: dict
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
-    tests, validation = mode_block(validation_metrics, training_range_c)
-    validation["heldout"] = heldout_block(validation_metrics, training_metrics, tests)
+    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage2d", models, budget, inputs)
     summary.update(
         training=_headline(training_metrics) if training_metrics is not None else None,
         validation=validation,
         tests=tests,
-        robustness=robustness_by_mode(validation_metrics),
+        robustness=robustness,
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run)

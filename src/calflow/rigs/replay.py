@@ -29,13 +29,14 @@ import numpy as np
 
 from calflow.data.conventions import ROBOT_JOINTS
 from calflow.data.io import open_dataset
-from calflow.errors import CalflowError, RigError
+from calflow.errors import CalflowError, OptionError, RigError
 
 
-def _resolve(recordings: str | os.PathLike | Mapping[str, str], stream: str) -> Path:
-    """The run file of run id ``stream`` among ``recordings``."""
+def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
+    """The recording of run id ``stream`` among ``recordings``: a run file's path, or a
+    recording entry of a mapping (:func:`calflow.data.recordings.load`)."""
     if isinstance(recordings, Mapping):
-        files = {str(k): Path(v) for k, v in recordings.items()}
+        files = {str(k): v for k, v in recordings.items()}
         where = "replay recordings"
     else:
         folder = Path(recordings)
@@ -61,12 +62,16 @@ class ReplayRig:
     own unit (µm for translations, degree for rotations).
     """
 
-    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6):
+    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6,
+                 dataset=None, recorded_plan=None):
         self.path = Path(path)
         self.stream = stream or self.path.stem
         self.tolerance = float(tolerance)
+        #: the plan an instrument's own recording ran (ISO 230-2 file, tracker export, CSV):
+        #: acquisition commands it instead of the campaign's; None for calflow run files.
+        self.recorded_plan = recorded_plan
         try:
-            ds = open_dataset(self.path, kind="run")
+            ds = open_dataset(self.path, kind="run") if dataset is None else dataset
         except CalflowError as exc:
             raise RigError(f"replay: {exc}") from None
         from calflow.data.validate import validate_dataset
@@ -184,46 +189,63 @@ class ReplayRig:
         return {"available": False}
 
 
-def replay(recordings: str | os.PathLike | Mapping[str, str], stream: str = "",
-           tolerance_um: float = 1e-6, seed: int | None = None) -> ReplayRig:
+def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "",
+           tolerance_um: float = 1e-6, seed: int | None = None, campaign_start: str | None = None) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
 
     ``recordings`` is a folder of ``<run id>.nc`` run files (a campaign's
-    ``results/<campaign>/runs/``) or a mapping run id → file; ``stream`` is the run id
+    ``results/<campaign>/runs/``) or a mapping run id → recording: a run file, or an
+    instrument's file (``{file, format[, mapping]}``, :mod:`calflow.data.recordings`:
+    ISO 230-2 ``.dat``, laser-tracker or mapped CSV), served with the plan it recorded
+    (``ReplayRig.recorded_plan``); ``stream`` is the run id
     to serve (``identification``, ``validation_<model>``, …), optional when there is a
     single recording. ``tolerance_um`` is the largest accepted difference between a
     command and the recorded one, in each joint's unit (µm; degree for rotations).
     ``seed`` is accepted and ignored: a recording has no randomness left.
+    ``campaign_start`` (ISO 8601, given by ``calflow acquire``): an instrument's recording
+    with a clock is served in seconds since it, not since its own first timestamp.
     """
     del seed
     tolerance = float(tolerance_um)
     if not tolerance >= 0:
         raise RigError(f"rig.options.tolerance_um: expected a number >= 0, got {tolerance_um!r}")
-    return ReplayRig(_resolve(recordings, stream), stream=stream, tolerance=tolerance)
+    entry = _resolve(recordings, stream)
+    if not isinstance(recordings, Mapping):
+        return ReplayRig(entry, stream=stream, tolerance=tolerance)
+    from calflow.data.recordings import in_campaign_time, load
+
+    try:
+        path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
+        if ds is not None and campaign_start:
+            ds = in_campaign_time(ds, campaign_start)
+    except CalflowError as exc:
+        raise RigError(str(exc)) from None
+    return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
 
 
-def check_replay_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6,
-                         seed: int | None = None) -> dict:
-    """The config check of the replay rig's options (types and ranges; the files are read
-    when the rig opens): ``recordings`` a folder or a mapping run id -> file, ``stream`` a
-    run id, ``tolerance_um`` finite and >= 0, ``seed`` an integer or absent."""
-    from calflow.errors import OptionError
+def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None,
+                  campaign_start=None) -> None:
+    """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
+    ``recordings`` given, each entry of a mapping well formed and its files present, the
+    tolerance a number >= 0. Recordings are read when a run is acquired, not here."""
+    from calflow.data.recordings import BadEntry, check_entry
 
     if isinstance(recordings, Mapping):
-        bad = [k for k, v in recordings.items() if not isinstance(v, str) or not v]
-        if not recordings or bad:
-            raise OptionError("recordings", "a mapping of run ids to run files", recordings)
-    elif not isinstance(recordings, str) or not recordings:
-        raise OptionError("recordings", "a folder of <run id>.nc files or a mapping run id -> file",
+        for run_id, spec in recordings.items():
+            try:
+                check_entry(spec)
+            except BadEntry as exc:
+                raise OptionError(f"recordings.{run_id}{exc.key}", exc.expected, exc.value) from None
+    elif not isinstance(recordings, (str, os.PathLike)) or not str(recordings):
+        raise OptionError("recordings", "a folder of <run id>.nc run files or a mapping run id -> recording",
                           recordings)
+    if isinstance(tolerance_um, bool) or not isinstance(tolerance_um, (int, float)) or not tolerance_um >= 0 \
+            or not math.isfinite(tolerance_um):
+        raise OptionError("tolerance_um", "a finite number >= 0 (µm; degree for rotations)", tolerance_um)
     if not isinstance(stream, str):
         raise OptionError("stream", "a run id (string)", stream)
-    if isinstance(tolerance_um, bool) or not isinstance(tolerance_um, (int, float)) \
-            or not math.isfinite(tolerance_um) or tolerance_um < 0:
-        raise OptionError("tolerance_um", "a finite number >= 0", tolerance_um)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
         raise OptionError("seed", "an integer", seed)
-    return {"recordings": recordings, "stream": stream, "tolerance_um": float(tolerance_um)}
 
 
-replay.check_options = check_replay_options
+replay.check_options = check_options

@@ -1,0 +1,178 @@
+"""Recordings of real instruments as run datasets, for the replay rig (docs/data.md).
+
+A replay campaign names one recording per run id (``rig.options.recordings``). Each is a
+calflow run file (``.nc``) or a file an instrument wrote, given as::
+
+    {file: data/recordings/axis1_ISO230.dat, format: ecmc_iso230}   # ISO 230-2, stage1d
+    {file: data/recordings/tracker.csv, format: laser_tracker}      # XYZ poses, stage2d
+    {file: bench.csv, format: csv, mapping: bench-mapping.yaml}     # generic CSV mapping
+
+A plain path is a ``.nc`` run file, or an instrument file recognised by its name
+(``*ISO230.dat``). :func:`load` returns the run dataset and, for an instrument's file, the
+:class:`~calflow.plan.Plan` the instrument ran: the poses were chosen by the instrument's
+software, so replaying means commanding exactly those.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import xarray as xr
+
+from calflow.data.runs import RunMetadata, run_dataset
+from calflow.errors import DataError
+from calflow.plan import Plan
+
+FORMATS = {"nc": None, "ecmc_iso230": "stage1d", "laser_tracker": "stage2d", "csv": None}
+RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
+
+
+class BadEntry(ValueError):
+    """A recording entry that is not one: ``key`` (``""``, ``.file``, ``.format``, …), what was expected, the value."""
+
+    def __init__(self, key: str, expected: str, value: Any):
+        super().__init__(f"{key}: expected {expected}, got {value!r}")
+        self.key, self.expected, self.value = key, expected, value
+
+
+def entry(spec: Any) -> dict:
+    """A recording entry normalised to {file, format, mapping}; raises :class:`BadEntry`."""
+    if isinstance(spec, (str, Path)):
+        name = Path(spec).name
+        fmt = "ecmc_iso230" if name.upper().endswith("ISO230.DAT") else "nc" if name.endswith(".nc") else None
+        if fmt is None:
+            raise BadEntry("", f"a .nc run file, an *ISO230.dat file or {{file: ..., format: one of {list(FORMATS)}}}",
+                           str(spec))
+        return {"file": str(spec), "format": fmt, "mapping": None}
+    if not isinstance(spec, Mapping):
+        raise BadEntry("", "a file name or {file: ..., format: ...}", spec)
+    unknown = sorted(set(spec) - {"file", "format", "mapping"})
+    if unknown:
+        raise BadEntry(f".{unknown[0]}", "no such key (the keys are file, format, mapping)", spec[unknown[0]])
+    if not isinstance(spec.get("file"), str) or not spec["file"]:
+        raise BadEntry(".file", "the path of the recording", spec.get("file"))
+    fmt = spec.get("format")
+    if fmt not in FORMATS:
+        raise BadEntry(".format", f"one of {list(FORMATS)}", fmt)
+    if fmt == "csv" and not (isinstance(spec.get("mapping"), str) and spec["mapping"]):
+        raise BadEntry(".mapping", "the column mapping file of a csv recording (docs/data.md)", spec.get("mapping"))
+    if fmt != "csv" and "mapping" in spec:
+        raise BadEntry(".mapping", f"no mapping: it applies to format 'csv' only, not {fmt!r}", spec["mapping"])
+    return {"file": spec["file"], "format": fmt, "mapping": spec.get("mapping")}
+
+
+def check_entry(spec: Any) -> None:
+    """The config check of one entry: its shape, and that its files exist (relative paths
+    are from the project folder, where Snakemake runs). The file is read at acquisition."""
+    e = entry(spec)
+    for key in ("file", "mapping"):
+        if e[key] is not None and not Path(e[key]).is_file():
+            raise BadEntry("" if isinstance(spec, (str, Path)) else f".{key}",
+                           "an existing file (paths are relative to the project folder)", e[key])
+
+
+def _meta(robot: str, plan: str, path: Path, start: str = RECORDING_START) -> RunMetadata:
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return RunMetadata(campaign="recording", robot=robot, source="replay", plan=plan, config_sha256=digest,
+                       start=start)
+
+
+def _imported(readings: list[dict], plan: Plan, sensors: list[str], meta: RunMetadata, path: Path) -> xr.Dataset:
+    ds = run_dataset(readings, plan, sensors, (), meta)
+    del ds.attrs["dwell_s"]  # the instrument's file does not say
+    ds.attrs["imported_from"] = path.name
+    return ds
+
+
+def iso230_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
+    """An ecmc ISO 230-2 file as a stage1d run (µm) in the standard test cycle; no clock in
+    the file, so every row has time 0 s."""
+    from calflow.data.ecmc_iso230 import read, standard_cycle
+
+    rows = standard_cycle(read(path))
+    plan = Plan(name=plan_name, commands={"x": rows["target"]}, targets={"x": rows["target"].copy()},
+                pose=rows["pose"], cycle=rows["cycle"], direction=rows["direction"], dwell_s=0.0)
+    readings = [{"time": 0.0, "meas_x": float(v)} for v in rows["reading"]]
+    return _imported(readings, plan, ["meas_x"], _meta("stage1d", plan_name, path), path), plan
+
+
+def tracker_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
+    """A laser-tracker export as a stage2d run (µm): X, Y the stage's axes; the measured Z's
+    range is kept as the attribute ``z_range_um``."""
+    from calflow.data.laser_tracker import UM_PER_MM, read
+
+    rec = read(path)
+    cmd, meas = rec.command * UM_PER_MM, rec.measured * UM_PER_MM
+    plan = Plan(name=plan_name, commands={"x": cmd[:, 0], "y": cmd[:, 1]},
+                targets={"x": cmd[:, 0].copy(), "y": cmd[:, 1].copy()}, pose=rec.pose, cycle=rec.cycle,
+                direction=np.zeros(len(rec.pose), int), dwell_s=0.0)
+    readings = [{"time": float(rec.time[k]), "meas_x": float(meas[k, 0]), "meas_y": float(meas[k, 1])}
+                for k in range(len(rec.pose))]
+    ds = _imported(readings, plan, ["meas_x", "meas_y"], _meta("stage2d", plan_name, path, rec.start), path)
+    z = meas[:, 2][np.isfinite(meas[:, 2])]
+    ds.attrs["z_range_um"] = float(z.max() - z.min()) if z.size else float("nan")
+    ds.attrs["recording_start"] = rec.start
+    return ds, plan
+
+
+def csv_run(path: Path, mapping_path: str, plan_name: str) -> tuple[xr.Dataset, Plan]:
+    """A CSV through a column mapping (:mod:`calflow.data.importing`), with the plan it recorded."""
+    from calflow.data.importing import import_csv, load_mapping
+
+    mapping = load_mapping(mapping_path)
+    if not mapping["robot"]:
+        raise DataError(f"{mapping_path}: key 'robot': a replayed csv recording needs the robot named")
+    ds = import_csv(path, mapping, _meta(mapping["robot"], mapping["plan"], path))
+    return ds, plan_of(ds, plan_name)
+
+
+def plan_of(ds: xr.Dataset, name: str) -> Plan:
+    """The plan a run dataset recorded: its commands, targets and pose/cycle/direction indices."""
+    joints = [v[4:] for v in ds.data_vars if v.startswith("cmd_")]
+    axes = [v[7:] for v in ds.data_vars if v.startswith("target_")]
+    return Plan(name=name, commands={j: ds[f"cmd_{j}"].values.astype(float) for j in joints},
+                targets={a: ds[f"target_{a}"].values.astype(float) for a in axes},
+                pose=ds["pose"].values.astype(int), cycle=ds["cycle"].values.astype(int),
+                direction=ds["direction"].values.astype(int), dwell_s=float(ds.attrs.get("dwell_s", 0.0)))
+
+
+def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Dataset | None, Plan | None]:
+    """The recording ``spec`` of run ``run_id``: (path, run dataset or None for a ``.nc``
+    file the replay rig opens itself, the instrument's plan or None)."""
+    try:
+        s = entry(spec)
+    except BadEntry as exc:
+        raise DataError(f"{where}.{run_id}{exc.key}: expected {exc.expected}, got {exc.value!r}") from None
+    path = Path(s["file"])
+    if s["format"] == "nc":
+        return path, None, None
+    if not path.is_file():
+        raise DataError(f"{path}: file not found ({where}.{run_id})")
+    if s["format"] == "ecmc_iso230":
+        return (path, *iso230_run(path, run_id))
+    if s["format"] == "laser_tracker":
+        return (path, *tracker_run(path, run_id))
+    return (path, *csv_run(path, s["mapping"], run_id))
+
+
+def in_campaign_time(ds: xr.Dataset, campaign_start: str) -> xr.Dataset:
+    """``ds`` with ``time`` in seconds since ``campaign_start`` (ISO 8601), when the
+    recording has a clock (its ``recording_start`` attribute); unchanged otherwise (an
+    ISO 230-2 file has none)."""
+    import datetime as dt
+
+    from calflow.data.conventions import time_units
+
+    origin = ds.attrs.get("recording_start")
+    if not origin:
+        return ds
+    try:
+        start = dt.datetime.fromisoformat(str(campaign_start).replace("Z", "+00:00"))
+    except ValueError:
+        raise DataError(f"campaign start: expected an ISO 8601 time, got {campaign_start!r}") from None
+    shift = (dt.datetime.fromisoformat(origin) - start).total_seconds()
+    t = ds["time"]
+    return ds.assign(time=t.copy(data=t.values + shift).assign_attrs(units=time_units(campaign_start)))
