@@ -235,6 +235,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "reference": reference.BY_ROBOT["xytheta"],
         "inputs": {str(p): sha256_file(p) for p in files},
     }
+    _crlb_block(summary, campaign, training_runs)
     if luts is not None:
         summary["characterisation"] = _characterisation(luts)
     if xy:
@@ -278,3 +279,24 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
         out["reference_targets"] = {"n_targets": int(any_metrics.sizes["target"]), "cycles": v["cycles"],
                                     "source": "Table 4.7" if v.get("targets") is None else "validation.targets"}
     return out
+
+
+def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) -> None:
+    """The bound before beside the result after (issue 15): each model's Cramér–Rao σ and the
+    expected virtual rig time, written into the identification run before acquisition
+    (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
+    next to the achieved ``parameters.<p>.std``; the run's actual virtual time as
+    ``.rig_time_h_achieved``; and the plan's design as ``identification_design``."""
+    run = next((r for r in training_runs if r.attrs.get("plan") == "identification" and "design" in r.attrs), None)
+    if run is None:
+        return
+    record = json.loads(run.attrs["design"])
+    crlb = record.pop("crlb_sigma", None) or {}
+    achieved_h = float(run["time"].values[-1]) / 3600.0 if run.sizes.get("sample") else None
+    summary["identification_design"] = {**record, "rig_time_h_achieved": jsonable(achieved_h)}
+    for name, entry in summary["models"].items():
+        spec = campaign["models"][name]
+        bound = crlb.get(spec.get("base", name))
+        if bound is not None:
+            entry["identification"].update(crlb_sigma=bound, rig_time_h=record.get("rig_time_h"),
+                                           rig_time_h_achieved=jsonable(achieved_h))
