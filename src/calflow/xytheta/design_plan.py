@@ -154,7 +154,8 @@ def candidates(n: int, x_range, y_range, theta_range, seed: int) -> np.ndarray:
 
     lo = np.array([x_range[0], y_range[0], theta_range[0]], dtype=float)
     hi = np.array([x_range[1], y_range[1], theta_range[1]], dtype=float)
-    u = qmc.Sobol(3, scramble=True, seed=np.random.default_rng(np.random.SeedSequence([int(seed), 15]))).random(n)
+    sobol = qmc.Sobol(3, scramble=True, seed=np.random.default_rng(np.random.SeedSequence([int(seed), 15])))
+    u = sobol.random_base2(max(0, int(np.ceil(np.log2(max(n, 1))))))[:n]  # a power of 2 keeps the balance
     corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
     return lo + (hi - lo) * np.vstack([corners, u])
 
