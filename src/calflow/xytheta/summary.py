@@ -196,7 +196,7 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
-    models, paths, ref, heldout, xy, luts, obs, iso = {}, {}, {}, {}, {}, None, None, {}
+    models, paths, ref, heldout, xy, luts, obs, iso, study = {}, {}, {}, {}, {}, None, None, {}, None
     heldout_runs, training_runs = [], []
     for path in files:
         with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
@@ -212,6 +212,10 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
         elif kind == "metrics" and plan == "observability":
             obs = ds
+        elif kind == "metrics" and plan == "design_study":
+            from calflow.xytheta.design_study import summary_block
+
+            study = summary_block(ds)
         elif kind == "luts":
             luts = ds
         elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
@@ -236,6 +240,8 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     _crlb_block(summary, campaign, training_runs)
+    if study is not None:
+        summary["design_study"] = study
     if luts is not None:
         summary["characterisation"] = _characterisation(luts)
     if xy:
