@@ -199,3 +199,9 @@ def test_design_study_command_writes_curves_the_summary_and_report_read(tmp_path
     assert np.all(s_d[-1] < s_r[-1])  # the design beats random poses of its count
     assert block["needed"]["designed"]["poses"] <= block["needed"]["random"]["poses"]
     assert "designed:" in figure({"design_study": block}).caption
+
+
+def test_parameter_keys_are_the_summarys():
+    from calflow.xytheta.summary import parameter_key
+
+    assert [design.parameter_key(k) for k in PARAMETER_NAMES] == [parameter_key(k) for k in PARAMETER_NAMES]

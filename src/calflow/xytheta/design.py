@@ -27,9 +27,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters, forward_jacobian
+from calflow.xytheta.kinematics import PARAMETER_NAMES, PARAMETER_UNITS, Parameters, forward_jacobian
 
 CRITERIA = ("D", "A", "O1", "O2", "O3", "O4")
+
+
+def parameter_key(name: str) -> str:
+    """A parameter's key with its unit, as the summary writes it: ``x_R_um``, ``alpha_deg``."""
+    return f"{name}_{'um' if PARAMETER_UNITS[name] == 'um' else 'deg'}"
 
 
 def pose_jacobians(q: np.ndarray, phi: Parameters, free=PARAMETER_NAMES) -> np.ndarray:

@@ -199,8 +199,6 @@ def bound(campaign: dict, q: np.ndarray, frames: int = 1) -> dict:
     under the campaign's noise model, at the nominal geometry (``identification.initial``),
     and the virtual rig time (h) of the time model. Models with a ``base`` share their base's
     parameters; the bound is None without a noise model (a real rig that declares none)."""
-    from calflow.xytheta.summary import parameter_key
-
     noise = noise_model(campaign)
     tm = time_model(campaign)
     out = {"poses": int(len(q)), "frames_per_pose": int(frames), "rig_time_h": tm.plan_s(q, frames) / 3600.0,
@@ -213,7 +211,7 @@ def bound(campaign: dict, q: np.ndarray, frames: int = 1) -> dict:
                 continue
             phi, free = _phi(campaign, name)
             s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
-            out["crlb_sigma"][name] = {parameter_key(k): float(v) for k, v in zip(free, s)}
+            out["crlb_sigma"][name] = {design.parameter_key(k): float(v) for k, v in zip(free, s)}
     return out
 
 

@@ -22,8 +22,6 @@ PLANS = ("random", "designed")
 
 def curves(campaign: dict, counts) -> dict:
     """σ (plan, count, parameter) in µm/degree and rig time (plan, count) in h, with the parameter keys."""
-    from calflow.xytheta.summary import parameter_key
-
     p, d = campaign["identification"], campaign["identification"]["design"]
     noise, tm = dp.noise_model(campaign), dp.time_model(campaign)
     phi, free = dp._phi(campaign, d["model"])
@@ -41,7 +39,7 @@ def curves(campaign: dict, counts) -> dict:
         for j, q in enumerate((rq, dq)):
             sigma[j, k] = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(1))
             hours[j, k] = tm.plan_s(q) / 3600.0
-    return {"sigma": sigma, "rig_time_h": hours, "parameters": [parameter_key(f) for f in free]}
+    return {"sigma": sigma, "rig_time_h": hours, "parameters": [design.parameter_key(f) for f in free]}
 
 
 def needed(counts, sigma: np.ndarray, hours: np.ndarray, parameters: list[str], target: dict) -> dict:
