@@ -205,11 +205,9 @@ def optimal_design(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | N
     m = 0 if fixed is None else len(fixed)
     if n - m < 1:
         raise ValueError(f"design: {n} poses leave none to choose besides the {m} fixed ones")
-    w = multiplicative_weights(J * (np.ones(J.shape[-1]) if scale is None else scale), n,
-                               "A" if name == "A" else "D", fixed if fixed is None else fixed * (scale if scale is not None else 1.0))
-    start = np.argsort(-w, kind="stable")[: n - m]
+    scale = np.ones(J.shape[-1]) if scale is None else np.asarray(scale, dtype=float)
+    w = multiplicative_weights(J * scale, n, "A" if name == "A" else "D", None if fixed is None else fixed * scale)
+    start = np.argsort(-w, kind="stable")[: n - m]  # rounding: the n − m largest weights
     index = exchange(J, start, name, fixed, scale)
-    Jd = J[index] if fixed is None else np.concatenate([fixed, J[index]])
-    M = information(Jd)
-    sc = np.ones(J.shape[-1]) if scale is None else scale
-    return Design(index, M, name, float(criterion(M * np.outer(sc, sc), name)))
+    M = information(J[index] if fixed is None else np.concatenate([fixed, J[index]]))
+    return Design(index, M, name, float(criterion(M * np.outer(scale, scale), name)))

@@ -148,14 +148,13 @@ def approach(q: np.ndarray, overshoot_um: float) -> tuple[np.ndarray, np.ndarray
 
 
 def candidates(n: int, x_range, y_range, theta_range, seed: int) -> np.ndarray:
-    """A pool of ``n`` candidate joint poses (n, 3) over the workspace: a scrambled Sobol
-    sequence (even cover of the box) plus its 8 corners."""
-    from scipy.stats import qmc
-
+    """A pool of ``n`` candidate joint poses (n + 8, 3) over the workspace: a Latin hypercube
+    (each axis cut in n strata, one pose in each: an even cover of every joint's range) from
+    its own random stream, plus the box's 8 corners."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
     lo = np.array([x_range[0], y_range[0], theta_range[0]], dtype=float)
     hi = np.array([x_range[1], y_range[1], theta_range[1]], dtype=float)
-    sobol = qmc.Sobol(3, scramble=True, seed=np.random.default_rng(np.random.SeedSequence([int(seed), 15])))
-    u = sobol.random_base2(max(0, int(np.ceil(np.log2(max(n, 1))))))[:n]  # a power of 2 keeps the balance
+    u = (np.column_stack([rng.permutation(n) for _ in range(3)]) + rng.random((n, 3))) / max(n, 1)
     corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
     return lo + (hi - lo) * np.vstack([corners, u])
 
