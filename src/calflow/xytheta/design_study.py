@@ -110,32 +110,35 @@ def summary_block(ds) -> dict:
 
 
 def figure(summary: dict):
-    """σ against poses and against rig time, random and designed, with the targets (report figure)."""
+    """σ against poses and against rig time, random and designed, each parameter relative to its
+    target (or, without one, to the random plan's σ at the largest count) — report figure."""
     from calflow.report.figures import COLORS, finish, new_figure
 
     s = summary.get("design_study")
     if not s or not s.get("poses"):
         return None
-    params = s["parameters"]
-    fig, ax = new_figure(len(params), 2, height=2.0 * 2)
-    colors = {"random": COLORS["forward"], "designed": COLORS["backward"]}
-    for j, k in enumerate(params):
-        for plan in PLANS:
-            sig = np.array(s["sigma"][plan], dtype=float)[:, j]
-            ax[0, j].loglog(s["poses"], sig, "o-", ms=2.5, color=colors[plan], label=plan)
-            ax[1, j].loglog(s["rig_time_h"][plan], sig, "o-", ms=2.5, color=colors[plan], label=plan)
-        for row, xlabel in ((0, "poses"), (1, "virtual rig time (h)")):
-            ax[row, j].set_xlabel(xlabel)
-            ax[row, j].set_ylabel(f"CRLB σ {k}")
-            if k in s["sigma_target"]:
-                ax[row, j].axhline(float(s["sigma_target"][k]), color=COLORS["thesis"], ls="--", lw=0.8)
-        ax[0, j].set_title(k)
-    ax[0, 0].legend(loc="best")
+    fig, ax = new_figure(2, height=2.6)
+    target = s.get("sigma_target") or {}
+    colors = [COLORS[m] for m in ("II", "III", "IV", "V")]
+    for j, k in enumerate(s["parameters"]):
+        ref = float(target.get(k, np.array(s["sigma"]["random"], dtype=float)[-1, j]))
+        for plan, style in (("random", "--"), ("designed", "-")):
+            sig = np.array(s["sigma"][plan], dtype=float)[:, j] / ref
+            label = f"{k}, {plan}"
+            ax[0, 0].loglog(s["poses"], sig, style, marker="o", ms=2, lw=0.9, color=colors[j % 4], label=label)
+            ax[0, 1].loglog(s["rig_time_h"][plan], sig, style, marker="o", ms=2, lw=0.9, color=colors[j % 4])
+    for a, xlabel in zip(ax[0], ("poses", "virtual rig time (h)")):
+        a.axhline(1.0, color=COLORS["thesis"], lw=0.8)
+        a.set_xlabel(xlabel)
+        a.set_ylabel("CRLB σ / σ asked" if target else "CRLB σ / random σ at most poses")
+    ax[0, 0].legend(loc="best", fontsize="x-small", ncol=2)
     need = s.get("needed") or {}
     answer = "; ".join(f"{plan}: {v['poses']} poses, {v['rig_time_h']:.2f} h" for plan, v in need.items()
                        if v.get("poses") is not None)
-    caption = (f"Design study: Cramér–Rao σ of Model {s['model']}'s parameters against the number of poses (top) "
-               f"and the virtual rig time (bottom), random poses against the {s['criterion']}-optimal design, "
-               "from the Fisher information under the sensor's noise model (no acquisition)")
-    caption += f". For the σ asked (dashed): {answer}." if answer else "."
+    caption = (f"Design study: Cramér–Rao σ of Model {s['model']}'s parameters against the number of poses (a) "
+               f"and the virtual rig time (b), random poses (dashed) against the {s['criterion']}-optimal design "
+               "(solid), from the Fisher information under the sensor's noise model (no acquisition); each "
+               + ("parameter relative to the σ asked (design_study.sigma_target; unasked ones to the random plan's "
+                  "σ at the most poses)" if target else "parameter relative to the random plan's σ at the most poses"))
+    caption += f". For the σ asked: {answer}." if answer else "."
     return finish(fig, "fig-design-study", "identification", caption, "Fig. 4.21")
