@@ -71,3 +71,18 @@ def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tm
     for key in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg"):
         pa, pb = a["II"]["parameters"][key], b["II"]["parameters"][key]
         assert abs(pa["value"] - pb["value"]) < 4 * np.hypot(pa["std"], pb["std"]), key
+
+
+def test_bound_before_beside_the_achieved_sigma_in_summary_and_report(reduced_run):
+    """Issue 15: the Cramér–Rao σ and rig time the plan promised, beside what identification achieved."""
+    s = json.loads((reduced_run / "results/c/summary.json").read_text())
+    d = s["identification_design"]
+    assert d["plan"] == "random" and d["poses"] == 61  # the home pose and 60 drawn ones
+    assert d["rig_time_h"] == pytest.approx(d["rig_time_h_achieved"], rel=1e-9)  # the time model is the rig's
+    for name in ("II", "III"):
+        idf, params = s["models"][name]["identification"], s["models"][name]["parameters"]
+        assert set(idf["crlb_sigma"]) == {"x_R_um", "y_R_um", "alpha_deg", "beta_deg"}
+        for key, bound in idf["crlb_sigma"].items():  # no unbiased estimate beats its bound
+            assert params[key]["std"] >= 0.8 * bound
+    html = (reduced_run / "reports/c/report.html").read_text()
+    assert 'id="crlb"' in html

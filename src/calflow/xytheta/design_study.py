@@ -131,7 +131,7 @@ def figure(summary: dict):
         a.axhline(1.0, color=COLORS["thesis"], lw=0.8)
         a.set_xlabel(xlabel)
         a.set_ylabel("CRLB σ / σ asked" if target else "CRLB σ / random σ at most poses")
-    ax[0, 0].legend(loc="best", fontsize="x-small", ncol=2)
+    ax[0, 0].legend(loc="lower left", fontsize="x-small", ncol=2)
     need = s.get("needed") or {}
     answer = "; ".join(f"{plan}: {v['poses']} poses, {v['rig_time_h']:.2f} h" for plan, v in need.items()
                        if v.get("poses") is not None)
