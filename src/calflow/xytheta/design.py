@@ -97,13 +97,14 @@ def _check(name: str) -> None:
 
 def multiplicative_weights(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | None = None,
                            iterations: int = 300) -> np.ndarray:
-    """Approximate design: weights over the candidates ``J`` (N, 2, p), each ≤ 1/n, summing to 1.
+    """Approximate design: weights over the candidates ``J`` (N, 2, p) summing to 1, each at most
+    one pose's share, 1/(n − m) of the n − m poses left besides ``fixed``.
 
     The multiplicative algorithm w_i ← w_i (d_i / Σ w d)^δ with the sensitivity d_i =
     tr(M⁻¹ F_i) (D, δ = 1) or tr(M⁻² F_i) (A, δ = 1/2), F_i = (J_i − J̄)ᵀ(J_i − J̄) the
     derivative of the nuisance-corrected M by w_i; weights above the cap are clipped and the
-    excess spread over the others. ``fixed`` (m, 2, p): poses already in the design, each of
-    weight 1/n. Other criteria use the D weights as a start.
+    excess spread over the others. ``fixed`` (m, 2, p): poses already in the design, one pose
+    each. Other criteria use the D weights as a start.
     """
     N, _, p = J.shape
     if n > N:
@@ -130,6 +131,7 @@ def multiplicative_weights(J: np.ndarray, n: int, name: str = "D", fixed: np.nda
         C = (Jl - Jbar).reshape(-1, p)
         d = np.sum((C @ K) * C, axis=1).reshape(-1, 2).sum(1)
         wl = wl * (d / max(float(wl @ d) / total, 1e-300)) ** delta
+        wl *= total / wl.sum()  # A (δ < 1) does not keep the total by itself; dropped weights are 0
         for _ in range(50):  # cap at one pose per candidate, conserving the total
             over = wl > 1.0
             if not over.any():
