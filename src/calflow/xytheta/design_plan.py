@@ -229,8 +229,8 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
 
     ``identification.design.poses`` poses, or (null) the fewest whose worst-parameter
     Cramér–Rao σ of ``design.model`` is no larger than that of ``identification.poses``
-    random poses: a first design at a third of them sizes the second by σ ∝ 1/√n, then
-    5 % more poses until the bound holds.
+    random poses: a first design at a third of them sizes the next by σ ∝ 1/√n until one
+    reaches the bound, then bisection to within 1 % of the fewest that do.
     """
     p = campaign["identification"]
     d = p["design"]
@@ -258,15 +258,18 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     if d.get("poses"):
         q, frames, ratio = make(int(d["poses"]))
     else:
-        n = max(len(free) + 2, (len(rq) + 2) // 3)
-        q, frames, ratio = make(n)
-        n = int(np.ceil(n * ratio**2))
+        n, cap = max(len(free) + 2, (len(rq) + 2) // 3), len(pool) + 1
+        miss, reach = 0, None  # the most poses known to miss the bound, the fewest known to reach it
         for _ in range(40):
-            n = min(n, len(pool))
-            q, frames, ratio = make(n)
-            if ratio <= 1.0 or n >= len(pool):
+            q, frames, ratio = make(min(n, cap))
+            if ratio <= 1.0 or n >= cap:
+                reach, best = n, (q, frames, ratio)
+            else:
+                miss = n
+            if reach is not None and reach - miss <= max(1, reach // 100):  # within 1 % of the fewest
                 break
-            n = int(np.ceil(1.05 * n))
+            n = (miss + reach) // 2 if reach is not None else max(miss + 1, int(np.ceil(n * ratio**2)))
+        q, frames, ratio = best
     record = {"criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
               "sigma_ratio_max_vs_random": ratio, "random_time_per_pose_s": float(ref_time)}
