@@ -188,7 +188,8 @@ def test_load_study_defaults_and_errors(tmp_path):
         with pytest.raises(ConfigError, match=message):
             load_study(_study_files(tmp_path, body), tmp_path / "campaigns")
     with pytest.raises(ConfigError, match="simulated"):
-        load_study(_study_files(tmp_path, STUDY, {**SMALL_XYTHETA, "rig": {"factory": "replay"}}),
+        load_study(_study_files(tmp_path, STUDY, {**SMALL_XYTHETA, "rig": {"factory": "replay",
+                                                                           "options": {"recordings": "runs"}}}),
                    tmp_path / "campaigns")
 
 

@@ -84,3 +84,18 @@ def test_error_budget_replay_reproduces_the_campaign(reduced_run):
     for name, ap in r["ap_um"].items():
         with xr.open_dataset(reduced_run / f"results/c/metrics/validation_heldout_{name}.nc") as m:
             assert np.array_equal(np.asarray(ap), m["ap"].values), name
+
+
+def test_bound_before_beside_the_achieved_sigma_in_summary_and_report(reduced_run):
+    """Issue 15: the Cramér–Rao σ and rig time the plan promised, beside what identification achieved."""
+    s = json.loads((reduced_run / "results/c/summary.json").read_text())
+    d = s["identification_design"]
+    assert d["plan"] == "random" and d["poses"] == REDUCED_XYTHETA["identification"]["poses"] + 1  # and home
+    assert d["rig_time_h"] == pytest.approx(d["rig_time_h_achieved"], rel=1e-9)  # the time model is the rig's
+    for name, free in (("I", {"x_R_um", "y_R_um"}), ("II", {"x_R_um", "y_R_um", "alpha_deg", "beta_deg"})):
+        idf, params = s["models"][name]["identification"], s["models"][name]["parameters"]
+        assert set(idf["crlb_sigma"]) == free
+        for key, bound in idf["crlb_sigma"].items():  # no unbiased estimate beats its bound
+            assert params[key]["std"] >= 0.8 * bound
+    html = (reduced_run / "reports/c/report.html").read_text()
+    assert 'id="crlb"' in html

@@ -39,3 +39,21 @@ rule observability:
         digest=section("identify", "seed", "identification", "observability"),
     shell:
         "calflow observability --campaign {params.campaign} --out {output} > {log} 2>&1"
+
+
+rule design_study:
+    output:
+        "results/{campaign}/metrics/design_study.nc",
+    log:
+        "results/{campaign}/logs/design_study.log",
+    benchmark:
+        "results/{campaign}/benchmarks/design_study.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+    params:
+        campaign=campaign_file,
+        digest=section("identify", "seed", "rig", "identification", "models", "design_study"),
+    shell:
+        "calflow design-study --campaign {params.campaign} --out {output} > {log} 2>&1"

@@ -145,6 +145,8 @@ def results_of(name):
             if "base" in s
         ]
         files.append(f"{base}/metrics/observability.nc")
+        if "design_study" in c:  # opt-in (issue 15)
+            files.append(f"{base}/metrics/design_study.nc")
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
             files.append(f"{base}/luts/position.nc")

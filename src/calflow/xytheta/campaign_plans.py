@@ -25,10 +25,27 @@ def _model(args, plan: str):
 
 
 def identification(c: dict, args) -> Acquisition:
-    """Random poses over the identification workspace (Sec. 4.5.4)."""
+    """The identification poses (Sec. 4.5.4): random over the workspace (``plan: random``) or
+    designed for the most information in the least rig time (``plan: optimal``,
+    :mod:`calflow.xytheta.design_plan`). The run's attribute ``design`` (JSON) holds, written
+    before acquisition, the Cramér–Rao σ of every model's parameters and the expected virtual
+    rig time under the campaign's noise and time models."""
+    import json
+
+    from calflow.xytheta import design_plan
+
     p = c["identification"]
-    return Acquisition(plans.identification(p["poses"], p["x_um"], p["y_um"], p["theta_deg"], seed=c["seed"],
-                                            dwell_s=p["dwell_s"]), "identification")
+    if p["plan"] == "optimal":
+        try:
+            plan, record = design_plan.identification_plan(c)
+        except ValueError as exc:
+            raise CalflowError(f"campaign {c['name']}: {exc}") from None
+    else:
+        plan = plans.identification(p["poses"], p["x_um"], p["y_um"], p["theta_deg"], seed=c["seed"],
+                                    dwell_s=p["dwell_s"])
+        q = np.column_stack([plan.commands["x"], plan.commands["y"], plan.commands["theta"]])
+        record = {"criterion": None, **design_plan.bound(c, q)}
+    return Acquisition(plan, "identification", attrs={"design": json.dumps({"plan": p["plan"], **record})})
 
 
 def validation(c: dict, args) -> Acquisition:

@@ -10,6 +10,7 @@ from calflow.errors import ConfigError
 def check_campaign(campaign: dict, path: Path) -> None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
     _check_models(campaign["models"], path)
+    _check_design(campaign, path)
     if any(spec.get("position_table") for spec in campaign["models"].values()):
         ident, char = campaign["identification"], campaign["characterisation"]
         for axis in ("x", "y"):
@@ -35,3 +36,22 @@ def _check_models(models: dict, path: Path) -> None:
                                   "expected an identified model")
             if not spec.get("angle_table"):
                 raise ConfigError(f"{path}: key 'models.{name}.angle_table': expected true for a model with a base")
+
+
+def _check_design(campaign: dict, path: Path) -> None:
+    """The designed plan maximises the information of an identified model, under a known noise model."""
+    ident = campaign["identification"]
+    d = ident["design"]
+    spec = campaign["models"].get(d["model"])
+    if ident["plan"] == "optimal" or "design_study" in campaign:
+        if spec is None or "free" not in spec:
+            usable = sorted(k for k, s in campaign["models"].items() if "free" in s)
+            raise ConfigError(f"{path}: key 'identification.design.model': expected an identified model "
+                              f"(one of {usable}), got {d['model']!r}")
+        given = d["noise_um"]
+        if campaign["rig"]["factory"] != "simulated" and (given.get("pose") is None or given.get("frame") is None):
+            raise ConfigError(f"{path}: key 'identification.design.noise_um': expected pose and frame (um) "
+                              "for a rig other than the simulated one")
+        if d.get("poses") is not None and d["poses"] > d["candidates"]:
+            raise ConfigError(f"{path}: key 'identification.design.poses': expected at most design.candidates "
+                              f"({d['candidates']}), got {d['poses']}")

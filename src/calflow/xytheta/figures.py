@@ -237,5 +237,8 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
     if poses is None:
         notes.append("The identification run (runs/identification.nc) is not among the report inputs, so the "
                      "identification poses (Fig. 4.22 analog) are not drawn; the pose counts are in the table below.")
-    figures += [poses, draw(observability, summary), draw(validation, summary), draw(angle_errors, inputs)]
+    from calflow.xytheta.design_study import figure as design_study
+
+    figures += [poses, draw(observability, summary), draw(design_study, summary), draw(validation, summary),
+                draw(angle_errors, inputs)]
     return [f for f in figures if f is not None], notes

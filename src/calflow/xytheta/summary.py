@@ -199,7 +199,7 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
-    models, paths, ref, heldout, xy, luts, obs, iso = {}, {}, {}, {}, {}, None, None, {}
+    models, paths, ref, heldout, xy, luts, obs, iso, study = {}, {}, {}, {}, {}, None, None, {}, None
     heldout_runs, training_runs = [], []
     exported = {}  # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
     for path in files:
@@ -216,6 +216,10 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
         elif kind == "metrics" and plan == "observability":
             obs = ds
+        elif kind == "metrics" and plan == "design_study":
+            from calflow.xytheta.design_study import summary_block
+
+            study = summary_block(ds)
         elif kind == "luts":
             luts = ds
         elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
@@ -247,6 +251,9 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         for name, ds in exported.items():
             if name in summary["models"]:
                 summary["models"][name]["export"] = summary_entry(ds)
+    _crlb_block(summary, campaign, training_runs)
+    if study is not None:
+        summary["design_study"] = study
     if luts is not None:
         summary["characterisation"] = _characterisation(luts)
     if xy:
@@ -308,3 +315,24 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
         out["reference_targets"] = {"n_targets": int(any_metrics.sizes["target"]), "cycles": v["cycles"],
                                     "source": "Table 4.7" if v.get("targets") is None else "validation.targets"}
     return out
+
+
+def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) -> None:
+    """The bound before beside the result after (issue 15): each model's Cramér–Rao σ and the
+    expected virtual rig time, written into the identification run before acquisition
+    (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
+    next to the achieved ``parameters.<p>.std``; the run's actual virtual time as
+    ``.rig_time_h_achieved``; and the plan's design as ``identification_design``."""
+    run = next((r for r in training_runs if r.attrs.get("plan") == "identification" and "design" in r.attrs), None)
+    if run is None:
+        return
+    record = json.loads(run.attrs["design"])
+    crlb = record.pop("crlb_sigma", None) or {}
+    achieved_h = float(run["time"].values[-1]) / 3600.0 if run.sizes.get("sample") else None
+    summary["identification_design"] = {**record, "rig_time_h_achieved": jsonable(achieved_h)}
+    for name, entry in summary["models"].items():
+        spec = campaign["models"][name]
+        bound = crlb.get(spec.get("base", name))
+        if bound is not None:
+            entry["identification"].update(crlb_sigma=bound, rig_time_h=record.get("rig_time_h"),
+                                           rig_time_h_achieved=jsonable(achieved_h))
