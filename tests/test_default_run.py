@@ -84,8 +84,11 @@ def test_xytheta_heldout_accuracy_of_the_geometric_and_position_models(thesis):
     acc = {k: v["accuracy_um"] for k, v in models.items()}
     assert all(v["protocol"] == "heldout" for v in models.values())
     assert acc["I"] > acc["II"] > acc["III"]
-    floor = s["validation"]["heldout"]["floor_um"]
-    assert 0 < floor < min(acc.values()) * 1.5
+    h = s["validation"]["heldout"]
+    floor, oracle = h["floor_um"], h["oracle_accuracy_um"]
+    # the exact-inverse oracle is the accuracy floor (a model may reach it, not beat it by much);
+    # the repeatability floor RP is another quantity, which an accuracy AP may lie below
+    assert floor > 0 and 0 < oracle < 1.5 * min(acc.values())
     assert min(acc["III"], acc["V"]) < 3 * floor
     for name, m in models.items():
         assert m["reference_targets"]["thesis_accuracy_um"] == THESIS_4_8[name]  # shown beside, not asserted

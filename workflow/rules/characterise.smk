@@ -54,6 +54,8 @@ rule design_study:
         mem_mb=1000,
     params:
         campaign=campaign_file,
-        digest=section("identify", "seed", "rig", "identification", "models", "design_study"),
+        digest=section(
+            "identify", "seed", "rig", "identification", "models", "design_study"
+        ),
     shell:
         "calflow design-study --campaign {params.campaign} --out {output} > {log} 2>&1"

@@ -165,17 +165,22 @@ def results_of(name):
         files += [f"{base}/metrics/training.nc", f"{base}/runs/training.nc"]
     if has("validation"):
         files.append(f"{base}/metrics/validation.nc")
-        files.append(f"{base}/runs/validation.nc")  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
+        files.append(
+            f"{base}/runs/validation.nc"
+        )  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
     if c["robot"] == "stage1d" and has("metrology"):
         files.append(f"{base}/metrics/metrology.nc")
-        if not has("training"):  # the ISO 230-2 figures then come from the metrology run
+        if not has(
+            "training"
+        ):  # the ISO 230-2 figures then come from the metrology run
             files.append(f"{base}/runs/metrology.nc")
     return files
 
 
 def summary_truth(w):
     """The rig's truth the summary step reads (tests and reports only): the identification's
-    for XYΘ, the validation's for the nano stages when the campaign has a validation run."""
+    for XYΘ, the validation's for the nano stages when the campaign has a validation run.
+    """
     c = CAMPAIGN[w.campaign]
     if c["robot"] == "xytheta":
         return f"results/{w.campaign}/truth/identification.json"
@@ -198,7 +203,15 @@ def budget_file(name):
 def budget_digest(w):
     """What the budget's replays read: the rig, the calibration's sections, the held-out targets."""
     c = CAMPAIGN[w.campaign]
-    keys = ("seed", "start", "rig", "characterisation", "identification", "angle_residuals", "models")
+    keys = (
+        "seed",
+        "start",
+        "rig",
+        "characterisation",
+        "identification",
+        "angle_residuals",
+        "models",
+    )
     v = c["validation"]
     return digest(
         [code_digest("error_budget", "xytheta")]
