@@ -31,7 +31,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 __all__ = ["PROFILES", "RoomProfile", "room_profile", "LagBank"]
 
@@ -178,6 +177,7 @@ class LagBank:
         return self.t0 + (self._y.shape[0] - 1) * self.dt
 
     def _extend_to(self, t_max: float) -> None:
+        from scipy.signal import lfilter  # here, not at import: scipy.signal costs ~1 s to import
         while self.t_end < t_max:
             n0 = self._y.shape[0]
             times = self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)
