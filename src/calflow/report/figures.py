@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import re
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -148,10 +149,15 @@ def legend_below(fig, ax, ncol: int = 3) -> None:
     fig.calflow_bottom = (0.18 * rows + 0.16) / fig.get_figheight()  # legend height as a figure fraction
 
 
+#: Whether :func:`finish` also renders each figure as PNG (:attr:`Figure.raster`): set by
+#: :func:`calflow.report.render.render_campaign_pages` when a PDF will be made.
+RASTER = ContextVar("calflow_report_raster", default=False)
+
+
 def finish(fig, key: str, section: str, caption: str, thesis: str) -> Figure:
     with plt.rc_context(STYLE):
         fig.tight_layout(pad=0.4, rect=(0, getattr(fig, "calflow_bottom", 0.0), 1, 1))
-    raster = to_png(fig, key)
+    raster = to_png(fig, key) if RASTER.get() else Markup("")
     return Figure(key, section, caption, thesis, to_svg(fig, key), raster=raster)
 
 

@@ -149,20 +149,30 @@ def figures_for(summary: dict, files: list[str] | None):
 
 def render_campaign(summary: dict, campaign: dict, command: str, files: list[str] | None = None) -> str:
     """The HTML report of one campaign; ``files`` are the result files its figures draw on."""
-    return render_campaign_pages(summary, campaign, command, files)[0]
+    return render_campaign_pages(summary, campaign, command, files, pdf=False)[0]
 
 
 def render_campaign_pages(summary: dict, campaign: dict, command: str,
-                          files: list[str] | None = None) -> tuple[str, str]:
+                          files: list[str] | None = None, pdf: bool = True) -> tuple[str, str]:
     """The HTML report of one campaign (SVG figures) and the same page for the PDF, whose
     figures are the PNG renderings of the same matplotlib figures (:func:`write_pdf`).
-    Figures are drawn once for both."""
-    figures, notes = figures_for(summary, files)
+    Figures are drawn once for both; with ``pdf=False`` no PNG is rendered and the second
+    page is the first."""
+    from calflow.report.figures import RASTER
+
+    token = RASTER.set(pdf)
+    try:
+        figures, notes = figures_for(summary, files)
+    finally:
+        RASTER.reset(token)
     template = environment().get_template(f"{summary['robot']}.html.j2")
     context = dict(s=summary, notes=notes, prov=_provenance(summary, campaign, command, files or []),
                    css=(TEMPLATES / "style.css").read_text())
-    printed = {section: [replace(f, svg=f.raster or f.svg) for f in figs] for section, figs in figures.items()}
-    return template.render(figures=figures, **context), template.render(figures=printed, **context)
+    html = template.render(figures=figures, **context)
+    if not pdf:
+        return html, html
+    printed = {section: [replace(f, svg=f.raster) for f in figs] for section, figs in figures.items()}
+    return html, template.render(figures=printed, **context)
 
 
 def render_index(summaries: list[dict]) -> str:
