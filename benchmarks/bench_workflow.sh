@@ -4,8 +4,8 @@
 #   bash benchmarks/bench_workflow.sh [CORES] [REPEATS]
 # Each figure is the best of REPEATS (default 3) — on a shared machine the best is the
 # one least disturbed by the other work, and the load average is printed beside it. The
-# cold run also reports its jobs' CPU time (sum of the cpu_time column of the rules'
-# benchmark files), which other work on the machine disturbs much less than wall time.
+# cold run also reports the CPU time of Snakemake and all its jobs (/usr/bin/time, user +
+# sys), which other work on the machine disturbs much less than wall time.
 # (the Monte-Carlo study is part of the default run; CLI start-up and snakemake --report last)
 set -euo pipefail
 cores="${1:-2}"
@@ -23,12 +23,11 @@ fresh() {  # a scratch project with no results
     rm -rf "$work/p"; mkdir "$work/p"
     cp -r "$root/Snakefile" "$root/workflow" "$root/config" "$work/p/"
 }
-cpu_of_jobs() {  # CPU seconds of every job of the last run, from the rules' benchmark files
-    find "$work/p/results" -path '*/benchmarks/*.tsv' -exec tail -n1 {} \; | awk -F'\t' '{s += $10} END {printf "%.0f", s}'
-}
 cold=(); for i in $(seq "$repeats"); do
-    fresh; l=$(load); cd "$work/p"; s=$(t "$snakemake" --cores "$cores"); cold+=("$s")
-    echo "  cold run $i: $s s wall, $(cpu_of_jobs) s CPU in the jobs (load average before: $l)"
+    fresh; l=$(load); cd "$work/p"
+    /usr/bin/time -o "$work/time.txt" -f '%e %U %S' "$snakemake" --cores "$cores" > /dev/null 2>&1
+    read -r wall user sys < "$work/time.txt"; cold+=("$wall")
+    echo "  cold run $i: $wall s wall, $(python3 -c "print(round($user + $sys))") s CPU (load average before: $l)"
 done
 echo "cold run of the default campaigns: $(printf '%s\n' "${cold[@]}" | best) s"
 cd "$work/p"
