@@ -14,6 +14,7 @@ from markupsafe import escape
 
 from calflow import reference
 from calflow.report import render_campaign, render_index, write_pdf
+from calflow.report.render import render_campaign_pages
 from calflow.report.render import num, sig
 
 EVIL = "Stage <script>alert('x')</script> & friends"
@@ -126,7 +127,14 @@ def strict():
 
 
 @pytest.fixture(scope="module")
-def xytheta(tmp_path_factory, strict):
+def xytheta(xytheta_pages):
+    """summary, files and the HTML report of a small XYΘ campaign."""
+    return xytheta_pages[:3]
+
+
+@pytest.fixture(scope="module")
+def xytheta_pages(tmp_path_factory, strict):
+    """summary, files, the HTML report and its print page (PNG figures, for the PDF)."""
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.kinematics import Parameters
     from calflow.xytheta.lookup import AngleLUT
@@ -196,8 +204,9 @@ def xytheta(tmp_path_factory, strict):
     }
     for name, (_, pos, ang) in MODELS.items():
         summary["models"][name].update(position_table=pos, angle_table=ang)
-    html = render_campaign(summary, {"name": "t", "robot": "xytheta", "description": EVIL}, CAMPAIGN_CMD, files)
-    return summary, files, html
+    html, printed = render_campaign_pages(summary, {"name": "t", "robot": "xytheta", "description": EVIL},
+                                          CAMPAIGN_CMD, files)
+    return summary, files, html, printed
 
 
 def test_xytheta_headline_equals_summary(xytheta):
@@ -248,9 +257,12 @@ def test_xytheta_without_identification_run_says_so(xytheta):
     assert 'id="fig-poses"' not in html and "runs/identification.nc" in html and "Note:" in html
 
 
-def test_xytheta_pdf_has_pages(xytheta, tmp_path):
-    _, _, html = xytheta
-    pdf = write_pdf(html, tmp_path)
+def test_xytheta_pdf_has_pages(xytheta_pages, tmp_path):
+    _, _, html, printed = xytheta_pages
+    figures = re.findall(r'<figure id="([^"]+)"', html)
+    assert re.findall(r'<figure id="([^"]+)"', printed) == figures  # the same figures, as PNG
+    assert printed.count('src="data:image/png;base64,') == len(figures) and "<svg" not in printed
+    pdf = write_pdf(printed, tmp_path)
     assert pdf[:4] == b"%PDF"
     try:
         import pypdf

@@ -52,16 +52,16 @@ def cmd_summarise(args) -> None:
 def cmd_report(args) -> None:
     from calflow.config import load_campaign
     from calflow.data.io import write_bytes, write_text
-    from calflow.report import render_campaign, write_pdf
+    from calflow.report.render import render_campaign_pages, write_pdf
     from calflow.data.io import load_summary
 
     campaign = load_campaign(args.campaign)
     summary = load_summary(args.summary)
     command = f"snakemake --cores 2 --config 'campaigns=[\"{campaign['name']}\"]'"
-    html = render_campaign(summary, campaign, command, args.files or [])
+    html, printed = render_campaign_pages(summary, campaign, command, args.files or [])
     write_text(html, args.html)
     if args.pdf:
-        write_bytes(write_pdf(html, Path(args.html).parent), args.pdf)
+        write_bytes(write_pdf(printed, Path(args.html).parent), args.pdf)
 
 
 def cmd_index(args) -> None:

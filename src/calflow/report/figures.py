@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import re
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -72,7 +73,9 @@ STYLE = {
 class Figure:
     """One report figure: ``key`` (HTML id), ``section`` (where the template puts it),
     ``caption`` (plain text, without its number), ``thesis`` (the figure it mirrors),
-    ``svg`` (generated markup) and ``number`` (set by :func:`number`)."""
+    ``svg`` (generated markup), ``raster`` (the same figure as an ``<img>`` of a PNG at
+    :data:`RASTER_DPI`, for the PDF: WeasyPrint lays out a PNG in milliseconds where it
+    spends seconds on each inline SVG) and ``number`` (set by :func:`number`)."""
 
     key: str
     section: str
@@ -80,6 +83,7 @@ class Figure:
     thesis: str
     svg: Markup
     number: int = 0
+    raster: Markup = Markup("")
 
 
 def mode_label(name: str) -> str:
@@ -118,6 +122,23 @@ def to_svg(fig, key: str) -> Markup:
     return Markup(head + text[head_end:])
 
 
+def to_png(fig, key: str) -> Markup:
+    """The figure as one ``<img class="plot">`` holding a PNG at :data:`RASTER_DPI` (a data
+    URI), sized like :func:`to_svg`'s element: at most its print width, else the column's.
+    Leaves the figure open."""
+    import base64
+
+    buf = io.BytesIO()
+    with plt.rc_context(STYLE):
+        # no bbox_inches="tight": it draws the figure twice, and finish()'s tight_layout
+        # already leaves the SVG's margin (0.4 font size ≈ 0.04 in) around the axes
+        fig.savefig(buf, format="png", dpi=RASTER_DPI, metadata={"Software": None})
+    data = buf.getvalue()
+    width_pt = int.from_bytes(data[16:20], "big") / RASTER_DPI * 72  # IHDR width, pixels
+    return Markup(f'<img id="{key}-png" class="plot" alt="" style="width:100%;max-width:{width_pt:.1f}pt;'
+                  f'height:auto" src="data:image/png;base64,{base64.b64encode(data).decode()}">')
+
+
 def legend_below(fig, ax, ncol: int = 3) -> None:
     """One legend for the figure, under its axes, where it hides no data."""
     handles, labels = ax.get_legend_handles_labels()
@@ -128,10 +149,16 @@ def legend_below(fig, ax, ncol: int = 3) -> None:
     fig.calflow_bottom = (0.18 * rows + 0.16) / fig.get_figheight()  # legend height as a figure fraction
 
 
+#: Whether :func:`finish` also renders each figure as PNG (:attr:`Figure.raster`): set by
+#: :func:`calflow.report.render.render_campaign_pages` when a PDF will be made.
+RASTER = ContextVar("calflow_report_raster", default=False)
+
+
 def finish(fig, key: str, section: str, caption: str, thesis: str) -> Figure:
     with plt.rc_context(STYLE):
         fig.tight_layout(pad=0.4, rect=(0, getattr(fig, "calflow_bottom", 0.0), 1, 1))
-    return Figure(key, section, caption, thesis, to_svg(fig, key))
+    raster = to_png(fig, key) if RASTER.get() else Markup("")
+    return Figure(key, section, caption, thesis, to_svg(fig, key), raster=raster)
 
 
 def guarded(notes: list[str]):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import platform
 import shlex
+from dataclasses import replace
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -148,15 +149,30 @@ def figures_for(summary: dict, files: list[str] | None):
 
 def render_campaign(summary: dict, campaign: dict, command: str, files: list[str] | None = None) -> str:
     """The HTML report of one campaign; ``files`` are the result files its figures draw on."""
-    figures, notes = figures_for(summary, files)
+    return render_campaign_pages(summary, campaign, command, files, pdf=False)[0]
+
+
+def render_campaign_pages(summary: dict, campaign: dict, command: str,
+                          files: list[str] | None = None, pdf: bool = True) -> tuple[str, str]:
+    """The HTML report of one campaign (SVG figures) and the same page for the PDF, whose
+    figures are the PNG renderings of the same matplotlib figures (:func:`write_pdf`).
+    Figures are drawn once for both; with ``pdf=False`` no PNG is rendered and the second
+    page is the first."""
+    from calflow.report.figures import RASTER
+
+    token = RASTER.set(pdf)
+    try:
+        figures, notes = figures_for(summary, files)
+    finally:
+        RASTER.reset(token)
     template = environment().get_template(f"{summary['robot']}.html.j2")
-    return template.render(
-        s=summary,
-        figures=figures,
-        notes=notes,
-        prov=_provenance(summary, campaign, command, files or []),
-        css=(TEMPLATES / "style.css").read_text(),
-    )
+    context = dict(s=summary, notes=notes, prov=_provenance(summary, campaign, command, files or []),
+                   css=(TEMPLATES / "style.css").read_text())
+    html = template.render(figures=figures, **context)
+    if not pdf:
+        return html, html
+    printed = {section: [replace(f, svg=f.raster) for f in figs] for section, figs in figures.items()}
+    return html, template.render(figures=printed, **context)
 
 
 def render_index(summaries: list[dict]) -> str:
@@ -167,7 +183,11 @@ def render_index(summaries: list[dict]) -> str:
 
 
 def write_pdf(html: str, base_url: str | Path) -> bytes:
-    """The PDF rendering of ``html`` (WeasyPrint, print media of the same stylesheet)."""
+    """The PDF rendering of ``html`` (WeasyPrint, print media of the same stylesheet).
+
+    For a campaign report pass the second page of :func:`render_campaign_pages`: inline SVG
+    figures cost WeasyPrint seconds each (CSS on every element, then drawing), PNGs nothing.
+    """
     import logging
 
     import weasyprint

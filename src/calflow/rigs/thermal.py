@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 __all__ = ["PROFILES", "RoomProfile", "room_profile", "LinearBank", "LagBank"]
 
@@ -204,6 +203,7 @@ class LinearBank:
         return self.t0 + (self._y.shape[0] - 1) * self.dt
 
     def _extend_to(self, t_max: float) -> None:
+        from scipy.signal import lfilter  # here, not at import: scipy.signal costs ~1 s to import
         while self.t_end < t_max:
             n0 = self._y.shape[0]
             u = np.asarray(self.room(self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)), dtype=float)

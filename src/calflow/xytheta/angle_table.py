@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
-from scipy.signal import find_peaks
 
 from calflow.xytheta.lookup import joint_increments
 
@@ -88,6 +87,8 @@ def angle_spectrum(theta, f_ax, f_ay, direction, cycle, grid, samples_per_period
     Returns the :class:`AngleSpectrum` and the mean curves, shape (2 axes, 2 directions,
     len(grid)). ``grid`` is the sweep's angles (degree, uniform).
     """
+    from scipy.signal import find_peaks  # here: scipy.signal costs every job importing the models ~1 s
+
     grid = np.asarray(grid, dtype=float)
     s = float(grid[1] - grid[0])
     mx, nx = _curves(theta, f_ax, direction, cycle, grid)

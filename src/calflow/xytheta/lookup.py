@@ -109,9 +109,17 @@ def sequential_commands(compensate, x_T, y_T, start=(0.0, 0.0), start_direction=
     each axis in its assumed direction. When no direction fits an axis (its target moves
     less than the backlash gap, e.g. X on the square's BC side) the axis is held: same
     command, same direction. Returns X, Y (µm) and d_x, d_y (int8).
+
+    ``compensate`` must act element by element (a target's command depends on that target
+    and its directions only): it is called once per direction pair for all the targets,
+    not four times per target — the same numbers, two orders of magnitude fewer calls.
     """
     x_T, y_T = np.asarray(x_T, dtype=float).ravel(), np.asarray(y_T, dtype=float).ravel()
     n = x_T.size
+    every = {}  # (d_x, d_y) -> commands X, Y of every target approached in that pair
+    for pair in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        cx, cy = compensate(x_T, y_T, np.full(n, pair[0]), np.full(n, pair[1]))
+        every[pair] = (np.ravel(cx), np.ravel(cy))
     X, Y = np.empty(n), np.empty(n)
     DX, DY = np.empty(n, dtype=np.int8), np.empty(n, dtype=np.int8)
     xp, yp = float(start[0]), float(start[1])
@@ -119,8 +127,8 @@ def sequential_commands(compensate, x_T, y_T, start=(0.0, 0.0), start_direction=
     txp, typ = xp, yp
 
     def call(k, sx, sy):
-        cx, cy = compensate(x_T[k:k + 1], y_T[k:k + 1], np.array([sx]), np.array([sy]))
-        return float(np.ravel(cx)[0]), float(np.ravel(cy)[0])
+        cx, cy = every[(sx, sy)]
+        return float(cx[k]), float(cy[k])
 
     def fits(c, prev, d, dprev):
         return (c > prev and d > 0) or (c < prev and d < 0) or (c == prev and d == dprev)
