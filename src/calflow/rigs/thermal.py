@@ -184,6 +184,8 @@ class LinearBank:
         recursion per mode of phi (scipy.signal.lfilter), or step by step if phi has no real
         well-conditioned eigenbasis."""
         if self._modes is not None:
+            from scipy.signal import lfilter  # here, not at import: scipy.signal costs ~1 s to import
+
             lam, V, Vi = self._modes
             m0, dm = x0 @ V, drive @ V
             out = np.empty_like(dm)
@@ -203,7 +205,6 @@ class LinearBank:
         return self.t0 + (self._y.shape[0] - 1) * self.dt
 
     def _extend_to(self, t_max: float) -> None:
-        from scipy.signal import lfilter  # here, not at import: scipy.signal costs ~1 s to import
         while self.t_end < t_max:
             n0 = self._y.shape[0]
             u = np.asarray(self.room(self.t0 + self.dt * np.arange(n0, n0 + self._BLOCK)), dtype=float)
