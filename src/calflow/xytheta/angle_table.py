@@ -46,21 +46,31 @@ class AngleSpectrum:
     warning: str = ""
 
 
+def _bin_means(bins: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
+    """Mean of ``values`` per bin index in ``range(size)``; NaN where a bin is empty."""
+    count = np.bincount(bins, minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, np.bincount(bins, weights=values, minlength=size) / count, np.nan)
+
+
 def _curves(theta, f, direction, cycle, grid):
-    """Mean of f over positions and cycles per (direction, grid angle), and the noise curve."""
-    k = np.rint((theta - grid[0]) / (grid[1] - grid[0])).astype(int)
-    mean = np.full((2, grid.size), np.nan)
-    noise = np.full((2, grid.size), np.nan)
-    for row, d in enumerate(DIRECTIONS):
-        for j in range(grid.size):
-            sel = (direction == d) & (k == j) & np.isfinite(f)
-            if not sel.any():
-                continue
-            mean[row, j] = f[sel].mean()
-            even, odd = sel & (cycle % 2 == 0), sel & (cycle % 2 == 1)
-            if even.any() and odd.any():
-                noise[row, j] = 0.5 * (f[even].mean() - f[odd].mean())
-    return mean, noise
+    """Mean of f (µm) over positions and cycles per (direction, grid angle), and the noise
+    curve: half the difference of the even and the odd cycles' means. Shapes (2, len(grid)),
+    rows in :data:`DIRECTIONS` order; NaN where a bin has no reading (noise: no even or no
+    odd one). Readings off the grid or in another direction are ignored. One pass of
+    :func:`numpy.bincount` over the readings, linear in their number."""
+    f, direction, cycle = np.asarray(f, dtype=float), np.asarray(direction), np.asarray(cycle)
+    k = np.rint((np.asarray(theta, dtype=float) - grid[0]) / (grid[1] - grid[0])).astype(int)
+    row = np.full(k.shape, -1)
+    for r, d in enumerate(DIRECTIONS):
+        row[direction == d] = r
+    use = (row >= 0) & (k >= 0) & (k < grid.size) & np.isfinite(f)
+    size = len(DIRECTIONS) * grid.size
+    bins, values, parity = row[use] * grid.size + k[use], f[use], cycle[use] % 2
+    mean = _bin_means(bins, values, size)
+    even, odd = parity == 0, parity == 1
+    noise = 0.5 * (_bin_means(bins[even], values[even], size) - _bin_means(bins[odd], values[odd], size))
+    return mean.reshape(len(DIRECTIONS), grid.size), noise.reshape(len(DIRECTIONS), grid.size)
 
 
 PAD = 8  # zero-padding factor: a component between two bins still shows as one peak
