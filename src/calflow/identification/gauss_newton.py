@@ -51,13 +51,16 @@ def _rho(z: np.ndarray, loss: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: int = 100,
-          rtol: float = RTOL) -> Solution:
+          rtol: float = RTOL, normal=None) -> Solution:
     """Minimise Σ f² ρ((r_i/f)²) over x for residuals ``fun(x)`` with Jacobian ``jac(x)``.
 
     Gauss–Newton (iteratively reweighted for a robust ``loss``) with step halving while
     the cost does not fall, until a step changes the residuals by less than ``rtol`` of
     their norm; falls back to :func:`scipy.optimize.least_squares` when a step
-    cannot be found or ``max_iter`` is reached.
+    cannot be found or ``max_iter`` is reached. ``normal(x, r, w)``, when given, returns
+    (Jᵀ W J, Jᵀ W r, Jᵀ J) for the residuals ``r`` and weights ``w`` (None for the linear
+    loss) without forming J — for a problem whose Jacobian has a small Gram structure;
+    ``jac`` then serves the fallback only.
     """
     x = np.asarray(x0, dtype=float).copy()
     r = fun(x)
@@ -65,20 +68,26 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
     f2 = float(f_scale) ** 2
 
     def cost(res):
+        if loss == "linear":
+            return float(res @ res) / f2
         return float(np.sum(_rho(res**2 / f2, loss)[0]))
 
     c = cost(r)
     for _ in range(max_iter):
-        A = jac(x)
-        w = _rho(r**2 / f2, loss)[1]
-        Aw = A * w[:, None]
+        w = None if loss == "linear" else _rho(r**2 / f2, loss)[1]
+        if normal is None:
+            A = jac(x)
+            Aw = A if w is None else A * w[:, None]
+            N, g, plain = A.T @ Aw, Aw.T @ r, None
+        else:
+            N, g, plain = normal(x, r, w)
         try:
-            step = np.linalg.solve(A.T @ Aw, Aw.T @ r)
+            step = np.linalg.solve(N, g)
         except np.linalg.LinAlgError:
             break
         if not np.all(np.isfinite(step)):
             break
-        change = float(np.linalg.norm(A @ step))
+        change = float(np.linalg.norm(A @ step)) if plain is None else float(np.sqrt(max(step @ plain @ step, 0.0)))
         if change <= rtol * float(np.linalg.norm(r)) + ATOL * np.sqrt(r.size):
             return Solution(x, r, nfev, True, f"Gauss-Newton converged ({loss} loss)")  # the step is below tolerance
         t = 1.0
