@@ -88,26 +88,27 @@ class Readings:
     as :func:`reading_residuals` and :func:`reading_jacobian`, up to rounding.
     """
 
-    def __init__(self, X, Y, theta, P_mx, P_my, ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0, _data=None):
-        if _data is not None:
-            self.data = _data
+    def __init__(self, X, Y, theta, P_mx, P_my, ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0, _columns=None):
+        if _columns is not None:
+            self.columns = _columns
         else:
             X = np.asarray(X, dtype=float)
             t = np.radians(np.asarray(theta, dtype=float))
-            self.data = np.empty((X.size, 7))
+            self.columns = np.empty((7, X.size))  # the data rows above as columns, contiguous per column
             for j, column in enumerate((X - ex, np.asarray(Y, dtype=float) - ey, 1.0 - np.cos(t), np.sin(t), 1.0,
                                         f_ax - np.asarray(P_mx, dtype=float), f_ay - np.asarray(P_my, dtype=float))):
-                self.data[:, j] = column
+                self.columns[j] = column
         self._gram = None
 
     def subset(self, rows) -> "Readings":
         """The readings at ``rows`` (index or boolean mask)."""
-        return Readings(None, None, None, None, None, _data=self.data[rows])
+        return Readings(None, None, None, None, None, _columns=self.columns[:, rows])
 
     @property
     def gram(self) -> np.ndarray:
+        """DᵀD, 7 × 7."""
         if self._gram is None:
-            self._gram = self.data.T @ self.data
+            self._gram = self.columns @ self.columns.T
         return self._gram
 
     @staticmethod
@@ -126,12 +127,12 @@ class Readings:
 
     def residuals(self, phi) -> np.ndarray:
         """[ε_x,1, ε_y,1, ε_x,2, ...] (µm), as :func:`reading_residuals`."""
-        return (self.data @ self._coefficients(phi)[0]).ravel()
+        return (self.columns.T @ self._coefficients(phi)[0]).ravel()
 
     def jacobian(self, phi) -> np.ndarray:
         """∂ε/∂phi, shape (2n, 6), as :func:`reading_jacobian`."""
         E = self._coefficients(phi)[1]
-        return np.stack([self.data @ E[0], self.data @ E[1]], axis=1).reshape(-1, 6)
+        return np.stack([self.columns.T @ E[0], self.columns.T @ E[1]], axis=1).reshape(-1, 6)
 
     def normal(self, phi, r, w=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Jᵀ W J, Jᵀ W ε, Jᵀ J) at ``phi`` for residuals ``r`` and per-residual weights
@@ -140,13 +141,11 @@ class Readings:
         R = np.asarray(r).reshape(-1, 2)
         G = self.gram
         plain = E[0].T @ G @ E[0] + E[1].T @ G @ E[1]
-        if w is None:
-            return plain, E[0].T @ (self.data.T @ R[:, 0]) + E[1].T @ (self.data.T @ R[:, 1]), plain
-        W = np.asarray(w).reshape(-1, 2)
-        N = np.zeros((6, 6))
-        g = np.zeros(6)
-        for k in range(2):
-            Dw = self.data * W[:, k, None]
-            N += E[k].T @ (self.data.T @ Dw) @ E[k]
-            g += E[k].T @ (Dw.T @ R[:, k])
-        return N, g, plain
+        if w is not None:
+            W = np.asarray(w).reshape(-1, 2)
+            N = sum(E[k].T @ ((self.columns * W[:, k]) @ self.columns.T) @ E[k] for k in range(2))
+            R = W * R
+        else:
+            N = plain
+        DR = self.columns @ R  # Dᵀ W ε per axis, (7, 2)
+        return N, E[0].T @ DR[:, 0] + E[1].T @ DR[:, 1], plain
