@@ -82,12 +82,12 @@ def _spectrum(curves: list[np.ndarray], step: float) -> tuple[np.ndarray, np.nda
     n = curves[0].size
     x = np.arange(n) * step
     w = np.hanning(n)
-    power = np.zeros(PAD * n // 2 + 1)
-    for c in curves:
+    filled = np.empty((len(curves), n))
+    for k, c in enumerate(curves):
         ok = np.isfinite(c)
-        filled = np.interp(x, x[ok], c[ok])
-        detrended = filled - np.polyval(np.polyfit(x, filled, min(3, n - 1)), x)
-        power += np.abs(2.0 * np.fft.rfft(detrended * w, PAD * n) / w.sum()) ** 2
+        filled[k] = np.interp(x, x[ok], c[ok])
+    trend = np.polynomial.polynomial.polyvander(x, min(3, n - 1)) @ np.polyfit(x, filled.T, min(3, n - 1))[::-1]
+    power = np.sum(np.abs(2.0 * np.fft.rfft((filled - trend.T) * w, PAD * n, axis=1) / w.sum()) ** 2, axis=0)
     return np.fft.rfftfreq(PAD * n, step), np.sqrt(power / len(curves))
 
 

@@ -112,32 +112,38 @@ class Readings:
         return self._gram
 
     @staticmethod
-    def _coefficients(phi) -> tuple[np.ndarray, np.ndarray]:
-        """Coefficients (7, 2) of ε_x, ε_y and their derivatives (2, 7, 6) by ``phi``."""
+    def _coefficients(phi) -> np.ndarray:
+        """Coefficients (7, 2) of ε_x, ε_y at ``phi``."""
         x_R, y_R, alpha, beta, x0, y0 = phi
-        a, ab, d = np.radians(alpha), np.radians(alpha + beta), np.pi / 180.0
+        a, ab = np.radians(alpha), np.radians(alpha + beta)
+        return np.array([[np.cos(a), np.sin(a)], [-np.sin(ab), np.cos(ab)], [x_R, y_R], [-y_R, x_R], [-x0, -y0],
+                         [1.0, 0.0], [0.0, 1.0]])
+
+    @staticmethod
+    def _derivatives(phi) -> np.ndarray:
+        """∂ of the coefficients of ε_x, ε_y by ``phi``, (2, 7, 6)."""
+        a, ab, d = np.radians(phi[2]), np.radians(phi[2] + phi[3]), np.pi / 180.0
         ca, sa, cab, sab = np.cos(a), np.sin(a), np.cos(ab), np.sin(ab)
-        V = np.array([[ca, sa], [-sab, cab], [x_R, y_R], [-y_R, x_R], [-x0, -y0], [1.0, 0.0], [0.0, 1.0]])
         E = np.zeros((2, 7, 6))
         E[0, 0, 2], E[0, 1, 2], E[0, 1, 3] = -sa * d, -cab * d, -cab * d
         E[0, 2, 0], E[0, 3, 1], E[0, 4, 4] = 1.0, -1.0, -1.0
         E[1, 0, 2], E[1, 1, 2], E[1, 1, 3] = ca * d, -sab * d, -sab * d
         E[1, 2, 1], E[1, 3, 0], E[1, 4, 5] = 1.0, 1.0, -1.0
-        return V, E
+        return E
 
     def residuals(self, phi) -> np.ndarray:
         """[ε_x,1, ε_y,1, ε_x,2, ...] (µm), as :func:`reading_residuals`."""
-        return (self.columns.T @ self._coefficients(phi)[0]).ravel()
+        return (self.columns.T @ self._coefficients(phi)).ravel()
 
     def jacobian(self, phi) -> np.ndarray:
         """∂ε/∂phi, shape (2n, 6), as :func:`reading_jacobian`."""
-        E = self._coefficients(phi)[1]
+        E = self._derivatives(phi)
         return np.stack([self.columns.T @ E[0], self.columns.T @ E[1]], axis=1).reshape(-1, 6)
 
     def normal(self, phi, r, w=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Jᵀ W J, Jᵀ W ε, Jᵀ J) at ``phi`` for residuals ``r`` and per-residual weights
         ``w`` (None: all one) without forming J."""
-        E = self._coefficients(phi)[1]
+        E = self._derivatives(phi)
         R = np.asarray(r).reshape(-1, 2)
         G = self.gram
         plain = E[0].T @ G @ E[0] + E[1].T @ G @ E[1]
