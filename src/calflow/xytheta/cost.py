@@ -133,12 +133,17 @@ class Readings:
 
     def residuals(self, phi) -> np.ndarray:
         """[ε_x,1, ε_y,1, ε_x,2, ...] (µm), as :func:`reading_residuals`."""
-        return (self.columns.T @ self._coefficients(phi)).ravel()
+        out = np.empty((self.columns.shape[1], 2))
+        out.T[...] = self._coefficients(phi).T @ self.columns  # (n × 7) @ (7 × 2) in numpy is slow at large n
+        return out.ravel()
 
     def jacobian(self, phi) -> np.ndarray:
         """∂ε/∂phi, shape (2n, 6), as :func:`reading_jacobian`."""
         E = self._derivatives(phi)
-        return np.stack([self.columns.T @ E[0], self.columns.T @ E[1]], axis=1).reshape(-1, 6)
+        out = np.empty((self.columns.shape[1], 2, 6))
+        for k in range(2):
+            out[:, k, :].T[...] = E[k].T @ self.columns
+        return out.reshape(-1, 6)
 
     def normal(self, phi, r, w=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Jᵀ W J, Jᵀ W ε, Jᵀ J) at ``phi`` for residuals ``r`` and per-residual weights
