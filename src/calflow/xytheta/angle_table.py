@@ -159,27 +159,28 @@ class AngleTable:
         from calflow.xytheta.evaluation import attained_points
 
         x, y = attained_points(run)
-        d = run["direction"].values
-        sel = (run["pose"].values > 0) & (d != 0)
-        theta = run["target_theta"].values[sel].astype(float)
-        fx = (x - run["target_x"].values)[sel]
-        fy = (y - run["target_y"].values)[sel]
+        v = {k: run.variables[k].values for k in ("direction", "pose", "target_theta", "target_x", "target_y", "cycle")}
+        d = v["direction"]
+        sel = (v["pose"] > 0) & (d != 0)
+        theta = v["target_theta"][sel].astype(float)
+        fx = (x - v["target_x"])[sel]
+        fy = (y - v["target_y"])[sel]
         # the angle-dependent error is the change of the residual with Θ: at each position,
         # the residual at the lowest swept angle (both directions) is the position's own
         # error, not an angle error (Eq. 4.27: the frame is the home pose's, at Θ = 0)
-        where = np.round(run["target_x"].values[sel], 6) + 1j * np.round(run["target_y"].values[sel], 6)
-        lowest = np.isclose(theta, np.nanmin(theta))
-        for position in np.unique(where):
-            at = where == position
-            ref = at & lowest & np.isfinite(fx) & np.isfinite(fy)
-            if ref.any():
-                fx[at] -= fx[ref].mean()
-                fy[at] -= fy[ref].mean()
+        where = np.round(v["target_x"][sel], 6) + 1j * np.round(v["target_y"][sel], 6)
+        position = np.unique(where, return_inverse=True)[1].ravel()
+        ref = np.isclose(theta, np.nanmin(theta)) & np.isfinite(fx) & np.isfinite(fy)
+        count = np.bincount(position[ref], minlength=position.max(initial=-1) + 1)
+        has_ref = count[position] > 0
+        for f in (fx, fy):
+            mean = np.bincount(position[ref], weights=f[ref], minlength=count.size) / np.maximum(count, 1)
+            f[has_ref] -= mean[position[has_ref]]
         grid_all = np.unique(np.round(theta, 9))
         if grid_all.size < 4:
             raise ValueError(f"angle table: run {run.attrs.get('plan')!r} sweeps {grid_all.size} angles, expected 4 or more")
         grid = np.linspace(grid_all[0], grid_all[-1], int(round((grid_all[-1] - grid_all[0]) / np.min(np.diff(grid_all)))) + 1)
-        spectrum, curves = angle_spectrum(theta, fx, fy, d[sel], run["cycle"].values[sel], grid,
+        spectrum, curves = angle_spectrum(theta, fx, fy, d[sel], v["cycle"][sel], grid,
                                           samples_per_period, significance, min_fraction)
         every = int(round(spectrum.step_deg / spectrum.sweep_step_deg))
         idx = np.arange(0, grid.size, every)
