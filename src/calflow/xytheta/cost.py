@@ -71,6 +71,12 @@ def differences_of_readings(r: np.ndarray) -> np.ndarray:
     return _difference(np.asarray(r).reshape(-1, 2)).ravel()
 
 
+#: The constant entries of :meth:`Readings._derivatives`: x_R, y_R and the offset enter linearly.
+_DERIVATIVES = np.zeros((2, 7, 6))
+_DERIVATIVES[0, 2, 0], _DERIVATIVES[0, 3, 1], _DERIVATIVES[0, 4, 4] = 1.0, -1.0, -1.0
+_DERIVATIVES[1, 2, 1], _DERIVATIVES[1, 3, 0], _DERIVATIVES[1, 4, 5] = 1.0, 1.0, -1.0
+
+
 class Readings:
     """The per-reading residuals of Eq. (4.28) as the linear map they are, for fast fitting.
 
@@ -124,11 +130,9 @@ class Readings:
         """∂ of the coefficients of ε_x, ε_y by ``phi``, (2, 7, 6)."""
         a, ab, d = np.radians(phi[2]), np.radians(phi[2] + phi[3]), np.pi / 180.0
         ca, sa, cab, sab = np.cos(a), np.sin(a), np.cos(ab), np.sin(ab)
-        E = np.zeros((2, 7, 6))
+        E = _DERIVATIVES.copy()
         E[0, 0, 2], E[0, 1, 2], E[0, 1, 3] = -sa * d, -cab * d, -cab * d
-        E[0, 2, 0], E[0, 3, 1], E[0, 4, 4] = 1.0, -1.0, -1.0
         E[1, 0, 2], E[1, 1, 2], E[1, 1, 3] = ca * d, -sab * d, -sab * d
-        E[1, 2, 1], E[1, 3, 0], E[1, 4, 5] = 1.0, 1.0, -1.0
         return E
 
     def residuals(self, phi) -> np.ndarray:

@@ -149,6 +149,8 @@ def _problem(readings: cost.Readings, idx: list[int], base: np.ndarray):
     cols = np.ix_(idx, idx)
 
     def full(values):
+        if every_column:
+            return values
         phi = base.copy()
         phi[idx] = values
         return phi
@@ -301,6 +303,7 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
         raise ValueError(f"cross-validation: {rest.size} poses cannot make {k} folds of 2 or more")
     folds = np.array_split(np.random.default_rng(seed).permutation(rest), k)
     readings = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok])  # Θ's trigonometry once
+    predict = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok], f_ax[ok], f_ay[ok])
     position = np.full(X.size, -1)
     position[ok] = np.arange(ok.size)
     sq, count = 0.0, 0
@@ -310,9 +313,8 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
         idx, base = _start(initial, free)
         sol = _fit(readings.subset(train), idx, base)[1]
         base[idx] = sol.x
-        test = np.sort(fold)
-        eps = cost.residuals(Parameters.from_array(base[:4]), X[test], Y[test], theta[test], P_mx[test], P_my[test],
-                             ex[test], ey[test], f_ax[test], f_ay[test])
+        base[4:] = 0.0  # the offset cancels in ε
+        eps = cost.differences_of_readings(predict.subset(np.sort(position[fold])).residuals(base))
         sq, count = sq + float(eps @ eps), count + eps.size
     return float(np.sqrt(sq / count))
 
