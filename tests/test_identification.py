@@ -358,3 +358,16 @@ def test_gauss_newton_with_normal_equations_reaches_the_jacobian_path_optimum():
         slow = solve(readings.residuals, readings.jacobian, start, loss, 1.0)
         assert fast.success and "Gauss-Newton" in fast.message
         assert np.allclose(fast.x, slow.x, rtol=1e-10, atol=1e-9)
+
+
+def test_identification_jacobian_is_that_of_the_pose_differences():
+    """Identification.jacobian (differenced from the reading Jacobian of the fit) is
+    cost.jacobian at the estimate, Eq. (4.30), in the free columns."""
+    X, Y, theta = _poses(150, 31)
+    P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=32)
+    for free in (("x_R", "y_R", "alpha", "beta"), ("x_R", "y_R")):
+        res = identify(X, Y, theta, P_mx, P_my, free=free, initial=Parameters(10000.0, 8000.0, 177.69, -0.11))
+        cols = [("x_R", "y_R", "alpha", "beta").index(name) for name in free]
+        want = cost.jacobian(res.parameters, X, Y, theta)[:, cols]
+        assert res.jacobian.shape == want.shape
+        assert np.allclose(res.jacobian, want, rtol=1e-12, atol=1e-9)

@@ -67,8 +67,10 @@ def reading_jacobian(p: Parameters, X, Y, theta, ex=0.0, ey=0.0) -> np.ndarray:
 
 
 def differences_of_readings(r: np.ndarray) -> np.ndarray:
-    """ε of Eq. (4.30) from the per-reading residuals of :func:`reading_residuals` (the offset cancels)."""
-    return _difference(np.asarray(r).reshape(-1, 2)).ravel()
+    """ε of Eq. (4.30) from the per-reading residuals of :func:`reading_residuals` (the offset
+    cancels); of the rows of their Jacobian (2n × k) too, giving the pose differences' (2(n−1) × k)."""
+    r = np.asarray(r)
+    return _difference(r.reshape(-1, 2, *r.shape[1:])).reshape(-1, *r.shape[1:])
 
 
 #: The constant entries of :meth:`Readings._derivatives`: x_R, y_R and the offset enter linearly.
