@@ -371,3 +371,48 @@ def test_identification_jacobian_is_that_of_the_pose_differences():
         want = cost.jacobian(res.parameters, X, Y, theta)[:, cols]
         assert res.jacobian.shape == want.shape
         assert np.allclose(res.jacobian, want, rtol=1e-12, atol=1e-9)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 5))
+def test_lock_step_gauss_newton_equals_one_problem_at_a_time(seed, k):
+    """solve_batch on k curve fits gives each the solution solve gives it alone."""
+    from calflow.identification.gauss_newton import solve, solve_batch
+
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 3, 60)
+    ys = [rng.uniform(0.5, 3) * np.exp(-rng.uniform(0.2, 1.5) * t) + rng.normal(0, 0.02, t.size) for _ in range(k)]
+    x0 = np.tile([1.0, 1.0], (k, 1))
+
+    def residuals(x, y):
+        return x[0] * np.exp(-x[1] * t) - y
+
+    def jacobian(x):
+        return np.column_stack([np.exp(-x[1] * t), -x[0] * t * np.exp(-x[1] * t)])
+
+    def cost(X):
+        return np.array([residuals(x, y) @ residuals(x, y) for x, y in zip(X, ys)])
+
+    def normal(X):
+        J = [jacobian(x) for x in X]
+        return np.stack([j.T @ j for j in J]), np.stack([j.T @ residuals(x, y) for j, x, y in zip(J, X, ys)])
+
+    x, converged = solve_batch(cost, normal, x0, [t.size] * k)
+    for f in range(k):
+        alone = solve(lambda v, y=ys[f]: residuals(v, y), jacobian, x0[f])
+        if converged[f]:
+            assert "Gauss-Newton" in alone.message and np.allclose(x[f], alone.x, rtol=1e-12, atol=1e-12)
+        else:  # left at its start for the caller, where solve needed scipy too
+            assert "scipy" in alone.message and np.array_equal(x[f], x0[f])
+
+
+def test_lock_step_gauss_newton_leaves_a_singular_problem_to_the_caller():
+    from calflow.identification.gauss_newton import solve_batch
+
+    t = np.linspace(0, 1, 50)
+    J = np.column_stack([t, t])  # only v0 + v1 is determined
+    x, converged = solve_batch(lambda X: np.array([np.sum(((x[0] + x[1]) * t - 2 * t) ** 2) for x in X]),
+                               lambda X: (np.stack([J.T @ J] * len(X)),
+                                          np.stack([J.T @ ((x[0] + x[1]) * t - 2 * t) for x in X])),
+                               np.zeros((2, 2)), [50, 50])
+    assert not converged.any() and np.array_equal(x, np.zeros((2, 2)))

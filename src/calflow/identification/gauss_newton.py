@@ -108,3 +108,51 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
                         ftol=1e-15 if method == "lm" else 1e-12, gtol=1e-15 if method == "lm" else 1e-12, **kw)
     return Solution(sol.x, sol.fun, nfev + int(sol.nfev), bool(sol.success),
                     f"scipy.optimize.least_squares({method}) after Gauss-Newton stalled: {sol.message}")
+
+
+def solve_batch(cost, normal, x0, sizes, max_iter: int = 100, rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`solve`'s least-squares iteration run on k independent problems in lock-step.
+
+    ``x0`` (k × p) the starts; ``cost(x)`` the k sums of squared residuals at the rows of
+    ``x``; ``normal(x)`` the k normal equations (Jᵀ J, Jᵀ r), shapes (k, p, p) and (k, p);
+    ``sizes`` the k residual counts. Each problem takes the steps, step halvings and
+    stopping rule :func:`solve` would give it, so Python's overhead is paid once per
+    iteration for all k. Returns (x, converged): a problem whose Gauss–Newton does not
+    converge (singular or non-finite step, no decrease, ``max_iter``) is left at its
+    start with ``converged`` False, for the caller to hand to :func:`solve`.
+    """
+    x = np.array(x0, dtype=float)
+    k = x.shape[0]
+    c = cost(x)
+    floor = ATOL * np.sqrt(np.asarray(sizes, dtype=float))
+    active = np.ones(k, dtype=bool)
+    converged = np.zeros(k, dtype=bool)
+    for _ in range(max_iter):
+        if not active.any():
+            break
+        N, g = normal(x)
+        try:
+            step = np.linalg.solve(N, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            break
+        active &= np.all(np.isfinite(step), axis=1)
+        change = np.sqrt(np.maximum(np.einsum("kp,kpq,kq->k", step, N, step), 0.0))
+        done = active & (change <= rtol * np.sqrt(c) + floor)
+        converged |= done
+        active &= ~done
+        t = np.where(active, 1.0, 0.0)
+        pending = active.copy()
+        trial, c_new = x.copy(), c.copy()
+        while pending.any():
+            trial[pending] = x[pending] - t[pending, None] * step[pending]
+            c_try = cost(trial)
+            accepted = pending & (c_try <= c * (1.0 + 1e-12))
+            c_new[accepted] = c_try[accepted]
+            pending &= ~accepted
+            t[pending] *= 0.5
+            stalled = pending & (t <= 1e-6)
+            active &= ~stalled
+            pending &= ~stalled
+        x[active], c[active] = trial[active], c_new[active]
+    x[~converged] = np.asarray(x0, dtype=float)[~converged]
+    return x, converged

@@ -284,6 +284,45 @@ def noise_sigma(eps: np.ndarray, n_poses: int, n_free: int) -> float:
     return float(np.sqrt(float(eps @ eps) / effective)) if effective > 0 else float("nan")
 
 
+def _fold_fits(readings: cost.Readings, train: np.ndarray, idx: list[int], base: np.ndarray) -> np.ndarray:
+    """(φ, x_m0, y_m0) fitted by least squares to each row set of ``train`` (folds × readings,
+    boolean), each started as :func:`_fit` starts it: the folds' Gauss–Newton iterations run
+    in lock-step (:func:`gauss_newton.solve_batch`) on their Gram matrices; a fold that
+    does not converge so is fitted alone by :func:`_fit`. Shape (folds, 6)."""
+    C, M = readings.columns, train.astype(float)
+    grams = (C[None] * M[:, None, :]) @ C.T
+
+    def full(x):
+        phi = np.tile(base, (x.shape[0], 1))
+        phi[:, idx] = x
+        return phi
+
+    def residuals(phi):  # (folds, 2 axes, readings)
+        return np.stack([cost.Readings._coefficients(p).T for p in phi]) @ C
+
+    def sum_sq(x):
+        R = residuals(full(x))
+        return np.einsum("kn,kn->k", (R * R).sum(axis=1), M)
+
+    def normal(x):
+        phi = full(x)
+        E = np.stack([cost.Readings._derivatives(p) for p in phi])[..., idx]  # (folds, 2, 7, p)
+        DR = (residuals(phi) * M[:, None, :]) @ C.T  # Dᵀ ε per fold and axis
+        N = (E.swapaxes(-1, -2) @ (grams[:, None] @ E)).sum(axis=1)
+        return N, np.einsum("kajp,kaj->kp", E, DR)
+
+    start = np.tile(base, (train.shape[0], 1))
+    start[:, 4:] = 0.0
+    start[:, 4:] = (residuals(start) * M[:, None, :]).sum(axis=-1) / M.sum(axis=1)[:, None]  # the mean misfit
+    x, converged = gauss_newton.solve_batch(sum_sq, normal, start[:, idx], 2 * M.sum(axis=1))
+    out = full(x)
+    for f in np.flatnonzero(~converged):
+        alone = base.copy()
+        alone[idx] = _fit(readings.subset(train[f]), idx, alone)[1].x
+        out[f] = alone
+    return out
+
+
 def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 5, seed: int = 0,
                    ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0) -> float:
     """k-fold prediction RMS (µm) of the pose-difference residuals ε, Eq. (4.30).
@@ -306,15 +345,15 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
     predict = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok], f_ax[ok], f_ay[ok])
     position = np.full(X.size, -1)
     position[ok] = np.arange(ok.size)
+    train = np.ones((k, ok.size), dtype=bool)
+    for f, fold in enumerate(folds):
+        train[f, position[fold]] = False  # the home row is never in a fold
+    idx, base = _start(initial, free)
+    estimates = _fold_fits(readings, train, idx, base)
     sq, count = 0.0, 0
-    for fold in folds:
-        train = np.ones(ok.size, dtype=bool)
-        train[position[fold]] = False  # the home row is never in a fold
-        idx, base = _start(initial, free)
-        sol = _fit(readings.subset(train), idx, base)[1]
-        base[idx] = sol.x
-        base[4:] = 0.0  # the offset cancels in ε
-        eps = cost.differences_of_readings(predict.subset(np.sort(position[fold])).residuals(base))
+    for fold, phi in zip(folds, estimates):
+        phi[4:] = 0.0  # the offset cancels in ε
+        eps = cost.differences_of_readings(predict.subset(np.sort(position[fold])).residuals(phi))
         sq, count = sq + float(eps @ eps), count + eps.size
     return float(np.sqrt(sq / count))
 
