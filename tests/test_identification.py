@@ -293,3 +293,126 @@ def test_gauss_newton_hands_a_singular_problem_to_scipy():
     jac = lambda v: np.column_stack([t, t])  # noqa: E731
     sol = solve(fun, jac, [0.0, 0.0])
     assert "scipy" in sol.message and np.isclose(sol.x.sum(), 2.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(2, 60), seed=st.integers(0, 2**31 - 1), weighted=st.booleans())
+def test_readings_are_the_reading_residuals_as_a_linear_map(n, seed, weighted):
+    """cost.Readings (Θ's trigonometry once, normal equations from the data's Gram) gives
+    the residuals, Jacobian and normal equations of reading_residuals/reading_jacobian."""
+    rng = np.random.default_rng(seed)
+    X, Y, theta = rng.uniform(0, 4000, n), rng.uniform(0, 2000, n), rng.uniform(-5, 5, n)
+    P_mx, P_my = rng.normal(0, 5000, n), rng.normal(0, 5000, n)
+    ex, ey, f_ax, f_ay = rng.normal(0, 3, (4, n))
+    p = Parameters(*rng.normal([9500, 7800, 178, 0], [500, 500, 3, 0.5]))
+    offset = rng.normal(0, 100, 2)
+    phi = np.concatenate([p.as_array(), offset])
+    readings = cost.Readings(X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay)
+    r = cost.reading_residuals(p, X, Y, theta, P_mx, P_my, offset, ex, ey, f_ax, f_ay)
+    J = cost.reading_jacobian(p, X, Y, theta, ex, ey)
+    scale = np.max(np.abs(readings.columns))
+    assert np.allclose(readings.residuals(phi), r, rtol=0, atol=1e-12 * scale)
+    assert np.allclose(readings.jacobian(phi), J, rtol=1e-12, atol=1e-12 * scale)
+    w = rng.uniform(0.1, 1.0, 2 * n) if weighted else np.ones(2 * n)
+    N, g, plain = readings.normal(phi, r, w if weighted else None)
+    assert np.allclose(N, J.T @ (J * w[:, None]), rtol=1e-10, atol=1e-12 * scale**2)
+    assert np.allclose(g, J.T @ (w * r), rtol=1e-10, atol=1e-10 * scale * np.abs(r).max())
+    assert np.allclose(plain, J.T @ J, rtol=1e-10, atol=1e-12 * scale**2)
+    sub = rng.random(n) < 0.5
+    assert np.allclose(readings.subset(sub).residuals(phi), readings.residuals(phi).reshape(-1, 2)[sub].ravel(),
+                       rtol=0, atol=1e-12 * scale)
+
+
+def test_cross_validation_refits_each_fold_as_identify_does():
+    """The bare fold fits of cross_validate (shared trigonometry, row subsets) are the
+    identification of each fold's training poses."""
+    from calflow.xytheta.identification import cross_validate
+
+    X, Y, theta = _poses(200, 11)
+    P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=12)
+    X[17] = np.nan  # a dropped row
+    free, start = ("x_R", "y_R", "alpha", "beta"), Parameters(10000.0, 8000.0)
+    ok = np.flatnonzero(np.isfinite(X))
+    folds = np.array_split(np.random.default_rng(4).permutation(ok[1:]), 5)
+    sq, count = 0.0, 0
+    for fold in folds:
+        train = np.sort(np.concatenate([[ok[0]], np.setdiff1d(ok[1:], fold)]))
+        fit = identify(X[train], Y[train], theta[train], P_mx[train], P_my[train], free=free, initial=start)
+        test = np.sort(fold)
+        eps = cost.residuals(fit.parameters, X[test], Y[test], theta[test], P_mx[test], P_my[test])
+        sq, count = sq + eps @ eps, count + eps.size
+    assert cross_validate(X, Y, theta, P_mx, P_my, free, start, 5, 4) == pytest.approx(np.sqrt(sq / count), rel=1e-9)
+
+
+def test_gauss_newton_with_normal_equations_reaches_the_jacobian_path_optimum():
+    """Gauss–Newton on the 7 × 7 normal equations of cost.Readings stops where the same
+    solver on the explicit Jacobian does."""
+    from calflow.identification.gauss_newton import solve
+
+    X, Y, theta = _poses(300, 21)
+    P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=22)
+    readings = cost.Readings(X, Y, theta, P_mx, P_my)
+    start = np.array([10000.0, 8000.0, 180.0, 0.0, 0.0, 0.0])
+    for loss in ("linear", "soft_l1"):
+        fast = solve(readings.residuals, readings.jacobian, start, loss, 1.0, normal=readings.normal)
+        slow = solve(readings.residuals, readings.jacobian, start, loss, 1.0)
+        assert fast.success and "Gauss-Newton" in fast.message
+        assert np.allclose(fast.x, slow.x, rtol=1e-10, atol=1e-9)
+
+
+def test_identification_jacobian_is_that_of_the_pose_differences():
+    """Identification.jacobian (differenced from the reading Jacobian of the fit) is
+    cost.jacobian at the estimate, Eq. (4.30), in the free columns."""
+    X, Y, theta = _poses(150, 31)
+    P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=32)
+    for free in (("x_R", "y_R", "alpha", "beta"), ("x_R", "y_R")):
+        res = identify(X, Y, theta, P_mx, P_my, free=free, initial=Parameters(10000.0, 8000.0, 177.69, -0.11))
+        cols = [("x_R", "y_R", "alpha", "beta").index(name) for name in free]
+        want = cost.jacobian(res.parameters, X, Y, theta)[:, cols]
+        assert res.jacobian.shape == want.shape
+        assert np.allclose(res.jacobian, want, rtol=1e-12, atol=1e-9)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 5))
+def test_lock_step_gauss_newton_equals_one_problem_at_a_time(seed, k):
+    """solve_batch on k curve fits gives each the solution solve gives it alone."""
+    from calflow.identification.gauss_newton import solve, solve_batch
+
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 3, 60)
+    ys = [rng.uniform(0.5, 3) * np.exp(-rng.uniform(0.2, 1.5) * t) + rng.normal(0, 0.02, t.size) for _ in range(k)]
+    x0 = np.tile([1.0, 1.0], (k, 1))
+
+    def residuals(x, y):
+        return x[0] * np.exp(-x[1] * t) - y
+
+    def jacobian(x):
+        return np.column_stack([np.exp(-x[1] * t), -x[0] * t * np.exp(-x[1] * t)])
+
+    def cost(X):
+        return np.array([residuals(x, y) @ residuals(x, y) for x, y in zip(X, ys)])
+
+    def normal(X):
+        J = [jacobian(x) for x in X]
+        return np.stack([j.T @ j for j in J]), np.stack([j.T @ residuals(x, y) for j, x, y in zip(J, X, ys)])
+
+    x, converged = solve_batch(cost, normal, x0, [t.size] * k)
+    for f in range(k):
+        alone = solve(lambda v, y=ys[f]: residuals(v, y), jacobian, x0[f])
+        if converged[f]:
+            assert "Gauss-Newton" in alone.message and np.allclose(x[f], alone.x, rtol=1e-12, atol=1e-12)
+        else:  # left at its start for the caller, where solve needed scipy too
+            assert "scipy" in alone.message and np.array_equal(x[f], x0[f])
+
+
+def test_lock_step_gauss_newton_leaves_a_singular_problem_to_the_caller():
+    from calflow.identification.gauss_newton import solve_batch
+
+    t = np.linspace(0, 1, 50)
+    J = np.column_stack([t, t])  # only v0 + v1 is determined
+    x, converged = solve_batch(lambda X: np.array([np.sum(((x[0] + x[1]) * t - 2 * t) ** 2) for x in X]),
+                               lambda X: (np.stack([J.T @ J] * len(X)),
+                                          np.stack([J.T @ ((x[0] + x[1]) * t - 2 * t) for x in X])),
+                               np.zeros((2, 2)), [50, 50])
+    assert not converged.any() and np.array_equal(x, np.zeros((2, 2)))

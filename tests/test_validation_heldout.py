@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from calflow.xytheta import cost
-from calflow.xytheta.angle_table import AngleTable, angle_spectrum
+from calflow.xytheta.angle_table import AngleTable, _curves, angle_spectrum
 from calflow.xytheta.commands import o2_plateau
 from calflow.xytheta.identification import cross_validate, identify
 from calflow.xytheta.kinematics import Parameters, forward
@@ -93,6 +93,38 @@ def test_noise_alone_is_not_significant():
     r, grid = _sweep(1.0, 0.0, 0.1, noise_um=0.5)
     spectrum, _ = angle_spectrum(r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4].astype(int), grid)
     assert spectrum.shortest_period_deg is None
+
+
+def _curves_by_loop(theta, f, direction, cycle, grid):
+    """The per-bin loop ``_curves`` replaced (issue 15): the reference of its vectorised binning."""
+    k = np.rint((theta - grid[0]) / (grid[1] - grid[0])).astype(int)
+    mean, noise = np.full((2, grid.size), np.nan), np.full((2, grid.size), np.nan)
+    for row, d in enumerate((1, -1)):
+        for j in range(grid.size):
+            sel = (direction == d) & (k == j) & np.isfinite(f)
+            if sel.any():
+                mean[row, j] = f[sel].mean()
+                even, odd = sel & (cycle % 2 == 0), sel & (cycle % 2 == 1)
+                if even.any() and odd.any():
+                    noise[row, j] = 0.5 * (f[even].mean() - f[odd].mean())
+    return mean, noise
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 300), bins=st.integers(2, 40), seed=st.integers(0, 2**31 - 1),
+       nan_fraction=st.floats(0.0, 0.5))
+def test_vectorised_binning_equals_the_per_bin_loop(n, bins, seed, nan_fraction):
+    rng = np.random.default_rng(seed)
+    grid = np.linspace(-1.0, 4.0, bins)
+    step = grid[1] - grid[0]
+    theta = rng.uniform(grid[0] - 2 * step, grid[-1] + 2 * step, n)  # some readings off the grid
+    f = rng.normal(0.0, 10.0, n)
+    f[rng.random(n) < nan_fraction] = np.nan
+    direction, cycle = rng.choice([1, -1, 0], n), rng.integers(0, 4, n)
+    got, want = _curves(theta, f, direction, cycle, grid), _curves_by_loop(theta, f, direction, cycle, grid)
+    for g, w in zip(got, want):
+        assert np.array_equal(np.isnan(g), np.isnan(w))
+        assert np.allclose(g[np.isfinite(w)], w[np.isfinite(w)], rtol=1e-12, atol=1e-12)
 
 
 def test_angle_table_is_indexed_by_theta_alone_and_interpolates_per_direction():

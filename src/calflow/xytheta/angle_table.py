@@ -45,21 +45,31 @@ class AngleSpectrum:
     warning: str = ""
 
 
+def _bin_means(bins: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
+    """Mean of ``values`` per bin index in ``range(size)``; NaN where a bin is empty."""
+    count = np.bincount(bins, minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, np.bincount(bins, weights=values, minlength=size) / count, np.nan)
+
+
 def _curves(theta, f, direction, cycle, grid):
-    """Mean of f over positions and cycles per (direction, grid angle), and the noise curve."""
-    k = np.rint((theta - grid[0]) / (grid[1] - grid[0])).astype(int)
-    mean = np.full((2, grid.size), np.nan)
-    noise = np.full((2, grid.size), np.nan)
-    for row, d in enumerate(DIRECTIONS):
-        for j in range(grid.size):
-            sel = (direction == d) & (k == j) & np.isfinite(f)
-            if not sel.any():
-                continue
-            mean[row, j] = f[sel].mean()
-            even, odd = sel & (cycle % 2 == 0), sel & (cycle % 2 == 1)
-            if even.any() and odd.any():
-                noise[row, j] = 0.5 * (f[even].mean() - f[odd].mean())
-    return mean, noise
+    """Mean of f (µm) over positions and cycles per (direction, grid angle), and the noise
+    curve: half the difference of the even and the odd cycles' means. Shapes (2, len(grid)),
+    rows in :data:`DIRECTIONS` order; NaN where a bin has no reading (noise: no even or no
+    odd one). Readings off the grid or in another direction are ignored. One pass of
+    :func:`numpy.bincount` over the readings, linear in their number."""
+    f, direction, cycle = np.asarray(f, dtype=float), np.asarray(direction), np.asarray(cycle)
+    k = np.rint((np.asarray(theta, dtype=float) - grid[0]) / (grid[1] - grid[0])).astype(int)
+    row = np.full(k.shape, -1)
+    for r, d in enumerate(DIRECTIONS):
+        row[direction == d] = r
+    use = (row >= 0) & (k >= 0) & (k < grid.size) & np.isfinite(f)
+    size = len(DIRECTIONS) * grid.size
+    bins, values, parity = row[use] * grid.size + k[use], f[use], cycle[use] % 2
+    mean = _bin_means(bins, values, size)
+    even, odd = parity == 0, parity == 1
+    noise = 0.5 * (_bin_means(bins[even], values[even], size) - _bin_means(bins[odd], values[odd], size))
+    return mean.reshape(len(DIRECTIONS), grid.size), noise.reshape(len(DIRECTIONS), grid.size)
 
 
 PAD = 8  # zero-padding factor: a component between two bins still shows as one peak
@@ -71,12 +81,12 @@ def _spectrum(curves: list[np.ndarray], step: float) -> tuple[np.ndarray, np.nda
     n = curves[0].size
     x = np.arange(n) * step
     w = np.hanning(n)
-    power = np.zeros(PAD * n // 2 + 1)
-    for c in curves:
+    filled = np.empty((len(curves), n))
+    for k, c in enumerate(curves):
         ok = np.isfinite(c)
-        filled = np.interp(x, x[ok], c[ok])
-        detrended = filled - np.polyval(np.polyfit(x, filled, min(3, n - 1)), x)
-        power += np.abs(2.0 * np.fft.rfft(detrended * w, PAD * n) / w.sum()) ** 2
+        filled[k] = np.interp(x, x[ok], c[ok])
+    trend = np.polynomial.polynomial.polyvander(x, min(3, n - 1)) @ np.polyfit(x, filled.T, min(3, n - 1))[::-1]
+    power = np.sum(np.abs(2.0 * np.fft.rfft((filled - trend.T) * w, PAD * n, axis=1) / w.sum()) ** 2, axis=0)
     return np.fft.rfftfreq(PAD * n, step), np.sqrt(power / len(curves))
 
 
@@ -150,27 +160,28 @@ class AngleTable:
         from calflow.xytheta.evaluation import attained_points
 
         x, y = attained_points(run)
-        d = run["direction"].values
-        sel = (run["pose"].values > 0) & (d != 0)
-        theta = run["target_theta"].values[sel].astype(float)
-        fx = (x - run["target_x"].values)[sel]
-        fy = (y - run["target_y"].values)[sel]
+        v = {k: run.variables[k].values for k in ("direction", "pose", "target_theta", "target_x", "target_y", "cycle")}
+        d = v["direction"]
+        sel = (v["pose"] > 0) & (d != 0)
+        theta = v["target_theta"][sel].astype(float)
+        fx = (x - v["target_x"])[sel]
+        fy = (y - v["target_y"])[sel]
         # the angle-dependent error is the change of the residual with Θ: at each position,
         # the residual at the lowest swept angle (both directions) is the position's own
         # error, not an angle error (Eq. 4.27: the frame is the home pose's, at Θ = 0)
-        where = np.round(run["target_x"].values[sel], 6) + 1j * np.round(run["target_y"].values[sel], 6)
-        lowest = np.isclose(theta, np.nanmin(theta))
-        for position in np.unique(where):
-            at = where == position
-            ref = at & lowest & np.isfinite(fx) & np.isfinite(fy)
-            if ref.any():
-                fx[at] -= fx[ref].mean()
-                fy[at] -= fy[ref].mean()
+        where = np.round(v["target_x"][sel], 6) + 1j * np.round(v["target_y"][sel], 6)
+        position = np.unique(where, return_inverse=True)[1].ravel()
+        ref = np.isclose(theta, np.nanmin(theta)) & np.isfinite(fx) & np.isfinite(fy)
+        count = np.bincount(position[ref], minlength=position.max(initial=-1) + 1)
+        has_ref = count[position] > 0
+        for f in (fx, fy):
+            mean = np.bincount(position[ref], weights=f[ref], minlength=count.size) / np.maximum(count, 1)
+            f[has_ref] -= mean[position[has_ref]]
         grid_all = np.unique(np.round(theta, 9))
         if grid_all.size < 4:
             raise ValueError(f"angle table: run {run.attrs.get('plan')!r} sweeps {grid_all.size} angles, expected 4 or more")
         grid = np.linspace(grid_all[0], grid_all[-1], int(round((grid_all[-1] - grid_all[0]) / np.min(np.diff(grid_all)))) + 1)
-        spectrum, curves = angle_spectrum(theta, fx, fy, d[sel], run["cycle"].values[sel], grid,
+        spectrum, curves = angle_spectrum(theta, fx, fy, d[sel], v["cycle"][sel], grid,
                                           samples_per_period, significance, min_fraction)
         every = int(round(spectrum.step_deg / spectrum.sweep_step_deg))
         idx = np.arange(0, grid.size, every)

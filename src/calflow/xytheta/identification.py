@@ -136,8 +136,55 @@ def parameter_covariance(J: np.ndarray, r: np.ndarray, n_free: int) -> tuple[np.
     return (nan if inv is None else sigma2 * inv), dof, float(np.sqrt(sigma2))
 
 
-def _least_squares(fun, jac, start, loss="linear", f_scale=1.0, rtol=gauss_newton.RTOL):
-    return gauss_newton.solve(fun, jac, start, loss, f_scale, rtol=rtol)
+def _least_squares(problem, start, loss="linear", f_scale=1.0, rtol=gauss_newton.RTOL):
+    """Gauss–Newton on ``problem`` = (fun, jac, normal) from :func:`_problem`."""
+    fun, jac, normal = problem
+    return gauss_newton.solve(fun, jac, start, loss, f_scale, rtol=rtol, normal=normal)
+
+
+def _problem(readings: cost.Readings, idx: list[int], base: np.ndarray):
+    """Residuals, Jacobian and normal equations of ``readings`` in the free columns ``idx``
+    of (x_R, y_R, α, β, x_m0, y_m0); the others keep their value in ``base``."""
+    every_column = idx == list(range(6))
+    cols = np.ix_(idx, idx)
+
+    def full(values):
+        if every_column:
+            return values
+        phi = base.copy()
+        phi[idx] = values
+        return phi
+
+    def fun(values):
+        return readings.residuals(full(values))
+
+    def jac(values):
+        J = readings.jacobian(full(values))
+        return J if every_column else J[:, idx]
+
+    def normal(values, r, w):
+        N, g, plain = readings.normal(full(values), r, w)
+        return (N, g, plain) if every_column else (N[cols], g[idx], plain[cols])
+
+    return fun, jac, normal
+
+
+def _valid(X, Y, theta, P_mx, P_my) -> np.ndarray:
+    return np.isfinite(X) & np.isfinite(Y) & np.isfinite(theta) & np.isfinite(P_mx) & np.isfinite(P_my)
+
+
+def _start(initial: Parameters | None, free) -> tuple[list[int], np.ndarray]:
+    """Free columns of (φ, x_m0, y_m0) and the starting vector (offset filled later)."""
+    initial = initial or Parameters(x_R=0.0, y_R=0.0)
+    return _columns(free), np.concatenate([initial.as_array(), [0.0, 0.0]])
+
+
+def _fit(readings: cost.Readings, idx: list[int], base: np.ndarray):
+    """Least-squares fit of the free columns from ``base`` (its offset started at the mean
+    misfit, in place). Returns the problem and the solution."""
+    problem = _problem(readings, idx, base)
+    base[4:] = np.mean(problem[0](base[idx]).reshape(-1, 2), axis=0)  # start the offset at the mean misfit
+    return problem, _least_squares(problem, base[idx])
 
 
 def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters | None = None,
@@ -159,49 +206,25 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
     X, Y, theta, P_mx, P_my = (np.asarray(a, dtype=float) for a in (X, Y, theta, P_mx, P_my))
     ex, ey = np.broadcast_to(ex, X.shape), np.broadcast_to(ey, X.shape)
     f_ax, f_ay = np.broadcast_to(f_ax, X.shape), np.broadcast_to(f_ay, X.shape)
-    ok = np.isfinite(X) & np.isfinite(Y) & np.isfinite(theta) & np.isfinite(P_mx) & np.isfinite(P_my)
+    ok = _valid(X, Y, theta, P_mx, P_my)
     rows = np.flatnonzero(ok)
     X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay = (a[ok] for a in (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
     n = len(X)
-    initial = initial or Parameters(x_R=0.0, y_R=0.0)
-    idx = _columns(free)
+    idx, base = _start(initial, free)
     p = len(free)
-    every_column = idx == list(range(6))
-    base = np.concatenate([initial.as_array(), [0.0, 0.0]])
-
-    def full(values):
-        phi = base.copy()
-        phi[idx] = values
-        return Parameters.from_array(phi[:4]), phi[4:]
-
-    def problem(keep):
-        x, y, t, px, py, dx, dy, fx, fy = ((a[keep] for a in (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
-                                           if not keep.all() else (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
-
-        def fun(values):
-            phi, offset = full(values)
-            return cost.reading_residuals(phi, x, y, t, px, py, offset, dx, dy, fx, fy)
-
-        def jac(values):
-            J = cost.reading_jacobian(full(values)[0], x, y, t, dx, dy)
-            return J if every_column else J[:, idx]
-
-        return fun, jac
-
     if 2 * n < p + 2 or n < 2:
         raise ValueError(f"identification of {p} parameters needs at least {max(2, (p + 3) // 2)} valid poses, "
                          f"got {n}")
-    everything = np.ones(n, dtype=bool)
-    fun, jac = problem(everything)
-    base[4:] = np.mean(fun(base[idx]).reshape(-1, 2), axis=0)  # start the offset at the mean misfit
-    sol = _least_squares(fun, jac, base[idx])
-    keep = everything
+    readings = cost.Readings(X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay)
+    problem, sol = _fit(readings, idx, base)
+    keep = np.ones(n, dtype=bool)
     if robust is not None:
-        keep, sol = _screen(problem, sol, robust)
-    fun, jac = problem(keep)
-    A = jac(sol.x)
+        keep, problem, sol = _screen(readings, idx, base, problem, sol, robust)
+    A = problem[1](sol.x)
     cov, dof, sigma = parameter_covariance(A, sol.fun, p)
-    phi, offset = full(sol.x)
+    phi = base.copy()
+    phi[idx] = sol.x
+    phi, offset = Parameters.from_array(phi[:4]), phi[4:]
     with np.errstate(invalid="ignore", divide="ignore"):
         sd = np.sqrt(np.diag(cov))
         corr = cov / np.outer(sd, sd)
@@ -211,7 +234,7 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
         std={name: float(sd[k]) for k, name in enumerate(free)},
         correlation=corr,
         covariance=cov,
-        jacobian=cost.jacobian(phi, X[keep], Y[keep], theta[keep], ex[keep], ey[keep])[:, idx[:-2]],
+        jacobian=cost.differences_of_readings(A[:, :p]),  # ∂ε/∂φ of Eq. (4.30), as cost.jacobian
         residual_rms_um=float(np.sqrt(np.mean(cost.differences_of_readings(sol.fun) ** 2))),
         n_poses=int(keep.sum()),
         dof=dof,
@@ -226,15 +249,16 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
     )
 
 
-def _screen(problem, sol, robust: Robust):
+def _screen(readings: cost.Readings, idx, base, problem, sol, robust: Robust):
     """Robust screening: a fit with ``robust.loss`` over every reading, then rounds of
     rejecting readings beyond ``reject_sigma`` robust σ and refitting the rest by least
-    squares, until the rejected set repeats. Returns (kept mask, final least-squares solution)."""
-    fun_all, jac_all = problem(np.ones(sol.fun.size // 2, dtype=bool))
+    squares, until the rejected set repeats. Returns (kept mask, its problem, final
+    least-squares solution)."""
+    fun_all = problem[0]
     x = sol.x
     if robust.loss != "linear":
         scale = max(mad_sigma(sol.fun), SIGMA_FLOOR_UM)
-        x = _least_squares(fun_all, jac_all, x, robust.loss, robust.f_scale_sigma * scale, SCREEN_RTOL).x
+        x = _least_squares(problem, x, robust.loss, robust.f_scale_sigma * scale, SCREEN_RTOL).x
     keep = None
     for _ in range(robust.max_rounds):
         r = fun_all(x).reshape(-1, 2)
@@ -243,10 +267,10 @@ def _screen(problem, sol, robust: Robust):
         if keep is not None and np.array_equal(new, keep):
             break
         keep = new
-        fun, jac = problem(keep)
-        sol = _least_squares(fun, jac, x)
+        problem = _problem(readings if keep.all() else readings.subset(keep), idx, base)
+        sol = _least_squares(problem, x)
         x = sol.x
-    return keep, sol
+    return keep, problem, sol
 
 
 def noise_sigma(eps: np.ndarray, n_poses: int, n_free: int) -> float:
@@ -258,6 +282,45 @@ def noise_sigma(eps: np.ndarray, n_poses: int, n_free: int) -> float:
     """
     effective = 4.0 * (n_poses - 1) - 2.0 * n_free
     return float(np.sqrt(float(eps @ eps) / effective)) if effective > 0 else float("nan")
+
+
+def _fold_fits(readings: cost.Readings, train: np.ndarray, idx: list[int], base: np.ndarray) -> np.ndarray:
+    """(φ, x_m0, y_m0) fitted by least squares to each row set of ``train`` (folds × readings,
+    boolean), each started as :func:`_fit` starts it: the folds' Gauss–Newton iterations run
+    in lock-step (:func:`gauss_newton.solve_batch`) on their Gram matrices; a fold that
+    does not converge so is fitted alone by :func:`_fit`. Shape (folds, 6)."""
+    C, M = readings.columns, train.astype(float)
+    grams = (C[None] * M[:, None, :]) @ C.T
+
+    def full(x):
+        phi = np.tile(base, (x.shape[0], 1))
+        phi[:, idx] = x
+        return phi
+
+    def residuals(phi):  # (folds, 2 axes, readings)
+        return np.stack([cost.Readings._coefficients(p).T for p in phi]) @ C
+
+    def sum_sq(x):
+        R = residuals(full(x))
+        return np.einsum("kn,kn->k", (R * R).sum(axis=1), M)
+
+    def normal(x):
+        phi = full(x)
+        E = np.stack([cost.Readings._derivatives(p) for p in phi])[..., idx]  # (folds, 2, 7, p)
+        DR = (residuals(phi) * M[:, None, :]) @ C.T  # Dᵀ ε per fold and axis
+        N = (E.swapaxes(-1, -2) @ (grams[:, None] @ E)).sum(axis=1)
+        return N, np.einsum("kajp,kaj->kp", E, DR)
+
+    start = np.tile(base, (train.shape[0], 1))
+    start[:, 4:] = 0.0
+    start[:, 4:] = (residuals(start) * M[:, None, :]).sum(axis=-1) / M.sum(axis=1)[:, None]  # the mean misfit
+    x, converged = gauss_newton.solve_batch(sum_sq, normal, start[:, idx], 2 * M.sum(axis=1))
+    out = full(x)
+    for f in np.flatnonzero(~converged):
+        alone = base.copy()
+        alone[idx] = _fit(readings.subset(train[f]), idx, alone)[1].x
+        out[f] = alone
+    return out
 
 
 def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 5, seed: int = 0,
@@ -273,19 +336,24 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
     """
     X, Y, theta, P_mx, P_my = (np.asarray(a, dtype=float) for a in (X, Y, theta, P_mx, P_my))
     ex, ey, f_ax, f_ay = (np.broadcast_to(np.asarray(a, dtype=float), X.shape) for a in (ex, ey, f_ax, f_ay))
-    ok = np.flatnonzero(np.isfinite(X) & np.isfinite(Y) & np.isfinite(theta) & np.isfinite(P_mx) & np.isfinite(P_my))
+    ok = np.flatnonzero(_valid(X, Y, theta, P_mx, P_my))
     rest = ok[1:]
     if k < 2 or rest.size < 2 * k:
         raise ValueError(f"cross-validation: {rest.size} poses cannot make {k} folds of 2 or more")
     folds = np.array_split(np.random.default_rng(seed).permutation(rest), k)
+    readings = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok])  # Θ's trigonometry once
+    predict = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok], f_ax[ok], f_ay[ok])
+    position = np.full(X.size, -1)
+    position[ok] = np.arange(ok.size)
+    train = np.ones((k, ok.size), dtype=bool)
+    for f, fold in enumerate(folds):
+        train[f, position[fold]] = False  # the home row is never in a fold
+    idx, base = _start(initial, free)
+    estimates = _fold_fits(readings, train, idx, base)
     sq, count = 0.0, 0
-    for fold in folds:
-        train = np.sort(np.concatenate([[ok[0]], np.setdiff1d(rest, fold)]))
-        fit = identify(X[train], Y[train], theta[train], P_mx[train], P_my[train], free=free, initial=initial,
-                       ex=ex[train], ey=ey[train])
-        test = np.sort(fold)
-        eps = cost.residuals(fit.parameters, X[test], Y[test], theta[test], P_mx[test], P_my[test],
-                             ex[test], ey[test], f_ax[test], f_ay[test])
+    for fold, phi in zip(folds, estimates):
+        phi[4:] = 0.0  # the offset cancels in ε
+        eps = cost.differences_of_readings(predict.subset(np.sort(position[fold])).residuals(phi))
         sq, count = sq + float(eps @ eps), count + eps.size
     return float(np.sqrt(sq / count))
 
