@@ -41,8 +41,9 @@ FAMILY = Family(
     rigs={"stage1d": {"simulated": "calflow.nano.rig:nano1d"}, "stage2d": {"simulated": "calflow.nano.rig:nano2d"}},
     plans={
         "stage1d": {"training": f"{_P}:training_1d", "metrology": f"{_P}:metrology_1d",
-                    "validation": f"{_P}:validation_1d"},
-        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d"},
+                    "validation": f"{_P}:validation_1d", "step_response": f"{_P}:step_response"},
+        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d",
+                    "step_response": f"{_P}:step_response"},
     },
     rig_options="calflow.nano.family:rig_options",
     steps={
@@ -61,7 +62,7 @@ FAMILY = Family(
                                       "calflow.nano.interferometer_sensor"),
         "identify": _CORE + _MODELS + ("calflow.nano.commands",),
         "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.commands"),
-        "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",
+        "summarise": _CORE + _MODELS + ("calflow.nano.iso9283_summary", "calflow.reference", "calflow.uncertainty", "calflow.metrics",
                                         "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands",
                                         "calflow.nano.error_budget", "calflow.nano.ordering", "calflow.nano.rig",
                                         "calflow.nano.rig_options", "calflow.nano.piezo", "calflow.nano.interferometer",

@@ -17,7 +17,8 @@ A reading of sensor k is the commanded position plus one named term per effect
     cosine, abbe              installation (Table 3.4, U7, U8)
     walk                      a random walk, off by default (no physical source)
 
-plus per-move repeatability, the settling tail, white interferometer noise and the laser's
+plus per-move repeatability, the closed loop's step response (second order, milliseconds;
+:func:`calflow.nano.piezo.closed_loop_step`, seen by ``record_move``), the settling tail, white interferometer noise and the laser's
 wavelength instability (noise), quantised to the interferometer resolution (0.3 nm).
 Temperatures come from the lumped thermal network (:mod:`calflow.nano.thermal_network`)
 driven by the room profile; thermocouple j reads its own node plus its offset and noise,
@@ -35,7 +36,7 @@ import numpy as np
 
 from calflow.errors import RigError
 from calflow.nano import interferometer as ifm
-from calflow.nano.piezo import PlayHysteresis, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.piezo import PlayHysteresis, closed_loop_step, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
 from calflow.nano.rig_options import _COMMON, EFFECTS, NOISE, _Walk, check_options
 from calflow.nano.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
@@ -174,6 +175,24 @@ class _NanoRig:
         rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
         return self._stream_iter(t0, n, rate, int(chunk), self._snapshot(), rng)
 
+    def record_move(self, command: Mapping[str, float], seconds: float, rate_hz: float | None = None,
+                    chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
+        """``move`` and record the sensors from the move's start, like a controller's data
+        recorder triggered by the move command (GCS ``DRT``): sample i at ``t0 + i / rate_hz``,
+        t0 the start of the move, for ``seconds``, at ``rate_hz`` (default ``stream_rate_hz``).
+        The clock ends ``max(rise_time_s, seconds)`` after t0; chunks as :meth:`stream`."""
+        self._check_open()
+        rate = float(self.options["stream_rate_hz"] if rate_hz is None else rate_hz)
+        seconds = float(seconds)
+        if not (rate > 0 and seconds > 0 and int(chunk) > 0):
+            raise ValueError(f"{self._NAME}: record_move needs seconds > 0, rate_hz > 0, chunk > 0")
+        t0 = self._t
+        self.move(command)
+        self._t = max(self._t, t0 + seconds)
+        n = int(math.floor(seconds * rate + 1e-9))
+        rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
+        return self._stream_iter(t0 - 1.0 / rate, n, rate, int(chunk), self._snapshot(), rng)
+
     def _stream_iter(self, t0, n, rate, chunk, state, rng):
         for start in range(0, n, chunk):
             i = np.arange(start, min(n, start + chunk), dtype=float)
@@ -305,7 +324,7 @@ class _NanoRig:
             raise RigError(f"{self._NAME}: the rig is closed")
 
     def _state(self, t_rig, state):
-        """Noise-free sensor values incl. repeatability, settling and creep, and thermocouples."""
+        """Noise-free sensor values incl. repeatability, step response, settling and creep, and thermocouples."""
         cmds, z, (t_start, steps), rep = state
         o = self.options
         nodes = self._nodes(o["start_offset_s"] + t_rig)
@@ -314,6 +333,8 @@ class _NanoRig:
         terms = self.effect_terms(cmds, t_rig, z, steps, since, nodes)
         pos = self._sum(cmds, terms)
         decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
+        if since is not None:  # the closed loop's step response: the stage lags the new command
+            decay = decay + closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0
         pos = [p + rep[k] + (steps[a] * decay if a is not None else 0.0) for k, (p, a) in enumerate(zip(pos, self._AXIS))]
         temps = nodes[..., 3:3 + self._n_tc] + self._tc_off
         return pos, temps
