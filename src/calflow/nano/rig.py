@@ -334,7 +334,7 @@ class _NanoRig:
         pos = self._sum(cmds, terms)
         decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
         if since is not None:  # the closed loop's step response: the stage lags the new command
-            decay = decay + closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0
+            decay = decay + (closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0)  # 0 once settled
         pos = [p + rep[k] + (steps[a] * decay if a is not None else 0.0) for k, (p, a) in enumerate(zip(pos, self._AXIS))]
         temps = nodes[..., 3:3 + self._n_tc] + self._tc_off
         return pos, temps

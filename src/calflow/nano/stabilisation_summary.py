@@ -40,8 +40,9 @@ def _band_um(run: xr.Dataset, attained: np.ndarray, pose: np.ndarray) -> tuple[f
         return float(run.attrs["band_nm"]) / NM_PER_UM, "the band the campaign states (step_response.band_nm)"
     rps = [iso9283(attained[pose == p].mean(axis=0), attained[pose == p]).rp
            for p in np.unique(pose) if (pose == p).sum() >= 2]
-    if not rps:
-        raise ValueError("step_response run: RP needs at least two cycles of a pose; set step_response.band_nm")
+    if not rps or not max(rps) > 0:
+        raise ValueError("step_response run: the band is RP, which needs two cycles of a pose and attained positions "
+                         "that differ; set step_response.band_nm")
     return max(rps), "RP (clause 7.2.2), the largest over the run's poses"
 
 
