@@ -17,9 +17,9 @@ A reading of sensor k is the commanded position plus one named term per effect
     cosine, abbe              installation (Table 3.4, U7, U8)
     walk                      a random walk, off by default (no physical source)
 
-plus per-move repeatability, the closed loop's step response (second order, milliseconds;
-:func:`calflow.nano.piezo.closed_loop_step`, seen by ``record_move``), the settling tail, white interferometer noise and the laser's
-wavelength instability (noise), quantised to the interferometer resolution (0.3 nm).
+plus per-move repeatability, the closed loop's step response (``record_move`` sees it), the
+settling tail, white interferometer noise and the laser's wavelength instability (noise),
+quantised to the interferometer resolution (0.3 nm).
 Temperatures come from the lumped thermal network (:mod:`calflow.nano.thermal_network`)
 driven by the room profile; thermocouple j reads its own node plus its offset and noise,
 quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
@@ -30,13 +30,14 @@ when the interferometer was zeroed (Sec. 5.3.1). The world (room, weather, walk)
 from __future__ import annotations
 
 import math
-from typing import Iterator, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from calflow.errors import RigError
 from calflow.nano import interferometer as ifm
 from calflow.nano.piezo import PlayHysteresis, closed_loop_step, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.rig_records import HighRateRecords
 from calflow.nano.rig_options import _COMMON, EFFECTS, NOISE, _Walk, check_options
 from calflow.nano.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
@@ -47,7 +48,7 @@ _DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE)
 _STAGE, _BASE, _AIR = 0, 1, 2  # structural nodes of the network; thermocouples, compensation sensor follow
 
 
-class _NanoRig:
+class _NanoRig(HighRateRecords):
     """Common machinery of the nano rigs: options, virtual clock, noise, physics."""
 
     joints: tuple[str, ...] = ()
@@ -153,59 +154,6 @@ class _NanoRig:
     def time(self) -> float:
         """Current virtual time (s since the rig's start)."""
         return self._t
-
-    def stream(self, seconds: float, rate_hz: float | None = None,
-               chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
-        """Dwell ``seconds`` sampling at ``rate_hz`` (default option ``stream_rate_hz``).
-
-        Advances the virtual clock by ``seconds`` at once and returns an iterator of chunk
-        dicts of numpy arrays (``time`` and every sensor and thermometer, at most ``chunk``
-        samples each); sample i is taken at ``t0 + (i + 1) / rate_hz``. Each call draws its
-        noise from its own child seed, so interleaving reads does not change it. Reduce
-        with :func:`calflow.acquisition.streams.reduce_dwell` (last 5 s of each dwell, Sec. 5.3.2).
-        """
-        self._check_open()
-        rate = float(self.options["stream_rate_hz"] if rate_hz is None else rate_hz)
-        seconds = float(seconds)
-        if not (rate > 0 and seconds >= 0 and int(chunk) > 0):
-            raise ValueError(f"{self._NAME}: stream needs seconds >= 0, rate_hz > 0, chunk > 0")
-        n = int(math.floor(seconds * rate + 1e-9))
-        t0 = self._t
-        self._t += seconds
-        rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
-        return self._stream_iter(t0, n, rate, int(chunk), self._snapshot(), rng)
-
-    def record_move(self, command: Mapping[str, float], seconds: float, rate_hz: float | None = None,
-                    chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
-        """``move`` and record the sensors from the move's start, like a controller's data
-        recorder triggered by the move command (GCS ``DRT``): sample i at ``t0 + i / rate_hz``,
-        t0 the start of the move, for ``seconds``, at ``rate_hz`` (default ``stream_rate_hz``).
-        The clock ends ``max(rise_time_s, seconds)`` after t0; chunks as :meth:`stream`."""
-        self._check_open()
-        rate = float(self.options["stream_rate_hz"] if rate_hz is None else rate_hz)
-        seconds = float(seconds)
-        if not (rate > 0 and seconds > 0 and int(chunk) > 0):
-            raise ValueError(f"{self._NAME}: record_move needs seconds > 0, rate_hz > 0, chunk > 0")
-        t0 = self._t
-        self.move(command)
-        self._t = max(self._t, t0 + seconds)
-        n = int(math.floor(seconds * rate + 1e-9))
-        rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
-        return self._stream_iter(t0 - 1.0 / rate, n, rate, int(chunk), self._snapshot(), rng)
-
-    def _stream_iter(self, t0, n, rate, chunk, state, rng):
-        for start in range(0, n, chunk):
-            i = np.arange(start, min(n, start + chunk), dtype=float)
-            t = t0 + (i + 1.0) / rate
-            pos, temps = self._state(t, state)
-            out = {"time": t}
-            for k, name in enumerate(self.sensors):
-                v = pos[k] + self._noise_sd(pos)[k] * rng.standard_normal(t.size)
-                out[name] = np.round(v / self._q_um) * self._q_um
-            for j, name in enumerate(self.thermometers):
-                v = temps[..., j] + self._sig_c * rng.standard_normal(t.size)
-                out[name] = np.round(v / self._q_c) * self._q_c
-            yield out
 
     def true_position(self, command, time: float | np.ndarray | None = None,
                       direction: int | Mapping[str, int] = 0) -> dict[str, float | np.ndarray]:
