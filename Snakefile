@@ -10,6 +10,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/acquire.smk"
+include: "workflow/rules/step_response.smk"
 include: "workflow/rules/characterise.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/validate.smk"

@@ -271,8 +271,12 @@ def test_nano_validation_records_what_is_out_of_sample(thesis):
 
 
 def test_nano_summaries_and_reports_carry_iso9283_beyond_ap_rp(thesis):
+    from calflow.config import load_campaign
+
     keys = {"vAP", "AD", "RD", "dAP", "dRP", "stabilisation_time_s", "overshoot"}
+
     for name in ("nano1d-thesis", "nano2d-thesis"):
+        dwell_s = load_campaign(ROOT / "config" / "campaigns" / f"{name}.yaml")["validation"]["dwell_s"]
         block = thesis[name]["iso9283"]
         assert block["standard"] == "ISO 9283:1998" and set(block["modes"]) == set(thesis[name]["tests"])
         for mode, b in block["modes"].items():
@@ -281,9 +285,12 @@ def test_nano_summaries_and_reports_carry_iso9283_beyond_ap_rp(thesis):
                 assert e["unit"] == ("s" if key == "stabilisation_time_s" else "nm") and e["clause"].startswith("7.")
                 assert e["value"] is not None or e["reason"].startswith("not supported by this data"), (name, mode, key)
             assert b["RD"]["value"] > 0 and b["dAP"]["value"] >= 0 and b["dAP"]["period_h"] > 0
-            assert b["stabilisation_time_s"]["value"] is None and b["overshoot"]["value"] is None
+            stab, over = b["stabilisation_time_s"], b["overshoot"]  # the step-response run (clauses 7.5, 7.6)
+            assert (stab["clause"], over["clause"]) == ("7.5", "7.6") and stab["source"] == "step_response run"
+            assert np.isfinite(stab["value"]) and 0 < stab["value"] < dwell_s  # settled long before the reading
+            assert np.isfinite(over["value"]) and over["value"] > 0 and stab["band_nm"] > 0
         html = (thesis["work"] / f"reports/{name}/report.html").read_text()
-        assert 'id="iso9283-table"' in html and "clause 7.5" in html
+        assert 'id="iso9283-table"' in html and "clause 7.5" in html and 'id="iso9283-stabilisation"' in html
     one, two = (thesis[n]["iso9283"]["modes"] for n in ("nano1d-thesis", "nano2d-thesis"))
     assert all(b["vAP"]["value"] > 0 for b in one.values())  # forward and backward approaches
     assert all(b["vAP"]["value"] is None for b in two.values())  # one approach direction per point

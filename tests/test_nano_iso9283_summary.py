@@ -57,7 +57,7 @@ def test_what_the_data_cannot_give_is_null_with_a_reason():
     for key in ("vAP", "dAP", "dRP", "stabilisation_time_s", "overshoot"):
         assert b[key]["value"] is None and b[key]["reason"].startswith("not supported by this data"), key
     assert "two directions" in b["vAP"]["reason"] and "one test" in b["dAP"]["reason"]
-    assert "stream" in b["overshoot"]["reason"]
+    assert "step_response" in b["overshoot"]["reason"]
     assert b["AD"]["value"] is not None  # one test still has pairs of poses
 
 

@@ -50,7 +50,8 @@ class Acquisition:
     for the rig (its noise stream, its replayed recording); ``model`` is the model whose
     inverse commands the run, if any; ``controller`` computes commands from live readings
     (run-time compensation, :func:`calflow.acquisition.runner.acquire`); ``attrs`` are extra
-    attributes of the run dataset.
+    attributes of the run dataset; ``runner``, with ``acquire``'s signature, replaces it (e.g.
+    :func:`calflow.acquisition.recorded_moves.acquire_recorded_moves`).
     """
 
     plan: Plan
@@ -58,3 +59,4 @@ class Acquisition:
     model: str | None = None
     controller: object | None = None
     attrs: dict[str, object] = field(default_factory=dict)
+    runner: object | None = None  # acquires the plan instead of calflow.acquisition.runner.acquire

@@ -44,7 +44,8 @@ def run(args) -> None:
     journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
     try:
         with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:
-            ds = acquire(job.plan, rig, meta(c, source, args.plan, job.model), journal, step, job.controller)
+            ds = (job.runner or acquire)(job.plan, rig, meta(c, source, args.plan, job.model), journal, step,
+                                         job.controller)
         truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
     finally:
         rig.close()

@@ -55,3 +55,14 @@ def validation_2d(c: dict, args) -> Acquisition:
     plan = plans.validation_2d(np.asarray(v["points_um"], dtype=float), v["cycles"], v["tests"], v["dwell_s"],
                                tuple(v["order"]), v["average_last_s"], start_s=v["start_h"] * 3600.0)
     return Acquisition(plan, "validation", controller=_controller(plan, c, args))
+
+
+def step_response(c: dict, args) -> Acquisition:
+    """Recorded steps of the stage (ISO 9283 7.5, 7.6), open loop, each move recorded from its start."""
+    from calflow.acquisition.recorded_moves import acquire_recorded_moves
+
+    s = c["step_response"]
+    base = [s["base_um"]] * (2 if c["robot"] == "stage2d" else 1)
+    plan = plans.step_response(s["steps_um"], s["cycles"], base, s["record_s"], s["rate_hz"], s["attained_last_s"])
+    attrs = {"band_nm": float(s["band_nm"])} if "band_nm" in s else {}
+    return Acquisition(plan, "step_response", runner=acquire_recorded_moves, attrs=attrs)

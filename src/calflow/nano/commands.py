@@ -79,9 +79,11 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
         iso = {**iso230_2_of_run(iso_run), "run": iso_run.attrs["plan"]} if iso_run is not None else None
         summary = stage1d_summary(c, metrics.get("metrology"), metrics.get("validation"), models, budget, files,
                                   training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
-                                  validation_run=runs.get("validation"), error_budget=physics)
+                                  validation_run=runs.get("validation"), error_budget=physics,
+                                  step_response_run=runs.get("step_response"))
     else:
         summary = stage2d_summary(c, metrics.get("validation"), models, budget, files,
                                   training_metrics=metrics.get("training"), training_range_c=t_range,
-                                  validation_run=runs.get("validation"), error_budget=physics)
+                                  validation_run=runs.get("validation"), error_budget=physics,
+                                  step_response_run=runs.get("step_response"))
     return {**summary, "unsupported": unsupported}

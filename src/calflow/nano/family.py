@@ -41,8 +41,9 @@ FAMILY = Family(
     rigs={"stage1d": {"simulated": "calflow.nano.rig:nano1d"}, "stage2d": {"simulated": "calflow.nano.rig:nano2d"}},
     plans={
         "stage1d": {"training": f"{_P}:training_1d", "metrology": f"{_P}:metrology_1d",
-                    "validation": f"{_P}:validation_1d"},
-        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d"},
+                    "validation": f"{_P}:validation_1d", "step_response": f"{_P}:step_response"},
+        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d",
+                    "step_response": f"{_P}:step_response"},
     },
     rig_options="calflow.nano.family:rig_options",
     steps={
@@ -56,6 +57,7 @@ FAMILY = Family(
     modules={
         "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
                                       "calflow.nano.campaign_plans", "calflow.nano.rig", "calflow.nano.rig_options",
+                                      "calflow.nano.rig_records",
                                       "calflow.nano.piezo", "calflow.nano.interferometer", "calflow.nano.thermal_network",
                                       "calflow.nano.controllers", "calflow.nano.family",
                                       "calflow.nano.interferometer_sensor"),
@@ -64,6 +66,8 @@ FAMILY = Family(
         "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",
                                         "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands",
                                         "calflow.nano.error_budget", "calflow.nano.ordering", "calflow.nano.rig",
+                                        "calflow.nano.rig_records", "calflow.nano.stabilisation_summary",
+                                        "calflow.nano.iso9283_summary",
                                         "calflow.nano.rig_options", "calflow.nano.piezo", "calflow.nano.interferometer",
                                         "calflow.nano.thermal_network", "calflow.rigs"),
         "report": _CORE + ("calflow.report", "calflow.nano.figures", "calflow.nano.templates"),

@@ -15,8 +15,10 @@ the functions of :mod:`calflow.metrics`:
   ``|AP_last − AP_first|`` and ``|RP_last − RP_first|``, maxima over poses; ``period_h``
   is the time between the two tests' mean sample times.
 * ``stabilisation_time_s`` (7.5) and ``overshoot`` (7.6) need the record of the approach
-  to a pose (a high-rate stream); a run holds one reading per dwell, so they are null and
-  the ``reason`` says so.
+  to a pose: they come from the ``step_response`` run (:mod:`calflow.nano.stabilisation_summary`),
+  whose every move is recorded from its start; they describe the stage's closed loop, which
+  no test type changes (a calibration changes the command, not the loop), so every test
+  type shows the same entries. Without that run they are null and the ``reason`` says so.
 
 Every entry is ``{"value": number or None, "unit": ..., "clause": ...}`` plus what it was
 computed over; a null value always comes with a ``reason``.
@@ -31,13 +33,14 @@ import xarray as xr
 
 from calflow.metrics import iso9283_distance, iso9283_drift, iso9283_vap
 from calflow.nano.evaluation import mode_names, run_columns
+from calflow.nano.stabilisation_summary import stabilisation_entries
 
 __all__ = ["iso9283_block"]
 
 NM_PER_UM = 1000.0
-NO_STREAM = ("not supported by this data: the run keeps one reading per dwell (the mean of the dwell's last "
-             "seconds, Sec. 5.3.2); the high-rate interferometer stream is reduced during acquisition and not "
-             "recorded, so no approach to a pose is on record")
+NO_STREAM = ("not supported by this data: no step_response run (the campaign's step_response section is off); "
+             "the other runs keep one reading per dwell (the mean of the dwell's last seconds, Sec. 5.3.2), "
+             "so no approach to a pose is on record")
 
 
 def _entry(value, unit: str, clause: str, **extra) -> dict:
@@ -130,13 +133,18 @@ def _drift(meas, tgt, pose, test, tests, hours):
             "dRP": _entry(drp[0] * NM_PER_UM, "nm", "7.7", target_um=drp[1], **span)}
 
 
-def iso9283_block(run: xr.Dataset) -> dict:
-    """ISO 9283 vAP, AD, RD, dAP, dRP, stabilisation time and overshoot per test type of a
-    nano validation run (see the module docstring); JSON-ready except for numpy scalars."""
+def iso9283_block(run: xr.Dataset, step_response_run: xr.Dataset | None = None) -> dict:
+    """ISO 9283 vAP, AD, RD, dAP, dRP per test type of a nano validation run, and the
+    stabilisation time and overshoot of the ``step_response_run`` (see the module docstring);
+    JSON-ready except for numpy scalars."""
     axes = [a for a in ("x", "y") if f"target_{a}" in run]
     columns = run_columns(run, axes)
     valid = np.all(np.isfinite(columns[0]), axis=1) & np.all(np.isfinite(columns[1]), axis=1)
     meas, tgt, pose, cycle, direction, test, mode, hours = (v[valid] for v in columns)
+    if step_response_run is not None:
+        stab, overshoot = stabilisation_entries(step_response_run)
+    else:
+        stab, overshoot = (_entry(None, "s", "7.5", reason=NO_STREAM), _entry(None, "nm", "7.6", reason=NO_STREAM))
     modes = {}
     for k, name in enumerate(mode_names(run)):
         tests = np.unique(test[mode == k])
@@ -146,8 +154,8 @@ def iso9283_block(run: xr.Dataset) -> dict:
             "vAP": _vap(meas, tgt, direction, test, tests),
             **_distance(meas, tgt, cycle, pose, test, tests),
             **_drift(meas, tgt, pose, test, tests, hours),
-            "stabilisation_time_s": _entry(None, "s", "7.5", reason=NO_STREAM),
-            "overshoot": _entry(None, "nm", "7.6", reason=NO_STREAM),
+            "stabilisation_time_s": dict(stab),
+            "overshoot": dict(overshoot),
         }
     return {"standard": "ISO 9283:1998", "source": f"{run.attrs.get('plan', 'validation')} run",
             "axes": axes, "modes": modes}

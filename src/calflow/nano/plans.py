@@ -114,3 +114,33 @@ def validation_2d(points=VALIDATION_2D, cycles: int = 20, tests: int = 16, dwell
         extra={"test": np.repeat(np.arange(tests), per), "mode": np.repeat(np.arange(tests) % len(order), per)},
         modes=tuple(order),
     )
+
+
+def step_response(steps_um, cycles: int = 3, base_um=(0.0,), record_s: float = 0.05, rate_hz: float = 1000.0,
+                  attained_last_s: float = 0.01, start_s: float = 0.0) -> Plan:
+    """Recorded steps for ISO 9283 stabilisation time and overshoot (clauses 7.5, 7.6).
+
+    Each cycle, for each step s of ``steps_um`` (µm, > 0): from ``base_um`` (one value per
+    joint) a step of +s along the first joint (direction +1) and back to the base
+    (direction -1), each move recorded for ``record_s`` s at ``rate_hz`` from its start; the
+    attained position is the mean of the record's last ``attained_last_s`` s. Poses 2k and
+    2k + 1 are the step k out and back; the standard averages over (at least) 3 cycles.
+    """
+    steps = np.asarray(steps_um, dtype=float)
+    base = np.asarray(base_um, dtype=float)
+    per = np.repeat(base[None, :], 2 * steps.size, axis=0)
+    per[0::2, 0] += steps
+    rows = np.tile(per, (cycles, 1))
+    n = len(rows)
+    return Plan(
+        name="step_response",
+        commands={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[:base.size])},
+        targets={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[:base.size])},
+        pose=np.tile(np.arange(2 * steps.size), cycles),
+        cycle=np.repeat(np.arange(cycles), 2 * steps.size),
+        direction=np.tile(np.array([1, -1] * steps.size), cycles),
+        dwell_s=record_s,
+        average_last_s=attained_last_s,
+        start_s=start_s,
+        extra={"record_s": np.full(n, float(record_s)), "record_rate_hz": np.full(n, float(rate_hz))},
+    )

@@ -17,8 +17,9 @@ A reading of sensor k is the commanded position plus one named term per effect
     cosine, abbe              installation (Table 3.4, U7, U8)
     walk                      a random walk, off by default (no physical source)
 
-plus per-move repeatability, the settling tail, white interferometer noise and the laser's
-wavelength instability (noise), quantised to the interferometer resolution (0.3 nm).
+plus per-move repeatability, the closed loop's step response (``record_move`` sees it), the
+settling tail, white interferometer noise and the laser's wavelength instability (noise),
+quantised to the interferometer resolution (0.3 nm).
 Temperatures come from the lumped thermal network (:mod:`calflow.nano.thermal_network`)
 driven by the room profile; thermocouple j reads its own node plus its offset and noise,
 quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
@@ -29,13 +30,14 @@ when the interferometer was zeroed (Sec. 5.3.1). The world (room, weather, walk)
 from __future__ import annotations
 
 import math
-from typing import Iterator, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from calflow.errors import RigError
 from calflow.nano import interferometer as ifm
-from calflow.nano.piezo import PlayHysteresis, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.piezo import PlayHysteresis, closed_loop_step, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.rig_records import HighRateRecords
 from calflow.nano.rig_options import _COMMON, EFFECTS, NOISE, _Walk, check_options
 from calflow.nano.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
@@ -46,7 +48,7 @@ _DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE)
 _STAGE, _BASE, _AIR = 0, 1, 2  # structural nodes of the network; thermocouples, compensation sensor follow
 
 
-class _NanoRig:
+class _NanoRig(HighRateRecords):
     """Common machinery of the nano rigs: options, virtual clock, noise, physics."""
 
     joints: tuple[str, ...] = ()
@@ -152,41 +154,6 @@ class _NanoRig:
     def time(self) -> float:
         """Current virtual time (s since the rig's start)."""
         return self._t
-
-    def stream(self, seconds: float, rate_hz: float | None = None,
-               chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
-        """Dwell ``seconds`` sampling at ``rate_hz`` (default option ``stream_rate_hz``).
-
-        Advances the virtual clock by ``seconds`` at once and returns an iterator of chunk
-        dicts of numpy arrays (``time`` and every sensor and thermometer, at most ``chunk``
-        samples each); sample i is taken at ``t0 + (i + 1) / rate_hz``. Each call draws its
-        noise from its own child seed, so interleaving reads does not change it. Reduce
-        with :func:`calflow.acquisition.streams.reduce_dwell` (last 5 s of each dwell, Sec. 5.3.2).
-        """
-        self._check_open()
-        rate = float(self.options["stream_rate_hz"] if rate_hz is None else rate_hz)
-        seconds = float(seconds)
-        if not (rate > 0 and seconds >= 0 and int(chunk) > 0):
-            raise ValueError(f"{self._NAME}: stream needs seconds >= 0, rate_hz > 0, chunk > 0")
-        n = int(math.floor(seconds * rate + 1e-9))
-        t0 = self._t
-        self._t += seconds
-        rng = np.random.default_rng(self._ss_streams.spawn(1)[0])
-        return self._stream_iter(t0, n, rate, int(chunk), self._snapshot(), rng)
-
-    def _stream_iter(self, t0, n, rate, chunk, state, rng):
-        for start in range(0, n, chunk):
-            i = np.arange(start, min(n, start + chunk), dtype=float)
-            t = t0 + (i + 1.0) / rate
-            pos, temps = self._state(t, state)
-            out = {"time": t}
-            for k, name in enumerate(self.sensors):
-                v = pos[k] + self._noise_sd(pos)[k] * rng.standard_normal(t.size)
-                out[name] = np.round(v / self._q_um) * self._q_um
-            for j, name in enumerate(self.thermometers):
-                v = temps[..., j] + self._sig_c * rng.standard_normal(t.size)
-                out[name] = np.round(v / self._q_c) * self._q_c
-            yield out
 
     def true_position(self, command, time: float | np.ndarray | None = None,
                       direction: int | Mapping[str, int] = 0) -> dict[str, float | np.ndarray]:
@@ -305,7 +272,7 @@ class _NanoRig:
             raise RigError(f"{self._NAME}: the rig is closed")
 
     def _state(self, t_rig, state):
-        """Noise-free sensor values incl. repeatability, settling and creep, and thermocouples."""
+        """Noise-free sensor values incl. repeatability, step response, settling and creep, and thermocouples."""
         cmds, z, (t_start, steps), rep = state
         o = self.options
         nodes = self._nodes(o["start_offset_s"] + t_rig)
@@ -314,6 +281,8 @@ class _NanoRig:
         terms = self.effect_terms(cmds, t_rig, z, steps, since, nodes)
         pos = self._sum(cmds, terms)
         decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
+        if since is not None:  # the closed loop's step response: the stage lags the new command
+            decay = decay + (closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0)  # 0 once settled
         pos = [p + rep[k] + (steps[a] * decay if a is not None else 0.0) for k, (p, a) in enumerate(zip(pos, self._AXIS))]
         temps = nodes[..., 3:3 + self._n_tc] + self._tc_off
         return pos, temps

@@ -44,6 +44,8 @@ _COMMON = {
     "sensor_linearity_pct": 0.02,  # capacitive sensor nonlinearity, of the stroke
     "settle_fraction": 1e-3,  # overshoot as a fraction of the step, decaying ...
     "settle_tau_s": 0.7,  # ... with this time constant from the start of the move
+    "step_natural_hz": 100.0,  # closed-loop step response: natural frequency (0: ideal step) ...
+    "step_damping": 0.7,  # ... and damping ratio: ~4.6 % overshoot, within 2 % in ~9 ms (docs/rigs.md)
     "geometric_scale": 1.0,  # multiplies the geometric errors (Fig. 5.1)
     "stroke_margin_um": 5.0,  # commands may exceed the stroke by this much
     # thermal network (calflow.nano.thermal_network) and expansion
@@ -72,7 +74,8 @@ _NON_NEGATIVE = ("seed", "world_seed", "interferometer_noise_nm", "repeatability
                  "drift_walk_nm_per_sqrt_day", "settle_fraction", "stroke_margin_um", "stage_air_w_per_k",
                  "stage_base_w_per_k", "base_air_w_per_k", "base_room_w_per_k", "air_room_w_per_k",
                  "wavelength_stability_ppm", "deadpath_m", "hysteresis_nm", "loop_residual_pct",
-                 "creep_pct_per_decade", "compensation_sensor_tau_s", "sensor_linearity_pct", "humidity_pct")
+                 "creep_pct_per_decade", "compensation_sensor_tau_s", "sensor_linearity_pct", "humidity_pct",
+                 "step_natural_hz")
 
 # Each effect of the nano rigs: its option keys (all off = effect off) and whether a calflow
 # nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials in the
@@ -96,9 +99,12 @@ EFFECTS = {
     "wavelength_stability": ("wavelength_stability_ppm",),
     "repeatability": ("repeatability_nm",),
     "settling": ("settle_fraction",),
+    "step_response": ("step_natural_hz",),
     "thermocouple_noise": ("thermocouple_noise_mk",),
 }
-NOISE = ("interferometer_noise", "wavelength_stability", "repeatability", "settling", "thermocouple_noise")
+# noise and the transients of a move: not terms of effect_terms (the rig's _state adds them)
+NOISE = ("interferometer_noise", "wavelength_stability", "repeatability", "settling", "step_response",
+         "thermocouple_noise")
 UNMODELLED = ("hysteresis", "creep", "expansion", "deadpath", "compensation", "walk")
 
 
@@ -231,6 +237,8 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
                               f"({', '.join(sorted(_DEFAULTS[o['profile']]))})", {key: value})
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise OptionError("profile_params", "finite numbers", {key: value})
+    if not 0.0 < o["step_damping"] < 1.0:
+        raise OptionError("step_damping", "a damping ratio in (0, 1) (an underdamped closed loop)", o["step_damping"])
     if not -1.0 < o["repeatability_correlation"] < 1.0:
         raise OptionError("repeatability_correlation", "a value in (-1, 1)", o["repeatability_correlation"])
     return o

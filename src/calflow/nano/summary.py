@@ -223,7 +223,7 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
                     models: dict, budget=None, inputs: list[str] = (), *,
                     training_range_c: tuple[float, float] | None = None, iso230_2: dict | None = None,
                     training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None,
-                    error_budget: dict | None = None) -> dict:
+                    error_budget: dict | None = None, step_response_run: xr.Dataset | None = None) -> dict:
     """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
@@ -234,7 +234,7 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     ``models`` coefficient tables and ``budget`` rows as given; ``reference`` = the thesis
     values (``calflow.reference.STAGE1D``); ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
-    the ``validation_run`` is given.
+    the ``validation_run`` is given (stabilisation time and overshoot from ``step_response_run``).
     """
     tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage1d", models, budget, inputs)
@@ -247,7 +247,7 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
         iso230_2=iso230_2,
     )
     if validation_run is not None:
-        summary["iso9283"] = iso9283_block(validation_run)
+        summary["iso9283"] = iso9283_block(validation_run, step_response_run)
     _physics_blocks(summary, error_budget)
     return jsonable(summary)
 
@@ -255,7 +255,8 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
 def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset | None, models: dict, budget=None,
                     inputs: list[str] = (), *, training_metrics: xr.Dataset | None = None,
                     training_range_c: tuple[float, float] | None = None,
-                    validation_run: xr.Dataset | None = None, error_budget: dict | None = None) -> dict:
+                    validation_run: xr.Dataset | None = None, error_budget: dict | None = None,
+                    step_response_run: xr.Dataset | None = None) -> dict:
     """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,
@@ -269,7 +270,7 @@ def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset | None, model
         robustness=robustness,
     )
     if validation_run is not None:
-        summary["iso9283"] = iso9283_block(validation_run)
+        summary["iso9283"] = iso9283_block(validation_run, step_response_run)
     _physics_blocks(summary, error_budget)
     return jsonable(summary)
 

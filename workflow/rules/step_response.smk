@@ -1,0 +1,24 @@
+# The nano stages' step-response run: every move recorded from its start (ISO 9283 7.5, 7.6).
+
+
+rule acquire_step_response:
+    output:
+        run="results/{campaign}/runs/step_response.nc",
+        truth="results/{campaign}/truth/step_response.json",
+    log:
+        "results/{campaign}/logs/acquire_step_response.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_step_response.tsv"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=1000,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [rig_digest("step_response")(w), CAMPAIGN[w.campaign].get("step_response")]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan step_response"
+        " --out {output.run} --truth {output.truth} > {log} 2>&1"
