@@ -174,7 +174,9 @@ def results_of(name):
             "training"
         ):  # the ISO 230-2 figures then come from the metrology run
             files.append(f"{base}/runs/metrology.nc")
-    if c["step_response"]["enabled"] and has("step_response"):  # ISO 9283 stabilisation time, overshoot
+    if c["step_response"]["enabled"] and has(
+        "step_response"
+    ):  # ISO 9283 stabilisation time, overshoot
         files.append(f"{base}/runs/step_response.nc")
     return files
 
