@@ -30,10 +30,18 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ("II", "III", "IV", "V")
 
 
-def _campaign_text(space_filling: float, criterion: str) -> str:
+def _thesis_text(seed: int | None) -> str:
+    """xytheta-thesis's campaign, with another campaign seed (rig noise, poses, targets) if given."""
     text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text()
+    if seed is None:
+        return text
+    lines = [f"seed: {seed}" if line.startswith("seed:") else line for line in text.splitlines()]
+    return "\n".join(lines) + "\n"
+
+
+def _campaign_text(space_filling: float, criterion: str, seed: int | None = None) -> str:
     design = (f"  plan: optimal\n  design: {{criterion: {criterion}, space_filling: {space_filling}}}\n")
-    return text.replace("identification:\n", "identification:\n" + design, 1)
+    return _thesis_text(seed).replace("identification:\n", "identification:\n" + design, 1)
 
 
 def _run_workflow(work: Path, campaigns: list[str], cores: int) -> None:
@@ -68,6 +76,8 @@ def main() -> None:
     ap.add_argument("--space-filling", type=float, default=0.0)
     ap.add_argument("--criterion", default="D")
     ap.add_argument("--keep", help="keep the scratch project here")
+    ap.add_argument("--seed", type=int, help="campaign seed (rig noise, random poses, held-out targets) "
+                                              "instead of xytheta-thesis's, for the spread over rigs")
     args = ap.parse_args()
     work = Path(args.keep or tempfile.mkdtemp())
     work.mkdir(parents=True, exist_ok=True)
@@ -76,11 +86,13 @@ def main() -> None:
             src = ROOT / part
             if not (work / part).exists():
                 (shutil.copytree if src.is_dir() else shutil.copy)(src, work / part)
-        (work / "config/campaigns/xytheta-design.yaml").write_text(_campaign_text(args.space_filling, args.criterion))
+        (work / "config/campaigns/xytheta-random.yaml").write_text(_thesis_text(args.seed))
+        (work / "config/campaigns/xytheta-design.yaml").write_text(
+            _campaign_text(args.space_filling, args.criterion, args.seed))
         t0 = time.perf_counter()
-        _run_workflow(work, ["xytheta-thesis", "xytheta-design"], args.cores)
+        _run_workflow(work, ["xytheta-random", "xytheta-design"], args.cores)
         wall = time.perf_counter() - t0
-        rnd, des = _results(work, "xytheta-thesis"), _results(work, "xytheta-design")
+        rnd, des = _results(work, "xytheta-random"), _results(work, "xytheta-design")
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
@@ -103,6 +115,7 @@ def main() -> None:
         "sigma_designed": {keys[k]: v for k, v in des["sigma"].items()},
         "heldout_ap_um_random": rnd["heldout_ap_um"],
         "heldout_ap_um_designed": des["heldout_ap_um"],
+        "seed": args.seed,
         "workflow_s": wall,
         "machine": f"{os.cpu_count()} cores",
     }
