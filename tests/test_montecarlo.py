@@ -201,6 +201,22 @@ def test_default_study_is_valid():
     assert s["base"]["robot"] == "xytheta" and len(grid(s)) >= 48
 
 
+def test_default_study_smallest_pose_count_identifies_at_every_noise_level():
+    """The default study's fewest poses (5: two readings more than the unknowns) identify
+    with the campaign's robust screening at every noise level: `make run` runs these points."""
+    from pathlib import Path
+
+    from calflow.xytheta.montecarlo import run_point
+
+    root = Path(__file__).resolve().parents[1]
+    s = load_study(root / "config/studies/montecarlo-xytheta.yaml", root / "config/campaigns")
+    fewest = min(s["poses"])
+    for noise in s["noise_um"]:
+        for seed in range(s["seeds"]):
+            point = run_point(s["base"], seed, float(noise), fewest, s["model"], s["validation_cycles"])
+            assert point["poses"] == fewest and np.isfinite(point["accuracy_um"]), (noise, seed, point)
+
+
 def test_page_renders_figures_and_escapes(tmp_path):
     body = {**STUDY, "description": "<script>alert('x')</script> & co"}
     s = load_study(_study_files(tmp_path, body), tmp_path / "campaigns")

@@ -264,6 +264,10 @@ def _screen(readings: cost.Readings, idx, base, problem, sol, robust: Robust):
         r = fun_all(x).reshape(-1, 2)
         scale = max(mad_sigma(r if keep is None else r[keep]), SIGMA_FLOOR_UM)
         new = ~outliers(r, scale, robust.reject_sigma)
+        if 2 * int(new.sum()) - len(idx) < len(idx):
+            # too little redundancy left to call a reading an outlier (fewer residual degrees
+            # of freedom than unknowns): reject nothing more
+            new = np.ones(len(r), dtype=bool) if keep is None else keep
         if keep is not None and np.array_equal(new, keep):
             break
         keep = new
