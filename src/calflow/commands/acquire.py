@@ -26,10 +26,32 @@ def _recorded(job, rig, c: dict):
                        {**job.attrs, "imported_from": rig.attrs.get("imported_from", rig.path.name)})
 
 
-def run(args) -> None:
+def acquire_job(c: dict, plan_name: str, args, plugins=None, journal_path: str | None = None):
+    """The run of plan ``plan_name`` of campaign ``c`` on the campaign's rig, as ``calflow
+    acquire`` makes it: the plan looked up in the family, a replayed instrument's own plan,
+    the plan's runner, a progress bar on a terminal, a journal at ``journal_path`` when given.
+    Returns (dataset, the rig's truth, the journal or None, the closed rig)."""
     from calflow.acquisition.checkpoint import Journal, plan_digest
     from calflow.acquisition.progress import progress
     from calflow.acquisition.runner import acquire
+
+    job = family_of(c["robot"]).plan(c["robot"], plan_name)(c, args)
+    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
+    if getattr(rig, "recorded_plan", None) is not None:  # an instrument's file: replay the poses it chose
+        job = _recorded(job, rig, c)
+    journal = Journal(journal_path, plan_digest(job.plan)) if journal_path else None
+    try:
+        with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:
+            ds = (job.runner or acquire)(job.plan, rig, meta(c, source, plan_name, job.model), journal, step,
+                                         job.controller)
+        truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
+    finally:
+        rig.close()
+    ds.attrs.update(job.attrs)
+    return ds, truth, journal, rig
+
+
+def run(args) -> None:
     from calflow.data.io import output_folder, write_dataset, write_json
     from calflow.rigs.plugin import allowed_modules
 
@@ -37,19 +59,7 @@ def run(args) -> None:
     c = load(args.campaign, plugins)
     for out in filter(None, (args.out, args.truth)):  # before the rig moves: a bad --out costs no run
         output_folder(out)
-    job = family_of(c["robot"]).plan(c["robot"], args.plan)(c, args)
-    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
-    if getattr(rig, "recorded_plan", None) is not None:  # an instrument's file: replay the poses it chose
-        job = _recorded(job, rig, c)
-    journal = Journal(f"{args.out}.journal", plan_digest(job.plan))
-    try:
-        with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:
-            ds = (job.runner or acquire)(job.plan, rig, meta(c, source, args.plan, job.model), journal, step,
-                                         job.controller)
-        truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
-    finally:
-        rig.close()
-    ds.attrs.update(job.attrs)
+    ds, truth, journal, rig = acquire_job(c, args.plan, args, plugins, f"{args.out}.journal")
     empty = [n for n in rig.sensors if n in ds and ds.sizes.get("sample") and ds[n].isnull().all()]
     if empty:  # refused here, not two rules later as "needs at least 2 valid poses"
         journal.close(remove=True)

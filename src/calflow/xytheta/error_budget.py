@@ -64,10 +64,9 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     """Per-target AP (µm) at the held-out targets of every model, after replaying the
     campaign's XYΘ calibration in ``work`` on its simulated rig with ``rig_options``
     overriding the campaign's. Same seeds and noise streams as the campaign's own runs."""
-    from calflow.acquisition.runner import acquire
-    from calflow.commands.common import campaign as load, meta, open_rig
+    from calflow.commands.acquire import acquire_job
+    from calflow.commands.common import campaign as load
     from calflow.data.io import open_dataset, write_dataset
-    from calflow.family import family_of
     from calflow.xytheta import commands
 
     raw = yaml.safe_load(Path(campaign_path).read_text())
@@ -78,18 +77,10 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     path.write_text(yaml.safe_dump(raw))
     c_path, f = str(path), lambda name: str(work / name)
     c = load(c_path)
-    family = family_of("xytheta")
 
     def run(plan: str, out: str, model: str | None = None) -> None:  # `calflow acquire`, without a journal
         args = argparse.Namespace(model=[f(model)] if model else None, luts=None, compensation="none")
-        job = family.plan("xytheta", plan)(c, args)
-        rig, source = open_rig(c, job.run_id, job.plan.start_s)
-        try:
-            ds = acquire(job.plan, rig, meta(c, source, plan, job.model))
-        finally:
-            rig.close()
-        ds.attrs.update(job.attrs)
-        write_dataset(ds, f(out))
+        write_dataset(acquire_job(c, plan, args)[0], f(out))
 
     def identify(name: str, **files) -> None:
         ns = dict(campaign=c_path, model_name=name, run=f("identification.nc"), luts=None, base=None,
