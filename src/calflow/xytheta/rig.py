@@ -45,11 +45,36 @@ class SimulatedXYTheta:
         self._closed = False
 
     def _attain(self, cmd: np.ndarray) -> np.ndarray:
+        jitter = self._rng.standard_normal(2)  # the draws of normal(0, repeatability, 2)
+        pose = self._poses(cmd[None, :], self._dir[None, 2], self._lash[None, :], np.array([self._time]),
+                           jitter[None, :])
+        return pose[0]
+
+    def _poses(self, cmd, dir_theta, lash, time_s, jitter) -> np.ndarray:
+        """Attained tool points and angles, (n, 3), of commands ``cmd`` (n, 3) with Θ
+        approached in ``dir_theta``, nut plays ``lash`` (n, 2) µm, at virtual times
+        ``time_s`` (s), with standard normal draws ``jitter`` (n, 2) for the repeatability."""
         t = self.truth_model
-        x_P, y_P, theta_a = t.tool_point(cmd[0], cmd[1], cmd[2], dir_theta=self._dir[2], lash=tuple(self._lash),
-                                         temperature_degC=float(t.room_temperature(self._time)))
-        jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
-        return np.array([float(x_P) + jitter[0], float(y_P) + jitter[1], float(theta_a)])
+        x_P, y_P, theta_a = t.tool_point(cmd[:, 0], cmd[:, 1], cmd[:, 2], dir_theta=dir_theta,
+                                         lash=(lash[:, 0], lash[:, 1]), temperature_degC=t.room_temperature(time_s))
+        s = t.stage_repeatability_um
+        return np.column_stack([x_P + (0.0 + s * jitter[:, 0]), y_P + (0.0 + s * jitter[:, 1]), theta_a])
+
+    def _step(self, new: np.ndarray) -> None:
+        """The state a move to ``new`` leaves: approach directions, nut plays, virtual time."""
+        t = self.truth_model
+        half = 0.5 * t.backlash_um
+        for k in (0, 1, 2):
+            delta = float(new[k]) - float(self._cmd[k])
+            if delta != 0:
+                self._dir[k] = 1.0 if delta > 0 else -1.0
+                if k < 2:  # lost motion: the play is taken up over the first backlash of travel
+                    self._lash[k] = (min(max(float(self._lash[k]) + delta, -half), half) if t.lost_motion
+                                     else half * self._dir[k])
+        dx, dy, dt = (abs(float(new[k]) - float(self._cmd[k])) for k in (0, 1, 2))
+        self._time += max(dx, dy) / t.velocity_um_s
+        self._time += dt / t.velocity_deg_s + t.settle_s
+        self._cmd = new
 
     def move(self, command: Mapping[str, float]) -> None:
         if self._closed:
@@ -58,38 +83,64 @@ class SimulatedXYTheta:
             new = np.array([float(command[j]) for j in self.joints])
         except KeyError as exc:
             raise RigError(f"simulated xytheta rig: command lacks joint {exc.args[0]!r}") from None
-        delta = new - self._cmd
-        t = self.truth_model
-        half = 0.5 * t.backlash_um
-        for k in (0, 1, 2):
-            if delta[k] != 0:
-                self._dir[k] = np.sign(delta[k])
-        for k in (0, 1):  # lost motion: the play is taken up over the first backlash of travel
-            if delta[k] != 0:
-                self._lash[k] = (np.clip(self._lash[k] + delta[k], -half, half) if t.lost_motion
-                                 else half * self._dir[k])
-        self._time += max(abs(delta[0]), abs(delta[1])) / t.velocity_um_s
-        self._time += abs(delta[2]) / t.velocity_deg_s + t.settle_s
-        self._cmd = new
+        self._step(new)
         self._pose = self._attain(new)
 
     def wait(self, seconds: float) -> None:
         self._time += max(0.0, float(seconds))
 
     def read(self) -> dict[str, float]:
+        noise, u, w = self._rng.standard_normal(2), self._rng.random(2), self._rng.standard_normal(2)
+        r = self._sense(self._pose[None, :], np.array([self._time]), noise[None, :], u[None, :], w[None, :])
+        return {k: float(v[0]) for k, v in r.items()}
+
+    def _sense(self, pose, time_s, noise, u, w) -> dict[str, np.ndarray]:
+        """Readings of the rig at poses ``pose`` (n, 3) and times ``time_s`` (s), from the
+        standard normal draws ``noise`` (n, 2) of the vision noise, the uniform draws ``u``
+        (n, 2) of the gross errors and the standard normal draws ``w`` (n, 2) of the Θ
+        sensor's and the thermometer's noise."""
         t = self.truth_model
-        temperature = float(t.room_temperature(self._time))
-        noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
-        gross = t.gross_error(*self._rng.random(2))
-        x_m, y_m = t.vision(self._pose[0], self._pose[1], self._pose[2], temperature, noise, gross)
-        theta_m = self._pose[2] + self._rng.normal(0.0, t.sensor_theta_noise_deg)
+        temperature = t.room_temperature(time_s)
+        gross = t.gross_error(u[:, 0], u[:, 1])
+        s = t.sensor_noise_um
+        x_m, y_m = t.vision(pose[:, 0], pose[:, 1], pose[:, 2], temperature,
+                            (0.0 + s * noise[:, 0], 0.0 + s * noise[:, 1]), gross)
+        thermometer = temperature + (0.0 + 0.005 * w[:, 1])
         return {
-            "time": self._time,
-            "meas_x": float(x_m),
-            "meas_y": float(y_m),
-            "meas_theta": float(theta_m),
-            "T1": round(temperature + self._rng.normal(0.0, 0.005), 3),
+            "time": np.asarray(time_s, dtype=float),
+            "meas_x": x_m,
+            "meas_y": y_m,
+            "meas_theta": pose[:, 2] + (0.0 + t.sensor_theta_noise_deg * w[:, 0]),
+            "T1": np.array([round(float(v), 3) for v in thermometer]),
         }
+
+    def visit(self, commands: Mapping[str, np.ndarray], dwell_s: float) -> dict[str, np.ndarray]:
+        """``move`` to each row of ``commands`` (arrays by joint), ``wait(dwell_s)``, ``read``:
+        the same readings (arrays by key), final state and random draws as those calls one
+        by one, with the physics computed once over all rows (the acquisition runner's fast
+        path for open-loop plans)."""
+        if self._closed:
+            raise RigError("simulated xytheta rig: visit() after close()")
+        try:
+            cmd = np.column_stack([np.asarray(commands[j], dtype=float) for j in self.joints])
+        except KeyError as exc:
+            raise RigError(f"simulated xytheta rig: command lacks joint {exc.args[0]!r}") from None
+        n = len(cmd)
+        dir_theta, lash, t_move, t_read = np.empty(n), np.empty((n, 2)), np.empty(n), np.empty(n)
+        jitter, noise, u, w = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))
+        rng = self._rng
+        for i in range(n):  # the sequential part: state and draws, in the order move/read take them
+            self._step(cmd[i].copy())
+            dir_theta[i], lash[i], t_move[i] = self._dir[2], self._lash, self._time
+            jitter[i] = rng.standard_normal(2)
+            self.wait(dwell_s)
+            t_read[i] = self._time
+            noise[i], u[i], w[i] = rng.standard_normal(2), rng.random(2), rng.standard_normal(2)
+        if n == 0:
+            return self._sense(np.empty((0, 3)), t_read, noise, u, w)
+        poses = self._poses(cmd, dir_theta, lash, t_move, jitter)
+        self._pose = poses[-1].copy()
+        return self._sense(poses, t_read, noise, u, w)
 
     def close(self) -> None:
         self._closed = True

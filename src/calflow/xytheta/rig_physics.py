@@ -231,27 +231,30 @@ class XYThetaTruth:
         """The vision reading (x_m, y_m) of the camera point in the pattern frame, µm.
 
         Eq. (4.26) for the tool point (x_P, y_P) at angle Θ, plus the thermal drift of
-        Table 3.3, the decoding error, the given noise (two draws) and gross error (a
-        whole pattern period where an LFSR bit is misread), the resolution; NaN when the
-        camera sees no pattern.
+        Table 3.3, the decoding error, the given noise (two draws, or two arrays of draws)
+        and gross error (a whole pattern period where an LFSR bit is misread), the
+        resolution; NaN when the camera sees no pattern. Floats for scalar poses, arrays
+        for arrays of poses (element by element the same numbers).
         """
         x_m, y_m = pattern_from_world(x_P, y_P, theta, self.camera_x_um, self.camera_y_um)
-        drift = (temperature_degC - self.room_temperature_degC) * np.asarray(self.drift_um_per_degC)
+        warm = np.asarray(temperature_degC) - self.room_temperature_degC
         dx, dy = self.decode_error(x_m, y_m)
         res = self.sensor_resolution_um
-        x_m = float(np.round((x_m + drift[0] + dx + noise_um[0] + gross[0]) / res) * res)
-        y_m = float(np.round((y_m + drift[1] + dy + noise_um[1] + gross[1]) / res) * res)
-        if not (0 <= x_m <= self.pattern_range_um[0] and 0 <= y_m <= self.pattern_range_um[1]):
-            return float("nan"), float("nan")
-        return x_m, y_m
+        x_m = np.round((x_m + warm * self.drift_um_per_degC[0] + dx + noise_um[0] + gross[0]) / res) * res
+        y_m = np.round((y_m + warm * self.drift_um_per_degC[1] + dy + noise_um[1] + gross[1]) / res) * res
+        seen = (0 <= x_m) & (x_m <= self.pattern_range_um[0]) & (0 <= y_m) & (y_m <= self.pattern_range_um[1])
+        x_m, y_m = np.where(seen, x_m, np.nan), np.where(seen, y_m, np.nan)
+        return (float(x_m), float(y_m)) if x_m.ndim == 0 else (x_m, y_m)
 
-    def gross_error(self, u: float, v: float) -> tuple[float, float]:
+    def gross_error(self, u, v):
         """A misread pattern period: with probability ``gross_error_rate`` (``u`` uniform in
-        [0, 1)), ± one ``pattern_period_um`` on the axis ``v`` picks (µm). *Unmodelled*."""
-        if u >= self.gross_error_rate:
-            return 0.0, 0.0
-        sign = 1.0 if (v * 4) % 2 < 1 else -1.0
-        return (sign * self.pattern_period_um, 0.0) if v < 0.5 else (0.0, sign * self.pattern_period_um)
+        [0, 1)), ± one ``pattern_period_um`` on the axis ``v`` picks (µm). *Unmodelled*.
+        Floats for scalar draws, arrays for arrays."""
+        u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+        period = np.where((v * 4) % 2 < 1, 1.0, -1.0) * self.pattern_period_um
+        hit = u < self.gross_error_rate
+        gx, gy = np.where(hit & (v < 0.5), period, 0.0), np.where(hit & (v >= 0.5), period, 0.0)
+        return (float(gx), float(gy)) if gx.ndim == 0 else (gx, gy)
 
     def room_temperature(self, t_s):
         """Room temperature (degC) at virtual time ``t_s``: a daily swing."""
