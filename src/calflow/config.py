@@ -1,7 +1,7 @@
 """Loading and validating configuration files against the JSON Schemas.
 
 Every problem is reported as one line naming the file, the key and what was expected.
-YAML is loaded with ``yaml.safe_load``; nothing from a configuration is evaluated.
+YAML is loaded with PyYAML's safe loader (libyaml's when available); nothing from a configuration is evaluated.
 """
 
 from __future__ import annotations
@@ -28,15 +28,26 @@ _TYPE_NAMES = {"integer": "an integer", "number": "a number", "string": "a strin
                "object": "a mapping", "boolean": "true or false"}
 
 
+# libyaml's safe loader when PyYAML was built with it: the same safe constructors (plain
+# data only, nothing evaluated), parsed in C — the pure-Python parser took ~0.3 s of every
+# job's start-up on the schemas alone.
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def safe_yaml(text: str) -> Any:
+    """``yaml.safe_load(text)``, through libyaml when available."""
+    return yaml.load(text, Loader=_SAFE_LOADER)
+
+
 @lru_cache(maxsize=None)
 def schema(name: str) -> dict:
     """The JSON Schema ``workflow/schemas/<name>.schema.yaml``.
 
     ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in.
     """
-    sch = yaml.safe_load((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
+    sch = safe_yaml((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
     if name.startswith("campaign-") and name != "campaign-common":
-        common = yaml.safe_load((SCHEMA_DIR / "campaign-common.schema.yaml").read_text())
+        common = safe_yaml((SCHEMA_DIR / "campaign-common.schema.yaml").read_text())
         sch["properties"] = {**common["properties"], **sch.get("properties", {})}
         sch["$defs"] = {**common.get("$defs", {}), **sch.get("$defs", {})}
         sch["required"] = sorted(set(common.get("required", [])) | set(sch.get("required", [])))
@@ -101,7 +112,7 @@ def load_yaml(path: str | Path) -> Any:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot be read ({exc.strerror})") from None
     try:
-        return yaml.safe_load(text)
+        return safe_yaml(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""

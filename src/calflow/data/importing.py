@@ -34,6 +34,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from calflow.config import safe_yaml
 from calflow.data.conventions import ROBOT_JOINTS, ROBOTS, RUN_VARIABLES
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import DataError
@@ -146,7 +147,7 @@ def load_mapping(path: str | os.PathLike) -> dict:
     except OSError as exc:
         raise DataError(f"{path}: cannot read the mapping file ({exc.strerror or exc})") from None
     try:
-        raw = yaml.safe_load(text)
+        raw = safe_yaml(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f"line {mark.line + 1}: " if mark is not None else ""
