@@ -13,7 +13,9 @@ bound before (σ of the geometric correction over the stroke, nm), the achieved 
 geometric coefficients (stepwise standard errors) beside their bound, and the held-out
 accuracy of each model on the validation (max AP over every pose of every test of the
 mode, and over the positions training never visited), nm. ``--tests`` shortens the
-validation (default: the campaign's own, five days for nano1d-thesis).
+validation (default: the campaign's own, five days for nano1d-thesis). ``study``: the
+design study of :func:`calflow.nano.design_plan.design_study` (σ after an hour and hours
+for the grid's σ, against the count of positions, grid against designed; no acquisition).
 """
 
 from __future__ import annotations
@@ -104,8 +106,13 @@ def main() -> None:
         equal = _run(work, "optimal_equal_time",
                      _variant(text, f"plan: optimal, design: {{min_training_h: {grid['training_h']:.6f}}}", args.tests),
                      two_dof)
+    from calflow.config import load_campaign
+    from calflow.nano.design_plan import design_study
+
+    c = load_campaign(ROOT / "config" / "campaigns" / f"{args.campaign}.yaml")
+    counts = (16, 25, 36, 49, 64, 81) if two_dof else (4, 6, 8, 12, 17, 24, 33)
     out.update(grid=grid, optimal=designed, optimal_equal_time=equal,
-               time_ratio=designed["training_h"] / grid["training_h"])
+               time_ratio=designed["training_h"] / grid["training_h"], study=design_study(c, counts))
     if args.json:
         print(json.dumps(out))
         return

@@ -150,3 +150,14 @@ def test_summary_block_sets_the_achieved_sigma_beside_the_bound():
     assert all(0.5 < block["sigma_ratio_achieved_to_recorded_bound"][k] < 2.0 for k in ("a_1", "a_2", "a_3"))
     assert "not white" in block["statement"] and block["rig_time_h_achieved"] == pytest.approx(399 * 29.0 / 3600.0)
     assert design_plan.training_design_block(c, run.drop_attrs(), {}) is None
+
+
+def test_design_study_answers_how_many_positions_and_how_long():
+    c = _campaign()
+    study = design_plan.design_study(c, counts=(4, 8, 17))
+    assert study["positions"] == [4, 8, 17]
+    # hours for the target follow σ ∝ 1/√hours; the grid's own count needs the grid's own time
+    h = np.array(study["grid_sigma_nm_1h"]) ** 2 / study["target_nm"] ** 2
+    assert np.allclose(study["grid_hours"], h)
+    assert study["grid_hours"][2] == pytest.approx(len(_rows(np.arange(0.0, 481.0, 30.0))) * 67 * 29.0 / 3600.0)
+    assert study["designed_hours"][2] < study["grid_hours"][2]

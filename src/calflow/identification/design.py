@@ -194,12 +194,14 @@ def optimal_design(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | N
     return Design(index, M, name, float(criterion(M * np.outer(scale, scale), name)))
 
 
-def space_filling(pool: np.ndarray, m: int, lo, hi) -> np.ndarray:
-    """Indices of ``m`` pool poses spread over the box (greedy maximin in the unit cube)."""
+def space_filling(pool: np.ndarray, m: int, lo, hi, start: str = "centre") -> np.ndarray:
+    """Indices of ``m`` pool poses spread over the box (greedy maximin in the unit cube), the
+    first nearest the box's centre or (``start="corner"``) its lower corner — from a corner
+    the first points are the box's extremes (in 1-D: both ends, then the middle, …)."""
     if m <= 0:
         return np.zeros(0, dtype=int)
     u = (pool - np.asarray(lo)) / np.maximum(np.asarray(hi) - np.asarray(lo), 1e-12)
-    chosen = [int(np.argmin(np.sum((u - 0.5) ** 2, axis=1)))]
+    chosen = [int(np.argmin(np.sum((u - (0.5 if start == "centre" else 0.0)) ** 2, axis=1)))]
     dist = np.sum((u - u[chosen[0]]) ** 2, axis=1)
     for _ in range(m - 1):
         k = int(np.argmax(dist))

@@ -45,12 +45,12 @@ def candidates(lo_um, hi_um, step_um: float) -> np.ndarray:
 
 def design_positions(pool: np.ndarray, n: int, order: int, scale_um, criterion: str = "D",
                      fraction_space_filling: float = 0.5) -> np.ndarray:
-    """Indices of n distinct positions of ``pool`` (N, d): ⌊f n⌋ space-filling (maximin, a
-    guard against a model that is not exact), the rest maximising ``criterion`` of the
+    """Indices of n distinct positions of ``pool`` (N, d): ⌊f n⌋ space-filling (maximin from
+    the stroke's start, a guard against a model that is not exact), the rest maximising ``criterion`` of the
     position basis's information given them (multiplicative weights then Fedorov exchange)."""
     lo, hi = pool.min(0), pool.max(0)
     m = int(np.floor(fraction_space_filling * n))
-    fixed_idx = space_filling(pool, m, lo, hi)
+    fixed_idx = space_filling(pool, m, lo, hi, start="corner")  # the ends of the stroke first
     keep = np.setdiff1d(np.arange(len(pool)), fixed_idx)
     J = basis(pool, order, scale_um)
     d = optimal_design(J[keep], n, criterion, J[fixed_idx] if m else None)

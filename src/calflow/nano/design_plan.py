@@ -208,3 +208,38 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     return {**record, "achieved_sigma": achieved, "crlb_sigma_recorded": recorded,
             "sigma_ratio_achieved_to_recorded_bound": ratio,
             "rig_time_h_achieved": float((time.max() - time.min()) / 3600.0) if time.size else None}
+
+
+def design_study(c: dict, counts=(4, 6, 8, 12, 17, 24, 33), target_nm: float | None = None) -> dict:
+    """How many positions, how long: for each count of positions, the Cramér–Rao σ (nm) of the
+    geometric correction over the stroke after one hour of training, grid (evenly spaced, the
+    2-DoF grid √n per axis) against designed, and the hours each needs for ``target_nm``
+    (default: the configured grid's bound). From the information alone (σ ∝ 1/√hours, whole
+    cycles ignored): no acquisition, and no thermal term — the duration the thermal terms
+    need is the room's, not the noise model's."""
+    lo, hi = _stroke(c)
+    order = c["model"]["order"]
+    noise = noise_model(c)
+    if noise is None:
+        raise ValueError("training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm)")
+    s = reading_sigma_um(noise, c["training"]["average_last_s"])
+    target = target_nm if target_nm is not None else bound(c, grid_positions(c), c["training"]["cycles"])["crlb_shape_sigma_nm"]
+    out = {"positions": [], "grid_sigma_nm_1h": [], "designed_sigma_nm_1h": [], "grid_hours": [], "designed_hours": [],
+           "target_nm": target}
+    for n in counts:
+        side = int(round(n ** (1 / len(lo))))
+        if side < 2 or side ** len(lo) != n and len(lo) > 1:
+            continue
+        axes = [np.linspace(a, b, side) for a, b in zip(lo, hi)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lo))
+        d = dict(c, training={**c["training"], "design": {**c["training"]["design"], "positions": n}})
+        sig = []
+        for positions in (grid, designed_positions(d)):
+            rows = cycle_rows(c, positions)
+            hours = len(rows) * reading_s(c) / 3600.0
+            sig.append(design.shape_sigma_um(rows, 1, s, order, lo, hi) * 1e3 * np.sqrt(hours))
+        out["positions"].append(int(n))
+        for key, v in zip(("grid", "designed"), sig):
+            out[f"{key}_sigma_nm_1h"].append(float(v))
+            out[f"{key}_hours"].append(float((v / target) ** 2))
+    return out
