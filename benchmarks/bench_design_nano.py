@@ -1,6 +1,6 @@
 """Designed versus grid training plans of the nano campaigns (issue 15).
 
-    python benchmarks/bench_design_nano.py [--json] [--campaign nano1d-thesis] [--tests N]
+    python benchmarks/bench_design_nano.py [--json] [--campaign nano1d-thesis] [--tests N] [--seed N]
 
 For each plan — the thesis's grid (``training.plan: grid``), the designed plan with its
 default sizing (``optimal``: D-optimal positions, the fewest cycles whose Cramér–Rao σ of
@@ -37,10 +37,13 @@ def _calflow(*args: str, cwd: Path) -> None:
                    stdout=subprocess.DEVNULL)
 
 
-def _variant(text: str, training: str, tests: int | None) -> str:
-    """The campaign text with ``training`` keys added to its training mapping (flow style in the thesis files)."""
+def _variant(text: str, training: str, tests: int | None, seed: int | None = None) -> str:
+    """The campaign text with ``training`` keys added to its training mapping (flow style in the
+    thesis files), ``tests`` validation tests and another campaign ``seed`` (rig noise, room) if given."""
     lines = []
     for line in text.splitlines():
+        if seed is not None and line.startswith("seed:"):
+            line = f"seed: {seed}"
         if line.startswith("training: {") and training:
             line = line.rstrip()[:-1] + ", " + training + "}"
         if tests is not None and line.strip().startswith("tests:"):
@@ -94,17 +97,19 @@ def main() -> None:
     p.add_argument("--json", action="store_true", help="print the figures as one JSON line")
     p.add_argument("--campaign", default="nano1d-thesis", help="a nano campaign of config/campaigns")
     p.add_argument("--tests", type=int, default=None, help="validation tests (default: the campaign's)")
+    p.add_argument("--seed", type=int, default=None, help="another campaign seed: rig noise and room (default: the campaign's)")
     args = p.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
     text = (ROOT / "config" / "campaigns" / f"{args.campaign}.yaml").read_text()
     two_dof = "robot: stage2d" in text
-    out = {"campaign": args.campaign}
+    out = {"campaign": args.campaign, "seed": args.seed}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        grid = _run(work, "grid", _variant(text, "", args.tests), two_dof)
-        designed = _run(work, "optimal", _variant(text, "plan: optimal", args.tests), two_dof)
+        grid = _run(work, "grid", _variant(text, "", args.tests, args.seed), two_dof)
+        designed = _run(work, "optimal", _variant(text, "plan: optimal", args.tests, args.seed), two_dof)
         equal = _run(work, "optimal_equal_time",
-                     _variant(text, f"plan: optimal, design: {{min_training_h: {grid['training_h']:.6f}}}", args.tests),
+                     _variant(text, f"plan: optimal, design: {{min_training_h: {grid['training_h']:.6f}}}", args.tests,
+                              args.seed),
                      two_dof)
     from calflow.config import load_campaign
     from calflow.nano.design_plan import design_study
