@@ -123,7 +123,7 @@ def test_designed_2d_plan_is_a_raster_inside_the_square():
     one = xy[plan.cycle == 0]
     assert len(np.unique(one, axis=0)) == record["positions"] == 81
     assert np.all(np.diff(one[:, 0]) >= 0)  # columns of increasing x
-    assert set(record["crlb_sigma"]) == {f"{p}_{i}x" for p in "ab" for i in (1, 2, 3)}
+    assert set(record["crlb_sigma"]) == {f"{p}_{i}{a}" for p in "ab" for i in (1, 2, 3) for a in "xy"}
 
 
 def test_a_rig_without_a_noise_model_needs_one_or_cycles():
@@ -161,3 +161,13 @@ def test_design_study_answers_how_many_positions_and_how_long():
     assert np.allclose(study["grid_hours"], h)
     assert study["grid_hours"][2] == pytest.approx(len(_rows(np.arange(0.0, 481.0, 30.0))) * 67 * 29.0 / 3600.0)
     assert study["designed_hours"][2] < study["grid_hours"][2]
+
+
+def test_noise_model_is_the_rigs_declared_one_and_averaging_reduces_only_the_sensor_part():
+    c = _campaign()
+    c["rig"]["options"] = {**c["rig"]["options"], "repeatability_nm": 20.0, "interferometer_noise_nm": 4.0}
+    noise = design_plan.noise_model(c)
+    assert noise["pose"] == 20.0 and noise["sample"] == pytest.approx(np.hypot(4.0, 0.3 / np.sqrt(12)))
+    one, fifty = (design_plan.reading_sigma_um(noise, s) for s in (0.1, 5.0))
+    assert one == pytest.approx(np.hypot(20.0, noise["sample"]) * 1e-3)
+    assert fifty == pytest.approx(np.sqrt(20.0**2 + noise["sample"] ** 2 / 50) * 1e-3)

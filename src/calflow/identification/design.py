@@ -132,12 +132,14 @@ def _exact_criterion(A: np.ndarray, S: np.ndarray, k: int, name: str, scale: np.
 
 
 def exchange(J: np.ndarray, chosen: np.ndarray, name: str = "D", fixed: np.ndarray | None = None,
-             scale: np.ndarray | None = None, max_swaps: int | None = None) -> np.ndarray:
+             scale: np.ndarray | None = None, max_swaps: int | None = None, full_pairs: int = 200_000) -> np.ndarray:
     """Fedorov exchange: swap a chosen candidate for an unchosen one while the exact criterion
     improves; returns the indices of the chosen candidates (distinct).
 
     Each step removes the chosen pose whose loss is least and adds the candidate whose gain
-    is largest (both exact, nuisance included), and keeps the swap if the criterion rises.
+    is largest (both exact, nuisance included), and keeps the swap if the criterion rises;
+    when that swap does not, and chosen × unchosen is at most ``full_pairs``, the best of all
+    pairs is tried (Fedorov's exchange proper) before stopping.
     """
     _check(name)
     p = J.shape[-1]
@@ -160,10 +162,28 @@ def exchange(J: np.ndarray, chosen: np.ndarray, name: str = "D", fixed: np.ndarr
         a = cand[int(np.argmax(gain))]
         value = float(np.max(gain))
         if not value > best + 1e-12 * max(1.0, abs(best)) or a == r:
-            break
+            if out.size * cand.size > full_pairs:
+                break
+            # the full exchange: every chosen pose against its best replacement (a saturated
+            # design, n = p + 1, loses rank whichever pose goes, so the least loss says nothing)
+            value, r, a = _best_pair(A, S, G, J, out, cand, k, name, scale)
+            if not value > best + 1e-12 * max(1.0, abs(best)):
+                break
+            A1, S1 = A - G[r], S - J[r]
         inside[r], inside[a] = False, True
         A, S, best = A1 + G[a], S1 + J[a], value
     return np.flatnonzero(inside)
+
+
+def _best_pair(A, S, G, J, out, cand, k, name, scale) -> tuple[float, int, int]:
+    """The swap (value, removed, added) of largest exact criterion over all chosen × unchosen pairs."""
+    best = (-np.inf, int(out[0]), int(cand[0]))
+    for r in out:
+        gain = _exact_criterion(A - G[r] + G[cand], S - J[r] + J[cand], k, name, scale)
+        j = int(np.argmax(gain))
+        if gain[j] > best[0]:
+            best = (float(gain[j]), int(r), int(cand[j]))
+    return best
 
 
 @dataclass(frozen=True)

@@ -41,9 +41,10 @@ def noise_model(c: dict) -> dict | None:
                 "rate_hz": float(given.get("rate_hz", 10.0))}
     if c["rig"]["factory"] != "simulated":
         return None
-    from calflow.nano.rig_options import _COMMON
+    from calflow.nano import rig
 
-    o = {**_COMMON, **(c["rig"].get("options") or {})}
+    factory = rig.nano1d if c["robot"] == "stage1d" else rig.nano2d
+    o = factory.check_options(**(c["rig"].get("options") or {}))  # the options with the rig's defaults
     return {"pose": float(o["repeatability_nm"]),
             "sample": float(np.hypot(o["interferometer_noise_nm"], o["interferometer_resolution_nm"] / np.sqrt(12))),
             "rate_hz": float(o["stream_rate_hz"])}
@@ -109,9 +110,16 @@ def bound(c: dict, positions: np.ndarray, cycles: int) -> dict:
     s = reading_sigma_um(noise, c["training"]["average_last_s"])
     sig = design.coefficient_sigma(rows, cycles, s, order, np.maximum(np.abs(lo), np.abs(hi)))
     out["reading_sigma_nm"] = s * 1e3
-    out["crlb_sigma"] = dict(zip(coefficient_names(c), (float(v) for v in sig)))
+    out["crlb_sigma"] = _both_axes(c, dict(zip(coefficient_names(c), (float(v) for v in sig))))
     out["crlb_shape_sigma_nm"] = design.shape_sigma_um(rows, cycles, s, order, lo, hi) * 1e3
     return out
+
+
+def _both_axes(c: dict, sigma: dict) -> dict:
+    """The q_x equation's σ, and for 2-DoF the same for the q_y equation (same basis, same readings)."""
+    if c["robot"] == "stage1d":
+        return sigma
+    return {**sigma, **{k[:-1] + "y": v for k, v in sigma.items()}}
 
 
 def coefficient_names(c: dict) -> list[str]:
@@ -183,7 +191,7 @@ def _recorded_bound(c: dict, run, sigma_um: float) -> dict:
         scale += [1.0] * t.shape[1]
     R = np.column_stack(cols)
     R = R[np.isfinite(R).all(axis=1)]
-    return dict(zip(names, (float(v) for v in crlb_sigma(R[:, None, :], sigma_um) / np.array(scale))))
+    return _both_axes(c, dict(zip(names, (float(v) for v in crlb_sigma(R[:, None, :], sigma_um) / np.array(scale)))))
 
 
 def training_design_block(c: dict, training_run, models: dict) -> dict | None:
@@ -197,7 +205,7 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     record = json.loads(training_run.attrs["design"])
     table = models.get("single" if c["robot"] == "stage1d" else "two_dof") or []
     achieved = {r["name"]: (float(r["std_error"]) if r["in_model"] else None) for r in table
-                if r["name"] in (record.get("crlb_sigma") or {}) or r["name"][0] in "abc"}
+                if r["name"][0] in "abc"}  # a_i, b_i, c_i: the geometric and thermal terms (not λ)
     noise = record.get("noise_nm")
     recorded = _recorded_bound(c, training_run, reading_sigma_um(noise, c["training"]["average_last_s"])) if noise else None
     ratio = ({k: (achieved[k] / v if achieved.get(k) is not None and v > 0 else None) for k, v in recorded.items()}
