@@ -171,3 +171,24 @@ def test_noise_model_is_the_rigs_declared_one_and_averaging_reduces_only_the_sen
     one, fifty = (design_plan.reading_sigma_um(noise, s) for s in (0.1, 5.0))
     assert one == pytest.approx(np.hypot(20.0, noise["sample"]) * 1e-3)
     assert fifty == pytest.approx(np.sqrt(20.0**2 + noise["sample"] ** 2 / 50) * 1e-3)
+
+
+def test_2d_summary_block_bounds_each_equations_kept_terms():
+    from calflow.nano.thermal_model import TwoDoFModel
+
+    c = _campaign("nano2d")
+    a = campaign_plans.training_2d(c, None)
+    rng = np.random.default_rng(2)
+    xy = np.column_stack([a.plan.commands["x"], a.plan.commands["y"]])[:300]
+    t = 20.5 + 0.05 * rng.standard_normal((len(xy), 2))
+    meas = xy + 0.012 * rng.standard_normal(xy.shape)
+    run = xr.Dataset({"meas_x": ("sample", meas[:, 0]), "meas_y": ("sample", meas[:, 1]),
+                      "temperature": (("sample", "sensor"), t), "time": ("sample", np.arange(len(xy)) * 14.0)},
+                     attrs={"design": a.attrs["design"]})
+    m = TwoDoFModel.fit(xy, meas, t, order=(3, 3), select="all")
+    block = design_plan.training_design_block(c, run, {"two_dof": m.coefficients.to_dict(orient="records")})
+    names = {f"{p}_{i}{ax}" for ax in "xy" for p, n in (("a", 3), ("b", 3), ("c", 2)) for i in range(1, n + 1)}
+    assert set(block["crlb_sigma_recorded"]) == names
+    # every term kept: the regression's standard error is its bound scaled by rmse / σ of the noise model
+    ratios = np.array([block["sigma_ratio_achieved_to_recorded_bound"][k] for k in sorted(names)])
+    assert np.all((ratios > 0.8) & (ratios < 1.25))

@@ -174,31 +174,40 @@ def start_s(c: dict, duration_s: float) -> float:
     return 0.0
 
 
-def _recorded_bound(c: dict, run, sigma_um: float) -> dict:
-    """Cramér–Rao σ of every term of the model (geometric and thermal, all in) on the readings
-    the training recorded: measured positions and thermocouples, λ a nuisance, σ per reading."""
-    axes = ["x"] if c["robot"] == "stage1d" else ["x", "y"]
+def _recorded_bound(c: dict, run, sigma_um: float, kept: set[str] | None) -> dict:
+    """Cramér–Rao σ of the terms of each equation of the model on the readings the training
+    recorded (measured positions and thermocouples, λ a nuisance, σ per reading): the terms
+    stepwise kept (``kept``; every term when None) — collinear thermocouples left out would
+    otherwise inflate the bound of the ones kept."""
+    two = c["robot"] == "stage2d"
+    axes = ["x", "y"] if two else ["x"]
     X = np.column_stack([run[f"meas_{a}"].values for a in axes])
     order = c["model"]["order"]
-    names = coefficient_names(c)
     cols = [design.basis(X, order, np.nanmax(np.abs(X), axis=0))[:, 0, :]]
     scale = list(design.coefficient_scale(order, np.nanmax(np.abs(X), axis=0)))
+    k = 0
     if "temperature" in run:
         t = np.asarray(run["temperature"].values, dtype=float).reshape(len(X), -1)
+        k = t.shape[1]
         cols.append(t - np.nanmean(t, axis=0))
-        prefix = "b" if c["robot"] == "stage1d" else "c"
-        names = names + [f"{prefix}_{k}{'' if c['robot'] == 'stage1d' else 'x'}" for k in range(1, t.shape[1] + 1)]
-        scale += [1.0] * t.shape[1]
+        scale += [1.0] * k
     R = np.column_stack(cols)
-    R = R[np.isfinite(R).all(axis=1)]
-    return _both_axes(c, dict(zip(names, (float(v) for v in crlb_sigma(R[:, None, :], sigma_um) / np.array(scale)))))
+    R, scale = R[np.isfinite(R).all(axis=1)], np.array(scale)
+    out = {}
+    for eq in (axes if two else [""]):
+        geo = [n[:-1] + eq for n in coefficient_names(c)] if two else coefficient_names(c)
+        names = geo + [f"{'c' if two else 'b'}_{i}{eq}" for i in range(1, k + 1)]
+        use = np.array([kept is None or n in kept or n in geo for n in names])  # the geometric terms always
+        s = crlb_sigma(R[:, None, use], sigma_um) / scale[use]
+        out.update({n: float(v) for n, v in zip(np.array(names)[use], s)})
+    return out
 
 
 def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     """``training_design`` of summary.json: the plan's record and bound written before
     acquisition (run attribute ``design``), and after identification the achieved σ of each
-    term (the model's standard error, terms stepwise kept), the Cramér–Rao σ on the recorded
-    positions and temperatures (thermal terms included), their ratio, and the rig time the
+    term (the model's standard error, terms stepwise kept), the Cramér–Rao σ of the kept terms
+    on the recorded positions and temperatures (thermal terms included), their ratio, and the rig time the
     training took. None when the training run carries no design record."""
     if training_run is None or "design" not in training_run.attrs:
         return None
@@ -207,7 +216,9 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     achieved = {r["name"]: (float(r["std_error"]) if r["in_model"] else None) for r in table
                 if r["name"][0] in "abc"}  # a_i, b_i, c_i: the geometric and thermal terms (not λ)
     noise = record.get("noise_nm")
-    recorded = _recorded_bound(c, training_run, reading_sigma_um(noise, c["training"]["average_last_s"])) if noise else None
+    kept = {r["name"] for r in table if r["in_model"]} if table else None
+    sigma = reading_sigma_um(noise, c["training"]["average_last_s"]) if noise else None
+    recorded = _recorded_bound(c, training_run, sigma, kept) if noise else None
     ratio = ({k: (achieved[k] / v if achieved.get(k) is not None and v > 0 else None) for k, v in recorded.items()}
              if recorded else None)
     from calflow.nano.evaluation import run_seconds
