@@ -192,3 +192,13 @@ def test_2d_summary_block_bounds_each_equations_kept_terms():
     # every term kept: the regression's standard error is its bound scaled by rmse / σ of the noise model
     ratios = np.array([block["sigma_ratio_achieved_to_recorded_bound"][k] for k in sorted(names)])
     assert np.all((ratios > 0.8) & (ratios < 1.25))
+
+
+def test_a_designed_plans_summary_carries_the_design_study_for_its_target():
+    c = _campaign(plan="optimal", design={**_campaign()["training"]["design"], "sigma_target_nm": 3.0})
+    a = campaign_plans.training_1d(c, None)
+    assert json.loads(a.attrs["design"])["crlb_shape_sigma_nm"] <= 3.0
+    x = a.plan.commands["x"]
+    run = xr.Dataset({"meas_x": ("sample", x), "time": ("sample", np.arange(x.size) * 29.0)}, attrs={"design": a.attrs["design"]})
+    block = design_plan.training_design_block(c, run, {})
+    assert block["study"]["target_nm"] == 3.0 and len(block["study"]["designed_hours"]) == 7

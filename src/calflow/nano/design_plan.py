@@ -207,8 +207,9 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     """``training_design`` of summary.json: the plan's record and bound written before
     acquisition (run attribute ``design``), and after identification the achieved σ of each
     term (the model's standard error, terms stepwise kept), the Cramér–Rao σ of the kept terms
-    on the recorded positions and temperatures (thermal terms included), their ratio, and the rig time the
-    training took. None when the training run carries no design record."""
+    on the recorded positions and temperatures (thermal terms included), their ratio, the rig
+    time the training took, and for a designed plan the design study (:func:`design_study`:
+    how many positions, how long). None when the training run carries no design record."""
     if training_run is None or "design" not in training_run.attrs:
         return None
     record = json.loads(training_run.attrs["design"])
@@ -224,12 +225,14 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
     from calflow.nano.evaluation import run_seconds
 
     time = run_seconds(training_run) if "time" in training_run else np.array([])
+    if record.get("plan") == "optimal" and noise:
+        record["study"] = design_study(c, target_nm=record.get("sigma_target_nm"))  # how many positions, how long
     return {**record, "achieved_sigma": achieved, "crlb_sigma_recorded": recorded,
             "sigma_ratio_achieved_to_recorded_bound": ratio,
             "rig_time_h_achieved": float((time.max() - time.min()) / 3600.0) if time.size else None}
 
 
-def design_study(c: dict, counts=(4, 6, 8, 12, 17, 24, 33), target_nm: float | None = None) -> dict:
+def design_study(c: dict, counts=None, target_nm: float | None = None) -> dict:
     """How many positions, how long: for each count of positions, the Cramér–Rao σ (nm) of the
     geometric correction over the stroke after one hour of training, grid (evenly spaced, the
     2-DoF grid √n per axis) against designed, and the hours each needs for ``target_nm``
@@ -241,6 +244,8 @@ def design_study(c: dict, counts=(4, 6, 8, 12, 17, 24, 33), target_nm: float | N
     noise = noise_model(c)
     if noise is None:
         raise ValueError("training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm)")
+    if counts is None:
+        counts = (4, 6, 8, 12, 17, 24, 33) if len(lo) == 1 else (16, 25, 36, 49, 64, 81)
     s = reading_sigma_um(noise, c["training"]["average_last_s"])
     target = target_nm if target_nm is not None else bound(c, grid_positions(c), c["training"]["cycles"])["crlb_shape_sigma_nm"]
     out = {"positions": [], "grid_sigma_nm_1h": [], "designed_sigma_nm_1h": [], "grid_hours": [], "designed_hours": [],
