@@ -339,6 +339,17 @@ def test_nano2d_model_brings_micrometres_to_hundreds_of_nanometres(thesis):
 # ------------------------------------------------ the workflow on the same run
 
 
+def test_nano_training_design_sets_the_achieved_sigma_beside_the_bound(thesis):
+    # the thesis grid's bound before acquisition and what identification achieved, in summary and report
+    for name, first in (("nano1d-thesis", "a_1"), ("nano2d-thesis", "a_1x")):
+        td = thesis[name]["training_design"]
+        assert td["plan"] == "grid" and td["crlb_shape_sigma_nm"] > 0
+        assert td["achieved_sigma"][first] >= td["crlb_sigma"][first] * 0.9  # a lower bound, up to the draw
+        assert td["rig_time_h_achieved"] == pytest.approx(td["rig_time_h"], rel=0.01)
+        html = (thesis["work"] / f"reports/{name}/report.html").read_text()
+        assert "Training plan: bound before, result after" in html and "lower bound" in html
+
+
 def test_run_leaves_summary_and_reports(thesis_run):
     summary = json.loads((thesis_run / f"results/{CAMPAIGN}/summary.json").read_text())
     assert list(summary["models"]) == ["I", "II", "III", "IV", "V"]

@@ -6,6 +6,8 @@ Each builder reads its section of the campaign and returns a
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from calflow.nano import plans
@@ -16,10 +18,29 @@ def _grid(section: dict) -> np.ndarray:
     return np.arange(section["start_um"], section["stop_um"] + 1e-9, section["step_um"])
 
 
+def _training(c: dict, build) -> Acquisition:
+    """The training run: the grid of the thesis (``training.plan: grid``) or the designed
+    positions and cycles (``optimal``, :mod:`calflow.nano.design_plan`); either way the run's
+    attribute ``design`` (JSON) holds, written before acquisition, the plan's Cramér–Rao bound."""
+    from calflow.nano import design_plan
+
+    t = c["training"]
+    if t["plan"] == "optimal":
+        positions, cycles, record = design_plan.designed_plan(c)
+        rows = len(design_plan.cycle_rows(c, positions)) * cycles
+        start = design_plan.start_s(c, rows * design_plan.reading_s(c))
+    else:
+        positions, cycles, record, start = design_plan.grid_positions(c), t["cycles"], {"criterion": None}, 0.0
+    plan = build(positions, cycles, start)
+    record = {"plan": t["plan"], **record, **design_plan.bound(c, positions, cycles), "start_h": start / 3600.0}
+    return Acquisition(plan, "training", attrs={"design": json.dumps(record)})
+
+
 def training_1d(c: dict, args) -> Acquisition:
     """Forward and backward cycles over the stroke in the training period (Sec. 5.3.2, Fig. 5.8)."""
     t = c["training"]
-    return Acquisition(plans.training_1d(_grid(t), t["cycles"], t["dwell_s"], t["average_last_s"], 0.0), "training")
+    return _training(c, lambda p, cycles, start: plans.training_1d(
+        np.sort(p[:, 0]), cycles, t["dwell_s"], t["average_last_s"], start))
 
 
 def metrology_1d(c: dict, args) -> Acquisition:
@@ -44,9 +65,14 @@ def validation_1d(c: dict, args) -> Acquisition:
 
 def training_2d(c: dict, args) -> Acquisition:
     """The 2-DoF training grid (Sec. 5.4.1, Fig. 5.21)."""
+    from calflow.nano.design import raster
+
     t = c["training"]
-    return Acquisition(plans.training_2d(t["step_um"], t["stop_um"], t["cycles"], t["dwell_s"], t["average_last_s"]),
-                       "training")
+    if t["plan"] == "grid":
+        return _training(c, lambda p, cycles, start: plans.training_2d(
+            t["step_um"], t["stop_um"], cycles, t["dwell_s"], t["average_last_s"], start))
+    return _training(c, lambda p, cycles, start: plans.training_points_2d(
+        p[raster(p)], cycles, t["dwell_s"], t["average_last_s"], start))
 
 
 def validation_2d(c: dict, args) -> Acquisition:

@@ -86,4 +86,8 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
                                   training_metrics=metrics.get("training"), training_range_c=t_range,
                                   validation_run=runs.get("validation"), error_budget=physics,
                                   step_response_run=runs.get("step_response"))
+    from calflow.data.io import jsonable
+    from calflow.nano.design_plan import training_design_block
+
+    summary["training_design"] = jsonable(training_design_block(c, training, models))
     return {**summary, "unsupported": unsupported}

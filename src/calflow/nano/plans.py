@@ -79,8 +79,16 @@ def training_2d(step_um: float = 10.0, stop_um: float = 80.0, cycles: int = 12, 
     g = np.arange(0.0, stop_um + 1e-9, step_um)
     X, Y = np.meshgrid(g, g, indexing="ij")
     Y[1::2] = Y[1::2, ::-1]  # raster: y sweeps up on even x columns, down on odd ones
-    x, y = np.tile(X.ravel(), cycles), np.tile(Y.ravel(), cycles)
-    n = X.size
+    return training_points_2d(np.column_stack([X.ravel(), Y.ravel()]), cycles, dwell_s, average_last_s, start_s)
+
+
+def training_points_2d(points, cycles: int = 12, dwell_s: float = 10.0, average_last_s: float = 5.0,
+                       start_s: float = 0.0) -> Plan:
+    """Training over ``points`` (n, 2) µm in the given order, back to the first each cycle
+    (Fig. 5.21's protocol on any set of positions, e.g. a designed one)."""
+    p = np.asarray(points, dtype=float)
+    n = len(p)
+    x, y = np.tile(p[:, 0], cycles), np.tile(p[:, 1], cycles)
     return Plan(
         name="training",
         commands={"x": x, "y": y},

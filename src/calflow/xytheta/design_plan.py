@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calflow.identification.design import space_filling
 from calflow.xytheta import design
 
 
@@ -157,20 +158,6 @@ def candidates(n: int, x_range, y_range, theta_range, seed: int) -> np.ndarray:
     u = (np.column_stack([rng.permutation(n) for _ in range(3)]) + rng.random((n, 3))) / max(n, 1)
     corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
     return lo + (hi - lo) * np.vstack([corners, u])
-
-
-def space_filling(pool: np.ndarray, m: int, lo, hi) -> np.ndarray:
-    """Indices of ``m`` pool poses spread over the box (greedy maximin in the unit cube)."""
-    if m <= 0:
-        return np.zeros(0, dtype=int)
-    u = (pool - np.asarray(lo)) / np.maximum(np.asarray(hi) - np.asarray(lo), 1e-12)
-    chosen = [int(np.argmin(np.sum((u - 0.5) ** 2, axis=1)))]
-    dist = np.sum((u - u[chosen[0]]) ** 2, axis=1)
-    for _ in range(m - 1):
-        k = int(np.argmax(dist))
-        chosen.append(k)
-        dist = np.minimum(dist, np.sum((u - u[k]) ** 2, axis=1))
-    return np.array(chosen)
 
 
 def design_poses(n: int, pool: np.ndarray, phi, free, criterion: str, scale, fraction_space_filling: float,

@@ -122,7 +122,7 @@ FAMILY = Family(
         "acquire": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.xytheta.campaign_plans",
                             "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig", "calflow.xytheta.rig_physics",
                             "calflow.xytheta.vision_sensor", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
-                            "calflow.xytheta.design", "calflow.xytheta.design_plan",
+                            "calflow.identification.design", "calflow.xytheta.design", "calflow.xytheta.design_plan",
                             "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.angle_table",
                             "calflow.xytheta.family"),
         "characterise": _CORE + ("calflow.xytheta.characterisation", "calflow.xytheta.commands"),
