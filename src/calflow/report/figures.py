@@ -107,7 +107,9 @@ def to_svg(fig, key: str) -> Markup:
     """
     buf = io.StringIO()
     with plt.rc_context({**STYLE, "svg.hashsalt": key}):
-        fig.savefig(buf, format="svg", dpi=RASTER_DPI, bbox_inches="tight", pad_inches=0.04, metadata={"Date": None})
+        # no bbox_inches="tight" (it draws the figure once more): finish()'s tight_layout
+        # already leaves a margin of 0.4 font size around the axes, as in to_png
+        fig.savefig(buf, format="svg", dpi=RASTER_DPI, metadata={"Date": None})
     plt.close(fig)
     text = buf.getvalue()
     text = text[text.index("<svg"):]
