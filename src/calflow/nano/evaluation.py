@@ -38,7 +38,7 @@ import xarray as xr
 from calflow.data.conventions import utc_now
 from calflow.errors import DataError
 from calflow.metrics.iso230_2_runs import iso230_2_of_run  # noqa: F401 (re-exported)
-from calflow.metrics import decompose_repeatability, iso230_2, iso9283, space_robustness, time_robustness
+from calflow.metrics import decompose_repeatability, iso9283, space_robustness, time_robustness
 
 NM_PER_UM = 1000.0
 MODES = {"stage1d": ("no_calibration", "adaptive_kmz", "single"), "stage2d": ("no_calibration", "single")}

@@ -8,7 +8,6 @@ list. XYΘ here; the nanopositioning summaries are in :mod:`calflow.nano.summary
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
