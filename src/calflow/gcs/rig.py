@@ -36,6 +36,7 @@ from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionL
                          GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
                          GCSProtocolError, GCSTimeout)
 from calflow.gcs.controller import parse_parameter_id
+from calflow.gcs.rig_records import RecordedMoves
 from calflow.gcs.sensors import load_sensor
 
 log = logging.getLogger("calflow.gcs.rig")
@@ -104,8 +105,9 @@ def _unlock(locks: list) -> None:
         f.close()
 
 
-class GCSRig:
-    """Rig protocol (DESIGN.md) over GCS controllers; build it with :func:`gcs`."""
+class GCSRig(RecordedMoves):
+    """Rig protocol (DESIGN.md) over GCS controllers, plus ``stream`` and ``record_move``
+    (:mod:`calflow.gcs.rig_records`) on piezo controllers; build it with :func:`gcs`."""
 
     replayable = False  # a real rig is continued, not replayed, on resume
 

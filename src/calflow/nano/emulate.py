@@ -15,8 +15,11 @@ section that drives it with the ``gcs`` rig:
   to the controller's positions and read at the rig's times (high-rate dwells: at the
   data recorder's points).
 
-A step settles with the servo's first-order response; its time constant is the simulated
-rig's ``rise_time_s`` / 8, so a move is on target after about the simulated rig's rise time.
+A step follows the closed loop of the campaign's physics (the simulated rig's
+``step_natural_hz``, ``step_damping``: the second-order step the interferometer sees too, so
+the data recorder's record of a move and the interferometer's agree); ``ONT?`` turns true
+once the position has stayed within 10 nm for ``rise_time_s``, so a move takes about as long
+as on the simulated rig.
 """
 
 from __future__ import annotations
@@ -65,10 +68,11 @@ def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
     stage = stage_of(campaign)
     probe = getattr(nano_rig, stage)(**physics_options(campaign))
     o = probe.options
-    tau = float(o["rise_time_s"]) / 8.0
+    natural = float(o["step_natural_hz"])  # 0: an ideal step, a 0.1 ms first order here
     return {JOINT_AXES[j]: PiezoAxisConfig(
         tmn=-float(o["stroke_margin_um"]), tmx=float(o["stroke_um"] + o["stroke_margin_um"]),
-        servo_tau=tau, settle_window=0.01, settle_time=tau) for j in probe.joints}
+        natural_hz=natural, damping=float(o["step_damping"]), servo_tau=1e-4,
+        settle_window=0.01, settle_time=float(o["rise_time_s"])) for j in probe.joints}
 
 
 def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
