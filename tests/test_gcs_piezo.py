@@ -281,3 +281,35 @@ def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settlin
         assert abs(a["overshoot_nm"] - b["overshoot_nm"]) < 5 * noise_nm * math.sqrt(2), (a, b)
         if abs(a["step_um"]) >= 10:  # the loop's ~4.6 % overshoot (a 1 um step's stays in the band)
             assert a["overshoot_nm"] > 0.04 * abs(a["step_um"]) * 1e3
+
+
+def test_calflow_emulate_gcs_serves_a_nano_campaign_with_the_piezo_controller(capsys, tmp_path):
+    import yaml
+
+    from calflow.cli import main
+
+    path = tmp_path / "small2d.yaml"
+    path.write_text(yaml.safe_dump(SMALL_NANO2D))
+    assert main(["emulate", "gcs", "--campaign", str(path), "--port", "0", "--duration", "0.2"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("E-727-class emulator of campaign") and "(axes 1, 2, um;" in out
+    rig = yaml.safe_load(out.split("campaign rig section for it:\n", 1)[1])["rig"]
+    assert rig["options"]["axes"] == {"x": "1", "y": "2"}
+    assert rig["options"]["sensor"]["factory"] == "simulated_interferometer"
+
+
+def test_calflow_emulate_gcs_refuses_a_family_without_an_emulator_in_one_line(capsys, tmp_path, monkeypatch):
+    import dataclasses
+
+    import yaml
+
+    import calflow.family
+    from calflow.cli import main
+
+    path = tmp_path / "small.yaml"
+    path.write_text(yaml.safe_dump(SMALL_NANO1D))
+    real = calflow.family.family_of
+    monkeypatch.setattr(calflow.family, "family_of", lambda robot: dataclasses.replace(real(robot), emulator=None))
+    assert main(["emulate", "gcs", "--campaign", str(path), "--port", "0", "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "small.yaml: robot 'stage1d' (family nano) has no controller emulator" in err[0]

@@ -125,26 +125,22 @@ def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int 
                             tries=tries, backoff_s=backoff_s)
 
 
-def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
-    """``calflow emulate gcs``: serve a campaign's simulated stages until Ctrl-C or --duration."""
+def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None,
+                 prog: str = "calflow emulate gcs") -> int:
+    """``calflow emulate gcs`` of an XYΘ campaign: serve its simulated stages until Ctrl-C or --duration."""
     def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
         return (f"GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
                 f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {time_scale:g})")
 
     return serve_campaign(
-        argv, prog="calflow emulate gcs", stop_event=stop_event,
+        argv, prog=prog, stop_event=stop_event,
         description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
                     "127.0.0.1 (docs/gcs.md).",
         start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
         banner=banner,
         rig_section=lambda emu, c, ts: {"factory": "gcs", "options": rig_options(
             emu.address, c, time_scale=ts)})
-
-
-def emulate_command(args) -> int:
-    """``calflow emulate gcs ...``: the CLI entry (arguments after ``gcs`` go to :func:`emulate_main`)."""
-    return emulate_main(args.rest)
 
 
 if __name__ == "__main__":
