@@ -186,7 +186,10 @@ class GCSRig(RecordedMoves):
         self._run(link, "DRT", lambda retry: link.ctl.arm_recorder(2))
         start = self.time()
         self.wait(seconds)
-        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables))
+        # the recording started with DRT's ERR? check, before ``start``: after the dwell it
+        # holds point 0 and the n points of the dwell, so DRR? asks for them without DRL?
+        n = int(np.floor(seconds / (rate * float(rec.get("servo_cycle_s", 5e-5))) + 1e-9))
+        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables, 1, n + 1))
         dt = float(header.get("SAMPLE_TIME", rate * 5e-5))
         n = min(len(data) - 1, int(np.floor(seconds / dt + 1e-9)))
         times = start + dt * np.arange(1, n + 1)
