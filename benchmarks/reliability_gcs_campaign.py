@@ -176,9 +176,13 @@ def workflow_small_nano1d(workdir: Path) -> dict:
 FAMILY_TIME_SCALE = {"xytheta": 100.0, "nano": 500.0}
 SECTIONS = {"xytheta": ("characterisation", "iso230_2", "models", "xy_tests", "validation"),
             "nano": ("intrinsic", "training", "iso230_2", "tests", "iso9283", "validation")}
-SKIP = ("cycles", "n_tests", "targets", "poses", "dof", "alpha", "folds", "thesis_", "reference_targets",
-        "error_budget", "start_h", "end_h", "days", "frames", "rig_time", "condition_number", "rate_hz",
-        "record_s", "band_nm", "p_value", "stabilised", "step_um", "floor")
+# key segments that are settings, counts or plan facts, not measured figures
+SKIP = {"cycles", "cycles_forward", "cycles_backward", "n_tests", "targets", "poses", "cv_folds", "fit_dof",
+        "floor_dof", "dof", "alpha", "reference_targets", "error_budget_nm", "start_h", "end_h", "days",
+        "frames_per_pose", "rig_time_h", "rig_time_h_achieved", "condition_number", "rate_hz", "record_s",
+        "band_nm", "p_value", "floor_um", "test", "first_test", "last_test", "command_distance_um", "period_h",
+        "duration_h", "crlb_sigma", "heldout", "step_deg", "sweep_step_deg", "shortest_period_deg",
+        "undersampled", "command_difference_um", "training_end_h", "validation_start_h", "n_poses"}
 
 
 def _campaign(name: str, rig: str, noise_seed: int | None) -> tuple[dict, object]:
@@ -254,7 +258,7 @@ def headline(summary: dict, family: str) -> dict[str, float]:
     def walk(d, prefix):
         for k, v in d.items():
             key = f"{prefix}.{k}" if prefix else str(k)
-            if any(s in key for s in SKIP):
+            if str(k) in SKIP or str(k).startswith("thesis_"):
                 continue
             if isinstance(v, dict):
                 walk(v, key)
@@ -286,7 +290,10 @@ def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 2
         z = abs(g[k] - v.mean()) / (sd * math.sqrt(1 + 1 / v.size)) if sd > 0 else (0.0 if g[k] == v.mean() else math.inf)
         rows[k] = {"gcs": round(g[k], 6), "simulated": [round(x, 6) for x in v], "z": round(z, 2)}
     z = np.array([r["z"] for r in rows.values()])
+    span = {"gcs": (gcs_run["summary"].get("validation") or {}).get("duration_h"),
+            "simulated": (sims[0]["summary"].get("validation") or {}).get("duration_h")}
     return {"campaign": name, "figures": len(rows), "within_noise": int((z < T2_95).sum()),
+            "validation_span_h": span,
             "median_z": round(float(np.median(z)), 2), "worst": sorted(rows, key=lambda k: -rows[k]["z"])[:5],
             "wall_s_gcs": gcs_run["wall_s"], "wall_s_simulated": [r["wall_s"] for r in sims],
             "time_scale": FAMILY_TIME_SCALE[fam], "rows": rows}
