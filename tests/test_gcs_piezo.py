@@ -135,17 +135,23 @@ def _by_pose(ds):
             np.array([err[m].std(ddof=1) / math.sqrt(m.sum()) for m in sel]))
 
 
-def test_a_small_nano1d_training_through_the_emulator_agrees_with_the_simulated_rig():
-    plan = plans.training_1d(np.arange(0.0, 481.0, 80.0), 4, 10.0, 5.0, 0.0)
+def _through_emulator_and_simulated(plan, runner, seed):
+    """``plan`` run by ``runner`` with the gcs rig through the E-727-class emulator of
+    SMALL_NANO1D's stage and on the simulated rig: same world (seed 3), other noise."""
     emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0)
     try:
-        options["sensor"]["options"].update(seed=11, world_seed=3)
+        options["sensor"]["options"].update(seed=seed, world_seed=3)
         rig = gcs(**options)
-        ds = acquire(plan, rig, META)
+        ds = runner(plan, rig, META)
         rig.close()
     finally:
         emu.stop()
-    sim = acquire(plan, nano1d(profile="lab5day", seed=12, world_seed=3), META)
+    return ds, runner(plan, nano1d(profile="lab5day", seed=seed + 1, world_seed=3), META)
+
+
+def test_a_small_nano1d_training_through_the_emulator_agrees_with_the_simulated_rig():
+    plan = plans.training_1d(np.arange(0.0, 481.0, 80.0), 4, 10.0, 5.0, 0.0)
+    ds, sim = _through_emulator_and_simulated(plan, acquire, 11)
     assert ds.sizes["sample"] == len(plan) and np.array_equal(ds["cmd_x"].values, plan.commands["x"])
     m_gcs, se_gcs = _by_pose(ds)
     m_sim, se_sim = _by_pose(sim)
@@ -259,15 +265,7 @@ def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settlin
     from calflow.nano.stabilisation_summary import stabilisation_entries
 
     plan = plans.step_response([1.0, 10.0, 50.0], 3, [100.0], 0.05, 1000.0, 0.01)
-    emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0)
-    try:
-        options["sensor"]["options"].update(seed=21, world_seed=3)
-        rig = gcs(**options)
-        ds = acquire_recorded_moves(plan, rig, META)
-        rig.close()
-    finally:
-        emu.stop()
-    sim = acquire_recorded_moves(plan, nano1d(profile="lab5day", seed=22, world_seed=3), META)
+    ds, sim = _through_emulator_and_simulated(plan, acquire_recorded_moves, 21)
     entries = []
     for run in (ds, sim):
         run.attrs["band_nm"] = 50.0
