@@ -12,6 +12,14 @@ the C-863 campaign emulator (time scale at most 100) and Model II is identified 
 runs; the figure is each parameter's difference in combined standard deviations.
 
 ``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 500]`` (about 5 min).
+
+``--thesis [CAMPAIGN ...]``: the whole workflow (every plan, models, summary) of each thesis
+campaign through Snakemake with ``rig: gcs`` against its emulator (C-863 for XYΘ at time
+scale 100, E-727 class for nano at 500), and three simulated runs of the same world with
+other noise (the campaign's seed, 101, 202); each headline figure of the summaries compared
+in units of the simulated runs' spread (:func:`compare_thesis`). Long (the nano1d-thesis gcs
+run alone is about 20 min on 2 cores): run one campaign at a time with ``nice``; runs are
+kept under ``--root`` and reused, ``--only simulated|gcs`` runs without comparing.
 """
 
 from __future__ import annotations
