@@ -193,7 +193,40 @@ SKIP = {"cycles", "cycles_forward", "cycles_backward", "n_tests", "targets", "po
         "undersampled", "command_difference_um", "training_end_h", "validation_start_h", "n_poses"}
 
 
-def _campaign(name: str, rig: str, noise_seed: int | None) -> tuple[dict, object]:
+PERIOD_OPTION = {"nano": ("rise_time_s", 4.0), "xytheta": ("settle_s", 0.5)}  # time a move takes (defaults)
+
+
+def _spans(runs: Path) -> dict[str, tuple[int, float]]:
+    """(samples, time from first to last sample, s) of each run file in ``runs``."""
+    import xarray as xr
+
+    out = {}
+    for f in sorted(runs.glob("*.nc")):
+        with xr.open_dataset(f, decode_times=False) as ds:
+            if "record" in ds.dims or ds.sizes.get("sample", 0) < 2:
+                continue  # recorded moves: no dwell between them
+            t = ds["time"].values
+            out[f.stem] = (int(t.size), float(t[-1] - t[0]))
+    return out
+
+
+def matched_runs(name: str, root: Path) -> dict[str, dict]:
+    """``rig.runs`` overrides that give the simulated rig the gcs run's sample period: per
+    run, the time a move takes plus the gcs run's extra time per sample (the per-sample
+    message and polling overhead times the time scale, docs/reliability.md)."""
+    import yaml
+
+    c = yaml.safe_load((ROOT / "config" / "campaigns" / f"{name}.yaml").read_text())
+    fam = "xytheta" if c["robot"] == "xytheta" else "nano"
+    option, default = PERIOD_OPTION[fam]
+    base = float((c["rig"].get("options") or {}).get(option, default))
+    runs = lambda label: root / name / label / "project" / "results" / name / "runs"  # noqa: E731
+    gcs, sim = _spans(runs("gcs")), _spans(runs("simulated"))
+    return {r: {option: round(base + max(0.0, (gcs[r][1] - sim[r][1]) / (n - 1)), 3)}
+            for r, (n, _) in gcs.items() if r in sim and sim[r][0] == n}
+
+
+def _campaign(name: str, rig: str, noise_seed: int | None, runs: dict | None = None) -> tuple[dict, object]:
     """The thesis campaign ``name`` for ``rig`` ("simulated" or "gcs"): with ``noise_seed``,
     the same world (nano: ``world_seed``; XYΘ: the physics options) with other noise; for
     "gcs", its emulator started (the caller stops it). XYΘ error budget replays are off (the
@@ -211,6 +244,8 @@ def _campaign(name: str, rig: str, noise_seed: int | None) -> tuple[dict, object
         else:
             opts["seed"] = noise_seed
     if rig == "simulated":
+        for run, extra in (runs or {}).items():  # e.g. the metrology room keeps its profile
+            c["rig"].setdefault("runs", {}).setdefault(run, {}).update(extra)
         return c, None
     ts = FAMILY_TIME_SCALE["nano" if nano else "xytheta"]
     if nano:
@@ -226,7 +261,8 @@ def _campaign(name: str, rig: str, noise_seed: int | None) -> tuple[dict, object
     return c, emu
 
 
-def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | None = None) -> dict:
+def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | None = None,
+               runs: dict | None = None) -> dict:
     """One whole-workflow run (every plan, then the summary) of thesis campaign ``name``
     with Snakemake in ``root/name/label``; reused when its summary exists."""
     import os
@@ -242,7 +278,7 @@ def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | No
 
         shutil.rmtree(base, ignore_errors=True)
         base.mkdir(parents=True)
-        c, emu = _campaign(name, rig, noise_seed)
+        c, emu = _campaign(name, rig, noise_seed, runs)
         try:
             work = make_workdir(base, {name: c})
             env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
@@ -279,16 +315,19 @@ def headline(summary: dict, family: str) -> dict[str, float]:
 T2_95 = 4.303  # Student t, 2 degrees of freedom, two-sided 95 %
 
 
-def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 202)) -> dict:
+def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 202), matched: bool = False) -> dict:
     """Whole workflow of a thesis campaign with ``rig: gcs`` against its emulator vs three
     simulated runs (the campaign's seed and ``noise_seeds``, same world): per headline
     figure, z = |gcs - mean(sim)| / (s sqrt(1 + 1/3)), s the simulated runs' standard
     deviation; "within noise" is z < 4.30, the two-sided 95 % point of Student's t with 2
-    degrees of freedom (docs/reliability.md)."""
+    degrees of freedom (docs/reliability.md). ``matched``: the simulated runs take the gcs
+    run's sample period (:func:`matched_runs`)."""
     fam = "xytheta" if name.startswith("xytheta") else "nano"
-    sims = [thesis_run(name, "simulated" if s is None else f"simulated-{s}", root, "simulated", s)
-            for s in (None, *noise_seeds)]
     gcs_run = thesis_run(name, "gcs", root, "gcs")
+    runs = matched_runs(name, root) if matched else None
+    prefix = "matched" if matched else "simulated"
+    sims = [thesis_run(name, prefix if s is None else f"{prefix}-{s}", root, "simulated", s, runs)
+            for s in (None, *noise_seeds)]
     figs = [headline(r["summary"], fam) for r in sims]
     g = headline(gcs_run["summary"], fam)
     rows = {}
@@ -300,7 +339,7 @@ def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 2
     z = np.array([r["z"] for r in rows.values()])
     span = {"gcs": (gcs_run["summary"].get("validation") or {}).get("duration_h"),
             "simulated": (sims[0]["summary"].get("validation") or {}).get("duration_h")}
-    return {"campaign": name, "figures": len(rows), "within_noise": int((z < T2_95).sum()),
+    return {"campaign": name, "reference": prefix, "figures": len(rows), "within_noise": int((z < T2_95).sum()),
             "validation_span_h": span,
             "median_z": round(float(np.median(z)), 2), "worst": sorted(rows, key=lambda k: -rows[k]["z"])[:5],
             "wall_s_gcs": gcs_run["wall_s"], "wall_s_simulated": [r["wall_s"] for r in sims],
@@ -320,6 +359,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--root", type=Path, default=Path("/tmp/calflow-gcs-thesis"),
                    help="work folders of --thesis; a run whose summary exists there is reused")
     p.add_argument("--only", choices=["simulated", "gcs"], help="with --thesis: run only these runs, compare nothing")
+    p.add_argument("--matched", action="store_true",
+                   help="with --thesis: also compare with simulated runs given the gcs run's sample period")
     a = p.parse_args(argv)
     if a.thesis is not None:
         names = a.thesis or ["nano2d-thesis", "xytheta-thesis", "nano1d-thesis"]
@@ -331,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
                     for s in (None, 101, 202):
                         thesis_run(name, "simulated" if s is None else f"simulated-{s}", a.root, "simulated", s)
             return 0
-        results = [compare_thesis(name, a.root) for name in names]
+        results = [compare_thesis(name, a.root, matched=m) for name in names for m in (False, True)[:1 + a.matched]]
         print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
         return 0
     if a.workflow:
