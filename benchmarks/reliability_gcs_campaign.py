@@ -20,6 +20,8 @@ other noise (the campaign's seed, 101, 202); each headline figure of the summari
 in units of the simulated runs' spread (:func:`compare_thesis`). Long (the nano1d-thesis gcs
 run alone is about 20 min on 2 cores): run one campaign at a time with ``nice``; runs are
 kept under ``--root`` and reused, ``--only simulated|gcs`` runs without comparing.
+``--matched`` adds three simulated runs given the gcs run's sample period per run
+(:func:`matched_runs`), which separates the controller path from the campaign-time stretch.
 """
 
 from __future__ import annotations
