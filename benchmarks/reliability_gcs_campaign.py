@@ -12,6 +12,16 @@ the C-863 campaign emulator (time scale at most 100) and Model II is identified 
 runs; the figure is each parameter's difference in combined standard deviations.
 
 ``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 500]`` (about 5 min).
+
+``--thesis [CAMPAIGN ...]``: the whole workflow (every plan, models, summary) of each thesis
+campaign through Snakemake with ``rig: gcs`` against its emulator (C-863 for XYΘ at time
+scale 100, E-727 class for nano at 500), and three simulated runs of the same world with
+other noise (the campaign's seed, 101, 202); each headline figure of the summaries compared
+in units of the simulated runs' spread (:func:`compare_thesis`). Long (the nano1d-thesis gcs
+run alone is about 20 min on 2 cores): run one campaign at a time with ``nice``; runs are
+kept under ``--root`` and reused, ``--only simulated|gcs`` runs without comparing.
+``--matched`` adds three simulated runs given the gcs run's sample period per run
+(:func:`matched_runs`), which separates the controller path from the campaign-time stretch.
 """
 
 from __future__ import annotations
@@ -172,6 +182,172 @@ def workflow_small_nano1d(workdir: Path) -> dict:
     return {"campaign": "tests/conftest.py SMALL_NANO1D, whole workflow", **out}
 
 
+# ---------------------------------------------------------------- whole thesis campaigns
+FAMILY_TIME_SCALE = {"xytheta": 100.0, "nano": 500.0}
+SECTIONS = {"xytheta": ("characterisation", "iso230_2", "models", "xy_tests", "validation"),
+            "nano": ("intrinsic", "training", "iso230_2", "tests", "iso9283", "validation")}
+# key segments that are settings, counts or plan facts, not measured figures
+SKIP = {"cycles", "cycles_forward", "cycles_backward", "n_tests", "targets", "poses", "cv_folds", "fit_dof",
+        "floor_dof", "dof", "alpha", "reference_targets", "error_budget_nm", "start_h", "end_h", "days",
+        "frames_per_pose", "rig_time_h", "rig_time_h_achieved", "condition_number", "rate_hz", "record_s",
+        "band_nm", "p_value", "floor_um", "test", "first_test", "last_test", "command_distance_um", "period_h",
+        "duration_h", "crlb_sigma", "heldout", "step_deg", "sweep_step_deg", "shortest_period_deg",
+        "undersampled", "command_difference_um", "training_end_h", "validation_start_h", "n_poses"}
+
+
+PERIOD_OPTION = {"nano": ("rise_time_s", 4.0), "xytheta": ("settle_s", 0.5)}  # time a move takes (defaults)
+
+
+def _spans(runs: Path) -> dict[str, tuple[int, float]]:
+    """(samples, time from first to last sample, s) of each run file in ``runs``."""
+    import xarray as xr
+
+    out = {}
+    for f in sorted(runs.glob("*.nc")):
+        with xr.open_dataset(f, decode_times=False) as ds:
+            if "record" in ds.dims or ds.sizes.get("sample", 0) < 2:
+                continue  # recorded moves: no dwell between them
+            t = ds["time"].values
+            out[f.stem] = (int(t.size), float(t[-1] - t[0]))
+    return out
+
+
+def matched_runs(name: str, root: Path) -> dict[str, dict]:
+    """``rig.runs`` overrides that give the simulated rig the gcs run's sample period: per
+    run, the time a move takes plus the gcs run's extra time per sample (the per-sample
+    message and polling overhead times the time scale, docs/reliability.md)."""
+    import yaml
+
+    c = yaml.safe_load((ROOT / "config" / "campaigns" / f"{name}.yaml").read_text())
+    fam = "xytheta" if c["robot"] == "xytheta" else "nano"
+    option, default = PERIOD_OPTION[fam]
+    base = float((c["rig"].get("options") or {}).get(option, default))
+    runs = lambda label: root / name / label / "project" / "results" / name / "runs"  # noqa: E731
+    gcs, sim = _spans(runs("gcs")), _spans(runs("simulated"))
+    return {r: {option: round(base + max(0.0, (gcs[r][1] - sim[r][1]) / (n - 1)), 3)}
+            for r, (n, _) in gcs.items() if r in sim and sim[r][0] == n}
+
+
+def _campaign(name: str, rig: str, noise_seed: int | None, runs: dict | None = None) -> tuple[dict, object]:
+    """The thesis campaign ``name`` for ``rig`` ("simulated" or "gcs"): with ``noise_seed``,
+    the same world (nano: ``world_seed``; XYΘ: the physics options) with other noise; for
+    "gcs", its emulator started (the caller stops it). XYΘ error budget replays are off (the
+    gcs rig has none; they are not compared)."""
+    import yaml
+
+    c = yaml.safe_load((ROOT / "config" / "campaigns" / f"{name}.yaml").read_text())
+    nano = c["robot"] != "xytheta"
+    if not nano:
+        c.setdefault("validation", {}).setdefault("heldout", {})["error_budget"] = False
+    if noise_seed is not None:
+        opts = c["rig"].setdefault("options", {})
+        if nano:
+            opts["world_seed"], c["seed"] = c["seed"], noise_seed
+        else:
+            opts["seed"] = noise_seed
+    if rig == "simulated":
+        for run, extra in (runs or {}).items():  # e.g. the metrology room keeps its profile
+            c["rig"].setdefault("runs", {}).setdefault(run, {}).update(extra)
+        return c, None
+    ts = FAMILY_TIME_SCALE["nano" if nano else "xytheta"]
+    if nano:
+        from calflow.nano.emulate import campaign_rig, emulated_rig_options
+
+        emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
+        c["rig"] = campaign_rig(options, c)
+    else:
+        from calflow.xytheta.emulate import emulated_rig_options
+
+        emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
+        c["rig"] = {"factory": "gcs", "options": {**options, "poll_s": 0.002}}
+    return c, emu
+
+
+def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | None = None,
+               runs: dict | None = None) -> dict:
+    """One whole-workflow run (every plan, then the summary) of thesis campaign ``name``
+    with Snakemake in ``root/name/label``; reused when its summary exists."""
+    import os
+    import subprocess
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import make_workdir
+
+    base = root / name / label
+    summary = base / "project" / "results" / name / "summary.json"
+    if not summary.exists():
+        import shutil
+
+        shutil.rmtree(base, ignore_errors=True)
+        base.mkdir(parents=True)
+        c, emu = _campaign(name, rig, noise_seed, runs)
+        try:
+            work = make_workdir(base, {name: c})
+            env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+            t0 = time.monotonic()
+            proc = subprocess.run([str(Path(sys.executable).parent / "snakemake"), f"results/{name}/summary.json",
+                                   "--cores", "2", "--resources", "rig=1"], cwd=work, env=env,
+                                  capture_output=True, text=True)
+            (base / "wall_s").write_text(f"{time.monotonic() - t0:.1f}\n")
+            if proc.returncode:
+                raise RuntimeError(f"{name} {label}: snakemake failed: {proc.stderr[-3000:]}")
+        finally:
+            if emu is not None:
+                emu.stop()
+    return {"summary": json.loads(summary.read_text()), "wall_s": float((base / "wall_s").read_text())}
+
+
+def headline(summary: dict, family: str) -> dict[str, float]:
+    """The summary's numeric figures of the headline sections (counts and settings left out)."""
+    out: dict[str, float] = {}
+
+    def walk(d, prefix):
+        for k, v in d.items():
+            key = f"{prefix}.{k}" if prefix else str(k)
+            if str(k) in SKIP or str(k).startswith("thesis_"):
+                continue
+            if isinstance(v, dict):
+                walk(v, key)
+            elif isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                out[key] = float(v)
+    walk({k: summary[k] for k in SECTIONS[family] if k in summary}, "")
+    return out
+
+
+T2_95 = 4.303  # Student t, 2 degrees of freedom, two-sided 95 %
+
+
+def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 202), matched: bool = False) -> dict:
+    """Whole workflow of a thesis campaign with ``rig: gcs`` against its emulator vs three
+    simulated runs (the campaign's seed and ``noise_seeds``, same world): per headline
+    figure, z = |gcs - mean(sim)| / (s sqrt(1 + 1/3)), s the simulated runs' standard
+    deviation; "within noise" is z < 4.30, the two-sided 95 % point of Student's t with 2
+    degrees of freedom (docs/reliability.md). ``matched``: the simulated runs take the gcs
+    run's sample period (:func:`matched_runs`)."""
+    fam = "xytheta" if name.startswith("xytheta") else "nano"
+    gcs_run = thesis_run(name, "gcs", root, "gcs")
+    runs = matched_runs(name, root) if matched else None
+    prefix = "matched" if matched else "simulated"
+    sims = [thesis_run(name, prefix if s is None else f"{prefix}-{s}", root, "simulated", s, runs)
+            for s in (None, *noise_seeds)]
+    figs = [headline(r["summary"], fam) for r in sims]
+    g = headline(gcs_run["summary"], fam)
+    rows = {}
+    for k in sorted(set(g).intersection(*figs)):
+        v = np.array([f[k] for f in figs])
+        sd = float(v.std(ddof=1))
+        z = abs(g[k] - v.mean()) / (sd * math.sqrt(1 + 1 / v.size)) if sd > 0 else (0.0 if g[k] == v.mean() else math.inf)
+        rows[k] = {"gcs": round(g[k], 6), "simulated": [round(x, 6) for x in v], "z": round(z, 2)}
+    z = np.array([r["z"] for r in rows.values()])
+    span = {"gcs": (gcs_run["summary"].get("validation") or {}).get("duration_h"),
+            "simulated": (sims[0]["summary"].get("validation") or {}).get("duration_h")}
+    return {"campaign": name, "reference": prefix, "figures": len(rows), "within_noise": int((z < T2_95).sum()),
+            "validation_span_h": span,
+            "median_z": round(float(np.median(z)), 2), "worst": sorted(rows, key=lambda k: -rows[k]["z"])[:5],
+            "wall_s_gcs": gcs_run["wall_s"], "wall_s_simulated": [r["wall_s"] for r in sims],
+            "time_scale": FAMILY_TIME_SCALE[fam], "rows": rows}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--campaigns", nargs="+", default=["nano1d-thesis", "nano2d-thesis"])
@@ -179,7 +355,28 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", action="store_true")
     p.add_argument("--workflow", action="store_true",
                    help="instead: the small nano1d campaign through Snakemake, gcs vs simulated")
+    p.add_argument("--thesis", nargs="*", metavar="CAMPAIGN",
+                   help="instead: the whole workflow of these thesis campaigns (default: all three), gcs "
+                        "against three simulated runs (long: run one at a time, with nice)")
+    p.add_argument("--root", type=Path, default=Path("/tmp/calflow-gcs-thesis"),
+                   help="work folders of --thesis; a run whose summary exists there is reused")
+    p.add_argument("--only", choices=["simulated", "gcs"], help="with --thesis: run only these runs, compare nothing")
+    p.add_argument("--matched", action="store_true",
+                   help="with --thesis: also compare with simulated runs given the gcs run's sample period")
     a = p.parse_args(argv)
+    if a.thesis is not None:
+        names = a.thesis or ["nano2d-thesis", "xytheta-thesis", "nano1d-thesis"]
+        if a.only:
+            for name in names:
+                if a.only == "gcs":
+                    thesis_run(name, "gcs", a.root, "gcs")
+                else:
+                    for s in (None, 101, 202):
+                        thesis_run(name, "simulated" if s is None else f"simulated-{s}", a.root, "simulated", s)
+            return 0
+        results = [compare_thesis(name, a.root, matched=m) for name in names for m in (False, True)[:1 + a.matched]]
+        print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
+        return 0
     if a.workflow:
         r = workflow_small_nano1d(Path("/tmp/calflow-gcs-workflow"))
         print(json.dumps(r, indent=1) if a.json else r)

@@ -135,17 +135,23 @@ def _by_pose(ds):
             np.array([err[m].std(ddof=1) / math.sqrt(m.sum()) for m in sel]))
 
 
-def test_a_small_nano1d_training_through_the_emulator_agrees_with_the_simulated_rig():
-    plan = plans.training_1d(np.arange(0.0, 481.0, 80.0), 4, 10.0, 5.0, 0.0)
+def _through_emulator_and_simulated(plan, runner, seed):
+    """``plan`` run by ``runner`` with the gcs rig through the E-727-class emulator of
+    SMALL_NANO1D's stage and on the simulated rig: same world (seed 3), other noise."""
     emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0)
     try:
-        options["sensor"]["options"].update(seed=11, world_seed=3)
+        options["sensor"]["options"].update(seed=seed, world_seed=3)
         rig = gcs(**options)
-        ds = acquire(plan, rig, META)
+        ds = runner(plan, rig, META)
         rig.close()
     finally:
         emu.stop()
-    sim = acquire(plan, nano1d(profile="lab5day", seed=12, world_seed=3), META)
+    return ds, runner(plan, nano1d(profile="lab5day", seed=seed + 1, world_seed=3), META)
+
+
+def test_a_small_nano1d_training_through_the_emulator_agrees_with_the_simulated_rig():
+    plan = plans.training_1d(np.arange(0.0, 481.0, 80.0), 4, 10.0, 5.0, 0.0)
+    ds, sim = _through_emulator_and_simulated(plan, acquire, 11)
     assert ds.sizes["sample"] == len(plan) and np.array_equal(ds["cmd_x"].values, plan.commands["x"])
     m_gcs, se_gcs = _by_pose(ds)
     m_sim, se_sim = _by_pose(sim)
@@ -185,3 +191,123 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
     campaign = {**SMALL_NANO1D, "rig": rig}
     path.write_text(yaml.safe_dump(campaign))
     assert load_campaign(path, [])["rig"]["factory"] == "gcs"
+
+
+def test_a_second_order_axis_follows_the_closed_loop_step_and_ont_waits_for_its_envelope():
+    from calflow.nano.piezo import closed_loop_step
+
+    c, clock = _controller(natural_hz=100.0, damping=0.7, settle_window=0.01, settle_time=0.0,
+                           sensor_noise=0.0, sensor_resolution=0.0)
+    _ok(c, "SVO 1 1")
+    _ok(c, "MOV 1 20")
+    t = np.linspace(0.0, 0.03, 61)
+    assert np.allclose(c.axes["1"].positions_at(t), 20 * closed_loop_step(t, 100.0, 0.7), atol=1e-9)
+    peak = c.axes["1"].positions_at(t).max()
+    assert peak - 20 == pytest.approx(20 * math.exp(-math.pi * 0.7 / math.sqrt(1 - 0.49)), rel=0.02)
+    entry = c.axes["1"].window_entry()
+    late = np.linspace(entry, entry + 0.05, 200)
+    assert np.all(np.abs(c.axes["1"].positions_at(late) - 20) <= 0.01)  # inside for good
+    clock["now"] = entry - 1e-4
+    assert c.handle("ONT? 1") == ["1=0"]
+    clock["now"] = entry + 1e-6
+    assert c.handle("ONT? 1") == ["1=1"]
+
+
+def test_record_move_records_the_step_from_the_move_through_the_data_recorder():
+    """``record_move`` through the E-727-class emulator: DRC (current position), RTR for the
+    rate, DRT on the next target change, MOV, DRR?; the interferometer's record of the
+    step and the controller's agree, point 0 at the move's start."""
+    emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0)
+    try:
+        options["sensor"]["options"].update(seed=11, world_seed=3)
+        rig = gcs(**options)
+        rig.move({"x": 100.0})
+        chunks = list(rig.record_move({"x": 110.0}, 0.04, 1000.0, chunk=16))
+        recorder = emu.controller.recorder
+        assert recorder.rate == 20 and recorder.trigger == 1  # 1 kHz of 50 us cycles, on MOV
+        assert recorder.config == {1: ("1", 2)}
+        rig.close()
+    finally:
+        emu.stop()
+    rec = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+    assert [c["time"].size for c in chunks] == [16, 16, 8]
+    assert np.allclose(np.diff(rec["time"]), 1e-3)
+    for name in ("pos_x", "meas_x"):  # the step seen by both sensors, from its start
+        r = rec[name] - rec[name][-10:].mean()
+        assert abs(r[0] + 10) < 0.1 and abs(r[-1]) < 0.05, name
+        assert 0.2 < r.max() < 0.8, name  # the loop's ~4.6 % overshoot of the 10 um step
+    assert np.abs(np.diff(rec["meas_x"] - rec["pos_x"])).max() < 0.05  # same motion, the stage's error apart
+    assert set(rec) >= {"T1", "T4", "meas_y"}
+
+
+def test_record_move_needs_a_sensor_that_can_be_read_along_the_move():
+    from calflow.errors import RigError
+
+    class ReadOnly:  # a sensor plug-in with the required interface only
+        def __init__(self, inner):
+            self.sensors, self.thermometers, self.read = inner.sensors, inner.thermometers, inner.read
+
+    emu, options = emulated_rig_options(SMALL_NANO1D, time_scale=1000.0)
+    try:
+        rig = gcs(**options)
+        rig.sensor = ReadOnly(rig.sensor)
+        with pytest.raises(RigError, match="cannot be read along a move"):
+            rig.record_move({"x": 10.0}, 0.01, 1000.0)
+        rig.close()
+    finally:
+        emu.stop()
+
+
+def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settling_and_overshoot():
+    """ISO 9283 7.5/7.6 from the recorded moves of a step-response run, gcs rig through the
+    E-727-class emulator vs the simulated rig (same world, other noise), in one band."""
+    from calflow.acquisition.recorded_moves import acquire_recorded_moves
+    from calflow.nano.stabilisation_summary import stabilisation_entries
+
+    plan = plans.step_response([1.0, 10.0, 50.0], 3, [100.0], 0.05, 1000.0, 0.01)
+    ds, sim = _through_emulator_and_simulated(plan, acquire_recorded_moves, 21)
+    entries = []
+    for run in (ds, sim):
+        run.attrs["band_nm"] = 50.0
+        stab, over = stabilisation_entries(run)
+        entries.append((stab["per_step"], over["per_step"]))
+    assert ds.sizes["record"] == 50 and np.allclose(ds["record_time"].values[:, 0], 0.0)
+    noise_nm = 3.0  # interferometer noise (1 sigma per point), the option's default
+    for a, b in zip(entries[0][0], entries[1][0]):
+        assert a["step_um"] == b["step_um"] and a["stabilised"] == b["stabilised"] == 3
+        assert abs(a["stabilisation_time_s"] - b["stabilisation_time_s"]) <= 2e-3, (a, b)  # two record periods
+        assert abs(a["overshoot_nm"] - b["overshoot_nm"]) < 5 * noise_nm * math.sqrt(2), (a, b)
+        if abs(a["step_um"]) >= 10:  # the loop's ~4.6 % overshoot (a 1 um step's stays in the band)
+            assert a["overshoot_nm"] > 0.04 * abs(a["step_um"]) * 1e3
+
+
+def test_calflow_emulate_gcs_serves_a_nano_campaign_with_the_piezo_controller(capsys, tmp_path):
+    import yaml
+
+    from calflow.cli import main
+
+    path = tmp_path / "small2d.yaml"
+    path.write_text(yaml.safe_dump(SMALL_NANO2D))
+    assert main(["emulate", "gcs", "--campaign", str(path), "--port", "0", "--duration", "0.2"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("E-727-class emulator of campaign") and "(axes 1, 2, um;" in out
+    rig = yaml.safe_load(out.split("campaign rig section for it:\n", 1)[1])["rig"]
+    assert rig["options"]["axes"] == {"x": "1", "y": "2"}
+    assert rig["options"]["sensor"]["factory"] == "simulated_interferometer"
+
+
+def test_calflow_emulate_gcs_refuses_a_family_without_an_emulator_in_one_line(capsys, tmp_path, monkeypatch):
+    import dataclasses
+
+    import yaml
+
+    import calflow.family
+    from calflow.cli import main
+
+    path = tmp_path / "small.yaml"
+    path.write_text(yaml.safe_dump(SMALL_NANO1D))
+    real = calflow.family.family_of
+    monkeypatch.setattr(calflow.family, "family_of", lambda robot: dataclasses.replace(real(robot), emulator=None))
+    assert main(["emulate", "gcs", "--campaign", str(path), "--port", "0", "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "small.yaml: robot 'stage1d' (family nano) has no controller emulator" in err[0]

@@ -183,13 +183,13 @@ def test_controller_error_stops_a_moving_axis():
     try:
         rig = gcs(**{**options, "poll_s": 0.01})
         with GCSController.connect_tcp(*emu.address, timeout=1.0) as other:
-            other.move({"1": -7.0})  # 4.7 s of travel at 1.5 mm/s
+            other.move({"1": 0.5})  # from the reference at 7.5 mm: 4.7 s of travel at 1.5 mm/s
             time.sleep(0.2)
             with pytest.raises(RigError, match=r"joint 'theta'.*GCS error 7"):
                 rig.move({"x": 0.0, "y": 0.0, "theta": -40.0})
             x = emu.controller.axes["1"]
             now = emu.controller.now()
-            assert not x.moving(now) and -7.0 < x.position(now) < -0.1
+            assert not x.moving(now) and 0.5 < x.position(now) < 7.4
         rig.close()
     finally:
         emu.stop()

@@ -60,6 +60,8 @@ class Family:
     * ``acquire_arguments``: options the family's plans read from ``calflow acquire``.
     * ``commands``: the family's own subcommands.
     * ``sensors``: short names of sensor factories for the ``gcs`` rig.
+    * ``emulator``: ``"module:function"``, ``function(argv, prog=...) -> int`` serving a
+      campaign's stages as a GCS controller (``calflow emulate gcs --campaign FILE``).
     """
 
     name: str
@@ -73,6 +75,7 @@ class Family:
     acquire_arguments: Callable[[argparse.ArgumentParser], None] | None = None
     commands: tuple[Command, ...] = ()
     sensors: Mapping[str, str] = field(default_factory=dict)
+    emulator: str | None = None
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:

@@ -1,7 +1,8 @@
 """Serving a campaign's stages from a controller emulator until Ctrl-C or ``--duration``.
 
-The command-line side shared by the C-863 campaign emulator (``calflow emulate gcs``,
-:mod:`calflow.xytheta.emulate`) and the E-727-class one (``python -m calflow.nano.emulate``):
+The command-line side shared by the C-863 campaign emulator (:mod:`calflow.xytheta.emulate`)
+and the E-727-class one (:mod:`calflow.nano.emulate`), and ``calflow emulate gcs``, which
+serves a campaign with the emulator of its robot family (:func:`emulate_command`):
 arguments ``--campaign``, ``--port``, ``--time-scale``, ``--duration``, checked in one line
 each; the emulator's address and the campaign ``rig:`` section that drives it are printed.
 """
@@ -29,6 +30,15 @@ def load_campaign_arg(campaign: Mapping[str, Any] | str | Path) -> dict:
     return dict(campaign)
 
 
+def _parser(prog: str, description: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=prog, description=description)
+    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
+    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    return p
+
+
 def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
                    start: Callable[[dict, int, float], GCSEmulator],
                    banner: Callable[[GCSEmulator, dict, float], str],
@@ -39,12 +49,7 @@ def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
     ``--duration`` seconds."""
     import yaml
 
-    p = argparse.ArgumentParser(prog=prog, description=description)
-    p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")
-    p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
-    p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    a = p.parse_args(argv)
+    a = _parser(prog, description).parse_args(argv)
     who = prog.removeprefix("calflow ").removeprefix("python -m ")
     if not 0 <= a.port <= 65535:
         raise CalflowError(f"{who}: --port: expected a TCP port 0-65535 (0 = any free port), got {a.port}")
@@ -68,3 +73,21 @@ def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
     finally:
         emu.stop()
     return 0
+
+
+def emulate_command(args) -> int:
+    """``calflow emulate gcs --campaign FILE ...``: the controller emulator of the campaign's
+    robot family (its ``emulator``: the C-863 one for ``xytheta``, the E-727-class one for
+    ``stage1d``/``stage2d``), given the arguments after ``gcs``."""
+    from calflow.family import family_of, resolve
+
+    argv = list(args.rest)
+    known = _parser("calflow emulate gcs", "Serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1 "
+                    "(docs/gcs.md): C-863 for xytheta, E-727 class for stage1d/stage2d.").parse_args(argv)
+    c = load_campaign_arg(known.campaign)
+    robot = c.get("robot")
+    fam = family_of(str(robot))
+    if fam.emulator is None:
+        raise CalflowError(f"calflow emulate gcs: {known.campaign}: robot {robot!r} (family {fam.name}) has no "
+                           "controller emulator")
+    return resolve(fam.emulator)(argv, prog="calflow emulate gcs")

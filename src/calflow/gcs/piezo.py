@@ -4,9 +4,12 @@ What differs from the C-863 emulation (:mod:`calflow.gcs.controller`):
 
 * axes are closed-loop piezo axes in **µm** with an absolute capacitive sensor: nothing to
   reference (``FRF?`` is 1 from power-up), travel ``TMN?``..``TMX?`` (default 0-100 µm);
-* motion is the servo's first-order response to a ``MOV`` step,
-  ``p(t) = target + (start - target) exp(-(t - t0) / servo_tau)`` (no trapezoid; ``VEL``
-  is accepted and reported but does not shape the step);
+* motion is the closed loop's response to a ``MOV`` step (no trapezoid; ``VEL`` is
+  accepted and reported but does not shape the step): first order,
+  ``p(t) = target + (start - target) exp(-(t - t0) / servo_tau)``, or, with
+  ``natural_hz`` > 0, the second-order step of natural frequency ``natural_hz`` and damping
+  ``damping`` < 1 that the simulated nano rigs' physics uses
+  (:func:`calflow.nano.piezo.closed_loop_step`, overshoot ``exp(-pi d / sqrt(1 - d^2))``);
 * ``POS?`` is the capacitive sensor: the position plus white sensor noise
   (``sensor_noise``, µm rms), quantised to ``sensor_resolution`` µm. The stage's
   nonlinearity against a length standard is not visible to it: only an external sensor (an
@@ -49,6 +52,8 @@ class PiezoAxisConfig(AxisConfig):
     settle_window: float = 0.01
     settle_time: float = 0.01
     servo_tau: float = 0.002
+    natural_hz: float = 0.0  # > 0: second-order step (natural frequency, Hz) ...
+    damping: float = 0.7  # ... and damping ratio, 0 < damping < 1
     sensor_noise: float = 0.0003
     sensor_resolution: float = 0.0001
 
@@ -57,10 +62,34 @@ class PiezoAxisConfig(AxisConfig):
         if not (self.servo_tau > 0 and self.sensor_noise >= 0 and self.sensor_resolution >= 0):
             raise ValueError("piezo axis needs servo_tau > 0, sensor_noise >= 0 and "
                              "sensor_resolution >= 0")
+        if not (self.natural_hz >= 0 and 0 < self.damping < 1):
+            raise ValueError("piezo axis needs natural_hz >= 0 and 0 < damping < 1")
+
+    def step(self, since: np.ndarray) -> np.ndarray:
+        """Unit step response ``since`` s after the move started (array; 0 before it)."""
+        since = np.asarray(since, dtype=float)
+        if self.natural_hz > 0:
+            from calflow.nano.piezo import closed_loop_step
+
+            return np.asarray(closed_loop_step(since, self.natural_hz, self.damping), dtype=float)
+        return np.where(since < 0, 0.0, 1.0 - np.exp(-np.clip(since, 0.0, None) / self.servo_tau))
+
+    def entry_after(self, distance: float, window: float) -> float:
+        """Seconds after the move's start from which ``|distance| (1 - step)`` stays within
+        ``window``: exact for the first order; for the second order, where the decay
+        envelope ``exp(-d w t) / sqrt(1 - d^2)`` enters the window (the step's last crossing
+        is at most that late)."""
+        d = abs(distance)
+        if d <= window:
+            return 0.0
+        if self.natural_hz > 0:
+            zeta, w = self.damping, 2.0 * math.pi * self.natural_hz
+            return max(0.0, math.log(d / (window * math.sqrt(1.0 - zeta * zeta))) / (zeta * w))
+        return self.servo_tau * math.log(d / window)
 
 
 class PiezoAxis(SimAxis):
-    """A piezo axis: first-order step response, with its history for the data recorder."""
+    """A piezo axis: the closed loop's step response, with its history for the data recorder."""
 
     config: PiezoAxisConfig
 
@@ -78,8 +107,7 @@ class PiezoAxis(SimAxis):
         for i in np.unique(idx):
             t0, a, b = self._segments[max(int(i), 0)]
             m = idx == i
-            out[m] = b if key or t0 == -math.inf else b + (a - b) * np.exp(
-                -(t[m] - t0) / self.config.servo_tau)
+            out[m] = b if key or t0 == -math.inf else a + (b - a) * self.config.step(t[m] - t0)
         return out
 
     def positions_at(self, t: np.ndarray) -> np.ndarray:
@@ -95,10 +123,9 @@ class PiezoAxis(SimAxis):
         return abs(self._target - self.position(now)) > self.settle_window
 
     def window_entry(self) -> float:
-        d = abs(self._target - self._start)
-        if d <= self.settle_window or self._t0 == -math.inf:
+        if self._t0 == -math.inf:
             return self._t0
-        return self._t0 + self.config.servo_tau * math.log(d / self.settle_window)
+        return self._t0 + self.config.entry_after(self._target - self._start, self.settle_window)
 
     def move(self, target: float, now: float, *, extra_time: float = 0.0) -> float:
         start = self.position(now)
@@ -136,16 +163,17 @@ class PiezoController(EmulatedController):
         self.seed = int(seed)
         self.recorder = recorder or DataRecorder()
         self._rng = np.random.default_rng([self.seed, 0])
-        self._moved = False
+        self._moved: float | None = None  # simulation time of this command's MOV
 
     def handle(self, line: str) -> list[str] | None:
         name, _ = split_command(line)
         with self.lock:
-            self._moved = False
+            self._moved = None
             reply = super().handle(line)
-            now = self.now()
-            started = name != "DRT" and self.recorder.command_seen(self._moved, now)
-            if started or self._moved:  # keep the history a recording can still ask for
+            moved = self._moved is not None
+            now = self._moved if moved else self.now()  # a MOV's recording starts with the move
+            started = name != "DRT" and self.recorder.command_seen(moved, now)
+            if started or moved:  # keep the history a recording can still ask for
                 keep = now if self.recorder.start is None else self.recorder.start
                 for ax in self.axes.values():
                     ax.forget_before(keep)
@@ -166,7 +194,7 @@ class PiezoController(EmulatedController):
 
     def _c_MOV(self, args: list[str], now: float) -> None:
         super()._c_MOV(args, now)
-        self._moved = True
+        self._moved = now
 
     # ------------------------------------------------------------------ data recorder
     def _recorder(self, op, *args):

@@ -260,13 +260,15 @@ def strip_address(line: str) -> str:
     return _ADDRESS_RE.sub("", line, count=1)
 
 
+_GARBAGE_RE = re.compile("[\x00-\x08\x0a-\x1f\x7f-\x9f]")  # control characters but TAB
+
+
 def check_text(lines: list[str], command: str | None = None) -> list[str]:
     """Reject replies containing control characters (line noise, binary garbage)."""
     for line in lines:
-        for ch in line:
-            if (ord(ch) < 32 and ch != "\t") or 0x7F <= ord(ch) < 0xA0:
-                raise GCSProtocolError(f"garbage in reply to {command!r}: {line!r}",
-                                       command=command)
+        if _GARBAGE_RE.search(line):
+            raise GCSProtocolError(f"garbage in reply to {command!r}: {line!r}",
+                                   command=command)
     return lines
 
 

@@ -36,6 +36,7 @@ from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionL
                          GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
                          GCSProtocolError, GCSTimeout)
 from calflow.gcs.controller import parse_parameter_id
+from calflow.gcs.rig_records import RecordedMoves
 from calflow.gcs.sensors import load_sensor
 
 log = logging.getLogger("calflow.gcs.rig")
@@ -104,8 +105,9 @@ def _unlock(locks: list) -> None:
         f.close()
 
 
-class GCSRig:
-    """Rig protocol (DESIGN.md) over GCS controllers; build it with :func:`gcs`."""
+class GCSRig(RecordedMoves):
+    """Rig protocol (DESIGN.md) over GCS controllers, plus ``stream`` and ``record_move``
+    (:mod:`calflow.gcs.rig_records`) on piezo controllers; build it with :func:`gcs`."""
 
     replayable = False  # a real rig is continued, not replayed, on resume
 
@@ -184,7 +186,10 @@ class GCSRig:
         self._run(link, "DRT", lambda retry: link.ctl.arm_recorder(2))
         start = self.time()
         self.wait(seconds)
-        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables))
+        # the recording started with DRT's ERR? check, before ``start``: after the dwell it
+        # holds point 0 and the n points of the dwell, so DRR? asks for them without DRL?
+        n = int(np.floor(seconds / (rate * float(rec.get("servo_cycle_s", 5e-5))) + 1e-9))
+        header, data = self._run(link, "DRR?", lambda retry: link.ctl.read_recorder(tables, 1, n + 1))
         dt = float(header.get("SAMPLE_TIME", rate * 5e-5))
         n = min(len(data) - 1, int(np.floor(seconds / dt + 1e-9)))
         times = start + dt * np.arange(1, n + 1)

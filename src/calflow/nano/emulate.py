@@ -1,8 +1,8 @@
 """A piezo controller emulator serving a nano campaign's stage (docs/gcs.md, "Emulating a
 nano campaign").
 
-``python -m calflow.nano.emulate --campaign config/campaigns/nano1d-thesis.yaml --port 50000
---time-scale 1000`` starts an E-727-class controller emulation (:mod:`calflow.gcs.piezo`)
+``calflow emulate gcs --campaign config/campaigns/nano1d-thesis.yaml --port 50000
+--time-scale 1000`` (or ``python -m calflow.nano.emulate ...``) starts an E-727-class controller emulation (:mod:`calflow.gcs.piezo`)
 on 127.0.0.1 with one closed-loop axis per joint of the campaign's stage (``1`` = x,
 ``2`` = y; µm, 0 to the stroke with the simulated rig's margins) and prints the ``rig:``
 section that drives it with the ``gcs`` rig:
@@ -15,8 +15,11 @@ section that drives it with the ``gcs`` rig:
   to the controller's positions and read at the rig's times (high-rate dwells: at the
   data recorder's points).
 
-A step settles with the servo's first-order response; its time constant is the simulated
-rig's ``rise_time_s`` / 8, so a move is on target after about the simulated rig's rise time.
+A step follows the closed loop of the campaign's physics (the simulated rig's
+``step_natural_hz``, ``step_damping``: the second-order step the interferometer sees too, so
+the data recorder's record of a move and the interferometer's agree); ``ONT?`` turns true
+once the position has stayed within 10 nm for ``rise_time_s``, so a move takes about as long
+as on the simulated rig.
 """
 
 from __future__ import annotations
@@ -65,10 +68,11 @@ def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
     stage = stage_of(campaign)
     probe = getattr(nano_rig, stage)(**physics_options(campaign))
     o = probe.options
-    tau = float(o["rise_time_s"]) / 8.0
+    natural = float(o["step_natural_hz"])  # 0: an ideal step, a 0.1 ms first order here
     return {JOINT_AXES[j]: PiezoAxisConfig(
         tmn=-float(o["stroke_margin_um"]), tmx=float(o["stroke_um"] + o["stroke_margin_um"]),
-        servo_tau=tau, settle_window=0.01, settle_time=tau) for j in probe.joints}
+        natural_hz=natural, damping=float(o["step_damping"]), servo_tau=1e-4,
+        settle_window=0.01, settle_time=float(o["rise_time_s"])) for j in probe.joints}
 
 
 def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
@@ -123,15 +127,17 @@ def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int 
                             tries=tries, backoff_s=backoff_s)
 
 
-def main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
-    """``python -m calflow.nano.emulate``: serve a nano campaign's stage until Ctrl-C."""
+def main(argv: list[str] | None = None, stop_event: threading.Event | None = None,
+         prog: str = "python -m calflow.nano.emulate") -> int:
+    """``calflow emulate gcs`` of a nano campaign (or ``python -m calflow.nano.emulate``):
+    serve its stage until Ctrl-C or --duration."""
     def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
         return (f"E-727-class emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
                 f"(axes {', '.join(emu.controller.axes)}, um; time scale {time_scale:g})")
 
     return serve_campaign(
-        argv, prog="python -m calflow.nano.emulate", stop_event=stop_event,
+        argv, prog=prog, stop_event=stop_event,
         description="Serve a nano campaign's stage as an E-727-class PI GCS 2.0 controller on "
                     "127.0.0.1 (docs/gcs.md).",
         start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),

@@ -54,6 +54,7 @@ FAMILY = Family(
     },
     templates="calflow.nano",
     sensors={"simulated_interferometer": "calflow.nano.interferometer_sensor:simulated_interferometer"},
+    emulator="calflow.nano.emulate:main",
     modules={
         "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
                                       "calflow.nano.campaign_plans", "calflow.identification.design",

@@ -66,6 +66,21 @@ class SimulatedInterferometer:
         return {k: np.concatenate([c[k] for c in chunks])[: times.size]
                 for k in (*self.sensors, *self.thermometers)}
 
+    def record_move(self, positions: Mapping[str, float], times: np.ndarray) -> dict[str, np.ndarray]:
+        """The stage, commanded at ``times[0]`` to ``positions`` (µm, where the controller
+        settled), read at equally spaced ``times`` (s) from the move's start: the simulated
+        rig's own ``record_move`` (its closed loop's step response, Sec. 5.2)."""
+        cmd = {j: float(v) for j, v in self._positions(positions).items()}
+        times = np.asarray(times, dtype=float)
+        self._advance(float(times[0]) if times.size else self.rig.time)
+        dt = float(times[1] - times[0]) if times.size > 1 else 1.0
+        try:
+            chunks = list(self.rig.record_move(cmd, dt * times.size, rate_hz=1.0 / dt))
+        except ValueError as exc:
+            raise RigError(f"simulated_interferometer sensor: {exc}") from None
+        return {k: np.concatenate([c[k] for c in chunks])[: times.size] if chunks else np.empty(0)
+                for k in (*self.sensors, *self.thermometers)}
+
     def close(self) -> None:
         self.rig.close()
 

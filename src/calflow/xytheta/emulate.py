@@ -5,7 +5,9 @@ starts :class:`calflow.gcs.emulator.GCSEmulator` on 127.0.0.1 with one axis per 
 the campaign's XYΘ robot and prints the ``rig:`` section that drives it with the ``gcs``
 rig. The model is deliberately simple:
 
-* axes ``1``, ``2`` (X, Y) are M-111-like lead-screw stages in **mm** (±7.5 mm, 1.5 mm/s,
+* axes ``1``, ``2`` (X, Y) are M-111-like lead-screw stages in **mm** in the campaign's
+  joint coordinates (Table 4.1's 15 mm travel from 0, soft limits -0.5 to 15 mm: the plans'
+  approach and compensated moves reach -0.15 mm; reference switch at mid-travel; 1.5 mm/s,
   need FRF); axis ``3`` (Θ) is a rotation stage in **degree** (±30°, 10°/s, absolute);
 * ``POS?`` answers what the controller's encoder measures: the trajectory position,
   quantised to the encoder's resolution (``ENCODER_UM``, the 50 nm of Table 4.1 for X and
@@ -39,8 +41,8 @@ from calflow.xytheta.rig import XYThetaTruth
 JOINT_AXES = {"x": "1", "y": "2", "theta": "3"}
 SCALE = {"x": 1000.0, "y": 1000.0, "theta": 1.0}  # µm or degree per controller unit
 AXIS_CONFIGS = {
-    "1": AxisConfig(tmn=-7.5, tmx=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
-    "2": AxisConfig(tmn=-7.5, tmx=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "1": AxisConfig(tmn=-0.5, tmx=15.0, ref_position=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "2": AxisConfig(tmn=-0.5, tmx=15.0, ref_position=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
     "3": AxisConfig(tmn=-30.0, tmx=30.0, velocity=10.0, max_velocity=20.0, accel=100.0,
                     needs_reference=False),
 }
@@ -125,26 +127,22 @@ def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int 
                             tries=tries, backoff_s=backoff_s)
 
 
-def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None) -> int:
-    """``calflow emulate gcs``: serve a campaign's simulated stages until Ctrl-C or --duration."""
+def emulate_main(argv: list[str] | None = None, stop_event: threading.Event | None = None,
+                 prog: str = "calflow emulate gcs") -> int:
+    """``calflow emulate gcs`` of an XYΘ campaign: serve its simulated stages until Ctrl-C or --duration."""
     def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
         return (f"GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
                 f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {time_scale:g})")
 
     return serve_campaign(
-        argv, prog="calflow emulate gcs", stop_event=stop_event,
+        argv, prog=prog, stop_event=stop_event,
         description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
                     "127.0.0.1 (docs/gcs.md).",
         start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
         banner=banner,
         rig_section=lambda emu, c, ts: {"factory": "gcs", "options": rig_options(
             emu.address, c, time_scale=ts)})
-
-
-def emulate_command(args) -> int:
-    """``calflow emulate gcs ...``: the CLI entry (arguments after ``gcs`` go to :func:`emulate_main`)."""
-    return emulate_main(args.rest)
 
 
 if __name__ == "__main__":

@@ -153,8 +153,9 @@ FAMILY = Family(
                 _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
         Command("design-study", "Cramér–Rao σ against poses and rig time, random against designed (issue 15)",
                 _observability_arguments, "calflow.xytheta.design_study:study"),
-        Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1",
-                _emulate_arguments, "calflow.xytheta.emulate:emulate_command"),
+        Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1 "
+                "(C-863 for xytheta, E-727 class for nano)",
+                _emulate_arguments, "calflow.gcs.campaign_server:emulate_command"),
         Command("export", "a model's controller files and bundle for users' code (docs/export.md)",
                 _export_arguments, "calflow.xytheta.export.command:export"),
         Command("export-verify", "accuracy through the exported files beside the in-process model's",
@@ -166,4 +167,5 @@ FAMILY = Family(
         Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
     ),
     sensors={"simulated_vision": "calflow.xytheta.vision_sensor:simulated_vision"},
+    emulator="calflow.xytheta.emulate:emulate_main",
 )
