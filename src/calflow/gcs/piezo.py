@@ -9,7 +9,7 @@ What differs from the C-863 emulation (:mod:`calflow.gcs.controller`):
   ``p(t) = target + (start - target) exp(-(t - t0) / servo_tau)``, or, with
   ``natural_hz`` > 0, the second-order step of natural frequency ``natural_hz`` and damping
   ``damping`` < 1 that the simulated nano rigs' physics uses
-  (:func:`calflow.nano.piezo.closed_loop_step`, overshoot ``exp(-pi d / sqrt(1 - d^2))``);
+  (:func:`calflow.rigs.servo.closed_loop_step`, overshoot ``exp(-pi d / sqrt(1 - d^2))``);
 * ``POS?`` is the capacitive sensor: the position plus white sensor noise
   (``sensor_noise``, µm rms), quantised to ``sensor_resolution`` µm. The stage's
   nonlinearity against a length standard is not visible to it: only an external sensor (an
@@ -69,7 +69,7 @@ class PiezoAxisConfig(AxisConfig):
         """Unit step response ``since`` s after the move started (array; 0 before it)."""
         since = np.asarray(since, dtype=float)
         if self.natural_hz > 0:
-            from calflow.nano.piezo import closed_loop_step
+            from calflow.rigs.servo import closed_loop_step
 
             return np.asarray(closed_loop_step(since, self.natural_hz, self.damping), dtype=float)
         return np.where(since < 0, 0.0, 1.0 - np.exp(-np.clip(since, 0.0, None) / self.servo_tau))

@@ -32,6 +32,8 @@ import math
 
 import numpy as np
 
+from calflow.rigs.servo import closed_loop_step  # noqa: F401 (the closed loop's step, shared with the GCS emulation)
+
 __all__ = ["PlayHysteresis", "closed_loop_step", "residual_creep_um", "sensor_nonlinearity_um", "loop_residual_pct"]
 
 _RADII = (0.125, 0.25, 0.5, 1.0)  # fractions of the largest radius
@@ -92,24 +94,3 @@ def sensor_nonlinearity_um(s, stroke_um: float, linearity_pct: float):
     dev = 1.0 / (1.0 + s) - (1.0 - 0.5 * s)  # deviation from the chord, <= 0, peak at s = sqrt(2) - 1
     peak = 1.0 / (1.0 + (np.sqrt(2.0) - 1.0)) - (1.0 - 0.5 * (np.sqrt(2.0) - 1.0))
     return linearity_pct * 1e-2 * stroke_um * dev / abs(peak)
-
-
-def closed_loop_step(since_move_s, natural_hz: float, damping: float):
-    """Unit step response y(t) of the closed loop ``since_move_s`` after the move started
-    (module docstring): 0 before the move, -> 1 after it; ``natural_hz`` = 0 is an ideal
-    stage (y = 1 at once). Underdamped: 0 < ``damping`` < 1. A float for a scalar time."""
-    w = 2.0 * math.pi * natural_hz
-    root = math.sqrt(1.0 - damping * damping)
-    if np.ndim(since_move_s) == 0:  # one reading: plain floats
-        t = float(since_move_s)
-        if t < 0.0:
-            return 0.0
-        if natural_hz <= 0 or damping * w * t > 745.0:  # exp underflows to 0: exactly settled
-            return 1.0
-        return 1.0 - math.exp(-damping * w * t) * (math.cos(w * root * t) + damping / root * math.sin(w * root * t))
-    t = np.asarray(since_move_s, dtype=float)
-    if natural_hz <= 0:
-        return np.where(t < 0.0, 0.0, 1.0)
-    tp = np.clip(t, 0.0, 745.0 / (damping * w))  # beyond: settled (and no inf * 0)
-    y = 1.0 - np.exp(-damping * w * tp) * (np.cos(w * root * tp) + damping / root * np.sin(w * root * tp))
-    return np.where(t < 0.0, 0.0, np.where(t >= 745.0 / (damping * w), 1.0, y))
