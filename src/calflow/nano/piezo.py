@@ -28,7 +28,6 @@ interferometer still sees comes from the path between the sensor and the measure
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
