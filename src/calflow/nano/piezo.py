@@ -28,7 +28,6 @@ interferometer still sees comes from the path between the sensor and the measure
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from calflow.rigs.servo import closed_loop_step  # noqa: F401 (the closed loop's step, shared with the GCS emulation)
