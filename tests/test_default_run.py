@@ -7,7 +7,6 @@ is test-only, and measures the rig's own repeatability at the validation targets
 
 import json
 import re
-import shutil
 
 import numpy as np
 import pytest

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from calflow.config import schema, validate
+from calflow.config import validate
 from calflow.errors import ConfigError
 from calflow.xytheta.montecarlo import (aggregate, cell, grid, identify_run, jobs, load_study, parse_seeds, render_page,
                                 run_point, seed_batches, simulate_run)

@@ -173,8 +173,6 @@ def test_replay_through_load_rig(recorded):
 
 # ------------------------------------------------- instruments' recordings (ISO 230-2 .dat, tracker CSV)
 
-from pathlib import Path  # noqa: E402
-
 import yaml  # noqa: E402
 
 from calflow.cli import main  # noqa: E402

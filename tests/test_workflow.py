@@ -5,7 +5,6 @@ The read-only tests share the session's one run of the default configuration
 """
 
 import json
-import re
 
 import pytest
 

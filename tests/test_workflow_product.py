@@ -1,9 +1,8 @@
 """The workflow as a product: lint, formatting, a cluster executor giving the local result."""
 
-import shutil
 import subprocess
 
-from conftest import BIN, REDUCED_XYTHETA, ROOT, make_workdir, snakemake
+from conftest import BIN, ROOT
 
 
 def test_snakemake_lint_is_clean():
