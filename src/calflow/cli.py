@@ -210,6 +210,13 @@ def parser() -> argparse.ArgumentParser:
     k.add_argument("config", nargs="?", default="config/config.yaml")
     k.add_argument("--campaign-dir")
 
+    e = _sub(sub, "emulate", _run("calflow.gcs.campaign_server:emulate_command"),
+             "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
+             "its robot family registers (C-863 for xytheta, E-727 class for nano)")
+    e.add_argument("kind", choices=["gcs"])
+    e.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
+                                                          "[--duration S]")
+
     from calflow.family import families
 
     for family in families():

@@ -53,12 +53,6 @@ def _budget_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True)
 
 
-def _emulate_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("kind", choices=["gcs"])
-    p.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
-                                                          "[--duration S]")
-
-
 def _export_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
     p.add_argument("--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc")
@@ -153,9 +147,6 @@ FAMILY = Family(
                 _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
         Command("design-study", "Cramér–Rao σ against poses and rig time, random against designed (issue 15)",
                 _observability_arguments, "calflow.xytheta.design_study:study"),
-        Command("emulate", "serve a campaign's simulated stages as a PI GCS 2.0 controller on 127.0.0.1 "
-                "(C-863 for xytheta, E-727 class for nano)",
-                _emulate_arguments, "calflow.gcs.campaign_server:emulate_command"),
         Command("export", "a model's controller files and bundle for users' code (docs/export.md)",
                 _export_arguments, "calflow.xytheta.export.command:export"),
         Command("export-verify", "accuracy through the exported files beside the in-process model's",
