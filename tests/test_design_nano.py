@@ -126,6 +126,15 @@ def test_designed_2d_plan_is_a_raster_inside_the_square():
     assert set(record["crlb_sigma"]) == {f"{p}_{i}{a}" for p in "ab" for i in (1, 2, 3) for a in "xy"}
 
 
+def test_the_2d_grid_sweeps_from_start_um_like_the_bound_it_is_sized_with():
+    # the grid plan and the design's bound (design_plan._stroke) read the same stroke
+    c = _campaign("nano2d", start_um=20.0, stop_um=60.0, step_um=10.0, cycles=2)
+    plan = campaign_plans.training_2d(c, None).plan
+    xy = np.column_stack([plan.commands["x"], plan.commands["y"]])
+    assert xy.min() == 20.0 and xy.max() == 60.0
+    assert len(np.unique(xy[plan.cycle == 0], axis=0)) == 25  # 5 × 5 positions
+
+
 def test_a_rig_without_a_noise_model_needs_one_or_cycles():
     c = _campaign(plan="optimal")
     c["rig"] = {"factory": "replay", "options": {}}

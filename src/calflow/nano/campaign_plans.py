@@ -70,7 +70,7 @@ def training_2d(c: dict, args) -> Acquisition:
     t = c["training"]
     if t["plan"] == "grid":
         return _training(c, lambda p, cycles, start: plans.training_2d(
-            t["step_um"], t["stop_um"], cycles, t["dwell_s"], t["average_last_s"], start))
+            t["step_um"], t["stop_um"], cycles, t["dwell_s"], t["average_last_s"], start, t["start_um"]))
     return _training(c, lambda p, cycles, start: plans.training_points_2d(
         p[raster(p)], cycles, t["dwell_s"], t["average_last_s"], start))
 

@@ -74,9 +74,10 @@ def metrology_1d(positions=np.arange(0, 481, 80), cycles: int = 15, dwell_s: flo
 
 
 def training_2d(step_um: float = 10.0, stop_um: float = 80.0, cycles: int = 12, dwell_s: float = 10.0,
-                average_last_s: float = 5.0, start_s: float = 0.0) -> Plan:
-    """Training grid 0:10:80 µm in x and y (81 poses per cycle), back to start each cycle (Fig. 5.21)."""
-    g = np.arange(0.0, stop_um + 1e-9, step_um)
+                average_last_s: float = 5.0, start_s: float = 0.0, start_um: float = 0.0) -> Plan:
+    """Training grid start_um:step_um:stop_um in x and y (thesis 0:10:80 µm, 81 poses per cycle),
+    back to start each cycle (Fig. 5.21)."""
+    g = np.arange(start_um, stop_um + 1e-9, step_um)
     X, Y = np.meshgrid(g, g, indexing="ij")
     Y[1::2] = Y[1::2, ::-1]  # raster: y sweeps up on even x columns, down on odd ones
     return training_points_2d(np.column_stack([X.ravel(), Y.ravel()]), cycles, dwell_s, average_last_s, start_s)
