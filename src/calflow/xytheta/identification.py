@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calflow.identification import gauss_newton
+from calflow.identification.design import information
 from calflow.identification.robust import Robust, mad_sigma, outliers
 from calflow.xytheta import cost
 from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters
@@ -88,15 +89,14 @@ def _inverse(A: np.ndarray) -> np.ndarray | None:
 
 
 def profiled_information(J: np.ndarray, n_free: int) -> np.ndarray:
-    """Fisher information per σ² of the first ``n_free`` columns of ``J`` (2n × (p + 2),
-    the initial reading last), with the initial reading profiled out: the Schur complement
-    of its block in Jᵀ J — (p + 2)² work on top of Jᵀ J, linear in the readings."""
-    A = J.T @ J
-    p = n_free
-    nuisance = _inverse(A[p:, p:])
-    if nuisance is None:
-        return np.full((p, p), np.nan)
-    return A[:p, :p] - A[:p, p:] @ nuisance @ A[p:, :p]
+    """Fisher information per σ² of the first ``n_free`` columns of ``J`` (2n × (p + 2), rows
+    x₁, y₁, x₂, …, the initial reading's columns last) with the initial reading profiled out.
+
+    Those columns are −1 on their axis' rows (:func:`cost.reading_jacobian`), so the Schur
+    complement of their block in Jᵀ J is the design's information with the offset as a
+    nuisance, :func:`calflow.identification.design.information` — one formula for the bound
+    before acquisition and the covariance after. Linear in the readings."""
+    return information(np.asarray(J)[:, :n_free].reshape(-1, 2, n_free))
 
 
 def crlb(parameters: Parameters, X, Y, theta, sigma_um: float, free=PARAMETER_NAMES, ex=0.0, ey=0.0) -> CramerRao:
