@@ -156,7 +156,8 @@ def crlb_ratio(seeds: int, noise_um: float = 0.5, poses: int = 100) -> dict:
     campaigns on the thesis rig with every error Model II does not represent switched off
     (the stage's repeatability and the angle reading's noise stay)."""
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import aggregate, run_point
+    from calflow.xytheta.montecarlo import run_point
+    from calflow.xytheta.montecarlo_aggregate import aggregate
     from calflow.xytheta.rig_physics import options_off
 
     c = load_campaign(ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml")

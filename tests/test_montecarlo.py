@@ -12,8 +12,9 @@ import yaml
 
 from calflow.config import validate
 from calflow.errors import ConfigError
-from calflow.xytheta.montecarlo import (aggregate, cell, grid, identify_run, jobs, load_study, parse_seeds, render_page,
-                                run_point, seed_batches, simulate_run)
+from calflow.xytheta.montecarlo import (grid, identify_run, jobs, load_study, parse_seeds, render_page, run_point,
+                                seed_batches, simulate_run)
+from calflow.xytheta.montecarlo_aggregate import aggregate, cell
 from calflow.xytheta.rig import XYThetaTruth
 from conftest import SMALL_XYTHETA, make_workdir, snakemake
 

@@ -207,7 +207,8 @@ def test_intervals_cover_the_truth_on_a_rig_the_model_describes(tmp_path, model,
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import aggregate, run_point
+    from calflow.xytheta.montecarlo import run_point
+    from calflow.xytheta.montecarlo_aggregate import aggregate
     from conftest import SMALL_XYTHETA
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
@@ -228,7 +229,8 @@ def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import aggregate, run_point
+    from calflow.xytheta.montecarlo import run_point
+    from calflow.xytheta.montecarlo_aggregate import aggregate
     from conftest import SMALL_XYTHETA
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))

@@ -53,7 +53,8 @@ def _points(path: str) -> list[dict]:
 def aggregate(args) -> None:
     """Statistics per noise × poses over all points; every grid point must be there."""
     from calflow.data.io import write_json
-    from calflow.xytheta.montecarlo import aggregate as combine, grid, noise_label
+    from calflow.xytheta.montecarlo import grid, noise_label
+    from calflow.xytheta.montecarlo_aggregate import aggregate as combine
 
     s = _study(args)
     points = [p for path in args.points for p in _points(path)]
