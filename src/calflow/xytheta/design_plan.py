@@ -225,6 +225,10 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     if noise is None:
         raise ValueError("identification.design.noise_um: the rig declares no noise model; "
                          "expected pose and frame (µm)")
+    if d["criterion"] == "discrepancy":
+        from calflow.xytheta.design_discrepancy import kernel
+
+        kernel(campaign)  # refused before any design when it is not given
     tm = time_model(campaign)
     phi, free = _phi(campaign, d["model"])
     lo = np.array([p["x_um"][0], p["y_um"][0], p["theta_deg"][0]], dtype=float)
@@ -236,7 +240,7 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     home = np.zeros((1, 3))
 
     def make(n):
-        poses = design_poses(n - 1, pool, phi, free, d["criterion"], ref, d["space_filling"], lo, hi)
+        poses = design_poses(n - 1, pool, phi, free, "D" if d["criterion"] == "discrepancy" else d["criterion"], ref, d["space_filling"], lo, hi)
         q = np.vstack([home, poses[order(poses, tm)]])
         frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
         s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
@@ -257,10 +261,36 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
                 break
             n = (miss + reach) // 2 if reach is not None else max(miss + 1, int(np.ceil(n * ratio**2)))
         q, frames, ratio = best
-    record = {"criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
+    record = {}
+    if d["criterion"] == "discrepancy":  # same poses count, σ kept: lower the expected bias
+        q, frames, ratio, record = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi)
+    record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
               "sigma_ratio_max_vs_random": ratio, "random_time_per_pose_s": float(ref_time)}
     return q, frames, record
+
+
+def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
+    """The D design ``q`` (home first) exchanged for the least expected prediction error under the
+    campaign's discrepancy (:mod:`calflow.xytheta.design_discrepancy`), σ ≤ max(1, ratio)·ref."""
+    from calflow.xytheta import design_discrepancy as dd
+
+    d = campaign["identification"]["design"]
+    phi, free = _phi(campaign, d["model"])
+    kern = dd.kernel(campaign)
+    rows = np.flatnonzero((pool[:, None, :] == q[None, 1:, :]).all(axis=2).any(axis=1))
+    idx = dd.polish(pool, rows, phi, free, kern, noise.sigma(1), ref * max(1.0, ratio), lo, hi, campaign["seed"])
+    before = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
+    poses = pool[idx]
+    q = np.vstack([np.zeros((1, 3)), poses[order(poses, tm)]])
+    frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
+    s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
+    after = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
+    record = {"discrepancy": {"amplitude_um": list(kern.amplitude), "length": list(kern.length),
+                              "from": d["discrepancy"].get("from", "config"),
+                              "bias_um2_d_optimal": before["bias"], "bias_um2": after["bias"],
+                              "variance_um2": after["variance"], "swapped_poses": int(len(np.setdiff1d(idx, rows)))}}
+    return q, frames, float(np.max(s / ref)), record
 
 
 def identification_plan(campaign: dict):
