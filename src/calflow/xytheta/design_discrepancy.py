@@ -1,8 +1,9 @@
 """The XYΘ identification design for a model that is not exact (issue 15, criterion
-``discrepancy``): the D-optimal design, then exchanged against the expected integrated squared
-prediction error under a Gaussian-process discrepancy (:mod:`calflow.identification.discrepancy`)
-with every parameter's Cramér–Rao σ kept within the D design's bound — same poses, same rig
-time, less bet on the model being exact.
+``discrepancy``): the minimax-variance design (``MV``: the fewest poses whose worst
+parameter's Cramér–Rao σ reaches the random plan's), then exchanged against the expected
+integrated squared prediction error under a Gaussian-process discrepancy
+(:mod:`calflow.identification.discrepancy`) with every parameter's σ kept within that bound —
+same pose count, same rig time, less bet on the model being exact.
 
 The discrepancy is what Model II does not represent, largely the lead-screw errors of the X
 and Y stages (Sec. 4.4.1): an additive kernel over the joints X, Y (Θ's angle errors are the

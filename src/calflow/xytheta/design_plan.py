@@ -238,9 +238,10 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     ref_time = tm.moves_s(rq).mean() + tm.dwell_s
     ref = design.crlb_sigma(design.pose_jacobians(rq, phi, free), noise.sigma(1))
     home = np.zeros((1, 3))
+    base = "MV" if d["criterion"] == "discrepancy" else d["criterion"]  # discrepancy: the MV design, polished
 
     def make(n):
-        poses = design_poses(n - 1, pool, phi, free, "D" if d["criterion"] == "discrepancy" else d["criterion"], ref, d["space_filling"], lo, hi)
+        poses = design_poses(n - 1, pool, phi, free, base, ref, d["space_filling"], lo, hi)
         q = np.vstack([home, poses[order(poses, tm)]])
         frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
         s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
@@ -261,17 +262,45 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
                 break
             n = (miss + reach) // 2 if reach is not None else max(miss + 1, int(np.ceil(n * ratio**2)))
         q, frames, ratio = best
+        if d.get("time_budget") is not None:
+            q, frames, ratio = _fill_budget(make, (q, frames, ratio), float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
     record = {}
-    if d["criterion"] == "discrepancy":  # same poses count, σ kept: lower the expected bias
+    if d["criterion"] == "discrepancy":  # same pose count, σ kept: lower the expected bias
         q, frames, ratio, record = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi)
     record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
+              "time_budget": d.get("time_budget"), "random_rig_time_h": tm.plan_s(rq) / 3600.0,
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
               "sigma_ratio_max_vs_random": ratio, "random_time_per_pose_s": float(ref_time)}
     return q, frames, record
 
 
+def _fill_budget(make, reach, budget_s: float, tm: TimeModel, cap: int):
+    """The design of the most poses whose rig time is within ``budget_s`` (s), starting from
+    ``reach`` = (q, frames, ratio), the fewest poses reaching the bound — returned as it is when
+    it already exceeds the budget. The count is scaled by budget / time per pose, and cut by
+    the excess when a design overruns (a tour's time does not follow the count exactly); at
+    most ``cap`` rows (every candidate and home)."""
+    best = reach
+    if tm.plan_s(reach[0], reach[1]) > budget_s:
+        return best
+    n = len(reach[0])
+    for _ in range(6):
+        q = best[0]
+        per = tm.plan_s(q, best[1]) / len(q)
+        n = min(int(np.floor(budget_s / per)) if n == len(q) else n, cap)
+        if n <= len(best[0]):
+            break
+        trial = make(n)
+        excess = tm.plan_s(trial[0], trial[1]) - budget_s
+        if excess <= 0:
+            best = trial
+        else:
+            n -= int(np.ceil(excess / per)) + 1
+    return best
+
+
 def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
-    """The D design ``q`` (home first) exchanged for the least expected prediction error under the
+    """The MV design ``q`` (home first) exchanged for the least expected prediction error under the
     campaign's discrepancy (:mod:`calflow.xytheta.design_discrepancy`), σ ≤ max(1, ratio)·ref."""
     from calflow.xytheta import design_discrepancy as dd
 
@@ -288,7 +317,7 @@ def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
     after = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
     record = {"discrepancy": {"amplitude_um": list(kern.amplitude), "length": list(kern.length),
                               "from": d["discrepancy"].get("from", "config"),
-                              "bias_um2_d_optimal": before["bias"], "bias_um2": after["bias"],
+                              "bias_um2_before": before["bias"], "bias_um2": after["bias"],
                               "variance_um2": after["variance"], "swapped_poses": int(len(np.setdiff1d(idx, rows)))}}
     return q, frames, float(np.max(s / ref)), record
 
