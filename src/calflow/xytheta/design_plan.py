@@ -247,8 +247,13 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
         s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
         return q, frames, float(np.max(s / ref))
 
+    def final(n):  # the design as the plan takes it: polished for the least bias under discrepancy
+        q, frames, ratio = make(n)
+        return _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
+            q, frames, ratio, {})
+
     if d.get("poses"):
-        q, frames, ratio = make(int(d["poses"]))
+        q, frames, ratio, record = final(int(d["poses"]))
     else:
         n, cap = max(len(free) + 2, (len(rq) + 2) // 3), len(pool) + 1
         miss, reach = 0, None  # the most poses known to miss the bound, the fewest known to reach it
@@ -262,11 +267,13 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
                 break
             n = (miss + reach) // 2 if reach is not None else max(miss + 1, int(np.ceil(n * ratio**2)))
         q, frames, ratio = best
+        filled = None
         if d.get("time_budget") is not None:
-            q, frames, ratio = _fill_budget(make, (q, frames, ratio), float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
-    record = {}
-    if d["criterion"] == "discrepancy":  # same pose count, σ kept: lower the expected bias
-        q, frames, ratio, record = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi)
+            filled = _fill_budget(final, best, float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
+        if filled is None:
+            filled = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
+                q, frames, ratio, {})
+        q, frames, ratio, record = filled
     record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
               "time_budget": d.get("time_budget"), "random_rig_time_h": tm.plan_s(rq) / 3600.0,
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
@@ -274,28 +281,26 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     return q, frames, record
 
 
-def _fill_budget(make, reach, budget_s: float, tm: TimeModel, cap: int):
-    """The design of the most poses whose rig time is within ``budget_s`` (s), starting from
-    ``reach`` = (q, frames, ratio), the fewest poses reaching the bound — returned as it is when
-    it already exceeds the budget. The count is scaled by budget / time per pose, and cut by
-    the excess when a design overruns (a tour's time does not follow the count exactly); at
-    most ``cap`` rows (every candidate and home)."""
-    best = reach
+def _fill_budget(final, reach, budget_s: float, tm: TimeModel, cap: int):
+    """The final design (``final(n)`` → (q, frames, ratio, record)) of the most rows whose rig
+    time is within ``budget_s`` (s), at least the rows of ``reach`` = (q, frames, ratio), the
+    fewest reaching the bound; None when none fits (``reach`` already overruns). The count is
+    scaled by budget / time per pose, and cut by the excess when a design overruns (a tour's
+    time does not follow the count exactly); at most ``cap`` rows (every candidate and home)."""
     if tm.plan_s(reach[0], reach[1]) > budget_s:
-        return best
-    n = len(reach[0])
+        return None
+    per = tm.plan_s(reach[0], reach[1]) / len(reach[0])
+    n, best = min(int(np.floor(budget_s / per)), cap), None
     for _ in range(6):
-        q = best[0]
-        per = tm.plan_s(q, best[1]) / len(q)
-        n = min(int(np.floor(budget_s / per)) if n == len(q) else n, cap)
-        if n <= len(best[0]):
+        if n < len(reach[0]) or (best is not None and n <= len(best[0])):
             break
-        trial = make(n)
-        excess = tm.plan_s(trial[0], trial[1]) - budget_s
-        if excess <= 0:
-            best = trial
+        trial = final(n)
+        t = tm.plan_s(trial[0], trial[1])
+        per = t / len(trial[0])
+        if t <= budget_s:
+            best, n = trial, min(int(np.floor(budget_s / per)), cap)
         else:
-            n -= int(np.ceil(excess / per)) + 1
+            n -= int(np.ceil((t - budget_s) / per)) + 1
     return best
 
 
