@@ -92,8 +92,9 @@ def test_exchange_keeps_every_sigma_within_its_bound(seed):
     J = _line(pool)
     Jh = dc.augmented(J[start])
     bound = 0.1 * np.sqrt(np.diag(np.linalg.inv(np.einsum("iap,iaq->pq", Jh, Jh)))[:2]) * 1.02
-    idx = dc.exchange(J, _poses(pool), start, _line(pool[:30]), _poses(pool[:30]), dc.Discrepancy((1.0, 0.0), (0.03, 1.0)),
-                      np.zeros(2), 0.1, sigma_max=bound, keep=start[:3])
+    kern = dc.Discrepancy((1.0, 0.0), (0.03, 1.0))
+    idx = dc.exchange(J, _poses(pool), start, _line(pool[:30]), _poses(pool[:30]), kern, np.zeros(2), 0.1,
+                      sigma_max=bound, keep=start[:3])
     Jh = dc.augmented(J[idx])
     assert np.all(0.1 * np.sqrt(np.diag(np.linalg.inv(np.einsum("iap,iaq->pq", Jh, Jh)))[:2]) <= bound * (1 + 1e-9))
     assert set(start[:3]) <= set(idx)

@@ -90,13 +90,26 @@ def workspace(J_test: np.ndarray, K_cand_test: np.ndarray, k_test_diag: np.ndarr
 def imse(A: np.ndarray, G: np.ndarray, B: np.ndarray, ws: Workspace, sigma_um: float) -> np.ndarray:
     """IMSE (µm²) of designs given their sums A, G, B (..., P, P); +inf where A is singular."""
     with np.errstate(all="ignore"):
-        try:
-            Ai = np.linalg.inv(A)
-        except np.linalg.LinAlgError:
-            return np.full(A.shape[:-2], np.inf)
+        Ai = _inverse(A)
         bias = -2.0 * np.einsum("...pq,...qp->...", Ai, G) + np.einsum("...pq,qp->...", Ai @ B @ Ai, ws.W)
         value = ws.kbar + bias + sigma_um**2 * np.einsum("...pq,qp->...", Ai, ws.W)
     return np.where(np.isfinite(value), value, np.inf)
+
+
+def _inverse(A: np.ndarray) -> np.ndarray:
+    """Inverses of matrices ``A`` (..., P, P); NaN for the singular ones (which then count as
+    +inf IMSE or infeasible) — one by one only when the batch holds a singular matrix."""
+    try:
+        return np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        flat = A.reshape(-1, *A.shape[-2:])
+        out = np.full(flat.shape, np.nan)
+        for i, a in enumerate(flat):
+            try:
+                out[i] = np.linalg.inv(a)
+            except np.linalg.LinAlgError:
+                pass
+        return out.reshape(A.shape)
 
 
 def design_sums(Jh: np.ndarray, K: np.ndarray, ws: Workspace, index: np.ndarray):
@@ -128,8 +141,9 @@ def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarra
              kernel, home: np.ndarray, sigma_um: float, sigma_max: np.ndarray | None = None,
              keep: np.ndarray | None = None, max_swaps: int | None = None) -> np.ndarray:
     """Swap chosen candidates (indices into ``q`` (N, d), Jacobians ``J`` (N, m, p)) for others
-    while the IMSE falls: each step drops the pose whose removal raises it least, then adds the
-    candidate that lowers it most, kept if the IMSE fell. ``sigma_max`` (p): every parameter's
+    while the IMSE falls: each step adds the candidate that lowers it most, then drops the pose
+    whose removal raises it least (the added one's information gives the σ bound room to
+    move), kept if the IMSE fell. ``sigma_max`` (p): every parameter's
     Cramér–Rao σ (noise ``sigma_um``) must stay at most this after the swap; ``keep``: chosen
     indices never swapped out (a home reading the plan always makes). Returns the indices.
 
@@ -159,8 +173,8 @@ def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarra
         if limit is None:
             return np.ones(As.shape[0], dtype=bool)
         with np.errstate(all="ignore"):
-            d = np.diagonal(np.linalg.inv(As), axis1=1, axis2=2)[:, :p]
-        return np.all(d <= limit * (1 + 1e-9), axis=1) & np.all(d > 0, axis=1)
+            d = np.diagonal(_inverse(As), axis1=1, axis2=2)[:, :p]
+        return np.all(d <= limit * (1 + 1e-9), axis=1) & np.all(d > 0, axis=1)  # NaN: infeasible
 
     for _ in range(max_swaps or 4 * len(idx) + 20):
         cand = np.flatnonzero(~inside)  # add first: the design gains information ...
@@ -173,7 +187,8 @@ def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarra
         U1 = U[out] + kt(q[out], q[a:a + 1])[:, 0, None, None] * Jh[a]
         JU = np.einsum("iap,iaq->ipq", Jh[out], U1)
         A2 = A1 - F[out]
-        loss = imse(A2, G1 - Gc[out], B1 - JU - JU.transpose(0, 2, 1) + kdiag[out, None, None] * F[out], ws, sigma_um)
+        B2 = B1 - JU - JU.transpose(0, 2, 1) + kdiag[out, None, None] * F[out]
+        loss = imse(A2, G1 - Gc[out], B2, ws, sigma_um)
         loss = np.where(feasible(A2), loss, np.inf)
         j = int(np.argmin(loss))
         r = out[j]

@@ -217,7 +217,10 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     ``identification.design.poses`` poses, or (null) the fewest whose worst-parameter
     Cramér–Rao σ of ``design.model`` is no larger than that of ``identification.poses``
     random poses: a first design at a third of them sizes the next by σ ∝ 1/√n until one
-    reaches the bound, then bisection to within 1 % of the fewest that do.
+    reaches the bound, then bisection to within 1 % of the fewest that do; with
+    ``design.time_budget`` the most poses whose plan fits that fraction of the random plan's
+    rig time (:func:`_fill_budget`). Criterion ``discrepancy``: the MV design of that count,
+    exchanged for the least expected prediction error (:func:`_polish`).
     """
     p = campaign["identification"]
     d = p["design"]
