@@ -1,6 +1,7 @@
 """Designed versus random identification poses on xytheta-thesis (issue 15).
 
-    python benchmarks/bench_design.py [--json] [--cores 2] [--space-filling F] [--criterion D]
+    python benchmarks/bench_design.py [--json] [--cores 2] [--space-filling F] [--criterion D|MV|discrepancy]
+        [--time-budget F] [--poses N] [--seed N]
 
 The bound (before acquisition): the Cramér–Rao σ of Model II's parameters of the
 ``optimal`` plan against the 1200 random poses, under the campaign's noise model, and the
@@ -39,8 +40,11 @@ def _thesis_text(seed: int | None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _campaign_text(space_filling: float, criterion: str, seed: int | None = None) -> str:
-    design = (f"  plan: optimal\n  design: {{criterion: {criterion}, space_filling: {space_filling}}}\n")
+def _campaign_text(space_filling: float, criterion: str, seed: int | None = None, poses: int | None = None,
+                   time_budget: float | None = None) -> str:
+    extra = "" if poses is None else f", poses: {int(poses)}"
+    extra += "" if time_budget is None else f", time_budget: {time_budget}"
+    design = f"  plan: optimal\n  design: {{criterion: {criterion}, space_filling: {space_filling}{extra}}}\n"
     return _thesis_text(seed).replace("identification:\n", "identification:\n" + design, 1)
 
 
@@ -74,7 +78,10 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--space-filling", type=float, default=0.0)
-    ap.add_argument("--criterion", default="D")
+    ap.add_argument("--criterion", default="D", help="D, A, MV, O1-O4, or discrepancy (its kernel from the "
+                                                        "campaign's characterisation tables, as the workflow makes them)")
+    ap.add_argument("--time-budget", type=float, help="design.time_budget: rig time as a fraction of the random plan's")
+    ap.add_argument("--poses", type=int, help="designed poses (design.poses) instead of the fewest reaching the bound")
     ap.add_argument("--keep", help="keep the scratch project here")
     ap.add_argument("--seed", type=int, help="campaign seed (rig noise, random poses, held-out targets) "
                                               "instead of xytheta-thesis's, for the spread over rigs")
@@ -88,7 +95,7 @@ def main() -> None:
                 (shutil.copytree if src.is_dir() else shutil.copy)(src, work / part)
         (work / "config/campaigns/xytheta-random.yaml").write_text(_thesis_text(args.seed))
         (work / "config/campaigns/xytheta-design.yaml").write_text(
-            _campaign_text(args.space_filling, args.criterion, args.seed))
+            _campaign_text(args.space_filling, args.criterion, args.seed, args.poses, args.time_budget))
         t0 = time.perf_counter()
         _run_workflow(work, ["xytheta-random", "xytheta-design"], args.cores)
         wall = time.perf_counter() - t0
@@ -103,6 +110,8 @@ def main() -> None:
         "designed_poses": des["poses"] - 1,
         "criterion": args.criterion,
         "space_filling": args.space_filling,
+        "time_budget": args.time_budget,
+        "discrepancy": des["design"].get("discrepancy"),
         "sigma_ratio_max": max(b_d[k] / b_r[k] for k in b_d),  # Cramér–Rao σ, Model II
         "sigma_ratio_max_achieved": max(des["sigma"][p] / rnd["sigma"][p] for p in rnd["sigma"]),
         "time_ratio": des["rig_time_h"] / rnd["rig_time_h"],

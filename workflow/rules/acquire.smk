@@ -2,6 +2,8 @@
 
 
 rule acquire:
+    input:
+        unpack(acquire_inputs),
     output:
         run="results/{campaign}/runs/{run}.nc",
         truth="results/{campaign}/truth/{run}.json",
@@ -19,8 +21,9 @@ rule acquire:
         digest=lambda w: digest(
             [rig_digest(w.run)(w), CAMPAIGN[w.campaign].get(plan_section(w.run))]
         ),
+        luts=lambda w, input: f"--luts {input.luts}" if "luts" in input.keys() else "",
     shell:
-        "calflow acquire --campaign {params.campaign} --plan {wildcards.run}"
+        "calflow acquire --campaign {params.campaign} --plan {wildcards.run} {params.luts}"
         " --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 

@@ -235,6 +235,20 @@ def plan_section(run):
     }[run]
 
 
+def acquire_inputs(w):
+    """The XY tables a designed identification plan reads for its discrepancy kernel (issue 15)."""
+    c = CAMPAIGN[w.campaign]
+    if w.run != "identification" or c["robot"] != "xytheta":
+        return {}
+    d = c["identification"].get("design") or {}
+    given = d.get("discrepancy") or {}
+    if c["identification"].get("plan") != "optimal" or d.get("criterion") != "discrepancy":
+        return {}
+    if given.get("amplitude_um") is not None and given.get("length") is not None:
+        return {}
+    return {"luts": f"results/{w.campaign}/luts/position.nc"}
+
+
 def identify_inputs(w):
     c = CAMPAIGN[w.campaign]
     base = f"results/{w.campaign}"

@@ -9,7 +9,7 @@ Fisher information of φ with c a nuisance parameter is the Schur complement
 
 and M⁻¹ is the Cramér–Rao bound of any unbiased estimate (Kay 1993, Ch. 3). The design
 chooses n distinct candidates to maximise a criterion of M: ``D`` (log det, default),
-``A`` (−tr M⁻¹), or the thesis's observability indices ``O1``–``O4`` (Eq. 4.10–4.13 from
+``A`` (−tr M⁻¹), ``MV`` (the worst parameter's variance), or the thesis's observability indices ``O1``–``O4`` (Eq. 4.10–4.13 from
 the singular values σ_k = √λ_k(M)). Continuous weights by the multiplicative algorithm
 (Titterington 1976 for D, Yu 2010's power 1/2 for A), each weight capped at one pose
 (a repeated pose repeats its error), rounded to the n largest, then polished by Fedorov
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-CRITERIA = ("D", "A", "O1", "O2", "O3", "O4")
+CRITERIA = ("D", "A", "MV", "O1", "O2", "O3", "O4")
 
 
 def information(J: np.ndarray, sigma_um: float | np.ndarray = 1.0) -> np.ndarray:
@@ -48,10 +48,14 @@ def crlb_sigma(J: np.ndarray, sigma_um: float | np.ndarray = 1.0) -> np.ndarray:
 def criterion(M: np.ndarray, name: str = "D") -> np.ndarray:
     """Value of a design criterion of information matrices ``M`` (..., p, p); larger is better.
 
-    D: log det M; A: −tr M⁻¹; O1: (Π σ_k)^(1/p) / p; O2: σ_p/σ_1; O3: σ_p; O4: σ_p²/σ_1
+    D: log det M; A: −tr M⁻¹; MV: −max_k (M⁻¹)_kk, the worst parameter's variance (minimax
+    variance; on parameters scaled by a reference design's bound, the worst ratio of σ to the
+    reference squared); O1: (Π σ_k)^(1/p) / p; O2: σ_p/σ_1; O3: σ_p; O4: σ_p²/σ_1
     with σ_k = √λ_k(M) the singular values of the weighted Jacobian (Eq. 4.10–4.13).
     −inf for a singular M.
     """
+    if name == "MV":
+        return _minimax_variance(M)
     lam = np.linalg.eigvalsh(M)
     ok = lam[..., 0] > 1e-12 * np.maximum(lam[..., -1], 1e-300)
     lam = np.where(ok[..., None], lam, np.nan)
@@ -67,6 +71,20 @@ def criterion(M: np.ndarray, name: str = "D") -> np.ndarray:
             "O4": lambda: s[..., 0] ** 2 / s[..., -1],
         }[name]()
     return np.where(ok, value, -np.inf)
+
+
+def _minimax_variance(M: np.ndarray) -> np.ndarray:
+    """−max_k (M⁻¹)_kk of matrices ``M`` (..., p, p); −inf where M is singular (relative
+    eigenvalue below 1e-12) or indefinite. The inverse alone when every M is regular."""
+    with np.errstate(all="ignore"):
+        try:
+            d = np.diagonal(np.linalg.inv(M), axis1=-2, axis2=-1)
+        except np.linalg.LinAlgError:  # some singular: by eigenvectors, their null directions infinite
+            lam, V = np.linalg.eigh(M)
+            ok = lam[..., :1] > 1e-12 * np.maximum(lam[..., -1:], 1e-300)
+            d = np.einsum("...kj,...j->...k", V**2, np.where(ok, 1.0 / np.where(ok, lam, 1.0), np.inf))
+    ok = np.all(np.isfinite(d) & (d > 0), axis=-1)
+    return np.where(ok, -np.max(np.where(ok[..., None], d, 0.0), axis=-1), -np.inf)
 
 
 def _check(name: str) -> None:
@@ -158,6 +176,8 @@ def exchange(J: np.ndarray, chosen: np.ndarray, name: str = "D", fixed: np.ndarr
         r = out[int(np.argmax(loss))]
         A1, S1 = A - G[r], S - J[r]
         cand = np.flatnonzero(~inside)
+        if cand.size == 0:  # every candidate chosen: nothing to exchange
+            break
         gain = _exact_criterion(A1 + G[cand], S1 + J[cand], k, name, scale)
         a = cand[int(np.argmax(gain))]
         value = float(np.max(gain))

@@ -37,6 +37,10 @@ def identification(c: dict, args) -> Acquisition:
     p = c["identification"]
     if p["plan"] == "optimal":
         try:
+            if p["design"]["criterion"] == "discrepancy" and getattr(args, "luts", None):
+                from calflow.xytheta.design_discrepancy import with_kernel_from_tables
+
+                c = with_kernel_from_tables(c, args.luts)
             plan, record = design_plan.identification_plan(c)
         except ValueError as exc:
             raise CalflowError(f"campaign {c['name']}: {exc}") from None

@@ -217,7 +217,10 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     ``identification.design.poses`` poses, or (null) the fewest whose worst-parameter
     Cramér–Rao σ of ``design.model`` is no larger than that of ``identification.poses``
     random poses: a first design at a third of them sizes the next by σ ∝ 1/√n until one
-    reaches the bound, then bisection to within 1 % of the fewest that do.
+    reaches the bound, then bisection to within 1 % of the fewest that do; with
+    ``design.time_budget`` the most poses whose plan fits that fraction of the random plan's
+    rig time (:func:`_fill_budget`). Criterion ``discrepancy``: the MV design of that count,
+    exchanged for the least expected prediction error (:func:`_polish`).
     """
     p = campaign["identification"]
     d = p["design"]
@@ -225,6 +228,10 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     if noise is None:
         raise ValueError("identification.design.noise_um: the rig declares no noise model; "
                          "expected pose and frame (µm)")
+    if d["criterion"] == "discrepancy":
+        from calflow.xytheta.design_discrepancy import kernel
+
+        kernel(campaign)  # refused before any design when it is not given
     tm = time_model(campaign)
     phi, free = _phi(campaign, d["model"])
     lo = np.array([p["x_um"][0], p["y_um"][0], p["theta_deg"][0]], dtype=float)
@@ -234,16 +241,22 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     ref_time = tm.moves_s(rq).mean() + tm.dwell_s
     ref = design.crlb_sigma(design.pose_jacobians(rq, phi, free), noise.sigma(1))
     home = np.zeros((1, 3))
+    base = "MV" if d["criterion"] == "discrepancy" else d["criterion"]  # discrepancy: the MV design, polished
 
     def make(n):
-        poses = design_poses(n - 1, pool, phi, free, d["criterion"], ref, d["space_filling"], lo, hi)
+        poses = design_poses(n - 1, pool, phi, free, base, ref, d["space_filling"], lo, hi)
         q = np.vstack([home, poses[order(poses, tm)]])
         frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
         s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
         return q, frames, float(np.max(s / ref))
 
+    def final(n):  # the design as the plan takes it: polished for the least bias under discrepancy
+        q, frames, ratio = make(n)
+        return _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
+            q, frames, ratio, {})
+
     if d.get("poses"):
-        q, frames, ratio = make(int(d["poses"]))
+        q, frames, ratio, record = final(int(d["poses"]))
     else:
         n, cap = max(len(free) + 2, (len(rq) + 2) // 3), len(pool) + 1
         miss, reach = 0, None  # the most poses known to miss the bound, the fewest known to reach it
@@ -257,10 +270,64 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
                 break
             n = (miss + reach) // 2 if reach is not None else max(miss + 1, int(np.ceil(n * ratio**2)))
         q, frames, ratio = best
-    record = {"criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
+        filled = None
+        if d.get("time_budget") is not None:
+            filled = _fill_budget(final, best, float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
+        if filled is None:
+            filled = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
+                q, frames, ratio, {})
+        q, frames, ratio, record = filled
+    record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
+              "time_budget": d.get("time_budget"), "random_rig_time_h": tm.plan_s(rq) / 3600.0,
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
               "sigma_ratio_max_vs_random": ratio, "random_time_per_pose_s": float(ref_time)}
     return q, frames, record
+
+
+def _fill_budget(final, reach, budget_s: float, tm: TimeModel, cap: int):
+    """The final design (``final(n)`` → (q, frames, ratio, record)) of the most rows whose rig
+    time is within ``budget_s`` (s), at least the rows of ``reach`` = (q, frames, ratio), the
+    fewest reaching the bound; None when none fits (``reach`` already overruns). The count is
+    scaled by budget / time per pose, and cut by the excess when a design overruns (a tour's
+    time does not follow the count exactly); at most ``cap`` rows (every candidate and home)."""
+    if tm.plan_s(reach[0], reach[1]) > budget_s:
+        return None
+    per = tm.plan_s(reach[0], reach[1]) / len(reach[0])
+    n, best = min(int(np.floor(budget_s / per)), cap), None
+    for _ in range(6):
+        if n < len(reach[0]) or (best is not None and n <= len(best[0])):
+            break
+        trial = final(n)
+        t = tm.plan_s(trial[0], trial[1])
+        per = t / len(trial[0])
+        if t <= budget_s:
+            best, n = trial, min(int(np.floor(budget_s / per)), cap)
+        else:
+            n -= int(np.ceil((t - budget_s) / per)) + 1
+    return best
+
+
+def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
+    """The MV design ``q`` (home first) exchanged for the least expected prediction error under the
+    campaign's discrepancy (:mod:`calflow.xytheta.design_discrepancy`), σ ≤ max(1, ratio)·ref."""
+    from calflow.xytheta import design_discrepancy as dd
+
+    d = campaign["identification"]["design"]
+    phi, free = _phi(campaign, d["model"])
+    kern = dd.kernel(campaign)
+    rows = np.flatnonzero((pool[:, None, :] == q[None, 1:, :]).all(axis=2).any(axis=1))
+    idx = dd.polish(pool, rows, phi, free, kern, noise.sigma(1), ref * max(1.0, ratio), lo, hi, campaign["seed"])
+    before = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
+    poses = pool[idx]
+    q = np.vstack([np.zeros((1, 3)), poses[order(poses, tm)]])
+    frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
+    s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
+    after = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
+    record = {"discrepancy": {"amplitude_um": list(kern.amplitude), "length": list(kern.length),
+                              "from": d["discrepancy"].get("from", "config"),
+                              "bias_um2_before": before["bias"], "bias_um2": after["bias"],
+                              "variance_um2": after["variance"], "swapped_poses": int(len(np.setdiff1d(idx, rows)))}}
+    return q, frames, float(np.max(s / ref)), record
 
 
 def identification_plan(campaign: dict):

@@ -28,13 +28,14 @@ def curves(campaign: dict, counts) -> dict:
     lo = np.array([p["x_um"][0], p["y_um"][0], p["theta_deg"][0]], dtype=float)
     hi = np.array([p["x_um"][1], p["y_um"][1], p["theta_deg"][1]], dtype=float)
     pool = dp.candidates(int(d["candidates"]), p["x_um"], p["y_um"], p["theta_deg"], campaign["seed"])
+    base = "MV" if d["criterion"] == "discrepancy" else d["criterion"]  # its polish keeps the MV design's σ
     ref = design.crlb_sigma(design.pose_jacobians(dp._random_poses(campaign, p["poses"]), phi, free), noise.sigma(1))
     sigma = np.full((2, len(counts), len(free)), np.nan)
     hours = np.full((2, len(counts)), np.nan)
     home = np.zeros((1, 3))
     for k, n in enumerate(counts):
         rq = dp._random_poses(campaign, n - 1)
-        poses = dp.design_poses(min(n - 1, len(pool)), pool, phi, free, d["criterion"], ref, d["space_filling"], lo, hi)
+        poses = dp.design_poses(min(n - 1, len(pool)), pool, phi, free, base, ref, d["space_filling"], lo, hi)
         dq = np.vstack([home, poses[dp.order(poses, tm)]])
         for j, q in enumerate((rq, dq)):
             sigma[j, k] = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(1))
