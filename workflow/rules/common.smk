@@ -242,7 +242,10 @@ def acquire_inputs(w):
         return {}
     d = c["identification"].get("design") or {}
     given = d.get("discrepancy") or {}
-    if c["identification"].get("plan") != "optimal" or d.get("criterion") != "discrepancy":
+    if (
+        c["identification"].get("plan") != "optimal"
+        or d.get("criterion") != "discrepancy"
+    ):
         return {}
     if given.get("amplitude_um") is not None and given.get("length") is not None:
         return {}
