@@ -240,20 +240,18 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     rq = _random_poses(campaign, p["poses"])
     ref_time = tm.moves_s(rq).mean() + tm.dwell_s
     ref = design.crlb_sigma(design.pose_jacobians(rq, phi, free), noise.sigma(1))
-    home = np.zeros((1, 3))
     base = "MV" if d["criterion"] == "discrepancy" else d["criterion"]  # discrepancy: the MV design, polished
 
     def make(n):
         poses = design_poses(n - 1, pool, phi, free, base, ref, d["space_filling"], lo, hi)
-        q = np.vstack([home, poses[order(poses, tm)]])
-        frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
-        s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
-        return q, frames, float(np.max(s / ref))
+        return _visit(campaign, poses, ref, noise, tm)
 
-    def final(n):  # the design as the plan takes it: polished for the least bias under discrepancy
-        q, frames, ratio = make(n)
+    def finish(q, frames, ratio):  # the design as the plan takes it: polished for the least bias under discrepancy
         return _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
             q, frames, ratio, {})
+
+    def final(n):
+        return finish(*make(n))
 
     if d.get("poses"):
         q, frames, ratio, record = final(int(d["poses"]))
@@ -273,10 +271,7 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
         filled = None
         if d.get("time_budget") is not None:
             filled = _fill_budget(final, best, float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
-        if filled is None:
-            filled = _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
-                q, frames, ratio, {})
-        q, frames, ratio, record = filled
+        q, frames, ratio, record = filled if filled is not None else finish(q, frames, ratio)
     record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
               "time_budget": d.get("time_budget"), "random_rig_time_h": tm.plan_s(rq) / 3600.0,
               "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
@@ -318,16 +313,24 @@ def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
     rows = np.flatnonzero((pool[:, None, :] == q[None, 1:, :]).all(axis=2).any(axis=1))
     idx = dd.polish(pool, rows, phi, free, kern, noise.sigma(1), ref * max(1.0, ratio), lo, hi, campaign["seed"])
     before = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
-    poses = pool[idx]
-    q = np.vstack([np.zeros((1, 3)), poses[order(poses, tm)]])
-    frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
-    s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
+    q, frames, ratio = _visit(campaign, pool[idx], ref, noise, tm)
     after = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
     record = {"discrepancy": {"amplitude_um": list(kern.amplitude), "length": list(kern.length),
                               "from": d["discrepancy"].get("from", "config"),
                               "bias_um2_before": before["bias"], "bias_um2": after["bias"],
                               "variance_um2": after["variance"], "swapped_poses": int(len(np.setdiff1d(idx, rows)))}}
-    return q, frames, float(np.max(s / ref)), record
+    return q, frames, ratio, record
+
+
+def _visit(campaign: dict, poses, ref, noise: NoiseModel, tm: TimeModel):
+    """Poses as the plan visits them — home first, then :func:`order` — with the frames per pose
+    that maximise information per second and the worst ratio of Cramér–Rao σ to ``ref``."""
+    d = campaign["identification"]["design"]
+    phi, free = _phi(campaign, d["model"])
+    q = np.vstack([np.zeros((1, 3)), poses[order(poses, tm)]])
+    frames = frames_per_pose(noise, float(tm.moves_s(q).mean() + tm.dwell_s), tm.frame_s, d["frames_max"])
+    s = design.crlb_sigma(design.pose_jacobians(q, phi, free), noise.sigma(frames))
+    return q, frames, float(np.max(s / ref))
 
 
 def identification_plan(campaign: dict):
