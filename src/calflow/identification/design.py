@@ -234,6 +234,14 @@ def optimal_design(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | N
     return Design(index, M, name, float(criterion(M * np.outer(scale, scale), name)))
 
 
+def latin_hypercube(rng: np.random.Generator, n: int, lo, hi) -> np.ndarray:
+    """``n`` points (n, d) in the box [lo, hi]: each axis cut in n strata, one point in each
+    (McKay et al. 1979) — an even cover of every coordinate's range from the generator ``rng``."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    u = (np.column_stack([rng.permutation(n) for _ in range(lo.size)]) + rng.random((n, lo.size))) / max(n, 1)
+    return lo + (hi - lo) * u
+
+
 def space_filling(pool: np.ndarray, m: int, lo, hi, start: str = "centre") -> np.ndarray:
     """Indices of ``m`` pool poses spread over the box (greedy maximin in the unit cube), the
     first nearest the box's centre or (``start="corner"``) its lower corner — from a corner

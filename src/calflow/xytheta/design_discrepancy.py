@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from calflow.identification import discrepancy as dc
+from calflow.identification.design import latin_hypercube
 from calflow.xytheta import design
 
 #: Test poses drawn over the identification workspace: where the calibrated model is used.
@@ -76,10 +77,7 @@ def kernel(campaign: dict) -> dc.Discrepancy:
 def test_poses(lo, hi, seed: int, n: int = TEST_POSES) -> np.ndarray:
     """``n`` poses (n, 3) spread over the workspace box (a Latin hypercube from its own stream):
     the measure the prediction error is averaged over — never the validation's targets."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15, 2]))
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    u = (np.column_stack([rng.permutation(n) for _ in range(3)]) + rng.random((n, 3))) / n
-    return lo + (hi - lo) * u
+    return latin_hypercube(np.random.default_rng(np.random.SeedSequence([int(seed), 15, 2])), n, lo, hi)
 
 
 def polish(pool: np.ndarray, chosen: np.ndarray, phi, free, kern: dc.Discrepancy, sigma_um: float,

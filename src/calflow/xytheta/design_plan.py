@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow.identification.design import space_filling
+from calflow.identification.design import latin_hypercube, space_filling
 from calflow.xytheta import design
 
 
@@ -155,9 +155,8 @@ def candidates(n: int, x_range, y_range, theta_range, seed: int) -> np.ndarray:
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
     lo = np.array([x_range[0], y_range[0], theta_range[0]], dtype=float)
     hi = np.array([x_range[1], y_range[1], theta_range[1]], dtype=float)
-    u = (np.column_stack([rng.permutation(n) for _ in range(3)]) + rng.random((n, 3))) / max(n, 1)
     corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
-    return lo + (hi - lo) * np.vstack([corners, u])
+    return np.vstack([lo + (hi - lo) * corners, latin_hypercube(rng, n, lo, hi)])
 
 
 def design_poses(n: int, pool: np.ndarray, phi, free, criterion: str, scale, fraction_space_filling: float,
