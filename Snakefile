@@ -17,6 +17,7 @@ include: "workflow/rules/validate.smk"
 include: "workflow/rules/export.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/montecarlo.smk"
+include: "workflow/rules/cluster.smk"
 
 
 rule all:

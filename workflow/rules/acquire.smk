@@ -14,7 +14,8 @@ rule acquire:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -42,7 +43,8 @@ rule acquire_xy_test:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -69,7 +71,8 @@ rule acquire_angle_residuals:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

@@ -14,7 +14,8 @@ rule characterise:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("characterise"),
@@ -33,7 +34,8 @@ rule observability:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=200,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("identify", "seed", "identification", "observability"),

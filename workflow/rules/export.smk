@@ -19,7 +19,8 @@ rule export_models:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         folder=lambda w, output: os.path.dirname(output.manifest),
@@ -42,7 +43,8 @@ rule acquire_validation_export:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -74,7 +76,8 @@ rule export_verify:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("export"),

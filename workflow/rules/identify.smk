@@ -13,7 +13,8 @@ rule identify:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         args=identify_args,

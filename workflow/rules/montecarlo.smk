@@ -22,7 +22,8 @@ rule mc_point:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,
@@ -44,7 +45,8 @@ rule mc_aggregate:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=200,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,
@@ -71,7 +73,8 @@ rule mc_report:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=300,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,

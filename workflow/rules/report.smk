@@ -20,7 +20,8 @@ rule summarise:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
@@ -57,7 +58,8 @@ rule report:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=600,
+        runtime=2,
     params:
         campaign=campaign_file,
         digest=lambda w: digest([code_digest("report", robot(w)), CAMPAIGN[w.campaign]]),
@@ -83,6 +85,7 @@ rule index:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=200,
+        runtime=1,
     shell:
         "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"

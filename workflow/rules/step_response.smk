@@ -12,7 +12,8 @@ rule acquire_step_response:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

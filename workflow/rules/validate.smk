@@ -17,7 +17,8 @@ rule acquire_validation_model:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -45,7 +46,8 @@ rule acquire_validation_heldout:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -73,7 +75,8 @@ rule error_budget:
         "../envs/calflow.yaml"
     threads: 2
     resources:
-        mem_mb=2000,
+        mem_mb=900,
+        runtime=2,
     params:
         campaign=campaign_file,
         digest=budget_digest,
@@ -99,7 +102,8 @@ rule acquire_validation_tests:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=2,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -126,7 +130,8 @@ rule metrics:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("metrics"),
