@@ -6,7 +6,7 @@ CORES  ?= 2
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.calflow-installed
 
-.PHONY: run test dry-run lint clean
+.PHONY: run test cluster-test dry-run lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,9 @@ run: $(STAMP)  ## run the default campaigns and write reports/
 
 test: $(STAMP)  ## run the test suite
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
+
+cluster-test: $(STAMP)  ## as root: a one-node SLURM cluster runs the workflow, compared with a local run
+	VENV=$(VENV) bash tests/cluster/run.sh
 
 dry-run: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) -n

@@ -27,11 +27,11 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RULE = re.compile(r"^rule (\w+):", re.M)
-BENCH = re.compile(r"^\s+benchmark:\s*\n\s+\"([^\"]+)\"", re.M)
-RESOURCE = re.compile(r"^\s+(mem_mb|runtime)=(\d+),", re.M)
-THREADS = re.compile(r"^\s+threads: (\d+)", re.M)
-CONSTRAINT = re.compile(r"^[ \t]+(\w+)=(r?\"[^\"]*\"|\w+),", re.M)
+RULE = re.compile(r"^rule (\w+):", re.MULTILINE)
+BENCH = re.compile(r"^\s+benchmark:\s*\n\s+\"([^\"]+)\"", re.MULTILINE)
+RESOURCE = re.compile(r"^\s+(mem_mb|runtime)=(\d+),", re.MULTILINE)
+THREADS = re.compile(r"^\s+threads: (\d+)", re.MULTILINE)
+CONSTRAINT = re.compile(r"^[ \t]+(\w+)=(r?\"[^\"]*\"|\w+),", re.MULTILINE)
 
 
 def wildcard_constraints(texts: list[str]) -> dict[str, str]:
@@ -39,10 +39,12 @@ def wildcard_constraints(texts: list[str]) -> dict[str, str]:
     string constants (``run=OPEN_LOOP_RUNS``), so ``acquire_{run}`` and ``acquire_{test}_{comp}``
     are told apart as Snakemake does."""
     joined = "\n".join(texts)
-    constants = {m.group(1): "".join(re.findall(r"\"([^\"]*)\"", m.group(2)))
-                 for m in re.finditer(r"^(\w+) = (\(?\s*(?:r?\"[^\"]*\"\s*)+\)?)", joined, re.M)}
+    constants = {
+        m.group(1): "".join(re.findall(r"\"([^\"]*)\"", m.group(2)))
+        for m in re.finditer(r"^(\w+) = (\(?\s*(?:r?\"[^\"]*\"\s*)+\)?)", joined, re.MULTILINE)
+    }
     found = {}
-    for block in re.findall(r"^wildcard_constraints:\n((?:[ \t]+.+\n)+)", joined, re.M):
+    for block in re.findall(r"^wildcard_constraints:\n((?:[ \t]+.+\n)+)", joined, re.MULTILINE):
         for name, value in CONSTRAINT.findall(block):
             found[name] = constants.get(value, value.lstrip("r").strip('"'))
     return found
@@ -55,18 +57,26 @@ def rule_patterns(rules_dir: Path) -> dict[str, dict]:
     texts = [smk.read_text() for smk in sorted(rules_dir.glob("*.smk"))]
     constraints = wildcard_constraints(texts)
     for text in texts:
-        starts = [(m.start(), m.group(1)) for m in RULE.finditer(text)] + [(len(text), None)]
+        starts = [(m.start(), m.group(1)) for m in RULE.finditer(text)] + [
+            (len(text), None)
+        ]
         for (start, name), (end, _) in zip(starts, starts[1:]):
             body = text[start:end]
             bench = BENCH.search(body)
             if not bench:
                 continue
-            pattern = re.sub(r"\\\{(\w+)\\\}", lambda m: f"(?:{constraints.get(m.group(1), '.+')})",
-                             re.escape(bench.group(1)))
+            pattern = re.sub(
+                r"\\\{(\w+)\\\}",
+                lambda m: f"(?:{constraints.get(m.group(1), '.+')})",
+                re.escape(bench.group(1)),
+            )
             declared = {k: int(v) for k, v in RESOURCE.findall(body)}
             threads = THREADS.search(body)
-            rules[name] = {"regex": re.compile(f"^{pattern}$"), **declared,
-                           "threads": int(threads.group(1)) if threads else 1}
+            rules[name] = {
+                "regex": re.compile(f"^{pattern}$"),
+                **declared,
+                "threads": int(threads.group(1)) if threads else 1,
+            }
     return rules
 
 
@@ -79,7 +89,10 @@ def measured(results: Path, rules: dict[str, dict]) -> dict[str, list[dict]]:
         matches = [r for r, spec in rules.items() if spec["regex"].match(rel)]
         if not matches:
             continue
-        rule = max(matches, key=lambda r: len(re.sub(r"\(\?:.*?\)", "", rules[r]["regex"].pattern)))
+        rule = max(
+            matches,
+            key=lambda r: len(re.sub(r"\(\?:.*?\)", "", rules[r]["regex"].pattern)),
+        )
         with tsv.open() as fh:
             rows = list(csv.DictReader(fh, delimiter="\t"))
         runs.setdefault(rule, []).extend(rows)
@@ -89,11 +102,20 @@ def measured(results: Path, rules: dict[str, dict]) -> dict[str, list[dict]]:
 def proposal(rows: list[dict]) -> dict:
     """The sizes of the module docstring from one rule's benchmark records."""
     wall = max(float(r["s"]) for r in rows)
-    rss = max(float(r["max_rss"]) if r["max_rss"] not in ("", "NA", "-") else 0.0 for r in rows)
+    rss = max(
+        float(r["max_rss"]) if r["max_rss"] not in ("", "NA", "-") else 0.0
+        for r in rows
+    )
     cpu = max(float(r["cpu_time"]) / max(float(r["s"]), 1e-9) for r in rows)
-    return {"jobs": len(rows), "max_s": wall, "max_rss_mb": rss, "cores_used": cpu,
-            "mem_mb": 100 * math.ceil(2 * rss / 100), "runtime": max(1, math.ceil(10 * wall / 60)),
-            "threads": max(1, round(cpu))}
+    return {
+        "jobs": len(rows),
+        "max_s": wall,
+        "max_rss_mb": rss,
+        "cores_used": cpu,
+        "mem_mb": 100 * math.ceil(2 * rss / 100),
+        "runtime": max(1, math.ceil(10 * wall / 60)),
+        "threads": max(1, round(cpu)),
+    }
 
 
 def main(argv=None) -> int:
@@ -105,20 +127,31 @@ def main(argv=None) -> int:
     rules = rule_patterns(args.rules)
     runs = measured(args.results.resolve(), rules)
     if not runs:
-        sys.stderr.write(f"job_sizes: error: {args.results}: no benchmark file of a known rule\n")
+        sys.stderr.write(
+            f"job_sizes: error: {args.results}: no benchmark file of a known rule\n"
+        )
         return 2
     short = []
-    print("| rule | jobs | longest s | peak RSS MB | cores used | mem_mb | runtime min | threads | declared |")
+    print(
+        "| rule | jobs | longest s | peak RSS MB | cores used | mem_mb | runtime min | threads | declared |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for rule in sorted(runs):
         p, spec = proposal(runs[rule]), rules[rule]
         declared = f"{spec.get('mem_mb', '-')} MB, {spec.get('runtime', '-')} min, {spec['threads']}"
-        print(f"| {rule} | {p['jobs']} | {p['max_s']:.1f} | {p['max_rss_mb']:.0f} | {p['cores_used']:.1f}"
-              f" | {p['mem_mb']} | {p['runtime']} | {p['threads']} | {declared} |")
-        if spec.get("mem_mb", 0) < p["max_rss_mb"] or 60 * spec.get("runtime", 0) < p["max_s"]:
+        print(
+            f"| {rule} | {p['jobs']} | {p['max_s']:.1f} | {p['max_rss_mb']:.0f} | {p['cores_used']:.1f}"
+            f" | {p['mem_mb']} | {p['runtime']} | {p['threads']} | {declared} |"
+        )
+        if (
+            spec.get("mem_mb", 0) < p["max_rss_mb"]
+            or 60 * spec.get("runtime", 0) < p["max_s"]
+        ):
             short.append(rule)
     if args.check and short:
-        sys.stderr.write(f"job_sizes: declared mem_mb/runtime below the measured use: {', '.join(short)}\n")
+        sys.stderr.write(
+            f"job_sizes: declared mem_mb/runtime below the measured use: {', '.join(short)}\n"
+        )
         return 1
     return 0
 

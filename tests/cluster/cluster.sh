@@ -15,6 +15,8 @@ CTLD_PORT="${CALFLOW_SLURMCTLD_PORT:-6817}"
 SLURMD_PORT="${CALFLOW_SLURMD_PORT:-6818}"
 CONF="$STATE/slurm.conf"
 SYSTEM_CONF=/etc/slurm/slurm.conf
+# CALFLOW_NICE: the daemons, and so the jobs, at that niceness (a shared machine)
+NICE="nice -n ${CALFLOW_NICE:-0}"
 
 log() { echo "cluster.sh: $*" >&2; }
 
@@ -33,7 +35,7 @@ install() {
 pid_alive() { [[ -f "$1" ]] && kill -0 "$(cat "$1")" 2>/dev/null; }
 
 start_slurmd() {
-    slurmd -f "$CONF"
+    $NICE slurmd -f "$CONF"
     wait_for "slurmd" pid_alive "$STATE/slurmd.pid"
 }
 
@@ -78,11 +80,11 @@ start() {
     ln -sfn "$CONF" "$SYSTEM_CONF"
     dd if=/dev/urandom of="$STATE/munge/munge.key" bs=1024 count=1 status=none
     chmod 400 "$STATE/munge/munge.key"
-    munged --force --key-file="$STATE/munge/munge.key" --socket="$STATE/munge/munge.socket" \
+    $NICE munged --force --key-file="$STATE/munge/munge.key" --socket="$STATE/munge/munge.socket" \
         --pid-file="$STATE/munge/munged.pid" --log-file="$STATE/log/munged.log" \
         --seed-file="$STATE/munge/munged.seed"
     wait_for "munged" test -S "$STATE/munge/munge.socket"
-    slurmctld -f "$CONF"
+    $NICE slurmctld -f "$CONF"
     wait_for "slurmctld" scontrol ping
     start_slurmd
     wait_for "node $host in partition $PARTITION" node_ready
