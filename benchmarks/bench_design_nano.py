@@ -14,7 +14,7 @@ geometric coefficients (stepwise standard errors) beside their bound, and the he
 accuracy of each model on the validation (max AP over every pose of every test of the
 mode, and over the positions training never visited), nm. ``--tests`` shortens the
 validation (default: the campaign's own, five days for nano1d-thesis). ``study``: the
-design study of :func:`calflow.nano.design_plan.design_study` (σ after an hour and hours
+design study of :func:`calflow.nano.plans.designed.design_study` (σ after an hour and hours
 for the grid's σ, against the count of positions, grid against designed; no acquisition).
 """
 
@@ -56,8 +56,8 @@ def _variant(text: str, training: str, tests: int | None, seed: int | None = Non
 def _run(work: Path, name: str, text: str, two_dof: bool) -> dict:
     from calflow.config import load_campaign
     from calflow.data.io import open_dataset
-    from calflow.nano.models import model_from_dataset
-    from calflow.nano.summary import heldout_block, mode_block
+    from calflow.nano.models.registry import model_from_dataset
+    from calflow.nano.report.summary import heldout_block, mode_block
 
     path = work / f"{name}.yaml"
     path.write_text(text)
@@ -112,7 +112,7 @@ def main() -> None:
                               args.seed),
                      two_dof)
     from calflow.config import load_campaign
-    from calflow.nano.design_plan import design_study
+    from calflow.nano.plans.designed import design_study
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{args.campaign}.yaml")
     counts = (16, 25, 36, 49, 64, 81) if two_dof else (4, 6, 8, 12, 17, 24, 33)

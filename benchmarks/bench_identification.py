@@ -78,8 +78,8 @@ def five_models(results: Path, repeats: int) -> dict:
     """ms per model of the identify step without file I/O, and the whole step with it."""
     from calflow.config import load_campaign
     from calflow.data.io import open_dataset
-    from calflow.xytheta import commands
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta import steps as commands
+    from calflow.xytheta.models.ladder import MicroModel
 
     campaign = ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml"
     models = load_campaign(campaign)["models"]
@@ -124,9 +124,9 @@ def model_ii(n: int, repeats: int, seed: int = 1) -> dict:
     """Seconds and traced peak MB of a Model II identification from ``n`` poses."""
     from calflow.config import load_campaign
     from calflow.identification.robust import Robust
-    from calflow.xytheta.identification import identify
-    from calflow.xytheta.kinematics import Parameters, forward
-    from calflow.xytheta.rig_physics import XYThetaTruth
+    from calflow.xytheta.models.identification import identify
+    from calflow.xytheta.models.kinematics import Parameters, forward
+    from calflow.xytheta.stage.physics import XYThetaTruth
 
     p = load_campaign(ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml")["identification"]
     rng = np.random.default_rng(seed)
@@ -156,9 +156,9 @@ def crlb_ratio(seeds: int, noise_um: float = 0.5, poses: int = 100) -> dict:
     campaigns on the thesis rig with every error Model II does not represent switched off
     (the stage's repeatability and the angle reading's noise stay)."""
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.studies.montecarlo import run_point
+    from calflow.xytheta.studies.aggregate import aggregate
+    from calflow.xytheta.stage.physics import options_off
 
     c = load_campaign(ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml")
     pts = [run_point(c, s, noise_um, poses, "II", validation_cycles=2, rig_options=options_off())

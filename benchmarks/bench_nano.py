@@ -47,8 +47,8 @@ import resource, time
 from calflow.acquisition.runner import acquire
 from calflow.config import load_campaign
 from calflow.commands.common import meta
-from calflow.nano import plans as nano
-from calflow.nano.rig import nano1d
+from calflow.nano.plans import sequences as nano
+from calflow.nano.stage.rig import nano1d
 import numpy as np
 c = load_campaign({str(CAMPAIGN)!r})
 t = c["training"]

@@ -16,14 +16,16 @@ import time
 
 from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
-from calflow.xytheta import cost, plans, sweeps
-from calflow.xytheta.characterisation import characterise
-from calflow.xytheta.identification import identify
-from calflow.xytheta.kinematics import Parameters
-from calflow.xytheta.lookup import PositionLUT
-from calflow.xytheta.models import joint_directions
-from calflow.xytheta.rig import simulated_xytheta
-from calflow.xytheta.rig_physics import options_off
+from calflow.xytheta.models import cost
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.tables.characterisation import characterise
+from calflow.xytheta.models.identification import identify
+from calflow.xytheta.models.kinematics import Parameters
+from calflow.xytheta.tables.lookup import PositionLUT
+from calflow.xytheta.models.ladder import joint_directions
+from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.stage.physics import options_off
 
 PARAMETERS = (("x_R", "x_R_um"), ("y_R", "y_R_um"), ("alpha", "alpha_deg"), ("beta", "beta_deg"))
 

@@ -2,7 +2,7 @@
 
 For ``nano1d-thesis`` and ``nano2d-thesis`` (config/campaigns/), the training plan is
 acquired twice: on the ``simulated`` rig and with ``rig: gcs`` through the piezo controller
-emulation (:mod:`calflow.nano.emulate`), whose stage is the same physics with its own noise.
+emulation (:mod:`calflow.nano.stage.emulate`), whose stage is the same physics with its own noise.
 Per pose and approach direction, the stage's error ``meas - cmd`` averaged over the cycles
 is compared: the figure is the fraction of (pose, direction, sensor) cells whose difference
 is within 3 combined standard errors, and the largest difference in those units.
@@ -58,7 +58,7 @@ def compare(campaign: str, time_scale: float) -> dict:
     from calflow.config import load_campaign
     from calflow.family import family_of
     from calflow.gcs.rig import gcs
-    from calflow.nano.emulate import emulated_rig_options
+    from calflow.nano.stage.emulate import emulated_rig_options
     from calflow.rigs import load_rig
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
@@ -105,10 +105,10 @@ def compare_xytheta(campaign: str, time_scale: float) -> dict:
     from calflow.family import family_of, resolve
     from calflow.gcs.rig import gcs
     from calflow.rigs import load_rig
-    from calflow.xytheta import cost
-    from calflow.xytheta.emulate import emulated_rig_options
-    from calflow.xytheta.identification import identify
-    from calflow.xytheta.kinematics import Parameters
+    from calflow.xytheta.models import cost
+    from calflow.xytheta.stage.emulate import emulated_rig_options
+    from calflow.xytheta.models.identification import identify
+    from calflow.xytheta.models.kinematics import Parameters
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
     fam = family_of(c["robot"])
@@ -152,7 +152,7 @@ def workflow_small_nano1d(workdir: Path) -> dict:
 
     sys.path.insert(0, str(ROOT / "tests"))
     from conftest import SMALL_NANO1D, make_workdir, snakemake
-    from calflow.nano.emulate import campaign_rig, emulated_rig_options
+    from calflow.nano.stage.emulate import campaign_rig, emulated_rig_options
 
     shutil.rmtree(workdir, ignore_errors=True)
     out = {}
@@ -251,12 +251,12 @@ def _campaign(name: str, rig: str, noise_seed: int | None, runs: dict | None = N
         return c, None
     ts = FAMILY_TIME_SCALE["nano" if nano else "xytheta"]
     if nano:
-        from calflow.nano.emulate import campaign_rig, emulated_rig_options
+        from calflow.nano.stage.emulate import campaign_rig, emulated_rig_options
 
         emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
         c["rig"] = campaign_rig(options, c)
     else:
-        from calflow.xytheta.emulate import emulated_rig_options
+        from calflow.xytheta.stage.emulate import emulated_rig_options
 
         emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
         c["rig"] = {"factory": "gcs", "options": {**options, "poll_s": 0.002}}

@@ -121,7 +121,7 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
     emu = None
     options = None
     if rig == "gcs":
-        from calflow.xytheta.emulate import emulated_rig_options
+        from calflow.xytheta.stage.emulate import emulated_rig_options
 
         emu, options = emulated_rig_options(SMALL_XYTHETA, time_scale=100.0, timeout=1.0)
         options["poll_s"] = 0.002

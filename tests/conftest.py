@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _xy_noise_um() -> float:
-    from calflow.xytheta.rig import XYThetaTruth
+    from calflow.xytheta.stage.rig import XYThetaTruth
 
     t = XYThetaTruth()
     return float((t.sensor_noise_um ** 2 + t.stage_repeatability_um ** 2) ** 0.5)

@@ -211,8 +211,8 @@ def test_journal_appears_with_the_first_sample_only(tmp_path):
 def run():
     from calflow.acquisition.runner import acquire
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta import plans
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans import poses as plans
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification",
                        config_sha256="0" * 64)

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from calflow.acquisition.runner import acquire
-from calflow.xytheta.characterisation import characterise, characterise_axis, dominant_period, stage_positions
+from calflow.xytheta.tables.characterisation import characterise, characterise_axis, dominant_period, stage_positions
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import DataError
-from calflow.xytheta import sweeps
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 STOP, CYCLES = 2000.0, 2
 

@@ -12,8 +12,8 @@ from calflow.data.io import atomic_path, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset, validate_file
 from calflow.errors import DataError
-from calflow.xytheta import plans
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 
 @pytest.fixture

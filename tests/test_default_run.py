@@ -35,7 +35,7 @@ def test_exported_files_reproduce_the_models_in_closed_loop(thesis):
     file's groups in the same process (calflow.data.io.group_names)."""
     from calflow.xytheta.export import Compensator
     from calflow.xytheta.export.controllers import read_linuxcnc, read_twincat
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.models.ladder import MicroModel
 
     s, work = thesis[CAMPAIGN], thesis["work"]
     for name, m in s["models"].items():
@@ -201,10 +201,10 @@ def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis)
     from calflow.config import load_campaign
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.evaluation import xytheta_validation_metrics
-    from calflow.xytheta.kinematics import inverse as nominal_inverse
-    from calflow.xytheta.lookup import infer_directions
-    from calflow.xytheta.plans import validation
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.models.kinematics import inverse as nominal_inverse
+    from calflow.xytheta.tables.lookup import infer_directions
+    from calflow.xytheta.plans.poses import validation
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     rig = simulated_xytheta(seed=c["seed"], stream="validation_oracle", **c["rig"]["options"])

@@ -12,8 +12,10 @@ from scipy.optimize import least_squares
 
 from calflow.config import load_campaign
 from calflow.identification.diagnostics import observability
-from calflow.xytheta import cost, design, design_plan as dp
-from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters, forward
+from calflow.xytheta.models import cost
+from calflow.xytheta.design import criteria as design
+from calflow.xytheta.design import plan as dp
+from calflow.xytheta.models.kinematics import PARAMETER_NAMES, Parameters, forward
 
 NOMINAL = Parameters(10000.0, 8000.0, 180.0, 0.0)
 TRUE = Parameters(9572.9, 7795.8, 177.689, -0.132)
@@ -119,8 +121,8 @@ def test_order_travels_less_than_the_random_order():
 def test_time_model_is_the_simulated_rigs_clock():
     from calflow.acquisition.runner import acquire
     from calflow.commands.common import meta
-    from calflow.xytheta.plans import identification
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans.poses import identification
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     plan = identification(20, *BOX, seed=1)
@@ -145,7 +147,7 @@ def test_approach_rows_make_every_pose_approached_from_below():
 
 
 def test_optimal_plan_option_builds_a_plan_with_its_bound(tmp_path):
-    from calflow.xytheta.campaign_plans import identification
+    from calflow.xytheta.plans.campaign import identification
 
     text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
         "identification:\n", "identification:\n  plan: optimal\n  design: {poses: 60, candidates: 512}\n", 1)
@@ -176,7 +178,7 @@ def test_optimal_plan_without_a_noise_model_is_refused(tmp_path):
 
 
 def test_design_study_answers_poses_and_hours_where_the_curve_crosses_the_target():
-    from calflow.xytheta.design_study import needed
+    from calflow.xytheta.design.study import needed
 
     counts = np.array([10, 100, 1000])
     sigma = np.zeros((2, 3, 2))
@@ -194,7 +196,7 @@ def test_design_study_answers_poses_and_hours_where_the_curve_crosses_the_target
 
 def test_design_study_command_writes_curves_the_summary_and_report_read(tmp_path):
     from calflow.data.io import open_dataset
-    from calflow.xytheta.design_study import figure, study, summary_block
+    from calflow.xytheta.design.study import figure, study, summary_block
 
     text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
         "identification:\n", "identification:\n  design: {candidates: 256}\n", 1)
@@ -212,6 +214,6 @@ def test_design_study_command_writes_curves_the_summary_and_report_read(tmp_path
 
 
 def test_parameter_keys_are_the_summarys():
-    from calflow.xytheta.summary import parameter_key
+    from calflow.xytheta.report.summary import parameter_key
 
     assert [design.parameter_key(k) for k in PARAMETER_NAMES] == [parameter_key(k) for k in PARAMETER_NAMES]

@@ -11,8 +11,9 @@ from hypothesis import given, settings, strategies as st
 
 from calflow.config import load_campaign
 from calflow.identification import discrepancy as dc
-from calflow.xytheta import design_discrepancy as dd, design_plan as dp
-from calflow.xytheta.lookup import PositionLUT
+from calflow.xytheta.design import discrepancy as dd
+from calflow.xytheta.design import plan as dp
+from calflow.xytheta.tables.lookup import PositionLUT
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -145,7 +146,7 @@ def test_the_plan_takes_its_kernel_from_the_xy_tables_when_the_config_gives_none
 
     from calflow.data.io import write_dataset
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta.campaign_plans import identification
+    from calflow.xytheta.plans.campaign import identification
 
     X, Y = np.arange(0.0, 9450.0, 5.0), np.arange(0.0, 3780.0, 5.0)
     xx = np.column_stack([4.0 * np.sin(2 * np.pi * X / 400.0)] * 2)

@@ -10,8 +10,11 @@ from hypothesis import given, settings, strategies as st
 
 from calflow.config import load_campaign
 from calflow.identification.design import criterion, information
-from calflow.nano import campaign_plans, design, design_plan, plans
-from calflow.nano.thermal_model import SingleModel
+from calflow.nano.plans import campaign as campaign_plans
+from calflow.nano.plans import design
+from calflow.nano.plans import designed as design_plan
+from calflow.nano.plans import sequences as plans
+from calflow.nano.models.thermal import SingleModel
 
 ROOT = Path(__file__).resolve().parents[1]
 STROKE = np.array([480.0])
@@ -183,7 +186,7 @@ def test_noise_model_is_the_rigs_declared_one_and_averaging_reduces_only_the_sen
 
 
 def test_2d_summary_block_bounds_each_equations_kept_terms():
-    from calflow.nano.thermal_model import TwoDoFModel
+    from calflow.nano.models.thermal import TwoDoFModel
 
     c = _campaign("nano2d")
     a = campaign_plans.training_2d(c, None)

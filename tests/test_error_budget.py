@@ -1,4 +1,4 @@
-"""The error budget's arithmetic (calflow.xytheta.error_budget): its entries add up, in
+"""The error budget's arithmetic (calflow.xytheta.stage.error_budget): its entries add up, in
 signed quadrature, to the held-out RMS they split; each effect is what its removal takes
 away; a rig without an effect has no entry for it."""
 
@@ -6,8 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.xytheta.error_budget import REPLAYS, active_effects, combine, groups, replay_options
-from calflow.xytheta.rig_physics import EFFECTS, UNMODELLED, XYThetaTruth
+from calflow.xytheta.stage.error_budget import REPLAYS, active_effects, combine, groups, replay_options
+from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth
 
 aps = st.lists(st.floats(0.0, 50.0), min_size=3, max_size=3)
 

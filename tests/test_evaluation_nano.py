@@ -20,7 +20,7 @@ from calflow.nano.evaluation import (
     temperature_range,
 )
 from calflow.metrics import iso230_2
-from calflow.nano.summary import stage1d_summary, stage2d_summary
+from calflow.nano.report.summary import stage1d_summary, stage2d_summary
 
 MODES_1D = "no_calibration adaptive_kmz single"
 FWD = np.arange(0.0, 481.0, 80.0)

@@ -11,17 +11,17 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from calflow.errors import DataError
-from calflow.xytheta.angle_table import AngleTable
+from calflow.xytheta.tables.angle import AngleTable
 from calflow.xytheta.export import Compensator
 from calflow.xytheta.export import controllers as ctl
 from calflow.xytheta.export.bundle import load, write_bundle
 from calflow.xytheta.export.tables import rebuild, write_tables
 from calflow.xytheta.export.verification import export_plan
 from calflow.xytheta.export.writer import export_model
-from calflow.xytheta.kinematics import Parameters
-from calflow.xytheta.lookup import AngleLUT, PositionLUT
-from calflow.xytheta.models import MicroModel
-from calflow.xytheta.pose_lookup import PoseAngleLUT
+from calflow.xytheta.models.kinematics import Parameters
+from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+from calflow.xytheta.models.ladder import MicroModel
+from calflow.xytheta.tables.pose import PoseAngleLUT
 
 PROV = {"campaign": "test", "config_sha256": "0" * 64, "export_calflow_version": "test"}
 small = st.floats(-20.0, 20.0, allow_nan=False)

@@ -313,9 +313,9 @@ def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
     """Asked for 2.0 mm, ``POS?`` answers 2.0 within the encoder's 50 nm (Table 4.1), as a
     real controller's encoder would; the external sensor still sees the lead screw."""
     from calflow.gcs.client import GCSController
-    from calflow.xytheta.emulate import ENCODER_UM, campaign_emulator
-    from calflow.xytheta.kinematics import forward, world_from_pattern
-    from calflow.xytheta.vision_sensor import simulated_vision
+    from calflow.xytheta.stage.emulate import ENCODER_UM, campaign_emulator
+    from calflow.xytheta.models.kinematics import forward, world_from_pattern
+    from calflow.xytheta.stage.vision_sensor import simulated_vision
 
     campaign = {"robot": "xytheta", "rig": {"factory": "simulated", "options": {}}}
     with campaign_emulator(campaign, time_scale=500.0) as e:

@@ -18,9 +18,9 @@ from calflow.gcs.datarecorder import parse_array
 from calflow.gcs.piezo import PiezoAxisConfig, PiezoController, piezo_emulator
 from calflow.gcs.protocol import ReplyFramer
 from calflow.gcs.rig import gcs
-from calflow.nano import plans
-from calflow.nano.emulate import emulated_rig_options
-from calflow.nano.rig import nano1d
+from calflow.nano.plans import sequences as plans
+from calflow.nano.stage.emulate import emulated_rig_options
+from calflow.nano.stage.rig import nano1d
 from conftest import SMALL_NANO1D, SMALL_NANO2D
 
 
@@ -180,7 +180,7 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.nano.emulate import main
+    from calflow.nano.stage.emulate import main
 
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_NANO1D))
@@ -194,7 +194,7 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
 
 
 def test_a_second_order_axis_follows_the_closed_loop_step_and_ont_waits_for_its_envelope():
-    from calflow.nano.piezo import closed_loop_step
+    from calflow.nano.stage.piezo import closed_loop_step
 
     c, clock = _controller(natural_hz=100.0, damping=0.7, settle_window=0.01, settle_time=0.0,
                            sensor_noise=0.0, sensor_resolution=0.0)
@@ -262,7 +262,7 @@ def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settlin
     """ISO 9283 7.5/7.6 from the recorded moves of a step-response run, gcs rig through the
     E-727-class emulator vs the simulated rig (same world, other noise), in one band."""
     from calflow.acquisition.recorded_moves import acquire_recorded_moves
-    from calflow.nano.stabilisation_summary import stabilisation_entries
+    from calflow.nano.report.stabilisation import stabilisation_entries
 
     plan = plans.step_response([1.0, 10.0, 50.0], 3, [100.0], 0.05, 1000.0, 0.01)
     ds, sim = _through_emulator_and_simulated(plan, acquire_recorded_moves, 21)

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from calflow.identification import diagnostics
-from calflow.xytheta import cost
-from calflow.xytheta.identification import identify
-from calflow.xytheta.kinematics import Parameters, forward
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.identification import identify
+from calflow.xytheta.models.kinematics import Parameters, forward
 
 TRUE = Parameters(9572.9, 7795.9, 177.69, -0.11)
 
@@ -124,7 +124,7 @@ def test_observability_indices_follow_their_definitions():
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from calflow.xytheta.identification import crlb  # noqa: E402
+from calflow.xytheta.models.identification import crlb  # noqa: E402
 
 START = Parameters(10000.0, 8000.0, 180.0, 0.0)
 
@@ -203,9 +203,9 @@ def _rig_run(gross_rate: float, poses: int = 800, seed: int = 5):
     import yaml
 
     from calflow.config import validate
-    from calflow.xytheta.montecarlo import simulate_run
-    from calflow.xytheta.plans import identification
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.studies.montecarlo import simulate_run
+    from calflow.xytheta.plans.poses import identification
+    from calflow.xytheta.stage.physics import options_off
     from conftest import SMALL_XYTHETA
 
     c = validate(yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA)), "campaign-xytheta", "small.yaml")
@@ -340,7 +340,7 @@ def test_readings_are_the_reading_residuals_as_a_linear_map(n, seed, weighted):
 def test_cross_validation_refits_each_fold_as_identify_does():
     """The bare fold fits of cross_validate (shared trigonometry, row subsets) are the
     identification of each fold's training poses."""
-    from calflow.xytheta.identification import cross_validate
+    from calflow.xytheta.models.identification import cross_validate
 
     X, Y, theta = _poses(200, 11)
     P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=12)

@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.xytheta.kinematics import (
+from calflow.xytheta.models.kinematics import (
     Parameters,
     forward,
     forward_jacobian,

@@ -9,12 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.acquisition.runner import acquire
-from calflow.xytheta.characterisation import characterise, xy_positioning_metrics
+from calflow.xytheta.tables.characterisation import characterise, xy_positioning_metrics
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.xytheta.evaluation import xytheta_validation_metrics
-from calflow.xytheta.kinematics import Parameters, forward, inverse
-from calflow.xytheta.lookup import (
+from calflow.xytheta.models.kinematics import Parameters, forward, inverse
+from calflow.xytheta.tables.lookup import (
     AngleLUT,
     PositionLUT,
     angle_residuals_from_run,
@@ -22,9 +22,9 @@ from calflow.xytheta.lookup import (
     joint_increments,
     sequential_commands,
 )
-from calflow.xytheta import sweeps
-from calflow.xytheta.plans import validation
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.plans.poses import validation
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 from conftest import XY_NOISE_UM
 
@@ -70,7 +70,7 @@ def test_tables_inside_a_model_hold_only_the_stages_own_errors():
     and perpendicularity, which α and β represent — the tables a kinematic model uses
     (trends=False) are zero within noise: no cosine error of the misalignment (7.7 µm at
     9.45 mm in the raw along-travel table), no offset from the home reading, zero at home."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     quiet = {**options_off(), "stage_repeatability_um": 0.01, "sensor_noise_um": 0.01}
     runs = [acquire(sweeps.characterisation(a, stop_um=s, step_um=100, cycles=1),
@@ -224,7 +224,7 @@ def test_angle_lut_averages_per_angle_and_interpolates():
 def test_angle_lut_on_the_rig_model_ii_to_iv(tmp_path):
     """Fig. 4.26: residuals of Model II at 5 angles → g_ax, g_ay → Model IV, on a rig whose
     dominant error is the Θ stage's (a 1 % scale error: ≈ 11 µm at 5°), the rest off."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     physics = {**options_off(), "theta_scale_ppm": 10000.0}
     p = simulated_xytheta().truth_model.parameters  # stands in for identified Model II parameters

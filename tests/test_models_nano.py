@@ -1,4 +1,4 @@
-"""Tests of the nanopositioning models (thesis Sec. 5.2, 5.4.1; calflow.nano.model/kmz).
+"""Tests of the nanopositioning models (thesis Sec. 5.2, 5.4.1; calflow.nano.models.geometric/kmz).
 
 Synthetic physics generated here, richer than the models on purpose:
 * geometry: the stage lands at x_clean with G(x_clean) = q, G a known cubic
@@ -15,9 +15,9 @@ import pytest
 import xarray as xr
 from hypothesis import given, settings, strategies as st
 
-from calflow.nano.kmz import AdaptiveKMZModel, KMZReading
-from calflow.nano.models import GeometricModel, ModelInputError, model_from_dataset
-from calflow.nano.thermal_model import SingleModel, ThermalDriftModel, TwoDoFModel
+from calflow.nano.models.kmz import AdaptiveKMZModel, KMZReading
+from calflow.nano.models.registry import GeometricModel, ModelInputError, model_from_dataset
+from calflow.nano.models.thermal import SingleModel, ThermalDriftModel, TwoDoFModel
 
 P = np.polynomial.Polynomial
 NOISE = 0.010  # um

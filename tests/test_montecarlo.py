@@ -12,10 +12,10 @@ import yaml
 
 from calflow.config import validate
 from calflow.errors import ConfigError
-from calflow.xytheta.montecarlo import (grid, identify_run, jobs, load_study, parse_seeds, render_page, run_point,
+from calflow.xytheta.studies.montecarlo import (grid, identify_run, jobs, load_study, parse_seeds, render_page, run_point,
                                 seed_batches, simulate_run)
-from calflow.xytheta.montecarlo_aggregate import aggregate, cell
-from calflow.xytheta.rig import XYThetaTruth
+from calflow.xytheta.studies.aggregate import aggregate, cell
+from calflow.xytheta.stage.rig import XYThetaTruth
 from conftest import SMALL_XYTHETA, make_workdir, snakemake
 
 PARAMS = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
@@ -30,7 +30,7 @@ def small_campaign() -> dict:
 def clean_rig() -> dict:
     """Rig options with every error the models do not describe switched off: sensor noise
     is then the only source of identification error."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     return {**options_off(), "stage_repeatability_um": 0.0}
 
@@ -59,7 +59,7 @@ def test_run_point_on_tiny_settings():
 def test_identification_uses_the_run_dataset_only(tmp_path):
     """The analysis path gets a run dataset read back from disk: no simulator, no truth."""
     from calflow.data.io import open_dataset, write_dataset
-    from calflow.xytheta.plans import identification
+    from calflow.xytheta.plans.poses import identification
 
     c = small_campaign()
     p = c["identification"]
@@ -207,7 +207,7 @@ def test_default_study_smallest_pose_count_identifies_at_every_noise_level():
     with the campaign's robust screening at every noise level: `make run` runs these points."""
     from pathlib import Path
 
-    from calflow.xytheta.montecarlo import run_point
+    from calflow.xytheta.studies.montecarlo import run_point
 
     root = Path(__file__).resolve().parents[1]
     s = load_study(root / "config/studies/montecarlo-xytheta.yaml", root / "config/campaigns")

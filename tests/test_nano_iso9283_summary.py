@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from calflow.nano.evaluation import pose_metrics_1d
-from calflow.nano.iso9283_summary import iso9283_block
-from calflow.nano.summary import stage1d_summary
+from calflow.nano.report.iso9283 import iso9283_block
+from calflow.nano.report.summary import stage1d_summary
 from test_evaluation_nano import DT_S, run_1d
 
 POSITIONS = np.array([0.0, 10.0, 20.0, 10.0])  # 0, 10, 20 forward, then 10 backward

@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.nano import interferometer as ifm
-from calflow.nano.piezo import PlayHysteresis, residual_creep_um, sensor_nonlinearity_um
-from calflow.nano.rig import nano1d, nano2d
-from calflow.nano.rig_options import EFFECTS, NOISE, UNMODELLED, without
-from calflow.nano.thermal_network import ThermalNetwork, network_bank, network_matrices
+from calflow.nano.stage import interferometer as ifm
+from calflow.nano.stage.piezo import PlayHysteresis, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.stage.rig import nano1d, nano2d
+from calflow.nano.stage.options import EFFECTS, NOISE, UNMODELLED, without
+from calflow.nano.stage.thermal_network import ThermalNetwork, network_bank, network_matrices
 from calflow.rigs.thermal import room_profile
 
 X = np.linspace(0.0, 480.0, 25)
@@ -172,7 +172,7 @@ def test_effect_samples_replay_the_rig_exactly():
     """The budget's replay of a run (same commands, times, move history) gives the rig's readings."""
     import xarray as xr
 
-    from calflow.nano.error_budget import effect_samples
+    from calflow.nano.stage.error_budget import effect_samples
 
     quiet = dict(interferometer_noise_nm=0.0, repeatability_nm=0.0, settle_fraction=0.0, wavelength_stability_ppm=0.0,
                  thermocouple_noise_mk=0.0, profile="lab5day", start_offset_s=3600.0)
@@ -193,7 +193,7 @@ def test_effect_samples_replay_the_rig_exactly():
 
 
 def test_budget_combination_adds_in_quadrature_when_uncorrelated():
-    from calflow.nano.error_budget import _combine
+    from calflow.nano.stage.error_budget import _combine
 
     rng = np.random.default_rng(1)
     a, b = rng.standard_normal((4000, 1)) * 0.02, rng.standard_normal((4000, 1)) * 0.01
@@ -207,7 +207,7 @@ def test_budget_combination_adds_in_quadrature_when_uncorrelated():
 
 
 def test_ordering_paragraph_follows_the_numbers_not_the_thesis():
-    from calflow.nano.ordering import ordering_block
+    from calflow.nano.report.ordering import ordering_block
 
     ref = {"tests": {"no_calibration": {"max_accuracy_nm": 1000.0}, "single": {"max_accuracy_nm": 400.0},
                      "adaptive_kmz": {"max_accuracy_nm": 200.0}}}

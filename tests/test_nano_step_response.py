@@ -13,11 +13,11 @@ from hypothesis import strategies as st
 from calflow.acquisition.recorded_moves import acquire_recorded_moves
 from calflow.data.runs import RunMetadata
 from calflow.errors import OptionError, RigError
-from calflow.nano import plans
-from calflow.nano.piezo import closed_loop_step
-from calflow.nano.rig import nano1d, nano2d
-from calflow.nano.rig_options import without
-from calflow.nano.stabilisation_summary import stabilisation_entries
+from calflow.nano.plans import sequences as plans
+from calflow.nano.stage.piezo import closed_loop_step
+from calflow.nano.stage.rig import nano1d, nano2d
+from calflow.nano.stage.options import without
+from calflow.nano.report.stabilisation import stabilisation_entries
 
 QUIET = dict(interferometer_noise_nm=0.0, repeatability_nm=0.0, wavelength_stability_ppm=0.0, settle_fraction=0.0,
              creep_pct_per_decade=0.0, interferometer_resolution_nm=1e-6, profile="constant")
@@ -150,7 +150,7 @@ def test_summary_block_from_a_small_synthetic_run():
     from test_nano_iso9283_summary import DEV, DIRS, POSITIONS
     from test_evaluation_nano import run_1d
 
-    from calflow.nano.iso9283_summary import iso9283_block
+    from calflow.nano.report.iso9283 import iso9283_block
 
     step = _synthetic_run(band_nm=20.0)
     validation = run_1d(DEV, modes=[0, 0], positions=POSITIONS, dirs=DIRS)

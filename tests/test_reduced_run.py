@@ -61,7 +61,7 @@ def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
 def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tmp_path):
     """The session's reduced XYΘ campaign on the simulated rig, and the same campaign through
     the GCS emulator of that rig."""
-    from calflow.xytheta.emulate import emulated_rig_options
+    from calflow.xytheta.stage.emulate import emulated_rig_options
 
     sim = json.loads(json.dumps(REDUCED_XYTHETA))
     emu, options = emulated_rig_options(sim, time_scale=2000.0, timeout=2.0)
@@ -87,7 +87,7 @@ def test_error_budget_replay_reproduces_the_campaign(reduced_run):
     same held-out AP at every target, to the bit (same seeds, streams and command functions)."""
     import xarray as xr
 
-    from calflow.xytheta.error_budget import replay
+    from calflow.xytheta.stage.error_budget import replay
 
     r = replay(reduced_run / "config/campaigns/c.yaml", "none")
     for name, ap in r["ap_um"].items():

@@ -20,8 +20,8 @@ from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
 from calflow.gcs.rig import gcs
-from calflow.nano import plans
-from calflow.nano.emulate import emulated_rig_options
+from calflow.nano.plans import sequences as plans
+from calflow.nano.stage.emulate import emulated_rig_options
 from conftest import ROOT, SMALL_NANO1D
 
 META = RunMetadata(campaign="faults", robot="stage1d", source="gcs", plan="training",
@@ -268,8 +268,8 @@ def test_fuzzed_csv_imports_or_gives_one_line_and_no_file(tmp_path_factory, caps
 @pytest.fixture(scope="module")
 def good_run(tmp_path_factory):
     from calflow.data.io import write_dataset
-    from calflow.xytheta import plans as xy_plans
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans import poses as xy_plans
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification",
                        config_sha256="0" * 64)

@@ -11,11 +11,11 @@ from calflow.data.io import open_dataset, write_dataset, write_json
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import RigError
-from calflow.xytheta.kinematics import Parameters, inverse
-from calflow.xytheta import plans
+from calflow.xytheta.models.kinematics import Parameters, inverse
+from calflow.xytheta.plans import poses as plans
 from calflow.rigs.protocol import Rig
 from calflow.rigs.replay import replay
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 SEED = 3
 
@@ -285,7 +285,7 @@ def test_a_tracker_clock_is_served_in_campaign_time():
 
 
 def test_unsupported_sections_say_what_each_missing_run_costs():
-    from calflow.nano.summary import unsupported_sections
+    from calflow.nano.report.summary import unsupported_sections
 
     assert unsupported_sections("stage1d", {"training", "metrology", "validation"}, True) == {}
     assert set(unsupported_sections("stage2d", {"training"}, False, budget=False)) == {

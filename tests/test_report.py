@@ -136,10 +136,10 @@ def xytheta(xytheta_pages):
 def xytheta_pages(tmp_path_factory, strict):
     """summary, files, the HTML report and its print page (PNG figures, for the PDF)."""
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta.kinematics import Parameters
-    from calflow.xytheta.lookup import AngleLUT
-    from calflow.xytheta.pose_lookup import PoseAngleLUT
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.models.kinematics import Parameters
+    from calflow.xytheta.tables.lookup import AngleLUT
+    from calflow.xytheta.tables.pose import PoseAngleLUT
+    from calflow.xytheta.models.ladder import MicroModel
 
     root = tmp_path_factory.mktemp("xytheta")
     files = []

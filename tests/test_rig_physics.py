@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from calflow.xytheta.kinematics import forward
-from calflow.xytheta.rig import simulated_xytheta
-from calflow.xytheta.rig_physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+from calflow.xytheta.models.kinematics import forward
+from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
 
 RNG = np.random.default_rng(5)
 X, Y, T = RNG.uniform(0, 4000, 300), RNG.uniform(800, 2800, 300), RNG.uniform(0, 5, 300)

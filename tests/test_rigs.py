@@ -8,9 +8,9 @@ from hypothesis import strategies as st
 from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
-from calflow.xytheta import plans
+from calflow.xytheta.plans import poses as plans
 from calflow.rigs import load_rig
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 META = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64)
 
@@ -67,11 +67,11 @@ def test_same_seed_same_readings_different_seed_different_noise():
 
 def test_reading_is_the_pattern_frame_view_of_the_tool_point():
     """Eq. (4.26): with noise and physics errors off, the reading is the exact transform."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     rig = simulated_xytheta(seed=0, sensor_noise_um=0.0, stage_repeatability_um=0.0, sensor_resolution_um=1e-9,
                             room_swing_degC=0.0, sensor_theta_noise_deg=0.0, **options_off())
-    from calflow.xytheta.kinematics import forward, world_from_pattern
+    from calflow.xytheta.models.kinematics import forward, world_from_pattern
     home = rig.read()
     rig.move({"x": 1500.0, "y": 700.0, "theta": 3.0})
     r = rig.read()
@@ -96,7 +96,7 @@ def test_visit_in_bulk_is_the_same_as_move_wait_read(seed, n, split, dwell, lost
     """The runner's fast path: the simulated XYΘ rig's ``visit`` gives, bit for bit, the
     readings and the final state (time, random stream) of move/wait/read row by row —
     short moves inside the backlash, repeated commands and gross errors included."""
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     rng = np.random.default_rng(seed)
     cmd = {"x": rng.uniform(0, 15000, n), "y": rng.uniform(0, 15000, n), "theta": rng.choice([-20.0, 0.0, 7.5], n)}

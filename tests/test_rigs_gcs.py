@@ -26,14 +26,14 @@ from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
 from calflow.gcs import GCSController
 from calflow.gcs.emulator import GCSEmulator
-from calflow.xytheta.emulate import emulate_main, emulated_rig_options
-from calflow.xytheta import cost
-from calflow.xytheta.identification import identify
-from calflow.xytheta.kinematics import Parameters
+from calflow.xytheta.stage.emulate import emulate_main, emulated_rig_options
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.identification import identify
+from calflow.xytheta.models.kinematics import Parameters
 from calflow.plan import Plan
-from calflow.xytheta import plans
+from calflow.xytheta.plans import poses as plans
 from calflow.gcs.rig import gcs
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.stage.rig import simulated_xytheta
 from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
 
 META = RunMetadata(campaign="gcs-test", robot="xytheta", source="gcs", plan="identification",

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calflow.errors import RigError
-from calflow.nano.rig import Nano1DRig, Nano2DRig, nano1d, nano2d
+from calflow.nano.stage.rig import Nano1DRig, Nano2DRig, nano1d, nano2d
 from calflow.rigs.thermal import LagBank, room_profile
 
 QUIET: dict = {}  # the random walk is off by default; creep is a transient true_position excludes

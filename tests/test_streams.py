@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.nano.rig import nano1d
+from calflow.nano.stage.rig import nano1d
 from calflow.acquisition.streams import DwellReducer, reduce_dwell
 
 

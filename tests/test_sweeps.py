@@ -7,10 +7,10 @@ from calflow.acquisition.runner import acquire
 from calflow.data.conventions import PLANS
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
-from calflow.xytheta.kinematics import Parameters, inverse
-from calflow.xytheta.lookup import infer_directions
-from calflow.xytheta import sweeps
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.models.kinematics import Parameters, inverse
+from calflow.xytheta.tables.lookup import infer_directions
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 
 def test_characterisation_rows_passes_and_approach_directions():

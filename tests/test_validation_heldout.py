@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from calflow.xytheta import cost
-from calflow.xytheta.angle_table import AngleTable, _curves, angle_spectrum
-from calflow.xytheta.commands import o2_plateau
-from calflow.xytheta.identification import cross_validate, identify
-from calflow.xytheta.kinematics import Parameters, forward
-from calflow.xytheta.plans import heldout_targets, identification
-from calflow.xytheta.rig_physics import options_off
-from calflow.xytheta.summary import adequacy, disjointness, repeatability_floor
+from calflow.xytheta.models import cost
+from calflow.xytheta.tables.angle import AngleTable, _curves, angle_spectrum
+from calflow.xytheta.steps import o2_plateau
+from calflow.xytheta.models.identification import cross_validate, identify
+from calflow.xytheta.models.kinematics import Parameters, forward
+from calflow.xytheta.plans.poses import heldout_targets, identification
+from calflow.xytheta.stage.physics import options_off
+from calflow.xytheta.report.summary import adequacy, disjointness, repeatability_floor
 
 NOMINAL = Parameters(10000.0, 8000.0, 180.0, 0.0)
 #: a simulated rig whose only errors are geometric (and the noise of stage and sensor)
@@ -163,7 +163,7 @@ def test_cross_validation_matches_the_fit_when_the_model_is_right():
 def test_adequacy_accepts_a_right_model_and_flags_a_wrong_one():
     truth = Parameters(9572.9, 7795.9, 177.69, -0.11)
     floor = {"floor_um": 0.5, "dof": 2000}
-    from calflow.xytheta.identification import noise_sigma
+    from calflow.xytheta.models.identification import noise_sigma
 
     X, Y, T, Px, Py = _poses(600, 2, 0.5, truth)
     fit = identify(X, Y, T, Px, Py, initial=NOMINAL)
@@ -207,8 +207,8 @@ def test_intervals_cover_the_truth_on_a_rig_the_model_describes(tmp_path, model,
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
+    from calflow.xytheta.studies.montecarlo import run_point
+    from calflow.xytheta.studies.aggregate import aggregate
     from conftest import SMALL_XYTHETA
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
@@ -229,8 +229,8 @@ def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
+    from calflow.xytheta.studies.montecarlo import run_point
+    from calflow.xytheta.studies.aggregate import aggregate
     from conftest import SMALL_XYTHETA
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))

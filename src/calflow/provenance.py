@@ -16,7 +16,7 @@ from calflow import __version__
 
 def _files(module: str) -> list[Path]:
     """The source files of ``module``: a module, a package with its submodules and data, or
-    a folder of templates inside the package (``calflow.xytheta.templates``)."""
+    a folder of templates inside the package (``calflow.xytheta.report.templates``)."""
     root = Path(__file__).resolve().parent
     parts = module.split(".")
     if parts[0] != "calflow":

@@ -13,7 +13,7 @@ import xarray as xr
 
 from calflow.data.runs import RunMetadata
 from calflow.errors import DataError
-from calflow.xytheta.kinematics import world_from_pattern
+from calflow.xytheta.models.kinematics import world_from_pattern
 from calflow.metrics import iso9283
 
 

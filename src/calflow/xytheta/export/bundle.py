@@ -18,7 +18,7 @@ import numpy as np
 from calflow import __version__
 from calflow.data.io import jsonable, sha256_file, write_json
 from calflow.errors import DataError
-from calflow.xytheta import kinematics as kin
+from calflow.xytheta.models import kinematics as kin
 from calflow.xytheta.export.tables import rebuild, write_tables
 
 FORMAT = "calflow-xytheta-bundle"
@@ -83,10 +83,10 @@ def load(folder) -> dict:
 
 def read_model(folder):
     """The :class:`MicroModel` of a bundle, tables and all."""
-    from calflow.xytheta.angle_table import AngleTable
-    from calflow.xytheta.lookup import AngleLUT, PositionLUT
-    from calflow.xytheta.models import MicroModel
-    from calflow.xytheta.pose_lookup import PoseAngleLUT
+    from calflow.xytheta.tables.angle import AngleTable
+    from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+    from calflow.xytheta.models.ladder import MicroModel
+    from calflow.xytheta.tables.pose import PoseAngleLUT
 
     path = Path(folder)
     folder = path if path.is_dir() else path.parent

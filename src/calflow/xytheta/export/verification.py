@@ -100,7 +100,7 @@ def export_plan(folder, targets: np.ndarray, cycles: int, dwell_s: float) -> tup
 def validation_export(c: dict, args) -> Acquisition:
     """``calflow acquire --plan validation_export --model M.nc --export DIR``: the held-out
     targets through the exported files of DIR (:func:`export_plan`)."""
-    from calflow.xytheta.campaign_plans import validation_heldout
+    from calflow.xytheta.plans.campaign import validation_heldout
 
     if not getattr(args, "export", None):
         raise CalflowError("calflow acquire --plan validation_export: --export DIR (the model's export folder) is required")

@@ -19,7 +19,7 @@ NOT_EXPRESSED = ("cross-axis terms of the position table (x error while Y moves,
 def export_model(model_path, folder) -> dict:
     """Write the bundle of the model at ``model_path`` and, when it has a position table, its
     LinuxCNC and TwinCAT files into ``folder``; returns what the controller files hold."""
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.models.ladder import MicroModel
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
