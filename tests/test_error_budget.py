@@ -30,14 +30,18 @@ def test_entries_add_up_in_signed_quadrature_to_the_heldout_rms(full, noise, wit
 
 
 def test_inactive_replays_are_left_out_and_unmodelled_effects_are_marked():
-    records = [{"replay": "baseline", "active": True, "ap_um": {"II": [1.0, 1.0]}},
-               {"replay": "yaw", "active": True, "ap_um": {"II": [1.0, 2.0]}},
-               {"replay": "lead_screw", "active": True, "ap_um": {"II": [3.0, 3.0]}},
-               {"replay": "decode", "active": False}]
+    records = [
+        {"replay": "baseline", "active": True, "ap_um": {"II": [1.0, 1.0]}},
+        {"replay": "yaw", "active": True, "ap_um": {"II": [1.0, 2.0]}},
+        {"replay": "lead_screw", "active": True, "ap_um": {"II": [3.0, 3.0]}},
+        {"replay": "decode", "active": False},
+    ]
     b = combine({"II": [2.0, 2.0]}, records)
     assert b["effects"] == ["yaw", "lead_screw"]
     assert b["unmodelled"] == ["yaw"]
-    assert b["models"]["II"]["error_budget_um"]["lead_screw"] < 0 < b["models"]["II"]["error_budget_um"]["yaw"]
+    assert (
+        b["models"]["II"]["error_budget_um"]["lead_screw"] < 0 < b["models"]["II"]["error_budget_um"]["yaw"]
+    )
 
 
 def test_active_effects_follow_the_rig_options():

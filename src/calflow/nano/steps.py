@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.commands.common import campaign as load, meta
+from calflow.commands.common import campaign as load
+from calflow.commands.common import meta
 from calflow.data.io import open_dataset, write_dataset
 
 
@@ -18,15 +19,22 @@ def identify(args) -> None:
     temps = run["temperature"].values if "temperature" in run else None  # a recording may have none
     s = c["model"]
     if c["robot"] == "stage1d":
-        model = SingleModel.fit(run["cmd_x"].values, run["meas_x"].values, temps, order=s["order"],
-                                penter=s["penter"], premove=s["premove"])
+        model = SingleModel.fit(
+            run["cmd_x"].values,
+            run["meas_x"].values,
+            temps,
+            order=s["order"],
+            penter=s["penter"],
+            premove=s["premove"],
+        )
         if args.model_name == "adaptive_kmz":
             model = AdaptiveKMZModel.from_single(model, variant=s["kmz_variant"])
     else:
         cmd = np.column_stack([run["cmd_x"].values, run["cmd_y"].values])
         meas = np.column_stack([run["meas_x"].values, run["meas_y"].values])
-        model = TwoDoFModel.fit(cmd, meas, temps, order=(s["order"], s["order"]), penter=s["penter"],
-                                premove=s["premove"])
+        model = TwoDoFModel.fit(
+            cmd, meas, temps, order=(s["order"], s["order"]), penter=s["penter"], premove=s["premove"]
+        )
     write_dataset(model.to_dataset(meta(c, run.attrs["source"], "training", args.model_name)), args.out)
 
 
@@ -64,28 +72,53 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
     recordings = c["rig"].get("options", {}).get("recordings")
     recorded = c["rig"]["factory"] == "replay" and isinstance(recordings, dict)  # an instrument's files
     # the thesis's interferometer inputs describe the simulated rig, not another lab's instrument
-    budget = interferometer_budget(**c.get("uncertainty", {})) if c.get("uncertainty") or not recorded else None
+    budget = (
+        interferometer_budget(**c.get("uncertainty", {})) if c.get("uncertainty") or not recorded else None
+    )
     training = runs.get("training")
     heated = any("temperature" in ds for ds in runs.values())
     t_range = temperature_range(training) if training is not None and "temperature" in training else None
     unsupported = unsupported_sections(c["robot"], set(metrics) | set(runs), heated, budget is not None)
     physics = None
-    if truth is not None and training is not None and "validation" in runs and truth.get("rig") in ("nano1d", "nano2d"):
+    if (
+        truth is not None
+        and training is not None
+        and "validation" in runs
+        and truth.get("rig") in ("nano1d", "nano2d")
+    ):
         from calflow.nano.stage.error_budget import error_budget
 
         physics = error_budget(truth, c, training, runs["validation"])
     if c["robot"] == "stage1d":
         iso_run = training if training is not None else runs.get("metrology")  # a recorded ISO 230-2 test
         iso = {**iso230_2_of_run(iso_run), "run": iso_run.attrs["plan"]} if iso_run is not None else None
-        summary = stage1d_summary(c, metrics.get("metrology"), metrics.get("validation"), models, budget, files,
-                                  training_range_c=t_range, iso230_2=iso, training_metrics=metrics.get("training"),
-                                  validation_run=runs.get("validation"), error_budget=physics,
-                                  step_response_run=runs.get("step_response"))
+        summary = stage1d_summary(
+            c,
+            metrics.get("metrology"),
+            metrics.get("validation"),
+            models,
+            budget,
+            files,
+            training_range_c=t_range,
+            iso230_2=iso,
+            training_metrics=metrics.get("training"),
+            validation_run=runs.get("validation"),
+            error_budget=physics,
+            step_response_run=runs.get("step_response"),
+        )
     else:
-        summary = stage2d_summary(c, metrics.get("validation"), models, budget, files,
-                                  training_metrics=metrics.get("training"), training_range_c=t_range,
-                                  validation_run=runs.get("validation"), error_budget=physics,
-                                  step_response_run=runs.get("step_response"))
+        summary = stage2d_summary(
+            c,
+            metrics.get("validation"),
+            models,
+            budget,
+            files,
+            training_metrics=metrics.get("training"),
+            training_range_c=t_range,
+            validation_run=runs.get("validation"),
+            error_budget=physics,
+            step_response_run=runs.get("step_response"),
+        )
     from calflow.data.io import jsonable
     from calflow.nano.plans.designed import training_design_block
 

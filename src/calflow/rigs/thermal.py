@@ -237,10 +237,18 @@ class LagBank(LinearBank):
     """Independent first-order lags ``dT_k/dt = (T_room(t) - T_k) / tau_k`` of a room profile
     (``taus_s`` in s), starting in equilibrium ``warmup_taus`` time constants early."""
 
-    def __init__(self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_taus: float = 12.0):
+    def __init__(
+        self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_taus: float = 12.0
+    ):
         taus = np.asarray(taus_s, dtype=float)
         if taus.ndim != 1 or not np.all(taus > 0):
             raise ValueError("LagBank time constants must be a 1-D array of positive seconds")
         self.taus = taus
-        super().__init__(room, np.diag(-1.0 / taus), 1.0 / taus, dt_s=dt_s, earliest_s=earliest_s,
-                         warmup_s=warmup_taus * float(taus.max()))
+        super().__init__(
+            room,
+            np.diag(-1.0 / taus),
+            1.0 / taus,
+            dt_s=dt_s,
+            earliest_s=earliest_s,
+            warmup_s=warmup_taus * float(taus.max()),
+        )

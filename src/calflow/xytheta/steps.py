@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.commands.common import campaign as load, meta
+from calflow.commands.common import campaign as load
+from calflow.commands.common import meta
 from calflow.data.io import open_dataset, write_dataset
 from calflow.errors import CalflowError
 
@@ -45,10 +46,14 @@ def _fit_quality(c: dict, X, Y, theta, P_mx, P_my, free, initial, ex, ey, f_ax=0
     ok = np.isfinite(X) & np.isfinite(Y) & np.isfinite(theta) & np.isfinite(P_mx) & np.isfinite(P_my)
     b = [np.broadcast_to(np.asarray(a, dtype=float), X.shape)[ok] for a in (ex, ey, f_ax, f_ay)]
     eps = cost.residuals(initial, X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], *b)
-    out = {"residual_rms_um": float(np.sqrt(np.mean(eps**2))),
-           "sigma_fit_um": noise_sigma(eps, int(ok.sum()), len(free)), "cv_folds": int(p["cv_folds"])}
-    out["cv_rms_um"] = cross_validate(X, Y, theta, P_mx, P_my, tuple(free), initial, p["cv_folds"], int(c["seed"]),
-                                      ex, ey, f_ax, f_ay)
+    out = {
+        "residual_rms_um": float(np.sqrt(np.mean(eps**2))),
+        "sigma_fit_um": noise_sigma(eps, int(ok.sum()), len(free)),
+        "cv_folds": int(p["cv_folds"]),
+    }
+    out["cv_rms_um"] = cross_validate(
+        X, Y, theta, P_mx, P_my, tuple(free), initial, p["cv_folds"], int(c["seed"]), ex, ey, f_ax, f_ay
+    )
     return out
 
 
@@ -65,12 +70,12 @@ def identify(args) -> None:
     """
     from calflow.identification import diagnostics
     from calflow.identification.robust import Robust
+    from calflow.xytheta.models import kinematics as kin
     from calflow.xytheta.models.identification import bootstrap_std
     from calflow.xytheta.models.identification import identify as fit
     from calflow.xytheta.models.kinematics import Parameters
-    from calflow.xytheta.models import kinematics as kin
-    from calflow.xytheta.tables.lookup import PositionLUT, infer_directions
     from calflow.xytheta.models.ladder import MicroModel, joint_directions
+    from calflow.xytheta.tables.lookup import PositionLUT, infer_directions
 
     c = load(args.campaign)
     spec = c["models"].get(args.model_name)
@@ -88,9 +93,12 @@ def identify(args) -> None:
         f_ax, f_ay = model.angle_errors(x0, y0, commanded, infer_directions(commanded))
         rejected = [int(i) for i in str(base.diagnostics.get("rejected_poses", "")).split(",") if i.strip()]
         X = _without(X, np.flatnonzero(np.isin(run["pose"].values, rejected)))
-        model.diagnostics.update(_fit_quality(c, X, Y, theta, P_mx, P_my, base.free, base.parameters, ex, ey,
-                                              f_ax, f_ay))
-        model.write(args.out, meta(c, open_dataset(args.base).attrs["source"], "angle_residuals", args.model_name))
+        model.diagnostics.update(
+            _fit_quality(c, X, Y, theta, P_mx, P_my, base.free, base.parameters, ex, ey, f_ax, f_ay)
+        )
+        model.write(
+            args.out, meta(c, open_dataset(args.base).attrs["source"], "angle_residuals", args.model_name)
+        )
         return
     position = None
     ex = ey = 0.0
@@ -100,9 +108,22 @@ def identify(args) -> None:
         position = PositionLUT.from_dataset(open_dataset(args.luts, kind="luts"))
         ex, ey = position.errors(X, Y, *joint_directions(X, Y), method=method, trends=False)
     initial = Parameters(**{**c["identification"]["initial"], **spec.get("fixed", {})})
-    result = fit(X, Y, theta, P_mx, P_my, free=tuple(spec["free"]), initial=initial, ex=ex, ey=ey,
-                 robust=Robust.from_config(c["identification"]["robust"]))
-    X, Y = _without(X, result.rejected), _without(Y, result.rejected)  # outliers out of the fit-quality figures
+    result = fit(
+        X,
+        Y,
+        theta,
+        P_mx,
+        P_my,
+        free=tuple(spec["free"]),
+        initial=initial,
+        ex=ex,
+        ey=ey,
+        robust=Robust.from_config(c["identification"]["robust"]),
+    )
+    X, Y = (
+        _without(X, result.rejected),
+        _without(Y, result.rejected),
+    )  # outliers out of the fit-quality figures
     if not result.success or not np.all(np.isfinite(result.parameters.as_array())):
         raise CalflowError(f"{args.run}: identification of model {args.model_name} failed ({result.message})")
     r_diag, not_identifiable = diagnostics.identifiability(result.jacobian, result.free)
@@ -123,18 +144,30 @@ def identify(args) -> None:
     std = result.std
     if c["identification"]["uncertainty"] == "bootstrap":
         start = Parameters(**{**initial.as_dict(), **{k: getattr(result.parameters, k) for k in result.free}})
-        std = bootstrap_std(X, Y, theta, P_mx, P_my, result.free, start, c["identification"]["bootstrap"],
-                            int(c["seed"]), ex, ey)
-    model = MicroModel(args.model_name, result.parameters, result.free, std, result.correlation, diag,
-                       position, None, method)
+        std = bootstrap_std(
+            X,
+            Y,
+            theta,
+            P_mx,
+            P_my,
+            result.free,
+            start,
+            c["identification"]["bootstrap"],
+            int(c["seed"]),
+            ex,
+            ey,
+        )
+    model = MicroModel(
+        args.model_name, result.parameters, result.free, std, result.correlation, diag, position, None, method
+    )
     model.write(args.out, meta(c, run.attrs["source"], "identification", args.model_name))
 
 
 def _angle_model(c: dict, args, base):
     """Model IV/V: the base model plus the angle table from the angle characterisation run."""
+    from calflow.xytheta.models.ladder import MicroModel
     from calflow.xytheta.tables.angle import AngleTable
     from calflow.xytheta.tables.lookup import angle_residuals_from_run
-    from calflow.xytheta.models.ladder import MicroModel
     from calflow.xytheta.tables.pose import PoseAngleLUT
 
     a = c["angle_residuals"]
@@ -144,27 +177,45 @@ def _angle_model(c: dict, args, base):
     if a["table"] == "position_angle":
         r = angle_residuals_from_run(sweep)
         angle = PoseAngleLUT.from_residuals(r.x_T, r.y_T, r.theta, r.f_ax, r.f_ay, alpha, beta)
-        diag["angle_table_kind"] = "position_angle (at the reference validation poses: in-sample for Table 4.7)"
+        diag["angle_table_kind"] = (
+            "position_angle (at the reference validation poses: in-sample for Table 4.7)"
+        )
         diag["angle_residual_nan"] = int(r.nan_readings)
     else:
         try:
-            angle, spectrum = AngleTable.from_sweep(sweep, alpha, beta, a["samples_per_period"], a["significance"],
-                                                    a["min_fraction"])
+            angle, spectrum = AngleTable.from_sweep(
+                sweep, alpha, beta, a["samples_per_period"], a["significance"], a["min_fraction"]
+            )
         except ValueError as exc:
             raise CalflowError(f"{args.residuals}: {exc}") from None
-        diag.update(angle_table_kind="angle", angle_step_deg=spectrum.step_deg, angle_sweep_step_deg=spectrum.sweep_step_deg,
-                    angle_shortest_period_deg=spectrum.shortest_period_deg if spectrum.shortest_period_deg else 0.0,
-                    angle_noise_um=spectrum.noise_um, angle_interpolation_error_um=spectrum.interpolation_error_um,
-                    angle_undersampled=int(spectrum.undersampled), angle_warning=spectrum.warning)
+        diag.update(
+            angle_table_kind="angle",
+            angle_step_deg=spectrum.step_deg,
+            angle_sweep_step_deg=spectrum.sweep_step_deg,
+            angle_shortest_period_deg=spectrum.shortest_period_deg if spectrum.shortest_period_deg else 0.0,
+            angle_noise_um=spectrum.noise_um,
+            angle_interpolation_error_um=spectrum.interpolation_error_um,
+            angle_undersampled=int(spectrum.undersampled),
+            angle_warning=spectrum.warning,
+        )
         diag["angle_residual_nan"] = int(np.sum(~np.isfinite(sweep["meas_x"].values)))
-    return MicroModel(args.model_name, base.parameters, base.free, base.std, base.correlation, diag, base.position,
-                      angle, base.method)
+    return MicroModel(
+        args.model_name,
+        base.parameters,
+        base.free,
+        base.std,
+        base.correlation,
+        diag,
+        base.position,
+        angle,
+        base.method,
+    )
 
 
 def metrics(args) -> None:
     """ISO 9283 of a validation run (world frame) or of a square/random-points run (stage frame)."""
-    from calflow.xytheta.tables.characterisation import xy_positioning_metrics
     from calflow.xytheta.evaluation import xytheta_validation_metrics
+    from calflow.xytheta.tables.characterisation import xy_positioning_metrics
 
     c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
@@ -222,13 +273,26 @@ def observability(args) -> None:
     values /= o["repeats"]
     units = {"O1": "1", "O2": "1", "O3": "1", "O4": "1"}
     ds = xr.Dataset(
-        {name: xr.Variable(("poses",), values[:, j], attrs={"units": units[name],
-                                                            "long_name": f"observability index {name} (Eq. 4.{10 + j})"})
-         for j, name in enumerate(("O1", "O2", "O3", "O4"))},
-        coords={"poses": xr.Variable(("poses",), counts, attrs={"units": "1", "long_name": "number of random poses"})},
+        {
+            name: xr.Variable(
+                ("poses",),
+                values[:, j],
+                attrs={"units": units[name], "long_name": f"observability index {name} (Eq. 4.{10 + j})"},
+            )
+            for j, name in enumerate(("O1", "O2", "O3", "O4"))
+        },
+        coords={
+            "poses": xr.Variable(
+                ("poses",), counts, attrs={"units": "1", "long_name": "number of random poses"}
+            )
+        },
         attrs=meta(c, "simulated", "observability").attrs("metrics"),
     )
     limit, plateau = o2_plateau(counts, values[:, 1], o["tolerance"])
-    ds.attrs.update(O2_plateau_poses=int(plateau), O2_limit=float(limit), O2_plateau_tolerance=float(o["tolerance"]),
-                    repeats=int(o["repeats"]))
+    ds.attrs.update(
+        O2_plateau_poses=int(plateau),
+        O2_limit=float(limit),
+        O2_plateau_tolerance=float(o["tolerance"]),
+        repeats=int(o["repeats"]),
+    )
     write_dataset(ds, args.out)

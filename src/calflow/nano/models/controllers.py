@@ -42,8 +42,12 @@ class NanoValidation:
         if "kmz_measured" in reading:
             from calflow.nano.models.kmz import KMZReading
 
-            self.kmz = KMZReading(reading["kmz_command"], reading["kmz_measured"],
-                                  np.array([reading[f"kmz_{t}"] for t in self.thermometers]), reading["kmz_time"])
+            self.kmz = KMZReading(
+                reading["kmz_command"],
+                reading["kmz_measured"],
+                np.array([reading[f"kmz_{t}"] for t in self.thermometers]),
+                reading["kmz_time"],
+            )
 
     def command(self, i: int, visit) -> tuple[dict[str, float], dict]:
         plan = self.plan
@@ -56,8 +60,12 @@ class NanoValidation:
             first = i == 0 or plan.extra["test"][i] != plan.extra["test"][i - 1]
             if first:  # Sec. 5.2.4: reach the kilometre-zero and record the sensor
                 at = visit({"x": self.kmz_command_um})
-                extra = {"kmz_time": at["time"], "kmz_command": self.kmz_command_um, "kmz_measured": at["meas_x"],
-                         **{f"kmz_{t}": at[t] for t in self.thermometers}}
+                extra = {
+                    "kmz_time": at["time"],
+                    "kmz_command": self.kmz_command_um,
+                    "kmz_measured": at["meas_x"],
+                    **{f"kmz_{t}": at[t] for t in self.thermometers},
+                }
                 self.observe(i, {**at, **extra})
             q = np.atleast_1d(self.models[mode].command(target[0], self._temperatures(), reference=self.kmz))
         elif len(self.axes) == 2:

@@ -82,8 +82,10 @@ def as_vector(name: str, a, n: int | None = None) -> np.ndarray:
         raise ModelInputError(f"{name} has {arr.size} values; expected 1 or {n}")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise ModelInputError(f"{name} is not finite at index {bad[:5].tolist()} "
-                              f"(value {arr[bad[0]]}); NaN/inf cannot be commanded")
+        raise ModelInputError(
+            f"{name} is not finite at index {bad[:5].tolist()} "
+            f"(value {arr[bad[0]]}); NaN/inf cannot be commanded"
+        )
     return arr
 
 
@@ -95,8 +97,9 @@ def as_temperatures(temps, n: int, k: int | None, who: str, *, allow_nan=False) 
     if t.ndim == 1:
         t = np.broadcast_to(t, (n, t.size))
     if t.ndim != 2 or t.shape[0] not in (1, n) or (k is not None and t.shape[1] != k):
-        raise ModelInputError(f"{who}: temperatures must have shape ({k or 'k'},) or "
-                              f"({n}, {k or 'k'}); got {np.shape(temps)}")
+        raise ModelInputError(
+            f"{who}: temperatures must have shape ({k or 'k'},) or ({n}, {k or 'k'}); got {np.shape(temps)}"
+        )
     t = np.broadcast_to(t, (n, t.shape[1]))
     if not allow_nan and not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t).all(axis=1))[0])
@@ -104,8 +107,19 @@ def as_temperatures(temps, n: int, k: int | None, who: str, *, allow_nan=False) 
     return t
 
 
-def identify(columns, specs, y, intercept: tuple[str, str, str], *, select="stepwise",
-             penter=0.05, premove=0.10, force=(), scale=None, shift=None):
+def identify(
+    columns,
+    specs,
+    y,
+    intercept: tuple[str, str, str],
+    *,
+    select="stepwise",
+    penter=0.05,
+    premove=0.10,
+    force=(),
+    scale=None,
+    shift=None,
+):
     """Fit ``y = intercept + sum_j c_j column_j`` by stepwise regression or least squares.
 
     columns: (n, p) regressors in raw units; specs: p tuples (name, unit, long_name);
@@ -127,15 +141,16 @@ def identify(columns, specs, y, intercept: tuple[str, str, str], *, select="step
         raise ModelInputError("training data contain inf; use NaN for missing samples")
     rows = np.isfinite(X).all(axis=1) & np.isfinite(y)
     if rows.sum() < p + 2:
-        raise ModelInputError(f"only {int(rows.sum())} of {n} training rows are free of NaN; "
-                              f"{p} terms + intercept need at least {p + 2}")
+        raise ModelInputError(
+            f"only {int(rows.sum())} of {n} training rows are free of NaN; "
+            f"{p} terms + intercept need at least {p + 2}"
+        )
     shift = np.zeros(p) if shift is None else np.asarray(shift, dtype=float)
     scale = np.ones(p) if scale is None else np.asarray(scale, dtype=float)
     Xs = (X[rows] - shift) / scale
     forced = np.array([nm in force for nm in names])
     if select == "all":
-        res = stepwisefit(Xs, y[rows], penter, premove, inmodel=np.ones(p, bool),
-                          keep=np.ones(p, bool))
+        res = stepwisefit(Xs, y[rows], penter, premove, inmodel=np.ones(p, bool), keep=np.ones(p, bool))
     else:
         res = stepwisefit(Xs, y[rows], penter, premove, inmodel=forced, keep=forced)
     inm = np.asarray(res.inmodel)
@@ -143,13 +158,28 @@ def identify(columns, specs, y, intercept: tuple[str, str, str], *, select="step
     cov = res.rmse**2 * np.linalg.pinv(Z.T @ Z)
     grad = np.concatenate([[1.0], -(shift / scale)[inm]])
     lam = res.intercept - float(np.sum((res.b * shift / scale)[inm]))
-    terms = [Term(nm, unit, ln, float(res.b[j] / scale[j]) if inm[j] else 0.0,
-                  float(res.se[j] / scale[j]), float(res.pval[j]), bool(inm[j]))
-             for j, (nm, unit, ln) in enumerate(specs)]
+    terms = [
+        Term(
+            nm,
+            unit,
+            ln,
+            float(res.b[j] / scale[j]) if inm[j] else 0.0,
+            float(res.se[j] / scale[j]),
+            float(res.pval[j]),
+            bool(inm[j]),
+        )
+        for j, (nm, unit, ln) in enumerate(specs)
+    ]
     terms.append(Term(*intercept, lam, float(np.sqrt(grad @ cov @ grad))))
-    info = {"select": select, "penter": res.penter, "premove": res.premove,
-            "rmse_um": float(res.rmse), "nobs": int(res.nobs), "n_dropped": int(n - res.nobs),
-            "stepwise_history": "; ".join(r.message for r in res.history)}
+    info = {
+        "select": select,
+        "penter": res.penter,
+        "premove": res.premove,
+        "rmse_um": float(res.rmse),
+        "nobs": int(res.nobs),
+        "n_dropped": int(n - res.nobs),
+        "stepwise_history": "; ".join(r.message for r in res.history),
+    }
     return tuple(terms), info
 
 
@@ -173,10 +203,20 @@ class _Model:
     @property
     def coefficients(self) -> pd.DataFrame:
         """Table 5.1 analog: name, value, unit, std_error, p_value, in_model, long_name."""
-        return pd.DataFrame([{"name": t.name, "value": t.value, "unit": t.unit,
-                              "std_error": t.std_error, "p_value": t.p_value,
-                              "in_model": t.in_model, "long_name": t.long_name}
-                             for t in self.terms])
+        return pd.DataFrame(
+            [
+                {
+                    "name": t.name,
+                    "value": t.value,
+                    "unit": t.unit,
+                    "std_error": t.std_error,
+                    "p_value": t.p_value,
+                    "in_model": t.in_model,
+                    "long_name": t.long_name,
+                }
+                for t in self.terms
+            ]
+        )
 
     def in_training_range(self, temperatures, margin: float = 0.0) -> np.ndarray:
         """True for each reading whose every channel lies in the training range +- margin."""
@@ -192,23 +232,44 @@ class _Model:
     def to_dataset(self, meta=None) -> xr.Dataset:
         """One scalar variable per coefficient (``units``, ``long_name``, ``std_error``,
         ``p_value``, ``in_model``); global attrs from ``meta`` (a RunMetadata) if given."""
-        data = {t.name: xr.Variable((), t.value, attrs={
-            "units": t.unit, "long_name": t.long_name, "std_error": t.std_error,
-            "p_value": t.p_value, "in_model": int(t.in_model)}) for t in self.terms}
+        data = {
+            t.name: xr.Variable(
+                (),
+                t.value,
+                attrs={
+                    "units": t.unit,
+                    "long_name": t.long_name,
+                    "std_error": t.std_error,
+                    "p_value": t.p_value,
+                    "in_model": int(t.in_model),
+                },
+            )
+            for t in self.terms
+        }
         coords = {}
         if self.training_temperature is not None:
-            coords["sensor"] = xr.Variable(("sensor",), np.array(self.sensors, dtype=object),
-                                           attrs={"long_name": "thermocouple"})
+            coords["sensor"] = xr.Variable(
+                ("sensor",), np.array(self.sensors, dtype=object), attrs={"long_name": "thermocouple"}
+            )
             for row, stat in enumerate(("min", "mean", "max")):
                 data[f"training_temperature_{stat}"] = xr.Variable(
-                    ("sensor",), np.asarray(self.training_temperature[row], dtype=float),
-                    attrs={"units": "degC", "long_name": f"{stat} temperature in training"})
-        attrs = meta.attrs("model") if meta is not None else {
-            "Conventions": CF_CONVENTIONS, "calflow_kind": "model",
-            "calflow_version": __version__}
+                    ("sensor",),
+                    np.asarray(self.training_temperature[row], dtype=float),
+                    attrs={"units": "degC", "long_name": f"{stat} temperature in training"},
+                )
+        attrs = (
+            meta.attrs("model")
+            if meta is not None
+            else {"Conventions": CF_CONVENTIONS, "calflow_kind": "model", "calflow_version": __version__}
+        )
         attrs.update({"model": self.kind, "terms": ",".join(t.name for t in self.terms)})
-        attrs.update({f"fit_{k}": v for k, v in self.info.items()
-                      if isinstance(v, (int, float, str)) and not isinstance(v, bool)})
+        attrs.update(
+            {
+                f"fit_{k}": v
+                for k, v in self.info.items()
+                if isinstance(v, (int, float, str)) and not isinstance(v, bool)
+            }
+        )
         attrs.update(self._extra_attrs())
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
@@ -216,19 +277,29 @@ class _Model:
     def _from_dataset_kwargs(cls, ds: xr.Dataset) -> dict:
         if ds.attrs.get("calflow_kind") != "model" or ds.attrs.get("model") != cls.kind:
             got = (ds.attrs.get("calflow_kind"), ds.attrs.get("model"))
-            raise ModelInputError(f"dataset is not a {cls.kind!r} model (calflow_kind="
-                                  f"{got[0]!r}, model={got[1]!r})")
-        terms = tuple(Term(nm, ds[nm].attrs["units"], ds[nm].attrs["long_name"],
-                           float(ds[nm].values), float(ds[nm].attrs["std_error"]),
-                           float(ds[nm].attrs["p_value"]), bool(ds[nm].attrs["in_model"]))
-                      for nm in ds.attrs["terms"].split(","))
+            raise ModelInputError(
+                f"dataset is not a {cls.kind!r} model (calflow_kind={got[0]!r}, model={got[1]!r})"
+            )
+        terms = tuple(
+            Term(
+                nm,
+                ds[nm].attrs["units"],
+                ds[nm].attrs["long_name"],
+                float(ds[nm].values),
+                float(ds[nm].attrs["std_error"]),
+                float(ds[nm].attrs["p_value"]),
+                bool(ds[nm].attrs["in_model"]),
+            )
+            for nm in ds.attrs["terms"].split(",")
+        )
         info = {k[4:]: v for k, v in ds.attrs.items() if k.startswith("fit_")}
         info = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in info.items()}
         kw = {"terms": terms, "info": info}
         if "sensor" in ds.coords:
             kw["sensors"] = tuple(str(s) for s in ds["sensor"].values)
             kw["training_temperature"] = np.vstack(
-                [ds[f"training_temperature_{s}"].values for s in ("min", "mean", "max")])
+                [ds[f"training_temperature_{s}"].values for s in ("min", "mean", "max")]
+            )
         return kw
 
     @classmethod
@@ -252,8 +323,9 @@ class Nano1DModel(_Model):
 
     def reference_offset(self, reference, n: int) -> np.ndarray:
         if reference is not None:
-            raise ModelInputError(f"{self.kind} model takes no reference (KMZ); "
-                                  "use calflow.nano.models.kmz.AdaptiveKMZModel")
+            raise ModelInputError(
+                f"{self.kind} model takes no reference (KMZ); use calflow.nano.models.kmz.AdaptiveKMZModel"
+            )
         return np.zeros(n)
 
     def _constant(self, temperatures, reference, n):
@@ -263,7 +335,8 @@ class Nano1DModel(_Model):
         """Joint command q_c (um) for target positions x_T (um)."""
         x = as_vector("target", target)
         return np.polynomial.polynomial.polyval(x, self.poly()) + self._constant(
-            temperatures, reference, x.size)
+            temperatures, reference, x.size
+        )
 
     def position(self, command, temperatures=None, reference=None) -> np.ndarray:
         """Forward map: the position x (um) where the model says command q lands (Newton)."""
@@ -277,8 +350,10 @@ class Nano1DModel(_Model):
             x = x - step
             if np.all(np.abs(step) <= 1e-11 * np.maximum(1.0, np.abs(x))):
                 return x
-        raise ModelInputError(f"{self.kind} model: forward map did not converge (is the "
-                              "polynomial monotonic over these commands?)")
+        raise ModelInputError(
+            f"{self.kind} model: forward map did not converge (is the "
+            "polynomial monotonic over these commands?)"
+        )
 
     def predict_error(self, target, temperatures=None, reference=None) -> np.ndarray:
         """Predicted error (um) of the uncalibrated stage commanded with q = x_T: x - x_T."""
@@ -301,15 +376,18 @@ class Nano1DModel(_Model):
 def geometric_specs(order: int, axis: str = "", letter: str = "a", var: str = "x"):
     """(name, unit, long_name) of the coefficients of var**i, i = 1..order."""
     where = f" in q_{axis}" if axis else ""
-    return [(f"{letter}_{i}{axis}", power_unit(i), f"coefficient of {var}^{i}{where}")
-            for i in range(1, order + 1)]
+    return [
+        (f"{letter}_{i}{axis}", power_unit(i), f"coefficient of {var}^{i}{where}")
+        for i in range(1, order + 1)
+    ]
 
 
 def thermal_specs(k: int, letter: str = "b", axis: str = ""):
     """(name, unit, long_name) of the thermocouple coefficients, i = 1..k."""
     where = f" in q_{axis}" if axis else ""
-    return [(f"{letter}_{i}{axis}", "um degC-1", f"thermal coefficient of t_{i}{where}")
-            for i in range(1, k + 1)]
+    return [
+        (f"{letter}_{i}{axis}", "um degC-1", f"thermal coefficient of t_{i}{where}") for i in range(1, k + 1)
+    ]
 
 
 def temperature_stats(t: np.ndarray, sensors, k: int) -> dict:
@@ -317,8 +395,10 @@ def temperature_stats(t: np.ndarray, sensors, k: int) -> dict:
     sensors = tuple(sensors) if sensors is not None else tuple(f"T{i + 1}" for i in range(k))
     if len(sensors) != k:
         raise ModelInputError(f"{len(sensors)} sensor names for {k} temperature channels")
-    return {"sensors": sensors, "training_temperature": np.vstack(
-        [np.nanmin(t, 0), np.nanmean(t, 0), np.nanmax(t, 0)])}
+    return {
+        "sensors": sensors,
+        "training_temperature": np.vstack([np.nanmin(t, 0), np.nanmean(t, 0), np.nanmax(t, 0)]),
+    }
 
 
 def _check_order(order) -> int:
@@ -339,8 +419,17 @@ class GeometricModel(Nano1DModel):
     kind = "geometric"
 
     @classmethod
-    def fit(cls, command, measured, *, order: int = 3, select: str = "all",
-            penter: float = 0.05, premove: float = 0.10, force=("a_1",)) -> "GeometricModel":
+    def fit(
+        cls,
+        command,
+        measured,
+        *,
+        order: int = 3,
+        select: str = "all",
+        penter: float = 0.05,
+        premove: float = 0.10,
+        force=("a_1",),
+    ) -> GeometricModel:
         """Least squares (``select="all"``) or stepwise fit of Eq. (5.1) to (q, x) pairs."""
         order = _check_order(order)
         q = np.asarray(command, dtype=float).ravel()
@@ -348,10 +437,17 @@ class GeometricModel(Nano1DModel):
         if q.shape != x.shape:
             raise ModelInputError(f"command and measured differ in length ({q.size} vs {x.size})")
         s = float(np.nanmax(np.abs(x))) or 1.0
-        terms, info = identify(np.column_stack([x**i for i in range(1, order + 1)]),
-                               geometric_specs(order), q, ("a_0", "um", "coefficient of x^0"),
-                               select=select, penter=penter, premove=premove, force=force,
-                               scale=s ** np.arange(1, order + 1))
+        terms, info = identify(
+            np.column_stack([x**i for i in range(1, order + 1)]),
+            geometric_specs(order),
+            q,
+            ("a_0", "um", "coefficient of x^0"),
+            select=select,
+            penter=penter,
+            premove=premove,
+            force=force,
+            scale=s ** np.arange(1, order + 1),
+        )
         terms = (terms[-1],) + terms[:-1]  # a_0 first
         return cls(terms=terms, info={**info, "order": order})
 

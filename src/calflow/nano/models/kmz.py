@@ -87,7 +87,7 @@ class AdaptiveKMZModel(_Thermal1D):
         return self.info["variant"]
 
     @classmethod
-    def from_single(cls, single: SingleModel, variant: str = "5.6") -> "AdaptiveKMZModel":
+    def from_single(cls, single: SingleModel, variant: str = "5.6") -> AdaptiveKMZModel:
         """Take the polynomial (and, for Eq. (5.7), the thermal part) of a single model."""
         if variant not in VARIANTS:
             raise ModelInputError(f"variant must be one of {VARIANTS}; got {variant!r}")
@@ -98,12 +98,13 @@ class AdaptiveKMZModel(_Thermal1D):
         t_mean = single.training_temperature[1]
         a0 = single.value("lambda") + float(t_mean @ single.thermal())
         geo = tuple(t for t in single.terms if t.name.startswith("a_"))
-        a0_term = Term("a_0", power_unit(0), "a_0 = lambda + sum_i b_i mean(t_i) (absorbed "
-                       "by lambda_KMZ)", a0)
+        a0_term = Term(
+            "a_0", power_unit(0), "a_0 = lambda + sum_i b_i mean(t_i) (absorbed by lambda_KMZ)", a0
+        )
         return cls(terms=(a0_term,) + geo, info=info, **kw)
 
     @classmethod
-    def from_geometric(cls, geometric) -> "AdaptiveKMZModel":
+    def from_geometric(cls, geometric) -> AdaptiveKMZModel:
         """Eq. (5.6) on top of a geometric model, Eq. (5.1), fitted on its own."""
         return cls(terms=geometric.terms, info={**geometric.info, "variant": "5.6"})
 
@@ -130,15 +131,16 @@ class AdaptiveKMZModel(_Thermal1D):
             raise ModelInputError("a KMZReading holds one visit (scalar command and measured)")
         temps = None
         if self.variant == "5.7":
-            temps = as_temperatures(reading.temperatures, 1, len(self.sensors),
-                                    "KMZ reading for Eq. (5.7)")
+            temps = as_temperatures(reading.temperatures, 1, len(self.sensors), "KMZ reading for Eq. (5.7)")
         base = np.polynomial.polynomial.polyval(x_k, self.poly()) + self.offset(temps, 1)
         return float(q_k[0] - base[0])
 
     def reference_offset(self, reference, n: int) -> np.ndarray:
         if reference is None:
-            raise ModelInputError("adaptive KMZ model needs reference= (a KMZReading or "
-                                  "lambda_KMZ in um); pass 0.0 to use the training constant")
+            raise ModelInputError(
+                "adaptive KMZ model needs reference= (a KMZReading or "
+                "lambda_KMZ in um); pass 0.0 to use the training constant"
+            )
         if isinstance(reference, KMZReading):
             return np.full(n, self.lambda_kmz(reference))
         lam = as_vector("reference (lambda_KMZ)", reference, n)
@@ -155,6 +157,5 @@ class AdaptiveKMZModel(_Thermal1D):
         visit_times = np.array([r.time for r in order])
         idx = np.searchsorted(visit_times, t, side="right") - 1
         if (idx < 0).any():
-            raise ModelInputError(f"time {t[idx < 0][0]} s precedes the first KMZ visit "
-                                  f"({visit_times[0]} s)")
+            raise ModelInputError(f"time {t[idx < 0][0]} s precedes the first KMZ visit ({visit_times[0]} s)")
         return np.array([self.lambda_kmz(r) for r in order])[idx]

@@ -10,17 +10,28 @@ from __future__ import annotations
 
 import xarray as xr
 
-from calflow.nano.models.kmz import AdaptiveKMZModel, KMZReading
 from calflow.nano.models.geometric import GeometricModel, ModelInputError, Term
+from calflow.nano.models.kmz import AdaptiveKMZModel, KMZReading
 from calflow.nano.models.thermal import SingleModel, ThermalDriftModel, TwoDoFModel
 
-__all__ = ["AdaptiveKMZModel", "GeometricModel", "KMZReading", "ModelInputError", "SingleModel", "Term",
-           "ThermalDriftModel", "TwoDoFModel", "model_from_dataset"]
+__all__ = [
+    "AdaptiveKMZModel",
+    "GeometricModel",
+    "KMZReading",
+    "ModelInputError",
+    "SingleModel",
+    "Term",
+    "ThermalDriftModel",
+    "TwoDoFModel",
+    "model_from_dataset",
+]
 
 
 def model_from_dataset(ds: xr.Dataset):
     """Rebuild any nano model from its dataset, dispatching on ``ds.attrs["model"]``."""
-    classes = {c.kind: c for c in (GeometricModel, TwoDoFModel, AdaptiveKMZModel, ThermalDriftModel, SingleModel)}
+    classes = {
+        c.kind: c for c in (GeometricModel, TwoDoFModel, AdaptiveKMZModel, ThermalDriftModel, SingleModel)
+    }
     kind = ds.attrs.get("model")
     if kind not in classes:
         raise ModelInputError(f"unknown nano model {kind!r}; expected one of {sorted(classes)}")

@@ -12,9 +12,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow.nano.models.geometric import (ModelInputError, Nano1DModel, _check_order, _Model,
-                                 as_temperatures, as_vector, geometric_specs, identify,
-                                 temperature_stats, thermal_specs)
+from calflow.nano.models.geometric import (
+    ModelInputError,
+    Nano1DModel,
+    _check_order,
+    _Model,
+    as_temperatures,
+    as_vector,
+    geometric_specs,
+    identify,
+    temperature_stats,
+    thermal_specs,
+)
 
 __all__ = ["ThermalDriftModel", "SingleModel", "TwoDoFModel"]
 
@@ -55,15 +64,24 @@ class ThermalDriftModel(_Thermal1D):
     bias_name = "b_0"
 
     @classmethod
-    def fit(cls, temperatures, drift, *, select="stepwise", penter=0.05, premove=0.10,
-            force=(), sensors=None) -> "ThermalDriftModel":
+    def fit(
+        cls, temperatures, drift, *, select="stepwise", penter=0.05, premove=0.10, force=(), sensors=None
+    ) -> ThermalDriftModel:
         """Fit Eq. (5.2): temperatures (n, k) degC, drift (n,) um of a stage at rest."""
         d = np.asarray(drift, dtype=float).ravel()
         t = _temps_for_fit(temperatures, d.size, "ThermalDriftModel.fit")
         k = t.shape[1]
-        terms, info = identify(t, thermal_specs(k), -d, ("b_0", "um", "bias of the thermal model"),
-                               select=select, penter=penter, premove=premove, force=force,
-                               shift=np.nanmean(t, axis=0))
+        terms, info = identify(
+            t,
+            thermal_specs(k),
+            -d,
+            ("b_0", "um", "bias of the thermal model"),
+            select=select,
+            penter=penter,
+            premove=premove,
+            force=force,
+            shift=np.nanmean(t, axis=0),
+        )
         return cls(terms=terms, info=info, **temperature_stats(t, sensors, k))
 
     def poly(self) -> np.ndarray:
@@ -97,8 +115,19 @@ class SingleModel(_Thermal1D):
     kind = "single"
 
     @classmethod
-    def fit(cls, command, measured, temperatures, *, order: int = 3, select="stepwise",
-            penter=0.05, premove=0.10, force=("a_1",), sensors=None) -> "SingleModel":
+    def fit(
+        cls,
+        command,
+        measured,
+        temperatures,
+        *,
+        order: int = 3,
+        select="stepwise",
+        penter=0.05,
+        premove=0.10,
+        force=("a_1",),
+        sensors=None,
+    ) -> SingleModel:
         """Fit Eq. (5.5): command q (n,), measured x (n,) in um, temperatures (n, k) degC.
 
         ``force`` terms are kept in (stepwise ``keep``): by default the gain a_1, without
@@ -114,11 +143,17 @@ class SingleModel(_Thermal1D):
         s = float(np.nanmax(np.abs(x))) or 1.0
         cols = np.column_stack([x**i for i in range(1, order + 1)] + list(t.T))
         terms, info = identify(
-            cols, geometric_specs(order) + thermal_specs(k), q,
-            ("lambda", "um", "offset lambda = a_0 + b_0"), select=select, penter=penter,
-            premove=premove, force=force,
+            cols,
+            geometric_specs(order) + thermal_specs(k),
+            q,
+            ("lambda", "um", "offset lambda = a_0 + b_0"),
+            select=select,
+            penter=penter,
+            premove=premove,
+            force=force,
             scale=np.concatenate([s ** np.arange(1, order + 1), np.ones(k)]),
-            shift=np.concatenate([np.zeros(order), np.nanmean(t, axis=0)]))
+            shift=np.concatenate([np.zeros(order), np.nanmean(t, axis=0)]),
+        )
         return cls(terms=terms, info={**info, "order": order}, **temperature_stats(t, sensors, k))
 
     def poly(self) -> np.ndarray:
@@ -143,14 +178,24 @@ class TwoDoFModel(_Model):
     kind = "two_dof"
 
     @classmethod
-    def fit(cls, command, measured, temperatures=None, *, order=(3, 3), select="stepwise",
-            penter=0.05, premove=0.10, force=("a_1x", "b_1y"), sensors=None) -> "TwoDoFModel":
+    def fit(
+        cls,
+        command,
+        measured,
+        temperatures=None,
+        *,
+        order=(3, 3),
+        select="stepwise",
+        penter=0.05,
+        premove=0.10,
+        force=("a_1x", "b_1y"),
+        sensors=None,
+    ) -> TwoDoFModel:
         """Fit Eq. (5.10): command (n, 2) [q_x, q_y], measured (n, 2) [x, y], temps (n, k)."""
         n1, n2 = (_check_order(o) for o in order)
         q, xy = np.asarray(command, float), np.asarray(measured, float)
         if q.ndim != 2 or q.shape[1] != 2 or xy.shape != q.shape:
-            raise ModelInputError("command and measured must both be (n, 2); "
-                                  f"got {q.shape}, {xy.shape}")
+            raise ModelInputError(f"command and measured must both be (n, 2); got {q.shape}, {xy.shape}")
         cols = [xy[:, 0] ** i for i in range(1, n1 + 1)] + [xy[:, 1] ** i for i in range(1, n2 + 1)]
         s = np.nanmax(np.abs(xy), axis=0)
         s = np.where(s > 0, s, 1.0)
@@ -166,13 +211,21 @@ class TwoDoFModel(_Model):
             kw = temperature_stats(t, sensors, k)
         terms, infos = (), {}
         for j, axis in enumerate("xy"):
-            specs = (geometric_specs(n1, axis) + geometric_specs(n2, axis, "b", "y")
-                     + thermal_specs(k, "c", axis))
-            ax_terms, info = identify(np.column_stack(cols), specs, q[:, j],
-                                      (f"lambda_{axis}", "um", f"offset of q_{axis}"),
-                                      select=select, penter=penter, premove=premove,
-                                      force=[f for f in force if f.endswith(axis)],
-                                      scale=scale, shift=shift)
+            specs = (
+                geometric_specs(n1, axis) + geometric_specs(n2, axis, "b", "y") + thermal_specs(k, "c", axis)
+            )
+            ax_terms, info = identify(
+                np.column_stack(cols),
+                specs,
+                q[:, j],
+                (f"lambda_{axis}", "um", f"offset of q_{axis}"),
+                select=select,
+                penter=penter,
+                premove=premove,
+                force=[f for f in force if f.endswith(axis)],
+                scale=scale,
+                shift=shift,
+            )
             terms += ax_terms
             infos.update({f"{key}_{axis}": v for key, v in info.items()})
         info = {**infos, "order_x": n1, "order_y": n2, "n_temperatures": k}
@@ -218,8 +271,7 @@ class TwoDoFModel(_Model):
         p = np.linalg.solve(J0, rhs.T).T
         for _ in range(60):
             f = np.column_stack([pv(p[:, 0], a) + pv(p[:, 1], b) for a, b in ab]) - rhs
-            J = np.stack([np.column_stack([pv(p[:, 0], der(a)), pv(p[:, 1], der(b))])
-                          for a, b in ab], axis=1)
+            J = np.stack([np.column_stack([pv(p[:, 0], der(a)), pv(p[:, 1], der(b))]) for a, b in ab], axis=1)
             step = np.linalg.solve(J, f[..., None])[..., 0]
             p = p - step
             if np.all(np.abs(step) <= 1e-11 * np.maximum(1.0, np.abs(p))):
@@ -230,5 +282,3 @@ class TwoDoFModel(_Model):
         """Predicted (n, 2) error of the uncalibrated stage commanded with q = target (um)."""
         xy = self._xy("target", target)
         return self.position(xy, temperatures) - xy
-
-

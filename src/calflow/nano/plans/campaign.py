@@ -30,23 +30,39 @@ def _training(c: dict, build) -> Acquisition:
         rows = len(design_plan.cycle_rows(c, positions)) * cycles
         start = design_plan.start_s(c, rows * design_plan.reading_s(c))
     else:
-        positions, cycles, record, start = design_plan.grid_positions(c), t["cycles"], {"criterion": None}, 0.0
+        positions, cycles, record, start = (
+            design_plan.grid_positions(c),
+            t["cycles"],
+            {"criterion": None},
+            0.0,
+        )
     plan = build(positions, cycles, start)
-    record = {"plan": t["plan"], **record, **design_plan.bound(c, positions, cycles), "start_h": start / 3600.0}
+    record = {
+        "plan": t["plan"],
+        **record,
+        **design_plan.bound(c, positions, cycles),
+        "start_h": start / 3600.0,
+    }
     return Acquisition(plan, "training", attrs={"design": json.dumps(record)})
 
 
 def training_1d(c: dict, args) -> Acquisition:
     """Forward and backward cycles over the stroke in the training period (Sec. 5.3.2, Fig. 5.8)."""
     t = c["training"]
-    return _training(c, lambda p, cycles, start: plans.training_1d(
-        np.sort(p[:, 0]), cycles, t["dwell_s"], t["average_last_s"], start))
+    return _training(
+        c,
+        lambda p, cycles, start: plans.training_1d(
+            np.sort(p[:, 0]), cycles, t["dwell_s"], t["average_last_s"], start
+        ),
+    )
 
 
 def metrology_1d(c: dict, args) -> Acquisition:
     """The metrology-room run of Sec. 5.3.3 (intrinsic accuracy and repeatability)."""
     m = c["metrology"]
-    return Acquisition(plans.metrology_1d(_grid(m), m["cycles"], m["dwell_s"], m["average_last_s"]), "metrology")
+    return Acquisition(
+        plans.metrology_1d(_grid(m), m["cycles"], m["dwell_s"], m["average_last_s"]), "metrology"
+    )
 
 
 def _controller(plan, c: dict, args):
@@ -58,8 +74,15 @@ def _controller(plan, c: dict, args):
 def validation_1d(c: dict, args) -> Acquisition:
     """The five-day validation: every test through each mode's run-time controller (Fig. 5.9)."""
     v = c["validation"]
-    plan = plans.validation_1d(_grid(v), v["cycles"], v["dwell_s"], v["tests"], tuple(v["order"]),
-                               v["average_last_s"], start_s=v["start_h"] * 3600.0)
+    plan = plans.validation_1d(
+        _grid(v),
+        v["cycles"],
+        v["dwell_s"],
+        v["tests"],
+        tuple(v["order"]),
+        v["average_last_s"],
+        start_s=v["start_h"] * 3600.0,
+    )
     return Acquisition(plan, "validation", controller=_controller(plan, c, args))
 
 
@@ -69,17 +92,32 @@ def training_2d(c: dict, args) -> Acquisition:
 
     t = c["training"]
     if t["plan"] == "grid":
-        return _training(c, lambda p, cycles, start: plans.training_2d(
-            t["step_um"], t["stop_um"], cycles, t["dwell_s"], t["average_last_s"], start, t["start_um"]))
-    return _training(c, lambda p, cycles, start: plans.training_points_2d(
-        p[raster(p)], cycles, t["dwell_s"], t["average_last_s"], start))
+        return _training(
+            c,
+            lambda p, cycles, start: plans.training_2d(
+                t["step_um"], t["stop_um"], cycles, t["dwell_s"], t["average_last_s"], start, t["start_um"]
+            ),
+        )
+    return _training(
+        c,
+        lambda p, cycles, start: plans.training_points_2d(
+            p[raster(p)], cycles, t["dwell_s"], t["average_last_s"], start
+        ),
+    )
 
 
 def validation_2d(c: dict, args) -> Acquisition:
     """The six validation points of Sec. 5.4.2 (Fig. 5.22) through the run-time controllers."""
     v = c["validation"]
-    plan = plans.validation_2d(np.asarray(v["points_um"], dtype=float), v["cycles"], v["tests"], v["dwell_s"],
-                               tuple(v["order"]), v["average_last_s"], start_s=v["start_h"] * 3600.0)
+    plan = plans.validation_2d(
+        np.asarray(v["points_um"], dtype=float),
+        v["cycles"],
+        v["tests"],
+        v["dwell_s"],
+        tuple(v["order"]),
+        v["average_last_s"],
+        start_s=v["start_h"] * 3600.0,
+    )
     return Acquisition(plan, "validation", controller=_controller(plan, c, args))
 
 
@@ -89,6 +127,8 @@ def step_response(c: dict, args) -> Acquisition:
 
     s = c["step_response"]
     base = [s["base_um"]] * (2 if c["robot"] == "stage2d" else 1)
-    plan = plans.step_response(s["steps_um"], s["cycles"], base, s["record_s"], s["rate_hz"], s["attained_last_s"])
+    plan = plans.step_response(
+        s["steps_um"], s["cycles"], base, s["record_s"], s["rate_hz"], s["attained_last_s"]
+    )
     attrs = {"band_nm": float(s["band_nm"])} if "band_nm" in s else {}
     return Acquisition(plan, "step_response", runner=acquire_recorded_moves, attrs=attrs)

@@ -43,8 +43,9 @@ def candidates(lo_um, hi_um, step_um: float) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
 
 
-def design_positions(pool: np.ndarray, n: int, order: int, scale_um, criterion: str = "D",
-                     fraction_space_filling: float = 0.5) -> np.ndarray:
+def design_positions(
+    pool: np.ndarray, n: int, order: int, scale_um, criterion: str = "D", fraction_space_filling: float = 0.5
+) -> np.ndarray:
     """Indices of n distinct positions of ``pool`` (N, d): ⌊f n⌋ space-filling (maximin from
     the stroke's start, a guard against a model that is not exact), the rest maximising ``criterion`` of the
     position basis's information given them (multiplicative weights then Fedorov exchange)."""
@@ -70,8 +71,9 @@ def coefficient_sigma(rows: np.ndarray, cycles: int, sigma_um: float, order: int
     return s / coefficient_scale(order, scale_um)
 
 
-def shape_sigma_um(rows: np.ndarray, cycles: int, sigma_um: float, order: int, lo_um, hi_um,
-                   points: int = 41) -> float:
+def shape_sigma_um(
+    rows: np.ndarray, cycles: int, sigma_um: float, order: int, lo_um, hi_um, points: int = 41
+) -> float:
     """Worst Cramér–Rao σ (µm) over the stroke of the model's geometric correction relative to
     its start, g(x)ᵀa − g(x_lo)ᵀa: what the positions and cycles determine (λ and the thermal
     terms aside). Evaluated on ``points`` per axis."""

@@ -21,10 +21,12 @@ from calflow.identification.design import crlb_sigma
 from calflow.nano.plans import design
 from calflow.nano.plans import sequences as plans
 
-NOT_WHITE = ("The Cramér–Rao bound assumes white reading noise (the sensor's noise model). The stage's "
-             "thermal drift, hysteresis and creep are not white noise and the thermal terms are "
-             "identified only through the temperature the training happens to see, so the bound is a "
-             "lower bound: the achieved σ is larger.")
+NOT_WHITE = (
+    "The Cramér–Rao bound assumes white reading noise (the sensor's noise model). The stage's "
+    "thermal drift, hysteresis and creep are not white noise and the thermal terms are "
+    "identified only through the temperature the training happens to see, so the bound is a "
+    "lower bound: the achieved σ is larger."
+)
 
 
 def _stroke(c: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -38,17 +40,24 @@ def noise_model(c: dict) -> dict | None:
     given, else the simulated rig's declared options; None for a rig that declares none."""
     given = c["training"]["design"].get("noise_nm") or {}
     if given.get("pose") is not None and given.get("sample") is not None:
-        return {"pose": float(given["pose"]), "sample": float(given["sample"]),
-                "rate_hz": float(given.get("rate_hz", 10.0))}
+        return {
+            "pose": float(given["pose"]),
+            "sample": float(given["sample"]),
+            "rate_hz": float(given.get("rate_hz", 10.0)),
+        }
     if c["rig"]["factory"] != "simulated":
         return None
     from calflow.nano.stage import rig
 
     factory = rig.nano1d if c["robot"] == "stage1d" else rig.nano2d
     o = factory.check_options(**(c["rig"].get("options") or {}))  # the options with the rig's defaults
-    return {"pose": float(o["repeatability_nm"]),
-            "sample": float(np.hypot(o["interferometer_noise_nm"], o["interferometer_resolution_nm"] / np.sqrt(12))),
-            "rate_hz": float(o["stream_rate_hz"])}
+    return {
+        "pose": float(o["repeatability_nm"]),
+        "sample": float(
+            np.hypot(o["interferometer_noise_nm"], o["interferometer_resolution_nm"] / np.sqrt(12))
+        ),
+        "rate_hz": float(o["stream_rate_hz"]),
+    }
 
 
 def reading_sigma_um(noise: dict, average_s: float) -> float:
@@ -59,7 +68,9 @@ def reading_sigma_um(noise: dict, average_s: float) -> float:
 
 def reading_s(c: dict) -> float:
     """Time of one training reading (s): the rig's rise time (Fig. 5.8: 4 s) plus the dwell."""
-    rise = (c["rig"].get("options") or {}).get("rise_time_s", 4.0) if c["rig"]["factory"] == "simulated" else 4.0
+    rise = (
+        (c["rig"].get("options") or {}).get("rise_time_s", 4.0) if c["rig"]["factory"] == "simulated" else 4.0
+    )
     return float(rise) + float(c["training"]["dwell_s"])
 
 
@@ -89,8 +100,9 @@ def designed_positions(c: dict) -> np.ndarray:
     n = int(d["positions"] or len(grid_positions(c)))
     if n > len(pool):
         raise ValueError(f"training.design.positions: {n} asked from {len(pool)} candidate positions")
-    idx = design.design_positions(pool, n, c["model"]["order"], np.maximum(np.abs(lo), np.abs(hi)),
-                                  d["criterion"], d["space_filling"])
+    idx = design.design_positions(
+        pool, n, c["model"]["order"], np.maximum(np.abs(lo), np.abs(hi)), d["criterion"], d["space_filling"]
+    )
     return pool[idx]
 
 
@@ -102,10 +114,18 @@ def bound(c: dict, positions: np.ndarray, cycles: int) -> dict:
     order = c["model"]["order"]
     rows = cycle_rows(c, positions)
     noise = noise_model(c)
-    out = {"positions": int(len(positions)), "positions_um": np.asarray(positions).tolist(), "cycles": int(cycles),
-           "readings": int(len(rows) * cycles), "rig_time_h": len(rows) * cycles * reading_s(c) / 3600.0,
-           "noise_nm": noise, "reading_sigma_nm": None, "crlb_sigma": None, "crlb_shape_sigma_nm": None,
-           "statement": NOT_WHITE}
+    out = {
+        "positions": int(len(positions)),
+        "positions_um": np.asarray(positions).tolist(),
+        "cycles": int(cycles),
+        "readings": int(len(rows) * cycles),
+        "rig_time_h": len(rows) * cycles * reading_s(c) / 3600.0,
+        "noise_nm": noise,
+        "reading_sigma_nm": None,
+        "crlb_sigma": None,
+        "crlb_shape_sigma_nm": None,
+        "statement": NOT_WHITE,
+    }
     if noise is None:
         return out
     s = reading_sigma_um(noise, c["training"]["average_last_s"])
@@ -151,8 +171,10 @@ def designed_plan(c: dict) -> tuple[np.ndarray, int, dict]:
     if d["cycles"]:
         cycles = int(d["cycles"])
     elif noise is None or target is None:
-        raise ValueError("training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm), "
-                         "or training.design.cycles")
+        raise ValueError(
+            "training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm), "
+            "or training.design.cycles"
+        )
     else:
         s = reading_sigma_um(noise, c["training"]["average_last_s"])
         cycles = design.cycles_for(target * 1e-3, rows, s, c["model"]["order"], lo, hi)
@@ -160,10 +182,14 @@ def designed_plan(c: dict) -> tuple[np.ndarray, int, dict]:
     if d["min_training_h"]:
         cycles = max(cycles, int(np.ceil(d["min_training_h"] / per_cycle_h - 1e-9)))
     cycles = max(cycles, 2)  # a repeatability needs two visits (ISO 230-2)
-    record = {"criterion": d["criterion"], "space_filling": float(d["space_filling"]),
-              "candidate_step_um": float(d["candidate_step_um"]), "sigma_target_nm": target,
-              "min_training_h": d["min_training_h"], "grid": {k: grid[k] for k in
-                                                              ("positions", "cycles", "rig_time_h", "crlb_shape_sigma_nm")}}
+    record = {
+        "criterion": d["criterion"],
+        "space_filling": float(d["space_filling"]),
+        "candidate_step_um": float(d["candidate_step_um"]),
+        "sigma_target_nm": target,
+        "min_training_h": d["min_training_h"],
+        "grid": {k: grid[k] for k in ("positions", "cycles", "rig_time_h", "crlb_shape_sigma_nm")},
+    }
     return positions, cycles, record
 
 
@@ -195,7 +221,7 @@ def _recorded_bound(c: dict, run, sigma_um: float, kept: set[str] | None) -> dic
     R = np.column_stack(cols)
     R, scale = R[np.isfinite(R).all(axis=1)], np.array(scale)
     out = {}
-    for eq in (axes if two else [""]):
+    for eq in axes if two else [""]:
         geo = [n[:-1] + eq for n in coefficient_names(c)] if two else coefficient_names(c)
         names = geo + [f"{'c' if two else 'b'}_{i}{eq}" for i in range(1, k + 1)]
         use = np.array([kept is None or n in kept or n in geo for n in names])  # the geometric terms always
@@ -215,22 +241,32 @@ def training_design_block(c: dict, training_run, models: dict) -> dict | None:
         return None
     record = json.loads(training_run.attrs["design"])
     table = models.get("single" if c["robot"] == "stage1d" else "two_dof") or []
-    achieved = {r["name"]: (float(r["std_error"]) if r["in_model"] else None) for r in table
-                if r["name"][0] in "abc"}  # a_i, b_i, c_i: the geometric and thermal terms (not λ)
+    achieved = {
+        r["name"]: (float(r["std_error"]) if r["in_model"] else None) for r in table if r["name"][0] in "abc"
+    }  # a_i, b_i, c_i: the geometric and thermal terms (not λ)
     noise = record.get("noise_nm")
     kept = {r["name"] for r in table if r["in_model"]} if table else None
     sigma = reading_sigma_um(noise, c["training"]["average_last_s"]) if noise else None
     recorded = _recorded_bound(c, training_run, sigma, kept) if noise else None
-    ratio = ({k: (achieved[k] / v if achieved.get(k) is not None and v > 0 else None) for k, v in recorded.items()}
-             if recorded else None)
+    ratio = (
+        {k: (achieved[k] / v if achieved.get(k) is not None and v > 0 else None) for k, v in recorded.items()}
+        if recorded
+        else None
+    )
     from calflow.nano.evaluation import run_seconds
 
     time = run_seconds(training_run) if "time" in training_run else np.array([])
     if record.get("plan") == "optimal" and noise:
-        record["study"] = design_study(c, target_nm=record.get("sigma_target_nm"))  # how many positions, how long
-    return {**record, "achieved_sigma": achieved, "crlb_sigma_recorded": recorded,
-            "sigma_ratio_achieved_to_recorded_bound": ratio,
-            "rig_time_h_achieved": float((time.max() - time.min()) / 3600.0) if time.size else None}
+        record["study"] = design_study(
+            c, target_nm=record.get("sigma_target_nm")
+        )  # how many positions, how long
+    return {
+        **record,
+        "achieved_sigma": achieved,
+        "crlb_sigma_recorded": recorded,
+        "sigma_ratio_achieved_to_recorded_bound": ratio,
+        "rig_time_h_achieved": float((time.max() - time.min()) / 3600.0) if time.size else None,
+    }
 
 
 def design_study(c: dict, counts=None, target_nm: float | None = None) -> dict:
@@ -244,13 +280,25 @@ def design_study(c: dict, counts=None, target_nm: float | None = None) -> dict:
     order = c["model"]["order"]
     noise = noise_model(c)
     if noise is None:
-        raise ValueError("training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm)")
+        raise ValueError(
+            "training.design.noise_nm: the rig declares no noise model; expected pose and sample (nm)"
+        )
     if counts is None:
         counts = (4, 6, 8, 12, 17, 24, 33) if len(lo) == 1 else (16, 25, 36, 49, 64, 81)
     s = reading_sigma_um(noise, c["training"]["average_last_s"])
-    target = target_nm if target_nm is not None else bound(c, grid_positions(c), c["training"]["cycles"])["crlb_shape_sigma_nm"]
-    out = {"positions": [], "grid_sigma_nm_1h": [], "designed_sigma_nm_1h": [], "grid_hours": [], "designed_hours": [],
-           "target_nm": target}
+    target = (
+        target_nm
+        if target_nm is not None
+        else bound(c, grid_positions(c), c["training"]["cycles"])["crlb_shape_sigma_nm"]
+    )
+    out = {
+        "positions": [],
+        "grid_sigma_nm_1h": [],
+        "designed_sigma_nm_1h": [],
+        "grid_hours": [],
+        "designed_hours": [],
+        "target_nm": target,
+    }
     for n in counts:
         side = int(round(n ** (1 / len(lo))))
         if side < 2 or side ** len(lo) != n and len(lo) > 1:

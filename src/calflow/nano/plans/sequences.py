@@ -11,7 +11,9 @@ import numpy as np
 from calflow.plan import Plan
 
 TESTS = ("no_calibration", "adaptive_kmz", "single")  # Sec. 5.3.3, in the thesis's repeating order
-VALIDATION_2D = np.array([[0, 0], [45, 45], [75, 15], [75, 75], [15, 75], [15, 15]], dtype=float)  # Sec. 5.4.2
+VALIDATION_2D = np.array(
+    [[0, 0], [45, 45], [75, 15], [75, 75], [15, 75], [15, 15]], dtype=float
+)  # Sec. 5.4.2
 
 
 def _there_and_back(positions) -> tuple[np.ndarray, np.ndarray]:
@@ -21,8 +23,9 @@ def _there_and_back(positions) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([p, back]), np.concatenate([np.ones(len(p), int), -np.ones(len(back), int)])
 
 
-def sweep_1d(name: str, positions, cycles: int, dwell_s: float, average_last_s: float = 5.0,
-             start_s: float = 0.0) -> Plan:
+def sweep_1d(
+    name: str, positions, cycles: int, dwell_s: float, average_last_s: float = 5.0, start_s: float = 0.0
+) -> Plan:
     """Forward and backward cycles over ``positions`` (µm), Fig. 5.8 / 5.9."""
     one, dirs = _there_and_back(positions)
     n = len(one)
@@ -40,14 +43,26 @@ def sweep_1d(name: str, positions, cycles: int, dwell_s: float, average_last_s: 
     )
 
 
-def training_1d(positions=np.arange(0, 481, 30), cycles: int = 67, dwell_s: float = 25.0,
-                average_last_s: float = 5.0, start_s: float = 0.0) -> Plan:
+def training_1d(
+    positions=range(0, 481, 30),
+    cycles: int = 67,
+    dwell_s: float = 25.0,
+    average_last_s: float = 5.0,
+    start_s: float = 0.0,
+) -> Plan:
     """Training run: 0:30:480 µm, forward and backward, 25 s dwell, 67 cycles (Sec. 5.3.2)."""
     return sweep_1d("training", positions, cycles, dwell_s, average_last_s, start_s)
 
 
-def validation_1d(positions=np.arange(0, 481, 80), cycles: int = 15, dwell_s: float = 19.0,
-                  tests: int = 96, order=TESTS, average_last_s: float = 5.0, start_s: float = 0.0) -> Plan:
+def validation_1d(
+    positions=range(0, 481, 80),
+    cycles: int = 15,
+    dwell_s: float = 19.0,
+    tests: int = 96,
+    order=TESTS,
+    average_last_s: float = 5.0,
+    start_s: float = 0.0,
+) -> Plan:
     """Validation: tests of ``cycles`` cycles over 0:80:480 µm, repeating ``order`` (Sec. 5.3.3).
 
     With the rise of 4 s a pose takes 23 s and a 15-cycle test 1.25 h, as in the thesis;
@@ -67,24 +82,35 @@ def validation_1d(positions=np.arange(0, 481, 80), cycles: int = 15, dwell_s: fl
     return plan
 
 
-def metrology_1d(positions=np.arange(0, 481, 80), cycles: int = 15, dwell_s: float = 19.0,
-                 average_last_s: float = 5.0) -> Plan:
+def metrology_1d(
+    positions=range(0, 481, 80), cycles: int = 15, dwell_s: float = 19.0, average_last_s: float = 5.0
+) -> Plan:
     """The metrology-room run: the validation trajectory without calibration (Sec. 5.3.3)."""
     return sweep_1d("metrology", positions, cycles, dwell_s, average_last_s)
 
 
-def training_2d(step_um: float = 10.0, stop_um: float = 80.0, cycles: int = 12, dwell_s: float = 10.0,
-                average_last_s: float = 5.0, start_s: float = 0.0, start_um: float = 0.0) -> Plan:
+def training_2d(
+    step_um: float = 10.0,
+    stop_um: float = 80.0,
+    cycles: int = 12,
+    dwell_s: float = 10.0,
+    average_last_s: float = 5.0,
+    start_s: float = 0.0,
+    start_um: float = 0.0,
+) -> Plan:
     """Training grid start_um:step_um:stop_um in x and y (thesis 0:10:80 µm, 81 poses per cycle),
     back to start each cycle (Fig. 5.21)."""
     g = np.arange(start_um, stop_um + 1e-9, step_um)
     X, Y = np.meshgrid(g, g, indexing="ij")
     Y[1::2] = Y[1::2, ::-1]  # raster: y sweeps up on even x columns, down on odd ones
-    return training_points_2d(np.column_stack([X.ravel(), Y.ravel()]), cycles, dwell_s, average_last_s, start_s)
+    return training_points_2d(
+        np.column_stack([X.ravel(), Y.ravel()]), cycles, dwell_s, average_last_s, start_s
+    )
 
 
-def training_points_2d(points, cycles: int = 12, dwell_s: float = 10.0, average_last_s: float = 5.0,
-                       start_s: float = 0.0) -> Plan:
+def training_points_2d(
+    points, cycles: int = 12, dwell_s: float = 10.0, average_last_s: float = 5.0, start_s: float = 0.0
+) -> Plan:
     """Training over ``points`` (n, 2) µm in the given order, back to the first each cycle
     (Fig. 5.21's protocol on any set of positions, e.g. a designed one)."""
     p = np.asarray(points, dtype=float)
@@ -103,8 +129,15 @@ def training_points_2d(points, cycles: int = 12, dwell_s: float = 10.0, average_
     )
 
 
-def validation_2d(points=VALIDATION_2D, cycles: int = 20, tests: int = 16, dwell_s: float = 20.0,
-                  order=("no_calibration", "single"), average_last_s: float = 5.0, start_s: float = 0.0) -> Plan:
+def validation_2d(
+    points=VALIDATION_2D,
+    cycles: int = 20,
+    tests: int = 16,
+    dwell_s: float = 20.0,
+    order=("no_calibration", "single"),
+    average_last_s: float = 5.0,
+    start_s: float = 0.0,
+) -> Plan:
     """Validation: P0 → P1 … P5 in turn and back to P0 each cycle (Fig. 5.22), tests alternating ``order``."""
     p = np.asarray(points, dtype=float)
     m = len(p)
@@ -120,13 +153,23 @@ def validation_2d(points=VALIDATION_2D, cycles: int = 20, tests: int = 16, dwell
         dwell_s=dwell_s,
         average_last_s=average_last_s,
         start_s=start_s,
-        extra={"test": np.repeat(np.arange(tests), per), "mode": np.repeat(np.arange(tests) % len(order), per)},
+        extra={
+            "test": np.repeat(np.arange(tests), per),
+            "mode": np.repeat(np.arange(tests) % len(order), per),
+        },
         modes=tuple(order),
     )
 
 
-def step_response(steps_um, cycles: int = 3, base_um=(0.0,), record_s: float = 0.05, rate_hz: float = 1000.0,
-                  attained_last_s: float = 0.01, start_s: float = 0.0) -> Plan:
+def step_response(
+    steps_um,
+    cycles: int = 3,
+    base_um=(0.0,),
+    record_s: float = 0.05,
+    rate_hz: float = 1000.0,
+    attained_last_s: float = 0.01,
+    start_s: float = 0.0,
+) -> Plan:
     """Recorded steps for ISO 9283 stabilisation time and overshoot (clauses 7.5, 7.6).
 
     Each cycle, for each step s of ``steps_um`` (µm, > 0): from ``base_um`` (one value per
@@ -143,8 +186,8 @@ def step_response(steps_um, cycles: int = 3, base_um=(0.0,), record_s: float = 0
     n = len(rows)
     return Plan(
         name="step_response",
-        commands={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[:base.size])},
-        targets={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[:base.size])},
+        commands={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[: base.size])},
+        targets={j: rows[:, k].copy() for k, j in enumerate(("x", "y")[: base.size])},
         pose=np.tile(np.arange(2 * steps.size), cycles),
         cycle=np.repeat(np.arange(cycles), 2 * steps.size),
         direction=np.tile(np.array([1, -1] * steps.size), cycles),

@@ -11,8 +11,18 @@ import matplotlib
 import numpy as np
 import xarray as xr
 
-from calflow.report.figures import (COLORS, Figure, Inputs, finish, finite, guarded, hours, legend_below, mode_label,
-                                    new_figure)
+from calflow.report.figures import (
+    COLORS,
+    Figure,
+    Inputs,
+    finish,
+    finite,
+    guarded,
+    hours,
+    legend_below,
+    mode_label,
+    new_figure,
+)
 
 
 def _axes(run: xr.Dataset) -> list[str]:
@@ -31,14 +41,31 @@ def geometric_error(run: xr.Dataset | None, robot: str) -> Figure | None:
     direction = run["direction"].values if "direction" in run else np.zeros(run.sizes["sample"])
     for a, (cmd, meas) in zip(ax[0], panels):
         c = run[f"cmd_{cmd}"].values
-        dev = (run[f"meas_{meas}"].values - (c if cmd == meas else np.nanmean(run[f"meas_{meas}"].values))) * 1e3
+        dev = (
+            run[f"meas_{meas}"].values - (c if cmd == meas else np.nanmean(run[f"meas_{meas}"].values))
+        ) * 1e3
         groups = [(1, "forward"), (-1, "backward")] if np.any(direction != 0) else [(0, "all cycles")]
         for d, name in groups:
             sel = direction == d
-            a.plot(c[sel], dev[sel], ".", ms=1.0, alpha=0.35, color=COLORS.get(name, COLORS["forward"]), rasterized=True)
+            a.plot(
+                c[sel],
+                dev[sel],
+                ".",
+                ms=1.0,
+                alpha=0.35,
+                color=COLORS.get(name, COLORS["forward"]),
+                rasterized=True,
+            )
             xs = np.unique(c[sel])
             means = [np.nanmean(dev[sel][c[sel] == x]) for x in xs]
-            a.plot(xs, means, "-", lw=1.1, color=COLORS.get(name, COLORS["forward"]), label=f"{name} (mean over cycles)")
+            a.plot(
+                xs,
+                means,
+                "-",
+                lw=1.1,
+                color=COLORS.get(name, COLORS["forward"]),
+                label=f"{name} (mean over cycles)",
+            )
         a.set_xlabel(f"command {cmd}_T (µm)")
         if cmd == meas:
             a.set_ylabel(f"{meas}_m − {meas}_T (nm)")
@@ -47,10 +74,14 @@ def geometric_error(run: xr.Dataset | None, robot: str) -> Figure | None:
             a.set_ylabel(f"{meas}_m − mean {meas}_m (nm)")
             a.set_title(f"coupling: {meas} reading while {cmd} moves")
         a.legend(loc="best")
-    return finish(fig, "fig-geometric", "training",
-                  "Geometric errors of the stage in the training run (runs/training.nc): every settled reading "
-                  "(dots, drifting with temperature over the run) and the mean over cycles per target and direction.",
-                  "Fig. 5.1")
+    return finish(
+        fig,
+        "fig-geometric",
+        "training",
+        "Geometric errors of the stage in the training run (runs/training.nc): every settled reading "
+        "(dots, drifting with temperature over the run) and the mean over cycles per target and direction.",
+        "Fig. 5.1",
+    )
 
 
 def _pose_centred(run: xr.Dataset, axis: str) -> np.ndarray:
@@ -81,13 +112,24 @@ def drift_vs_temperature(run: xr.Dataset | None) -> Figure | None:
         if ok.sum() > 2 and np.ptp(t_mean[ok]) > 0:
             slope, icpt = np.polyfit(t_mean[ok], drift[ok], 1)
             xs = np.linspace(t_mean[ok].min(), t_mean[ok].max(), 2)
-            a.plot(xs, slope * xs + icpt, "-", color=COLORS["backward"], label=f"linear fit: {slope / 1e3:.3f} µm/°C")
+            a.plot(
+                xs,
+                slope * xs + icpt,
+                "-",
+                color=COLORS["backward"],
+                label=f"linear fit: {slope / 1e3:.3f} µm/°C",
+            )
             a.legend(loc="best")
         a.set_xlabel("mean thermocouple temperature (°C)")
         a.set_ylabel(f"drift along {axis} (nm)")
-    return finish(fig, "fig-drift", "training",
-                  "Thermal drift in the training run: deviation from the target minus its mean at the same pose and "
-                  "direction (the geometric error), against the mean of the thermocouples.", "Fig. 5.2")
+    return finish(
+        fig,
+        "fig-drift",
+        "training",
+        "Thermal drift in the training run: deviation from the target minus its mean at the same pose and "
+        "direction (the geometric error), against the mean of the thermocouples.",
+        "Fig. 5.2",
+    )
 
 
 def metrology(summary: dict) -> Figure | None:
@@ -112,10 +154,18 @@ def metrology(summary: dict) -> Figure | None:
     ax[0, 0].set_title("(a) accuracy (Fig. 5.11)")
     ax[0, 1].set_title("(b) repeatability (Fig. 5.12)")
     spread = intrinsic.get("temperature_range_c")
-    where = (f"in the metrology room (temperature range {spread:.3f} °C)" if spread is not None
-             else "in the recorded test (no temperature readings)")
-    return finish(fig, "fig-metrology", "metrology",
-                  f"Accuracy and repeatability of the uncalibrated stage per pose {where}.", "Fig. 5.11, 5.12")
+    where = (
+        f"in the metrology room (temperature range {spread:.3f} °C)"
+        if spread is not None
+        else "in the recorded test (no temperature readings)"
+    )
+    return finish(
+        fig,
+        "fig-metrology",
+        "metrology",
+        f"Accuracy and repeatability of the uncalibrated stage per pose {where}.",
+        "Fig. 5.11, 5.12",
+    )
 
 
 def _modes(metrics: xr.Dataset) -> list[str]:
@@ -146,9 +196,14 @@ def validation_poses(metrics: xr.Dataset | None) -> Figure | None:
         a.set_ylim(bottom=0)
     ax[-1, 0].set_xlabel("time since the start of validation (h)")
     ax[0, 0].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=6, ncol=1 if npose <= 14 else 2)
-    return finish(fig, "fig-poses-time", "validation",
-                  "Accuracy of every validation pose (colours, legend: target and direction) in every test, "
-                  "per test type (metrics/validation.nc). Time 0 = end of training = start of validation.", "Fig. 5.17")
+    return finish(
+        fig,
+        "fig-poses-time",
+        "validation",
+        "Accuracy of every validation pose (colours, legend: target and direction) in every test, "
+        "per test type (metrics/validation.nc). Time 0 = end of training = start of validation.",
+        "Fig. 5.17",
+    )
 
 
 def _pose_labels(metrics: xr.Dataset) -> list[str]:
@@ -178,8 +233,12 @@ def max_per_test(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
     for name, block in tests.items():
         s = block["series"]
         color = COLORS.get(name)
-        ax[0, 0].plot(finite(s["time_h"]), finite(s["max_ap_nm"]), "o-", ms=2.5, color=color, label=mode_label(name))
-        ax[0, 1].plot(finite(s["time_h"]), finite(s["max_rp_nm"]), "o-", ms=2.5, color=color, label=mode_label(name))
+        ax[0, 0].plot(
+            finite(s["time_h"]), finite(s["max_ap_nm"]), "o-", ms=2.5, color=color, label=mode_label(name)
+        )
+        ax[0, 1].plot(
+            finite(s["time_h"]), finite(s["max_rp_nm"]), "o-", ms=2.5, color=color, label=mode_label(name)
+        )
         if name in ref:
             ax[0, 0].axhline(ref[name]["max_accuracy_nm"], color=color, ls="--", lw=0.7, alpha=0.6)
     point = _training_point(summary, run) if two_dof else None
@@ -194,11 +253,16 @@ def max_per_test(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
     legend_below(fig, ax[0, 0], ncol=4)
     ax[0, 0].set_title("(a) accuracy; dashed: thesis values")
     ax[0, 1].set_title("(b) repeatability")
-    return finish(fig, "fig-max", "validation",
-                  "Maximum accuracy and repeatability over the poses of every test" +
-                  (", training phase and validation" if two_dof else "") +
-                  ". Dashed lines: the thesis's maxima for each test type. Time 0 = end of training = start of "
-                  "validation.", "Fig. 5.23" if two_dof else "Fig. 5.18")
+    return finish(
+        fig,
+        "fig-max",
+        "validation",
+        "Maximum accuracy and repeatability over the poses of every test"
+        + (", training phase and validation" if two_dof else "")
+        + ". Dashed lines: the thesis's maxima for each test type. Time 0 = end of training = start of "
+        "validation.",
+        "Fig. 5.23" if two_dof else "Fig. 5.18",
+    )
 
 
 def temperature(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
@@ -217,18 +281,31 @@ def temperature(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
         a.plot(hours(run) - start, t_mean, "-", lw=0.7, color="k", label="training run")
     for name, block in tests.items():
         s = block["series"]
-        a.errorbar(finite(s["time_h"]), finite(s["temperature_c"]), yerr=finite(s["temperature_range_c"]) / 2,
-                   fmt="o", ms=2.5, lw=0.7, color=COLORS.get(name), label=f"tests: {mode_label(name)}")
+        a.errorbar(
+            finite(s["time_h"]),
+            finite(s["temperature_c"]),
+            yerr=finite(s["temperature_range_c"]) / 2,
+            fmt="o",
+            ms=2.5,
+            lw=0.7,
+            color=COLORS.get(name),
+            label=f"tests: {mode_label(name)}",
+        )
     rng = validation.get("training_temperature_range_c")
     if rng and None not in rng:
         a.axhspan(rng[0], rng[1], color=COLORS["shade"], zorder=0, label="training temperature range")
     a.set_xlabel("time since the start of validation (h)")
     a.set_ylabel("temperature (°C)")
     legend_below(fig, a, ncol=3 if len(tests) <= 2 else 2)
-    return finish(fig, "fig-temperature", "temperature",
-                  "Room temperature at the stage: the mean of the thermocouples per test (markers; bars: range within the test)"
-                  + (" and along the training run" if run is not None else "") + ".",
-                  "Fig. 5.24" if two_dof else "Fig. 5.19")
+    return finish(
+        fig,
+        "fig-temperature",
+        "temperature",
+        "Room temperature at the stage: the mean of the thermocouples per test (markers; bars: range within the test)"
+        + (" and along the training run" if run is not None else "")
+        + ".",
+        "Fig. 5.24" if two_dof else "Fig. 5.19",
+    )
 
 
 def accuracy_vs_temperature(summary: dict) -> Figure | None:
@@ -252,9 +329,14 @@ def accuracy_vs_temperature(summary: dict) -> Figure | None:
         a.set_ylabel(what)
         a.set_ylim(bottom=0)
     legend_below(fig, ax[0, 0], ncol=len(tests))
-    return finish(fig, "fig-acc-temp", "temperature",
-                  "Maximum accuracy and repeatability of every test against its mean temperature; the shaded band is "
-                  "the temperature range of the training run (open markers: tests outside it).", "Fig. 5.20")
+    return finish(
+        fig,
+        "fig-acc-temp",
+        "temperature",
+        "Maximum accuracy and repeatability of every test against its mean temperature; the shaded band is "
+        "the temperature range of the training run (open markers: tests outside it).",
+        "Fig. 5.20",
+    )
 
 
 def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
@@ -263,15 +345,25 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
     unsupported = summary.get("unsupported") or {}  # said in the report's own words; no note twice
     run = inputs.runs.get("training")
     if run is None and "training" not in unsupported:
-        notes.append("The training run (runs/training.nc) is not among the report inputs: Fig. 5.1, 5.2 analogs "
-                     "and the training temperature are omitted.")
+        notes.append(
+            "The training run (runs/training.nc) is not among the report inputs: Fig. 5.1, 5.2 analogs "
+            "and the training temperature are omitted."
+        )
     val = (inputs.metrics.get("validation") or {}).get("")
     if val is None and "validation" not in unsupported:
-        notes.append("The validation metrics (metrics/validation.nc) are not among the report inputs: "
-                     "Fig. 5.17 analog omitted.")
+        notes.append(
+            "The validation metrics (metrics/validation.nc) are not among the report inputs: "
+            "Fig. 5.17 analog omitted."
+        )
     robot = summary.get("robot", "stage1d")
     draw = guarded(notes)
-    figures = [draw(geometric_error, run, robot), draw(drift_vs_temperature, run), draw(metrology, summary),
-               draw(validation_poses, val), draw(max_per_test, summary, run), draw(temperature, summary, run),
-               draw(accuracy_vs_temperature, summary)]
+    figures = [
+        draw(geometric_error, run, robot),
+        draw(drift_vs_temperature, run),
+        draw(metrology, summary),
+        draw(validation_poses, val),
+        draw(max_per_test, summary, run),
+        draw(temperature, summary, run),
+        draw(accuracy_vs_temperature, summary),
+    ]
     return [f for f in figures if f is not None], notes

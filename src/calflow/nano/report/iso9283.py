@@ -38,9 +38,11 @@ from calflow.nano.report.stabilisation import stabilisation_entries
 __all__ = ["iso9283_block"]
 
 NM_PER_UM = 1000.0
-NO_STREAM = ("not supported by this data: no step_response run (the campaign's step_response section is off); "
-             "the other runs keep one reading per dwell (the mean of the dwell's last seconds, Sec. 5.3.2), "
-             "so no approach to a pose is on record")
+NO_STREAM = (
+    "not supported by this data: no step_response run (the campaign's step_response section is off); "
+    "the other runs keep one reading per dwell (the mean of the dwell's last seconds, Sec. 5.3.2), "
+    "so no approach to a pose is on record"
+)
 
 
 def _entry(value, unit: str, clause: str, **extra) -> dict:
@@ -72,10 +74,21 @@ def _vap(meas, tgt, direction, test, tests):
             if best is None or r.vap > best[0]:
                 best = (r.vap, target, int(t))
     if best is None:
-        return _entry(None, "nm", "7.3", reason="not supported by this data: no target is approached from two "
-                                                  "directions (the run records one approach direction per target)")
-    return _entry(best[0] * NM_PER_UM, "nm", "7.3", target_um=best[1].tolist(), test=best[2],
-                  over="max over targets and tests")
+        return _entry(
+            None,
+            "nm",
+            "7.3",
+            reason="not supported by this data: no target is approached from two "
+            "directions (the run records one approach direction per target)",
+        )
+    return _entry(
+        best[0] * NM_PER_UM,
+        "nm",
+        "7.3",
+        target_um=best[1].tolist(),
+        test=best[2],
+        over="max over targets and tests",
+    )
 
 
 def _distance(meas, tgt, cycle, pose, test, tests):
@@ -99,20 +112,40 @@ def _distance(meas, tgt, cycle, pose, test, tests):
                 rd = (r.rd, pair, int(t), r.d_command)
     if ad is None:
         reason = "not supported by this data: no two poses with different targets share two cycles"
-        return {"AD": _entry(None, "nm", "7.4.1", reason=reason), "RD": _entry(None, "nm", "7.4.2", reason=reason)}
+        return {
+            "AD": _entry(None, "nm", "7.4.1", reason=reason),
+            "RD": _entry(None, "nm", "7.4.2", reason=reason),
+        }
     over = "pair of poses and test with the largest value"
     return {
-        "AD": _entry(ad[0] * NM_PER_UM, "nm", "7.4.1", pair_targets_um=ad[1], test=ad[2],
-                     command_distance_um=ad[3], over=over + " in magnitude (signed)"),
-        "RD": _entry(rd[0] * NM_PER_UM, "nm", "7.4.2", pair_targets_um=rd[1], test=rd[2],
-                     command_distance_um=rd[3], over=over),
+        "AD": _entry(
+            ad[0] * NM_PER_UM,
+            "nm",
+            "7.4.1",
+            pair_targets_um=ad[1],
+            test=ad[2],
+            command_distance_um=ad[3],
+            over=over + " in magnitude (signed)",
+        ),
+        "RD": _entry(
+            rd[0] * NM_PER_UM,
+            "nm",
+            "7.4.2",
+            pair_targets_um=rd[1],
+            test=rd[2],
+            command_distance_um=rd[3],
+            over=over,
+        ),
     }
 
 
 def _drift(meas, tgt, pose, test, tests, hours):
     if tests.size < 2:
         reason = "not supported by this data: the test type has one test; drift compares a first and a last"
-        return {"dAP": _entry(None, "nm", "7.7", reason=reason), "dRP": _entry(None, "nm", "7.7", reason=reason)}
+        return {
+            "dAP": _entry(None, "nm", "7.7", reason=reason),
+            "dRP": _entry(None, "nm", "7.7", reason=reason),
+        }
     first, last = int(tests[0]), int(tests[-1])
     dap = drp = None
     for p in np.unique(pose[test == first]):
@@ -127,10 +160,17 @@ def _drift(meas, tgt, pose, test, tests, hours):
     period = float(hours[test == last].mean() - hours[test == first].mean())
     span = {"first_test": first, "last_test": last, "period_h": period, "over": "max over poses"}
     if dap is None:
-        reason = "not supported by this data: no pose has two valid visits in both the first and the last test"
-        return {"dAP": _entry(None, "nm", "7.7", reason=reason), "dRP": _entry(None, "nm", "7.7", reason=reason)}
-    return {"dAP": _entry(dap[0] * NM_PER_UM, "nm", "7.7", target_um=dap[1], **span),
-            "dRP": _entry(drp[0] * NM_PER_UM, "nm", "7.7", target_um=drp[1], **span)}
+        reason = (
+            "not supported by this data: no pose has two valid visits in both the first and the last test"
+        )
+        return {
+            "dAP": _entry(None, "nm", "7.7", reason=reason),
+            "dRP": _entry(None, "nm", "7.7", reason=reason),
+        }
+    return {
+        "dAP": _entry(dap[0] * NM_PER_UM, "nm", "7.7", target_um=dap[1], **span),
+        "dRP": _entry(drp[0] * NM_PER_UM, "nm", "7.7", target_um=drp[1], **span),
+    }
 
 
 def iso9283_block(run: xr.Dataset, step_response_run: xr.Dataset | None = None) -> dict:
@@ -144,7 +184,10 @@ def iso9283_block(run: xr.Dataset, step_response_run: xr.Dataset | None = None) 
     if step_response_run is not None:
         stab, overshoot = stabilisation_entries(step_response_run)
     else:
-        stab, overshoot = (_entry(None, "s", "7.5", reason=NO_STREAM), _entry(None, "nm", "7.6", reason=NO_STREAM))
+        stab, overshoot = (
+            _entry(None, "s", "7.5", reason=NO_STREAM),
+            _entry(None, "nm", "7.6", reason=NO_STREAM),
+        )
     modes = {}
     for k, name in enumerate(mode_names(run)):
         tests = np.unique(test[mode == k])
@@ -157,5 +200,9 @@ def iso9283_block(run: xr.Dataset, step_response_run: xr.Dataset | None = None) 
             "stabilisation_time_s": dict(stab),
             "overshoot": dict(overshoot),
         }
-    return {"standard": "ISO 9283:1998", "source": f"{run.attrs.get('plan', 'validation')} run",
-            "axes": axes, "modes": modes}
+    return {
+        "standard": "ISO 9283:1998",
+        "source": f"{run.attrs.get('plan', 'validation')} run",
+        "axes": axes,
+        "modes": modes,
+    }

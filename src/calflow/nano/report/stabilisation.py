@@ -38,11 +38,16 @@ def _axes(run: xr.Dataset) -> list[str]:
 def _band_um(run: xr.Dataset, attained: np.ndarray, pose: np.ndarray) -> tuple[float, str]:
     if "band_nm" in run.attrs:
         return float(run.attrs["band_nm"]) / NM_PER_UM, "the band the campaign states (step_response.band_nm)"
-    rps = [iso9283(attained[pose == p].mean(axis=0), attained[pose == p]).rp
-           for p in np.unique(pose) if (pose == p).sum() >= 2]
+    rps = [
+        iso9283(attained[pose == p].mean(axis=0), attained[pose == p]).rp
+        for p in np.unique(pose)
+        if (pose == p).sum() >= 2
+    ]
     if not rps or not max(rps) > 0:
-        raise ValueError("step_response run: the band is RP, which needs two cycles of a pose and attained positions "
-                         "that differ; set step_response.band_nm")
+        raise ValueError(
+            "step_response run: the band is RP, which needs two cycles of a pose and attained positions "
+            "that differ; set step_response.band_nm"
+        )
     return max(rps), "RP (clause 7.2.2), the largest over the run's poses"
 
 
@@ -79,17 +84,29 @@ def stabilisation_entries(run: xr.Dataset) -> tuple[dict, dict]:
     per_pose = []
     for p in np.unique(pose):
         at = pose == p
-        per_pose.append({"step_um": float(np.median(step[at])), "cycles": int(at.sum()),
-                         "stabilised": int(np.isfinite(ts[at]).sum()),
-                         "stabilisation_time_s": float(np.nanmean(ts[at])) if np.isfinite(ts[at]).any() else None,
-                         "overshoot_nm": float(np.nanmean(ov[at]) * NM_PER_UM) if np.isfinite(ov[at]).any() else None})
-    common = {"source": "step_response run", "band_nm": band * NM_PER_UM, "band": band_def,
-              "record_s": float(run.attrs.get("record_s", np.nan)), "rate_hz": float(run.attrs.get("record_rate_hz", np.nan)),
-              "per_step": per_pose,
-              "over": "mean over cycles per step (out and back), the largest over the steps; the stage's closed loop, "
-                      "the same for every test type"}
-    reason = ("not supported by this data: no move of the step_response run stays inside the band until the end of "
-              "its record (record longer, or state a wider band)")
+        per_pose.append(
+            {
+                "step_um": float(np.median(step[at])),
+                "cycles": int(at.sum()),
+                "stabilised": int(np.isfinite(ts[at]).sum()),
+                "stabilisation_time_s": float(np.nanmean(ts[at])) if np.isfinite(ts[at]).any() else None,
+                "overshoot_nm": float(np.nanmean(ov[at]) * NM_PER_UM) if np.isfinite(ov[at]).any() else None,
+            }
+        )
+    common = {
+        "source": "step_response run",
+        "band_nm": band * NM_PER_UM,
+        "band": band_def,
+        "record_s": float(run.attrs.get("record_s", np.nan)),
+        "rate_hz": float(run.attrs.get("record_rate_hz", np.nan)),
+        "per_step": per_pose,
+        "over": "mean over cycles per step (out and back), the largest over the steps; the stage's closed loop, "
+        "the same for every test type",
+    }
+    reason = (
+        "not supported by this data: no move of the step_response run stays inside the band until the end of "
+        "its record (record longer, or state a wider band)"
+    )
     t_means = [e["stabilisation_time_s"] for e in per_pose if e["stabilisation_time_s"] is not None]
     o_means = [e["overshoot_nm"] for e in per_pose if e["overshoot_nm"] is not None]
     stab = {"value": max(t_means) if t_means else None, "unit": "s", "clause": "7.5", **common}

@@ -19,10 +19,12 @@ import numpy as np
 import xarray as xr
 
 from calflow import __version__, reference
+from calflow.data.io import (
+    jsonable,  # noqa: F401 (re-exported)
+    sha256_file,
+)
 from calflow.nano.evaluation import accuracy_vs_temperature, mode_names, robustness_by_mode
 from calflow.nano.report.iso9283 import iso9283_block
-from calflow.data.io import jsonable  # noqa: F401 (re-exported)
-from calflow.data.io import sha256_file
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 
@@ -123,20 +125,33 @@ def heldout_block(validation_metrics: xr.Dataset, training_metrics: xr.Dataset |
     train = np.column_stack([training_metrics[f"target_{a}"].values for a in axes])
     shared = np.array([np.any(np.all(np.abs(train - v) < 1e-6, axis=1)) for v in val])
     t_end = float(training_metrics.attrs.get("end_time_h", np.nanmax(training_metrics["time_end_h"].values)))
-    v_start = float(validation_metrics.attrs.get("start_time_h", np.nanmin(validation_metrics["time_start_h"].values)))
+    v_start = float(
+        validation_metrics.attrs.get("start_time_h", np.nanmin(validation_metrics["time_start_h"].values))
+    )
     mode = validation_metrics["mode"].values
     ap = validation_metrics["ap"].transpose("test", "pose").values
     for k, name in enumerate(mode_names(validation_metrics)):
         if name in tests:
-            tests[name]["heldout_max_accuracy_nm"] = _nanmax(ap[mode == k][:, ~shared]) if (~shared).any() else None
-    return {"time_disjoint": bool(v_start > t_end), "training_end_h": t_end, "validation_start_h": v_start,
-            "shared_positions_um": np.unique(val[shared], axis=0).tolist(),
-            "heldout_positions_um": np.unique(val[~shared], axis=0).tolist(),
-            "statement": ("Validation starts after training ends; " +
-                          ("every validation position is one training never visited." if not shared.any() else
-                           f"{int(np.unique(val[shared], axis=0).shape[0])} of its {int(np.unique(val, axis=0).shape[0])} "
-                           "positions are training positions (the thesis's protocol), so "
-                           "tests.<mode>.heldout_max_accuracy_nm gives the max AP over the others."))}
+            tests[name]["heldout_max_accuracy_nm"] = (
+                _nanmax(ap[mode == k][:, ~shared]) if (~shared).any() else None
+            )
+    return {
+        "time_disjoint": bool(v_start > t_end),
+        "training_end_h": t_end,
+        "validation_start_h": v_start,
+        "shared_positions_um": np.unique(val[shared], axis=0).tolist(),
+        "heldout_positions_um": np.unique(val[~shared], axis=0).tolist(),
+        "statement": (
+            "Validation starts after training ends; "
+            + (
+                "every validation position is one training never visited."
+                if not shared.any()
+                else f"{int(np.unique(val[shared], axis=0).shape[0])} of its {int(np.unique(val, axis=0).shape[0])} "
+                "positions are training positions (the thesis's protocol), so "
+                "tests.<mode>.heldout_max_accuracy_nm gives the max AP over the others."
+            )
+        ),
+    }
 
 
 def _per_pose(metrics: xr.Dataset, test: int = 0) -> list[dict]:
@@ -175,22 +190,36 @@ def unsupported_sections(robot: str, plans, temperatures: bool, budget: bool = T
     out: dict[str, str] = {}
     if "training" not in plans:
         eqs = "Eq. 5.10" if robot == "stage2d" else "Eq. 5.3-5.6"
-        out["models"] = (f"no training run was recorded, and the models (thesis {eqs}) are fitted "
-                         "to a training run over the stroke, so no model is identified")
-        out["training"] = "no training run was recorded, so its accuracy, repeatability and error plots are absent"
+        out["models"] = (
+            f"no training run was recorded, and the models (thesis {eqs}) are fitted "
+            "to a training run over the stroke, so no model is identified"
+        )
+        out["training"] = (
+            "no training run was recorded, so its accuracy, repeatability and error plots are absent"
+        )
     if "validation" not in plans:
-        out["validation"] = ("no validation run was recorded: validation commands the stage through each model at "
-                             "run time, which a recording made without those models cannot replay")
-        out["robustness"] = ("space and time robustness (Eq. 5.8, 5.9) are computed over the validation tests, "
-                             "and there are none")
+        out["validation"] = (
+            "no validation run was recorded: validation commands the stage through each model at "
+            "run time, which a recording made without those models cannot replay"
+        )
+        out["robustness"] = (
+            "space and time robustness (Eq. 5.8, 5.9) are computed over the validation tests, "
+            "and there are none"
+        )
     if robot == "stage1d" and "metrology" not in plans:
-        out["metrology"] = "no metrology run was recorded, so the intrinsic accuracy and repeatability are absent"
+        out["metrology"] = (
+            "no metrology run was recorded, so the intrinsic accuracy and repeatability are absent"
+        )
     if not temperatures:
-        out["temperature"] = ("the recordings hold no temperature readings, so thermal drift and accuracy against "
-                              "temperature cannot be shown")
+        out["temperature"] = (
+            "the recordings hold no temperature readings, so thermal drift and accuracy against "
+            "temperature cannot be shown"
+        )
     if not budget:
-        out["budget"] = ("the measuring instrument's uncertainty inputs are not given (campaign key 'uncertainty'), "
-                         "and the thesis's interferometer budget (Table 3.4) would describe another instrument")
+        out["budget"] = (
+            "the measuring instrument's uncertainty inputs are not given (campaign key 'uncertainty'), "
+            "and the thesis's interferometer budget (Table 3.4) would describe another instrument"
+        )
     return out
 
 
@@ -209,8 +238,9 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
     }
 
 
-def _validation(validation_metrics: xr.Dataset | None, training_metrics,
-                training_range_c) -> tuple[dict, dict | None, dict]:
+def _validation(
+    validation_metrics: xr.Dataset | None, training_metrics, training_range_c
+) -> tuple[dict, dict | None, dict]:
     """(tests, validation, robustness) of a validation run; empty when the campaign has none."""
     if validation_metrics is None:
         return {}, None, {}
@@ -219,11 +249,21 @@ def _validation(validation_metrics: xr.Dataset | None, training_metrics,
     return tests, validation, robustness_by_mode(validation_metrics)
 
 
-def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, validation_metrics: xr.Dataset | None,
-                    models: dict, budget=None, inputs: list[str] = (), *,
-                    training_range_c: tuple[float, float] | None = None, iso230_2: dict | None = None,
-                    training_metrics: xr.Dataset | None = None, validation_run: xr.Dataset | None = None,
-                    error_budget: dict | None = None, step_response_run: xr.Dataset | None = None) -> dict:
+def stage1d_summary(
+    campaign: dict,
+    metrology_metrics: xr.Dataset | None,
+    validation_metrics: xr.Dataset | None,
+    models: dict,
+    budget=None,
+    inputs: list[str] = (),
+    *,
+    training_range_c: tuple[float, float] | None = None,
+    iso230_2: dict | None = None,
+    training_metrics: xr.Dataset | None = None,
+    validation_run: xr.Dataset | None = None,
+    error_budget: dict | None = None,
+    step_response_run: xr.Dataset | None = None,
+) -> dict:
     """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
@@ -252,11 +292,19 @@ def stage1d_summary(campaign: dict, metrology_metrics: xr.Dataset | None, valida
     return jsonable(summary)
 
 
-def stage2d_summary(campaign: dict, validation_metrics: xr.Dataset | None, models: dict, budget=None,
-                    inputs: list[str] = (), *, training_metrics: xr.Dataset | None = None,
-                    training_range_c: tuple[float, float] | None = None,
-                    validation_run: xr.Dataset | None = None, error_budget: dict | None = None,
-                    step_response_run: xr.Dataset | None = None) -> dict:
+def stage2d_summary(
+    campaign: dict,
+    validation_metrics: xr.Dataset | None,
+    models: dict,
+    budget=None,
+    inputs: list[str] = (),
+    *,
+    training_metrics: xr.Dataset | None = None,
+    training_range_c: tuple[float, float] | None = None,
+    validation_run: xr.Dataset | None = None,
+    error_budget: dict | None = None,
+    step_response_run: xr.Dataset | None = None,
+) -> dict:
     """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,

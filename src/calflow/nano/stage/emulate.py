@@ -56,9 +56,10 @@ def physics_options(campaign: Mapping[str, Any], run: str | None = None) -> dict
     options = {**(rig.get("options") or {}), **((rig.get("runs") or {}).get(run) or {})}
     if rig.get("factory", "simulated") != "simulated":
         sensor = options.get("sensor") or {}
-        options = dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_interferometer" else {}
-    return {k: v for k, v in options.items()
-            if k not in ("seed", "world_seed", "start_offset_s", "stage")}
+        options = (
+            dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_interferometer" else {}
+        )
+    return {k: v for k, v in options.items() if k not in ("seed", "world_seed", "start_offset_s", "stage")}
 
 
 def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
@@ -69,80 +70,125 @@ def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
     probe = getattr(nano_rig, stage)(**physics_options(campaign))
     o = probe.options
     natural = float(o["step_natural_hz"])  # 0: an ideal step, a 0.1 ms first order here
-    return {JOINT_AXES[j]: PiezoAxisConfig(
-        tmn=-float(o["stroke_margin_um"]), tmx=float(o["stroke_um"] + o["stroke_margin_um"]),
-        natural_hz=natural, damping=float(o["step_damping"]), servo_tau=1e-4,
-        settle_window=0.01, settle_time=float(o["rise_time_s"])) for j in probe.joints}
+    return {
+        JOINT_AXES[j]: PiezoAxisConfig(
+            tmn=-float(o["stroke_margin_um"]),
+            tmx=float(o["stroke_um"] + o["stroke_margin_um"]),
+            natural_hz=natural,
+            damping=float(o["step_damping"]),
+            servo_tau=1e-4,
+            settle_window=0.01,
+            settle_time=float(o["rise_time_s"]),
+        )
+        for j in probe.joints
+    }
 
 
-def campaign_emulator(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
-                      time_scale: float = 1.0, faults: Faults | None = None) -> GCSEmulator:
+def campaign_emulator(
+    campaign: Mapping[str, Any] | str | Path,
+    *,
+    port: int = 0,
+    time_scale: float = 1.0,
+    faults: Faults | None = None,
+) -> GCSEmulator:
     """An (unstarted) E-727-class emulator with the campaign's stage axes."""
     c = _load(campaign)
     try:
         axes = axis_configs(c)
     except (TypeError, ValueError) as exc:
         raise CalflowError(f"emulate piezo: campaign rig options: {exc}") from None
-    return piezo_emulator(axes, port=port, time_scale=time_scale, faults=faults,
-                          seed=int(c.get("seed", 0)))
+    return piezo_emulator(axes, port=port, time_scale=time_scale, faults=faults, seed=int(c.get("seed", 0)))
 
 
-def rig_options(address: tuple[str, int], campaign: Mapping[str, Any], *,
-                time_scale: float = 1.0, timeout: float = 5.0, tries: int = 5,
-                backoff_s: float = 0.2) -> dict[str, Any]:
+def rig_options(
+    address: tuple[str, int],
+    campaign: Mapping[str, Any],
+    *,
+    time_scale: float = 1.0,
+    timeout: float = 5.0,
+    tries: int = 5,
+    backoff_s: float = 0.2,
+) -> dict[str, Any]:
     """Options of the ``gcs`` rig that drives a nano campaign emulator at ``address``."""
     stage = stage_of(campaign)
     joints = ("x",) if stage == "nano1d" else ("x", "y")
 
     return {
-        "axes": {j: JOINT_AXES[j] for j in joints}, "host": address[0], "port": int(address[1]),
-        "timeout": timeout, "time_scale": time_scale, "reference": False, "poll_s": 0.002,
-        "reconnect": {"tries": tries, "backoff_s": backoff_s}, "recorder": {"rate_hz": RATE_HZ},
+        "axes": {j: JOINT_AXES[j] for j in joints},
+        "host": address[0],
+        "port": int(address[1]),
+        "timeout": timeout,
+        "time_scale": time_scale,
+        "reference": False,
+        "poll_s": 0.002,
+        "reconnect": {"tries": tries, "backoff_s": backoff_s},
+        "recorder": {"rate_hz": RATE_HZ},
         "sensor": _sensor(campaign),
     }
 
 
 def _sensor(campaign: Mapping[str, Any], run: str | None = None) -> dict[str, Any]:
-    return {"factory": "simulated_interferometer",
-            "options": {"stage": stage_of(campaign), **physics_options(campaign, run)}}
+    return {
+        "factory": "simulated_interferometer",
+        "options": {"stage": stage_of(campaign), **physics_options(campaign, run)},
+    }
 
 
 def campaign_rig(options: Mapping[str, Any], campaign: Mapping[str, Any]) -> dict[str, Any]:
     """The campaign ``rig:`` section for the ``gcs`` rig ``options``: the campaign's run
     overrides (``rig.runs``, e.g. the metrology room) become overrides of the sensor."""
     runs = (campaign.get("rig") or {}).get("runs") or {}
-    return {"factory": "gcs", "options": dict(options),
-            **({"runs": {r: {"sensor": _sensor(campaign, r)} for r in runs}} if runs else {})}
+    return {
+        "factory": "gcs",
+        "options": dict(options),
+        **({"runs": {r: {"sensor": _sensor(campaign, r)} for r in runs}} if runs else {}),
+    }
 
 
-def emulated_rig_options(campaign: Mapping[str, Any] | str | Path, *, port: int = 0,
-                         time_scale: float = 1000.0, timeout: float = 1.0, tries: int = 5,
-                         backoff_s: float = 0.05, faults: Faults | None = None,
-                         ) -> tuple[GCSEmulator, dict[str, Any]]:
+def emulated_rig_options(
+    campaign: Mapping[str, Any] | str | Path,
+    *,
+    port: int = 0,
+    time_scale: float = 1000.0,
+    timeout: float = 1.0,
+    tries: int = 5,
+    backoff_s: float = 0.05,
+    faults: Faults | None = None,
+) -> tuple[GCSEmulator, dict[str, Any]]:
     """Start a nano campaign emulator; return it and the ``gcs`` rig options (for a campaign
     file: :func:`campaign_rig`). The caller stops it."""
     c = _load(campaign)
     emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
-    return emu, rig_options(emu.address, c, time_scale=time_scale, timeout=timeout,
-                            tries=tries, backoff_s=backoff_s)
+    return emu, rig_options(
+        emu.address, c, time_scale=time_scale, timeout=timeout, tries=tries, backoff_s=backoff_s
+    )
 
 
-def main(argv: list[str] | None = None, stop_event: threading.Event | None = None,
-         prog: str = "python -m calflow.nano.stage.emulate") -> int:
+def main(
+    argv: list[str] | None = None,
+    stop_event: threading.Event | None = None,
+    prog: str = "python -m calflow.nano.stage.emulate",
+) -> int:
     """``calflow emulate gcs`` of a nano campaign (or ``python -m calflow.nano.stage.emulate``):
     serve its stage until Ctrl-C or --duration."""
+
     def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
         host, port = emu.address
-        return (f"E-727-class emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
-                f"(axes {', '.join(emu.controller.axes)}, um; time scale {time_scale:g})")
+        return (
+            f"E-727-class emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
+            f"(axes {', '.join(emu.controller.axes)}, um; time scale {time_scale:g})"
+        )
 
     return serve_campaign(
-        argv, prog=prog, stop_event=stop_event,
+        argv,
+        prog=prog,
+        stop_event=stop_event,
         description="Serve a nano campaign's stage as an E-727-class PI GCS 2.0 controller on "
-                    "127.0.0.1 (docs/gcs.md).",
+        "127.0.0.1 (docs/gcs.md).",
         start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
         banner=banner,
-        rig_section=lambda emu, c, ts: campaign_rig(rig_options(emu.address, c, time_scale=ts), c))
+        rig_section=lambda emu, c, ts: campaign_rig(rig_options(emu.address, c, time_scale=ts), c),
+    )
 
 
 if __name__ == "__main__":

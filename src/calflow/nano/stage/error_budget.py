@@ -45,12 +45,18 @@ def rig_from_truth(truth: dict):
 
     o = dict(truth["options"])
     room = truth["room"]
-    o.update(profile=room["name"], profile_params=dict(room["params"]), world_seed=truth.get("world_seed", room["seed"]))
+    o.update(
+        profile=room["name"],
+        profile_params=dict(room["params"]),
+        world_seed=truth.get("world_seed", room["seed"]),
+    )
     return {"nano1d": nano1d, "nano2d": nano2d}[truth["rig"]](**o)
 
 
 def _seconds(run: xr.Dataset, name: str) -> np.ndarray:
-    return run_seconds(run if name == "time" else run.rename({name: "time"}).drop_dims("sample", errors="ignore"))
+    return run_seconds(
+        run if name == "time" else run.rename({name: "time"}).drop_dims("sample", errors="ignore")
+    )
 
 
 def effect_samples(rig, run: xr.Dataset, since_s: float, visits: dict | None = None) -> dict:
@@ -75,8 +81,13 @@ def effect_samples(rig, run: xr.Dataset, since_s: float, visits: dict | None = N
     q = np.array(rows, dtype=float)
     steps = np.diff(np.vstack([np.zeros((1, len(joints))), q]), axis=0)
     z = tuple(rig.play.sequence(q[:, k]) for k in range(len(joints)))
-    terms = rig.effect_terms(tuple(q[:, k] for k in range(len(joints))), np.array(times), z,
-                             tuple(steps[:, k] for k in range(len(joints))), np.full(len(times), since_s))
+    terms = rig.effect_terms(
+        tuple(q[:, k] for k in range(len(joints))),
+        np.array(times),
+        z,
+        tuple(steps[:, k] for k in range(len(joints))),
+        np.full(len(times), since_s),
+    )
     axes = [k for k, a in enumerate(rig._AXIS) if a is not None]
     v = np.array(is_visit)
     out = {e: np.column_stack([np.asarray(terms[e][k], dtype=float) for k in axes]) for e in DETERMINISTIC}
@@ -143,19 +154,25 @@ def error_budget(truth: dict, campaign: dict, training: xr.Dataset, validation: 
                 geo[0] = 0.0
                 geo[n_poly:] = 0.0
                 xk = np.array([visits[i][1] for i in sorted(visits)])[:, None]
-                Xk, _ = _design(np.column_stack([xk] + [np.zeros_like(xk)] * (len(joints) - 1)),
-                                np.zeros((len(xk), X_val.shape[1] - n_poly)), order, stroke)
+                Xk, _ = _design(
+                    np.column_stack([xk] + [np.zeros_like(xk)] * (len(joints) - 1)),
+                    np.zeros((len(xk), X_val.shape[1] - n_poly)),
+                    order,
+                    stroke,
+                )
                 offset_k = d_val["visits"][e] - Xk @ geo  # what the visit measures and removes
                 which = np.searchsorted(np.array(sorted(visits)), np.arange(len(test)), side="right") - 1
                 u[e] = d - X_val @ geo - offset_k[np.clip(which, 0, None)]
             else:
                 u[e] = d - X_val @ coef
         out[name] = _combine({e: v[rows] for e, v in u.items()}, err[rows])
-    out["method"] = ("rms over the samples at held-out validation positions of each effect's term left after the "
-                     "model's least-squares compensation (fitted on the training samples); noise_and_estimation = "
-                     "rms of the measured error minus the sum of those terms; interaction = signed root of "
-                     "total^2 minus the sum of the squares of all the others (contributions combine as the root-sum-"
-                     "square when uncorrelated)")
+    out["method"] = (
+        "rms over the samples at held-out validation positions of each effect's term left after the "
+        "model's least-squares compensation (fitted on the training samples); noise_and_estimation = "
+        "rms of the measured error minus the sum of those terms; interaction = signed root of "
+        "total^2 minus the sum of the squares of all the others (contributions combine as the root-sum-"
+        "square when uncorrelated)"
+    )
     return out
 
 
@@ -180,6 +197,6 @@ def _combine(u: dict, err: np.ndarray) -> dict:
     out["noise_and_estimation"] = _rms(rest)
     total = _rms(err[good])
     ss = sum(c * c for c in out.values())
-    out["interaction"] = float(np.sign(total ** 2 - ss) * np.sqrt(abs(total ** 2 - ss)))
+    out["interaction"] = float(np.sign(total**2 - ss) * np.sqrt(abs(total**2 - ss)))
     out["total"] = total
     return out

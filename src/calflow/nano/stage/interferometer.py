@@ -19,8 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["HENE_VACUUM_UM", "refractive_index", "saturation_vapour_pressure_pa", "reading_error_um",
-           "cosine_error_um", "abbe_error_um"]
+__all__ = [
+    "HENE_VACUUM_UM",
+    "refractive_index",
+    "saturation_vapour_pressure_pa",
+    "reading_error_um",
+    "cosine_error_um",
+    "abbe_error_um",
+]
 
 HENE_VACUUM_UM = 0.632991  # He-Ne vacuum wavelength (um), the SP-S 120's ~633 nm (Table 3.4)
 
@@ -44,7 +50,7 @@ def refractive_index(t_c, p_pa, rh_pct, wavelength_um: float = HENE_VACUUM_UM):
     at 20 degC, 101.3 kPa, 50 %RH (Table 3.4's 1 ppm per 1 degC, 2.5 mmHg, 80 %RH).
     """
     t, p = t_c, p_pa
-    s2 = 1.0 / wavelength_um ** 2
+    s2 = 1.0 / wavelength_um**2
     n_s = 1e-8 * (8342.54 + 2406147.0 / (130.0 - s2) + 15998.0 / (38.9 - s2))
     n_tp = p * n_s * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (96095.43 * (1.0 + 0.003661 * t))
     f = rh_pct / 100.0 * saturation_vapour_pressure_pa(t)

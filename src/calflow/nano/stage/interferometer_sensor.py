@@ -12,7 +12,8 @@ public interface (``move``, ``wait``, ``read``, ``stream``, ``time``).
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -63,8 +64,10 @@ class SimulatedInterferometer:
         dt = float(times[1] - times[0]) if times.size > 1 else 1.0
         self._advance(float(times[0]) - dt)
         chunks = list(self.rig.stream(dt * times.size, rate_hz=1.0 / dt))
-        return {k: np.concatenate([c[k] for c in chunks])[: times.size]
-                for k in (*self.sensors, *self.thermometers)}
+        return {
+            k: np.concatenate([c[k] for c in chunks])[: times.size]
+            for k in (*self.sensors, *self.thermometers)
+        }
 
     def record_move(self, positions: Mapping[str, float], times: np.ndarray) -> dict[str, np.ndarray]:
         """The stage, commanded at ``times[0]`` to ``positions`` (µm, where the controller
@@ -78,8 +81,10 @@ class SimulatedInterferometer:
             chunks = list(self.rig.record_move(cmd, dt * times.size, rate_hz=1.0 / dt))
         except ValueError as exc:
             raise RigError(f"simulated_interferometer sensor: {exc}") from None
-        return {k: np.concatenate([c[k] for c in chunks])[: times.size] if chunks else np.empty(0)
-                for k in (*self.sensors, *self.thermometers)}
+        return {
+            k: np.concatenate([c[k] for c in chunks])[: times.size] if chunks else np.empty(0)
+            for k in (*self.sensors, *self.thermometers)
+        }
 
     def close(self) -> None:
         self.rig.close()

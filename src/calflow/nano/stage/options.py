@@ -67,15 +67,42 @@ _COMMON = {
     "drift_walk_nm_per_sqrt_day": 0.0,  # a random walk with no physical source: off by default
     "unmodelled": True,  # False: every effect no calflow nano model represents is off
 }
-_POSITIVE = ("rise_time_s", "stream_rate_hz", "settle_tau_s", "interferometer_resolution_nm",
-             "thermocouple_resolution_mk", "stroke_um", "stage_capacity_j_per_k", "base_capacity_j_per_k",
-             "air_capacity_j_per_k", "pressure_pa")
-_NON_NEGATIVE = ("seed", "world_seed", "interferometer_noise_nm", "repeatability_nm", "thermocouple_noise_mk",
-                 "drift_walk_nm_per_sqrt_day", "settle_fraction", "stroke_margin_um", "stage_air_w_per_k",
-                 "stage_base_w_per_k", "base_air_w_per_k", "base_room_w_per_k", "air_room_w_per_k",
-                 "wavelength_stability_ppm", "deadpath_m", "hysteresis_nm", "loop_residual_pct",
-                 "creep_pct_per_decade", "compensation_sensor_tau_s", "sensor_linearity_pct", "humidity_pct",
-                 "step_natural_hz")
+_POSITIVE = (
+    "rise_time_s",
+    "stream_rate_hz",
+    "settle_tau_s",
+    "interferometer_resolution_nm",
+    "thermocouple_resolution_mk",
+    "stroke_um",
+    "stage_capacity_j_per_k",
+    "base_capacity_j_per_k",
+    "air_capacity_j_per_k",
+    "pressure_pa",
+)
+_NON_NEGATIVE = (
+    "seed",
+    "world_seed",
+    "interferometer_noise_nm",
+    "repeatability_nm",
+    "thermocouple_noise_mk",
+    "drift_walk_nm_per_sqrt_day",
+    "settle_fraction",
+    "stroke_margin_um",
+    "stage_air_w_per_k",
+    "stage_base_w_per_k",
+    "base_air_w_per_k",
+    "base_room_w_per_k",
+    "air_room_w_per_k",
+    "wavelength_stability_ppm",
+    "deadpath_m",
+    "hysteresis_nm",
+    "loop_residual_pct",
+    "creep_pct_per_decade",
+    "compensation_sensor_tau_s",
+    "sensor_linearity_pct",
+    "humidity_pct",
+    "step_natural_hz",
+)
 
 # Each effect of the nano rigs: its option keys (all off = effect off) and whether a calflow
 # nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials in the
@@ -90,8 +117,12 @@ EFFECTS = {
     "expansion": ("expansion_ppm_per_c",),
     "optics_drift": ("optics_drift_um_per_c",),
     "deadpath": ("deadpath_m",),
-    "compensation": ("compensation_bias_k", "compensation_bias_pa", "compensation_bias_pct",
-                     "compensation_sensor_tau_s"),
+    "compensation": (
+        "compensation_bias_k",
+        "compensation_bias_pa",
+        "compensation_bias_pct",
+        "compensation_sensor_tau_s",
+    ),
     "cosine": ("cosine_deg",),
     "abbe": ("abbe_pitch_urad",),
     "walk": ("drift_walk_nm_per_sqrt_day",),
@@ -103,8 +134,14 @@ EFFECTS = {
     "thermocouple_noise": ("thermocouple_noise_mk",),
 }
 # noise and the transients of a move: not terms of effect_terms (the rig's _state adds them)
-NOISE = ("interferometer_noise", "wavelength_stability", "repeatability", "settling", "step_response",
-         "thermocouple_noise")
+NOISE = (
+    "interferometer_noise",
+    "wavelength_stability",
+    "repeatability",
+    "settling",
+    "step_response",
+    "thermocouple_noise",
+)
 UNMODELLED = ("hysteresis", "creep", "expansion", "deadpath", "compensation", "walk")
 
 
@@ -192,9 +229,19 @@ def _coerce(rig, key, value, default):
             raise ValueError
         return out
     except (TypeError, ValueError, OverflowError):
-        kind = ("a list of finite numbers" if isinstance(default, tuple) else "a mapping" if isinstance(default, dict)
-                else "a string" if isinstance(default, str) else "true or false" if isinstance(default, bool) else "an integer"
-                if isinstance(default, int) and not isinstance(default, bool) else "a finite number")
+        kind = (
+            "a list of finite numbers"
+            if isinstance(default, tuple)
+            else "a mapping"
+            if isinstance(default, dict)
+            else "a string"
+            if isinstance(default, str)
+            else "true or false"
+            if isinstance(default, bool)
+            else "an integer"
+            if isinstance(default, int) and not isinstance(default, bool)
+            else "a finite number"
+        )
         raise OptionError(key, f"{kind} (like {default!r})", value) from None
 
 
@@ -208,7 +255,9 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
     for key, default in defaults.items():
         o[key] = _coerce(name, key, o[key], default)
     if len(o["stage_coeff_um_per_c"]) != n_sensors:
-        raise OptionError("stage_coeff_um_per_c", f"{n_sensors} values, one per sensor", o["stage_coeff_um_per_c"])
+        raise OptionError(
+            "stage_coeff_um_per_c", f"{n_sensors} values, one per sensor", o["stage_coeff_um_per_c"]
+        )
     n_tc = len(o["thermocouple_tau_s"])
     for key in ("thermocouple_air_weight", "thermocouple_offset_c"):
         if len(o[key]) != n_tc:
@@ -223,7 +272,10 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
         raise OptionError("thermocouple_tau_s", "values > 0", o["thermocouple_tau_s"])
     if not all(0.0 <= v <= 1.0 for v in o["thermocouple_air_weight"]):
         raise OptionError("thermocouple_air_weight", "values in [0, 1]", o["thermocouple_air_weight"])
-    if not (0.0 <= o["humidity_pct"] - o["humidity_swing_pct"] and o["humidity_pct"] + o["humidity_swing_pct"] <= 100.0):
+    if not (
+        0.0 <= o["humidity_pct"] - o["humidity_swing_pct"]
+        and o["humidity_pct"] + o["humidity_swing_pct"] <= 100.0
+    ):
         raise OptionError("humidity_pct", "humidity +- its swing within 0-100 %", o["humidity_pct"])
     if not o["unmodelled"]:  # one key switches off every effect no calflow model represents
         o = without(o, *UNMODELLED)
@@ -233,12 +285,17 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
         raise OptionError("profile", f"one of {list(PROFILES)}", o["profile"])
     for key, value in o["profile_params"].items():
         if key not in _DEFAULTS[o["profile"]]:
-            raise OptionError("profile_params", f"parameters of profile {o['profile']!r} "
-                              f"({', '.join(sorted(_DEFAULTS[o['profile']]))})", {key: value})
+            raise OptionError(
+                "profile_params",
+                f"parameters of profile {o['profile']!r} ({', '.join(sorted(_DEFAULTS[o['profile']]))})",
+                {key: value},
+            )
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise OptionError("profile_params", "finite numbers", {key: value})
     if not 0.0 < o["step_damping"] < 1.0:
-        raise OptionError("step_damping", "a damping ratio in (0, 1) (an underdamped closed loop)", o["step_damping"])
+        raise OptionError(
+            "step_damping", "a damping ratio in (0, 1) (an underdamped closed loop)", o["step_damping"]
+        )
     if not -1.0 < o["repeatability_correlation"] < 1.0:
         raise OptionError("repeatability_correlation", "a value in (-1, 1)", o["repeatability_correlation"])
     return o

@@ -32,7 +32,13 @@ import numpy as np
 
 from calflow.rigs.servo import closed_loop_step  # noqa: F401 (the closed loop's step, shared with the GCS emulation)
 
-__all__ = ["PlayHysteresis", "closed_loop_step", "residual_creep_um", "sensor_nonlinearity_um", "loop_residual_pct"]
+__all__ = [
+    "PlayHysteresis",
+    "closed_loop_step",
+    "residual_creep_um",
+    "sensor_nonlinearity_um",
+    "loop_residual_pct",
+]
 
 _RADII = (0.125, 0.25, 0.5, 1.0)  # fractions of the largest radius
 
@@ -72,7 +78,9 @@ class PlayHysteresis:
         return out
 
 
-def loop_residual_pct(hysteresis_nm: float, stroke_um: float, open_loop_hysteresis_pct: float = 12.0) -> float:
+def loop_residual_pct(
+    hysteresis_nm: float, stroke_um: float, open_loop_hysteresis_pct: float = 12.0
+) -> float:
     """Percentage of the actuator's nonlinearity the loop leaves at the measured point: closed-loop
     over open-loop hysteresis (module docstring; 12 %: the middle of the 10-15 % class figure)."""
     return 100.0 * 1e-3 * hysteresis_nm / (open_loop_hysteresis_pct * 1e-2 * stroke_um)
@@ -82,7 +90,9 @@ def residual_creep_um(step_um, since_move_s, creep_pct_per_decade: float, residu
     """Creep (um) of the last step ``step_um`` ``since_move_s`` after the move started, left by
     the loop: residual x gamma x step x lg(1 + t / t0) (module docstring)."""
     t = np.maximum(np.asarray(since_move_s, dtype=float), 0.0)
-    return residual * creep_pct_per_decade * 1e-2 * np.asarray(step_um, dtype=float) * np.log10(1.0 + t / t0_s)
+    return (
+        residual * creep_pct_per_decade * 1e-2 * np.asarray(step_um, dtype=float) * np.log10(1.0 + t / t0_s)
+    )
 
 
 def sensor_nonlinearity_um(s, stroke_um: float, linearity_pct: float):

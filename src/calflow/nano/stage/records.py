@@ -9,7 +9,7 @@ physics (``_state``), noise (``_noise_sd``) and quantisation, and its virtual cl
 from __future__ import annotations
 
 import math
-from typing import Iterator, Mapping
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 
@@ -19,8 +19,9 @@ __all__ = ["HighRateRecords"]
 class HighRateRecords:
     """``stream`` and ``record_move`` of a simulated nano rig (module docstring)."""
 
-    def stream(self, seconds: float, rate_hz: float | None = None,
-               chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
+    def stream(
+        self, seconds: float, rate_hz: float | None = None, chunk: int = 4096
+    ) -> Iterator[dict[str, np.ndarray]]:
         """Dwell ``seconds`` sampling at ``rate_hz`` (default option ``stream_rate_hz``).
 
         Advances the virtual clock by ``seconds`` at once and returns an iterator of chunk
@@ -33,8 +34,9 @@ class HighRateRecords:
         t0, self._t = self._t, self._t + float(seconds)
         return self._stream_iter(t0, n, rate, int(chunk), self._snapshot(), rng)
 
-    def record_move(self, command: Mapping[str, float], seconds: float, rate_hz: float | None = None,
-                    chunk: int = 4096) -> Iterator[dict[str, np.ndarray]]:
+    def record_move(
+        self, command: Mapping[str, float], seconds: float, rate_hz: float | None = None, chunk: int = 4096
+    ) -> Iterator[dict[str, np.ndarray]]:
         """``move`` and record the sensors from the move's start, like a controller's data
         recorder triggered by the move command (GCS ``DRT``): sample i at ``t0 + i / rate_hz``,
         t0 the start of the move, for ``seconds``, at ``rate_hz`` (default ``stream_rate_hz``).
@@ -51,7 +53,11 @@ class HighRateRecords:
         rate = float(self.options["stream_rate_hz"] if rate_hz is None else rate_hz)
         if not (rate > 0 and float(seconds) >= 0 and int(chunk) > 0):
             raise ValueError(f"{self._NAME}: {what} needs seconds >= 0, rate_hz > 0, chunk > 0")
-        return rate, int(math.floor(float(seconds) * rate + 1e-9)), np.random.default_rng(self._ss_streams.spawn(1)[0])
+        return (
+            rate,
+            int(math.floor(float(seconds) * rate + 1e-9)),
+            np.random.default_rng(self._ss_streams.spawn(1)[0]),
+        )
 
     def _stream_iter(self, t0, n, rate, chunk, state, rng):
         for start in range(0, n, chunk):

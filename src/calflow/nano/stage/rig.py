@@ -30,15 +30,21 @@ when the interferometer was zeroed (Sec. 5.3.1). The world (room, weather, walk)
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from calflow.errors import RigError
 from calflow.nano.stage import interferometer as ifm
-from calflow.nano.stage.piezo import PlayHysteresis, closed_loop_step, loop_residual_pct, residual_creep_um, sensor_nonlinearity_um
-from calflow.nano.stage.records import HighRateRecords
 from calflow.nano.stage.options import _COMMON, EFFECTS, NOISE, _Walk, check_options
+from calflow.nano.stage.piezo import (
+    PlayHysteresis,
+    closed_loop_step,
+    loop_residual_pct,
+    residual_creep_um,
+    sensor_nonlinearity_um,
+)
+from calflow.nano.stage.records import HighRateRecords
 from calflow.nano.stage.thermal_network import ThermalNetwork, network_bank
 from calflow.rigs.thermal import room_profile
 
@@ -64,16 +70,25 @@ class _NanoRig(HighRateRecords):
         n_tc = len(o["thermocouple_tau_s"])
         self.options = o
         self.thermometers = tuple(f"T{j + 1}" for j in range(n_tc))
-        self.room = room_profile(o["profile"], base_c=o["base_temperature_c"],
-                                 seed=o["world_seed"], **o["profile_params"])
+        self.room = room_profile(
+            o["profile"], base_c=o["base_temperature_c"], seed=o["world_seed"], **o["profile_params"]
+        )
         self._comp_lag = o["compensation_sensor_tau_s"] > 0  # else the compensation reads the beam's air
-        net = ThermalNetwork.from_options({**o, "thermocouple_tau_s": (*o["thermocouple_tau_s"],
-                                                                      o["compensation_sensor_tau_s"] or 1.0),
-                                           "thermocouple_air_weight": (*o["thermocouple_air_weight"], 1.0)})
+        net = ThermalNetwork.from_options(
+            {
+                **o,
+                "thermocouple_tau_s": (*o["thermocouple_tau_s"], o["compensation_sensor_tau_s"] or 1.0),
+                "thermocouple_air_weight": (*o["thermocouple_air_weight"], 1.0),
+            }
+        )
         self._bank = network_bank(net, self.room, earliest_s=o["start_offset_s"])
         self._n_tc = n_tc
-        self._walk = _Walk(o["world_seed"], o["drift_walk_nm_per_sqrt_day"] * 1e-3 * np.ones(len(self.sensors)))
-        self._weather = np.random.default_rng(np.random.SeedSequence([int(o["world_seed"]), 3_4])).uniform(0, 2 * np.pi, 2)
+        self._walk = _Walk(
+            o["world_seed"], o["drift_walk_nm_per_sqrt_day"] * 1e-3 * np.ones(len(self.sensors))
+        )
+        self._weather = np.random.default_rng(np.random.SeedSequence([int(o["world_seed"]), 3_4])).uniform(
+            0, 2 * np.pi, 2
+        )
         self._nodes0 = self._bank.at(0.0)  # the zeroing (campaign time 0)
         self._n0 = self._indices(0.0, self._nodes0)
         self._c_stage = np.array(o["stage_coeff_um_per_c"])
@@ -137,8 +152,11 @@ class _NanoRig(HighRateRecords):
         noise = self._rng_reads.standard_normal(n + temps.size)
         xs = np.round((np.array(pos) + self._noise_sd(pos) * noise[:n]) / self._q_um) * self._q_um
         ts = np.round((temps + self._sig_c * noise[n:]) / self._q_c) * self._q_c
-        return {"time": t, **dict(zip(self.sensors, xs.tolist())),
-                **dict(zip(self.thermometers, ts.tolist()))}
+        return {
+            "time": t,
+            **dict(zip(self.sensors, xs.tolist())),
+            **dict(zip(self.thermometers, ts.tolist())),
+        }
 
     def close(self) -> None:
         self._closed = True
@@ -155,8 +173,9 @@ class _NanoRig(HighRateRecords):
         """Current virtual time (s since the rig's start)."""
         return self._t
 
-    def true_position(self, command, time: float | np.ndarray | None = None,
-                      direction: int | Mapping[str, int] = 0) -> dict[str, float | np.ndarray]:
+    def true_position(
+        self, command, time: float | np.ndarray | None = None, direction: int | Mapping[str, int] = 0
+    ) -> dict[str, float | np.ndarray]:
         """Noise-free sensor values (um) for ``command`` at rig ``time`` (s, default now).
 
         Every deterministic effect, with the hysteresis of a long approach in ``direction``
@@ -173,11 +192,21 @@ class _NanoRig(HighRateRecords):
     def truth(self) -> dict:
         """JSON-serialisable true physics parameters (independent of the noise seed)."""
         o = self.options
-        keep = {k: (list(v) if isinstance(v, tuple) else v) for k, v in o.items()
-                if k not in ("seed", "start_offset_s", "profile", "profile_params", "world_seed")}
-        return {"rig": self._NAME, "joints": list(self.joints), "sensors": list(self.sensors),
-                "thermometers": list(self.thermometers), "room": self.room.describe(),
-                "world_seed": int(o["world_seed"]), "geometry": self._geometry_truth(), "options": keep}
+        keep = {
+            k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in o.items()
+            if k not in ("seed", "start_offset_s", "profile", "profile_params", "world_seed")
+        }
+        return {
+            "rig": self._NAME,
+            "joints": list(self.joints),
+            "sensors": list(self.sensors),
+            "thermometers": list(self.thermometers),
+            "room": self.room.describe(),
+            "world_seed": int(o["world_seed"]),
+            "geometry": self._geometry_truth(),
+            "options": keep,
+        }
 
     # ------------------------------------------------------------------ physics
     def effect_terms(self, cmds, t_rig, z, steps=None, since_s=None, nodes=None) -> dict[str, list]:
@@ -204,21 +233,27 @@ class _NanoRig(HighRateRecords):
             on_axis = axis is not None
             out["geometry"].append(geo["geometry"][k] + zero)
             out["coupling"].append(geo["coupling"][k] + zero)
-            out["sensor_nonlinearity"].append(sensor_nonlinearity_um(s, L, o["sensor_linearity_pct"]) + zero
-                                              if on_axis else zero)
+            out["sensor_nonlinearity"].append(
+                sensor_nonlinearity_um(s, L, o["sensor_linearity_pct"]) + zero if on_axis else zero
+            )
             out["hysteresis"].append(self.play.error(z[axis], x) + zero if on_axis else zero)
-            out["creep"].append(residual_creep_um(steps[axis], since_s, o["creep_pct_per_decade"], self._loop) + zero
-                                if on_axis and steps is not None and since_s is not None else zero)
+            out["creep"].append(
+                residual_creep_um(steps[axis], since_s, o["creep_pct_per_decade"], self._loop) + zero
+                if on_axis and steps is not None and since_s is not None
+                else zero
+            )
             out["stage_drift"].append(self._c_stage[k] * d[..., _STAGE])
             out["expansion"].append(o["expansion_ppm_per_c"] * 1e-6 * x * d[..., _STAGE])
             out["optics_drift"].append(o["optics_drift_um_per_c"] * d[..., _BASE])
-            dead, path = ifm.reading_error_um(x, n_air, n_comp, *self._n0, o["deadpath_m"] * 1e6,
-                                              o["deadpath_corrected"])
+            dead, path = ifm.reading_error_um(
+                x, n_air, n_comp, *self._n0, o["deadpath_m"] * 1e6, o["deadpath_corrected"]
+            )
             out["deadpath"].append(dead + zero)
             out["compensation"].append(path + zero)
             out["cosine"].append(ifm.cosine_error_um(x, o["cosine_deg"]) + zero if on_axis else zero)
-            out["abbe"].append(ifm.abbe_error_um(s, o["abbe_offset_mm"], o["abbe_pitch_urad"]) + zero
-                               if on_axis else zero)
+            out["abbe"].append(
+                ifm.abbe_error_um(s, o["abbe_offset_mm"], o["abbe_pitch_urad"]) + zero if on_axis else zero
+            )
             out["walk"].append(walk[..., k] + zero if walk is not None else zero)
         return out
 
@@ -242,19 +277,25 @@ class _NanoRig(HighRateRecords):
         p, rh = self._weather_at(t_campaign)
         n_air = ifm.refractive_index(nodes[..., _AIR], p, rh)
         t_comp = nodes[..., -1] if self._comp_lag else nodes[..., _AIR]
-        n_comp = ifm.refractive_index(t_comp + o["compensation_bias_k"], p + o["compensation_bias_pa"],
-                                      rh + o["compensation_bias_pct"])
+        n_comp = ifm.refractive_index(
+            t_comp + o["compensation_bias_k"], p + o["compensation_bias_pa"], rh + o["compensation_bias_pct"]
+        )
         return n_air, n_comp
 
     def _sum(self, cmds, terms):
-        return [(cmds[a] if a is not None else 0.0) + sum(terms[name][k] for name in terms)
-                for k, a in enumerate(self._AXIS)]
+        return [
+            (cmds[a] if a is not None else 0.0) + sum(terms[name][k] for name in terms)
+            for k, a in enumerate(self._AXIS)
+        ]
 
     def _long_approach(self, command, direction):
         if not isinstance(command, Mapping):
             command = {self.joints[0]: command}
         cmds = tuple(np.asarray(command[j], dtype=float) for j in self.joints)
-        dirs = [int(direction.get(j, 0)) if isinstance(direction, Mapping) else int(direction) for j in self.joints]
+        dirs = [
+            int(direction.get(j, 0)) if isinstance(direction, Mapping) else int(direction)
+            for j in self.joints
+        ]
         z = tuple(self.play.long_approach(c, d) for c, d in zip(cmds, dirs))
         return cmds, z
 
@@ -282,9 +323,14 @@ class _NanoRig(HighRateRecords):
         pos = self._sum(cmds, terms)
         decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
         if since is not None:  # the closed loop's step response: the stage lags the new command
-            decay = decay + (closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0)  # 0 once settled
-        pos = [p + rep[k] + (steps[a] * decay if a is not None else 0.0) for k, (p, a) in enumerate(zip(pos, self._AXIS))]
-        temps = nodes[..., 3:3 + self._n_tc] + self._tc_off
+            decay = decay + (
+                closed_loop_step(since, o["step_natural_hz"], o["step_damping"]) - 1.0
+            )  # 0 once settled
+        pos = [
+            p + rep[k] + (steps[a] * decay if a is not None else 0.0)
+            for k, (p, a) in enumerate(zip(pos, self._AXIS))
+        ]
+        temps = nodes[..., 3 : 3 + self._n_tc] + self._tc_off
         return pos, temps
 
     # subclass hooks -----------------------------------------------------------
@@ -305,8 +351,12 @@ class Nano1DRig(_NanoRig):
 
     joints = ("x",)
     _NAME = "nano1d"
-    _EXTRA = {"stroke_um": 500.0, "coupling_y_nm": 75.0, "stage_coeff_um_per_c": (-1.5, 0.0),
-              "loop_residual_pct": loop_residual_pct(10.0, 500.0)}
+    _EXTRA = {
+        "stroke_um": 500.0,
+        "coupling_y_nm": 75.0,
+        "stage_coeff_um_per_c": (-1.5, 0.0),
+        "loop_residual_pct": loop_residual_pct(10.0, 500.0),
+    }
     _REP_FACTOR = (1.0, 0.25)
     _AXIS = (0, None)
     # um, s = x/500 um: -(Table 5.1 cubic - x) = -(2.454e-8 x^3 - 2.167e-5 x^2 + 0.005 x)
@@ -319,13 +369,17 @@ class Nano1DRig(_NanoRig):
         g = self.options["geometric_scale"] * (p0 + s * (p1 + s * (p2 + s * p3)))
         c1, c2, wig = self._COUPLING
         y = 1e-3 * self.options["coupling_y_nm"] * s * (c1 + c2 * s) + wig * np.sin(2 * np.pi * s) * (
-            self.options["coupling_y_nm"] > 0)
+            self.options["coupling_y_nm"] > 0
+        )
         return {"geometry": [g, 0.0], "coupling": [0.0, y]}
 
     def _geometry_truth(self):
-        return {"meas_x": "geometric_scale * sum_i poly[i] s^i, s = x/stroke",
-                "meas_y": "coupling_y*s*(c[0] + c[1] s) + c[2] sin(2 pi s)",
-                "poly_um": list(self._POLY), "coupling": list(self._COUPLING)}
+        return {
+            "meas_x": "geometric_scale * sum_i poly[i] s^i, s = x/stroke",
+            "meas_y": "coupling_y*s*(c[0] + c[1] s) + c[2] sin(2 pi s)",
+            "poly_um": list(self._POLY),
+            "coupling": list(self._COUPLING),
+        }
 
 
 class Nano2DRig(_NanoRig):
@@ -339,8 +393,12 @@ class Nano2DRig(_NanoRig):
 
     joints = ("x", "y")
     _NAME = "nano2d"
-    _EXTRA = {"stroke_um": 80.0, "coupling_scale": 1.0, "stage_coeff_um_per_c": (-1.5, -1.5),
-              "loop_residual_pct": loop_residual_pct(10.0, 80.0)}
+    _EXTRA = {
+        "stroke_um": 80.0,
+        "coupling_scale": 1.0,
+        "stage_coeff_um_per_c": (-1.5, -1.5),
+        "loop_residual_pct": loop_residual_pct(10.0, 80.0),
+    }
     _REP_FACTOR = (1.0, 1.0)
     _AXIS = (0, 1)
     # own axis (um): scale*s + cubic*T3(2s-1) + quad*(2s-1)^2
@@ -357,15 +415,17 @@ class Nano2DRig(_NanoRig):
             u = 2 * s - 1
             a, b, c = self._OWN[name]
             lin, bil, quad = self._CROSS[name]
-            geo.append(G * (a * s + b * (4 * u ** 3 - 3 * u) + c * u * u))
+            geo.append(G * (a * s + b * (4 * u**3 - 3 * u) + c * u * u))
             cpl.append(C * (lin * o + bil * s * o + quad * o * o))
         return {"geometry": geo, "coupling": cpl}
 
     def _geometry_truth(self):
-        return {"own_axis": "a s + b T3(2s-1) + c (2s-1)^2, s = own/stroke",
-                "cross_axis": "lin o + bilinear s o + quad o^2, o = other/stroke",
-                "own_um": {k: list(v) for k, v in self._OWN.items()},
-                "cross_um": {k: list(v) for k, v in self._CROSS.items()}}
+        return {
+            "own_axis": "a s + b T3(2s-1) + c (2s-1)^2, s = own/stroke",
+            "cross_axis": "lin o + bilinear s o + quad o^2, o = other/stroke",
+            "own_um": {k: list(v) for k, v in self._OWN.items()},
+            "cross_um": {k: list(v) for k, v in self._CROSS.items()},
+        }
 
 
 def nano1d(**options) -> Nano1DRig:

@@ -48,7 +48,7 @@ class ThermalNetwork:
     thermocouple_air_weight: tuple[float, ...]
 
     @classmethod
-    def from_options(cls, o: dict) -> "ThermalNetwork":
+    def from_options(cls, o: dict) -> ThermalNetwork:
         """The network of a nano rig's checked options (same key names)."""
         return cls(**{k: o[k] for k in cls.__dataclass_fields__})
 

@@ -27,7 +27,15 @@ from __future__ import annotations
 import numpy as np
 
 from calflow.identification.design import (  # noqa: F401 (the shared machinery, re-exported)
-    CRITERIA, Design, criterion, crlb_sigma, exchange, information, multiplicative_weights, optimal_design)
+    CRITERIA,
+    Design,
+    criterion,
+    crlb_sigma,
+    exchange,
+    information,
+    multiplicative_weights,
+    optimal_design,
+)
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS, Parameters, forward_jacobian
 
 

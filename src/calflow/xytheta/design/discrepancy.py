@@ -60,18 +60,25 @@ def with_kernel_from_tables(campaign: dict, luts_path) -> dict:
         return campaign
     k = kernel_from_tables(PositionLUT.from_dataset(open_dataset(luts_path, kind="luts")))
     out = copy.deepcopy(campaign)
-    out["identification"]["design"]["discrepancy"] = {"amplitude_um": list(k.amplitude), "length": list(k.length),
-                                                      "from": "tables"}
+    out["identification"]["design"]["discrepancy"] = {
+        "amplitude_um": list(k.amplitude),
+        "length": list(k.length),
+        "from": "tables",
+    }
     return out
 
 
 def kernel(campaign: dict) -> dc.Discrepancy:
     """The campaign's ``identification.design.discrepancy`` (amplitude µm, length µm/µm/degree)."""
-    given = (campaign["identification"]["design"].get("discrepancy") or {})
+    given = campaign["identification"]["design"].get("discrepancy") or {}
     if given.get("amplitude_um") is None or given.get("length") is None:
-        raise ValueError("identification.design.discrepancy: criterion discrepancy needs amplitude_um and length "
-                         "(X, Y, theta), or the XY tables (calflow acquire --luts; the workflow passes them)")
-    return dc.Discrepancy(tuple(float(a) for a in given["amplitude_um"]), tuple(float(v) for v in given["length"]))
+        raise ValueError(
+            "identification.design.discrepancy: criterion discrepancy needs amplitude_um and length "
+            "(X, Y, theta), or the XY tables (calflow acquire --luts; the workflow passes them)"
+        )
+    return dc.Discrepancy(
+        tuple(float(a) for a in given["amplitude_um"]), tuple(float(v) for v in given["length"])
+    )
 
 
 def test_poses(lo, hi, seed: int, n: int = TEST_POSES) -> np.ndarray:
@@ -80,8 +87,18 @@ def test_poses(lo, hi, seed: int, n: int = TEST_POSES) -> np.ndarray:
     return latin_hypercube(np.random.default_rng(np.random.SeedSequence([int(seed), 15, 2])), n, lo, hi)
 
 
-def polish(pool: np.ndarray, chosen: np.ndarray, phi, free, kern: dc.Discrepancy, sigma_um: float,
-           sigma_max: np.ndarray, lo, hi, seed: int) -> np.ndarray:
+def polish(
+    pool: np.ndarray,
+    chosen: np.ndarray,
+    phi,
+    free,
+    kern: dc.Discrepancy,
+    sigma_um: float,
+    sigma_max: np.ndarray,
+    lo,
+    hi,
+    seed: int,
+) -> np.ndarray:
     """Indices of ``pool`` that replace ``chosen`` (same count) to lower the expected integrated
     squared prediction error, every free parameter's Cramér–Rao σ (per-axis noise ``sigma_um``)
     at most ``sigma_max``; the frame is anchored at home (0, 0, 0), whose reading the plan makes
@@ -90,13 +107,32 @@ def polish(pool: np.ndarray, chosen: np.ndarray, phi, free, kern: dc.Discrepancy
     q = np.vstack([pool, np.zeros((1, 3))])
     J = design.pose_jacobians(q, phi, free)
     home = len(pool)
-    idx = dc.exchange(J, q, np.append(chosen, home), design.pose_jacobians(qt, phi, free), qt, kern, np.zeros(3),
-                      sigma_um, sigma_max=sigma_max, keep=[home])
+    idx = dc.exchange(
+        J,
+        q,
+        np.append(chosen, home),
+        design.pose_jacobians(qt, phi, free),
+        qt,
+        kern,
+        np.zeros(3),
+        sigma_um,
+        sigma_max=sigma_max,
+        keep=[home],
+    )
     return idx[idx != home]
 
 
-def expected_error(q: np.ndarray, phi, free, kern: dc.Discrepancy, sigma_um: float, lo, hi, seed: int) -> dict:
+def expected_error(
+    q: np.ndarray, phi, free, kern: dc.Discrepancy, sigma_um: float, lo, hi, seed: int
+) -> dict:
     """IMSE, its variance and bias parts (µm²) of the plan ``q`` (n, 3, home included) under ``kern``."""
     qt = test_poses(lo, hi, seed)
-    return dc.expected_error(design.pose_jacobians(q, phi, free), q, design.pose_jacobians(qt, phi, free), qt,
-                             kern, np.zeros(3), sigma_um)
+    return dc.expected_error(
+        design.pose_jacobians(q, phi, free),
+        q,
+        design.pose_jacobians(qt, phi, free),
+        qt,
+        kern,
+        np.zeros(3),
+        sigma_um,
+    )

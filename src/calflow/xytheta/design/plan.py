@@ -43,7 +43,9 @@ class TimeModel:
     def moves_s(self, q: np.ndarray) -> np.ndarray:
         """Time of each move of the sequence ``q`` (n, 3) from the previous row (from home for row 0)."""
         d = np.abs(np.diff(np.vstack([np.zeros(3), np.asarray(q, dtype=float)]), axis=0))
-        return np.maximum(d[:, 0], d[:, 1]) / self.velocity_um_s + d[:, 2] / self.velocity_deg_s + self.settle_s
+        return (
+            np.maximum(d[:, 0], d[:, 1]) / self.velocity_um_s + d[:, 2] / self.velocity_deg_s + self.settle_s
+        )
 
     def plan_s(self, q: np.ndarray, frames: int = 1) -> float:
         """Total time of visiting ``q`` in order with ``frames`` frames per pose (s)."""
@@ -62,11 +64,14 @@ def noise_model(campaign: dict) -> NoiseModel | None:
         return None
     from calflow.xytheta.stage.physics import truth_from_options
 
-    t = truth_from_options({k: v for k, v in (campaign["rig"].get("options") or {}).items()
-                            if k not in ("seed", "stream")})
+    t = truth_from_options(
+        {k: v for k, v in (campaign["rig"].get("options") or {}).items() if k not in ("seed", "stream")}
+    )
     pose = np.sqrt(t.stage_repeatability_um**2 + t.decode_error_um**2 / 2 + t.sensor_resolution_um**2 / 12)
-    return NoiseModel(float(given.get("pose", pose) if given.get("pose") is not None else pose),
-                      float(given["frame"]) if given.get("frame") is not None else t.sensor_noise_um)
+    return NoiseModel(
+        float(given.get("pose", pose) if given.get("pose") is not None else pose),
+        float(given["frame"]) if given.get("frame") is not None else t.sensor_noise_um,
+    )
 
 
 def time_model(campaign: dict) -> TimeModel:
@@ -76,9 +81,13 @@ def time_model(campaign: dict) -> TimeModel:
     d = XYThetaTruth()
     o = campaign["rig"].get("options") or {} if campaign["rig"]["factory"] == "simulated" else {}
     p = campaign["identification"]
-    return TimeModel(float(o.get("velocity_um_s", d.velocity_um_s)), float(o.get("velocity_deg_s", d.velocity_deg_s)),
-                     float(o.get("settle_s", d.settle_s)), float(p["dwell_s"]),
-                     float((p.get("design") or {}).get("frame_s", 0.04)))
+    return TimeModel(
+        float(o.get("velocity_um_s", d.velocity_um_s)),
+        float(o.get("velocity_deg_s", d.velocity_deg_s)),
+        float(o.get("settle_s", d.settle_s)),
+        float(p["dwell_s"]),
+        float((p.get("design") or {}).get("frame_s", 0.04)),
+    )
 
 
 def frames_per_pose(noise: NoiseModel, time_per_pose_s: float, frame_s: float, frames_max: int = 10) -> int:
@@ -117,12 +126,12 @@ def order(q: np.ndarray, tm: TimeModel, start=(0.0, 0.0, 0.0), passes: int = 3) 
         improved = False
         for i in range(1, n):
             a, b = tour[i - 1], tour[i]
-            c, d = tour[i:-1], tour[i + 1:]
+            c, d = tour[i:-1], tour[i + 1 :]
             gain = cost(a, b) + cost(c, d) - cost(a, c) - cost(b, d)
             tail = cost(a, b) - cost(a, tour[-1])  # reversing the whole tail
             j = int(np.argmax(gain)) if gain.size else -1
             if gain.size and gain[j] > 1e-9 and gain[j] >= tail:
-                tour[i:i + j + 1] = tour[i:i + j + 1][::-1]
+                tour[i : i + j + 1] = tour[i : i + j + 1][::-1]
                 improved = True
             elif tail > 1e-9:
                 tour[i:] = tour[i:][::-1]
@@ -159,8 +168,9 @@ def candidates(n: int, x_range, y_range, theta_range, seed: int) -> np.ndarray:
     return np.vstack([lo + (hi - lo) * corners, latin_hypercube(rng, n, lo, hi)])
 
 
-def design_poses(n: int, pool: np.ndarray, phi, free, criterion: str, scale, fraction_space_filling: float,
-                 lo, hi) -> np.ndarray:
+def design_poses(
+    n: int, pool: np.ndarray, phi, free, criterion: str, scale, fraction_space_filling: float, lo, hi
+) -> np.ndarray:
     """n distinct poses of ``pool``: ⌊f n⌋ space-filling ones, the rest optimal given them."""
     m = int(np.floor(fraction_space_filling * n))
     fixed_idx = space_filling(pool, m, lo, hi)
@@ -175,7 +185,9 @@ def _phi(campaign: dict, model: str):
     from calflow.xytheta.models.kinematics import Parameters
 
     spec = campaign["models"][model]
-    return Parameters(**{**campaign["identification"]["initial"], **spec.get("fixed", {})}), tuple(spec["free"])
+    return Parameters(**{**campaign["identification"]["initial"], **spec.get("fixed", {})}), tuple(
+        spec["free"]
+    )
 
 
 def bound(campaign: dict, q: np.ndarray, frames: int = 1) -> dict:
@@ -186,9 +198,13 @@ def bound(campaign: dict, q: np.ndarray, frames: int = 1) -> dict:
     parameters; the bound is None without a noise model (a real rig that declares none)."""
     noise = noise_model(campaign)
     tm = time_model(campaign)
-    out = {"poses": int(len(q)), "frames_per_pose": int(frames), "rig_time_h": tm.plan_s(q, frames) / 3600.0,
-           "noise_um": None if noise is None else {"pose": noise.pose_um, "frame": noise.frame_um},
-           "crlb_sigma": None}
+    out = {
+        "poses": int(len(q)),
+        "frames_per_pose": int(frames),
+        "rig_time_h": tm.plan_s(q, frames) / 3600.0,
+        "noise_um": None if noise is None else {"pose": noise.pose_um, "frame": noise.frame_um},
+        "crlb_sigma": None,
+    }
     if noise is not None:
         out["crlb_sigma"] = {}
         for name, spec in campaign["models"].items():
@@ -225,8 +241,9 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
     d = p["design"]
     noise = noise_model(campaign)
     if noise is None:
-        raise ValueError("identification.design.noise_um: the rig declares no noise model; "
-                         "expected pose and frame (µm)")
+        raise ValueError(
+            "identification.design.noise_um: the rig declares no noise model; expected pose and frame (µm)"
+        )
     if d["criterion"] == "discrepancy":
         from calflow.xytheta.design.discrepancy import kernel
 
@@ -245,9 +262,14 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
         poses = design_poses(n - 1, pool, phi, free, base, ref, d["space_filling"], lo, hi)
         return _visit(campaign, poses, ref, noise, tm)
 
-    def finish(q, frames, ratio):  # the design as the plan takes it: polished for the least bias under discrepancy
-        return _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi) if base != d["criterion"] else (
-            q, frames, ratio, {})
+    def finish(
+        q, frames, ratio
+    ):  # the design as the plan takes it: polished for the least bias under discrepancy
+        return (
+            _polish(campaign, q, ratio, pool, ref, noise, tm, lo, hi)
+            if base != d["criterion"]
+            else (q, frames, ratio, {})
+        )
 
     def final(n):
         return finish(*make(n))
@@ -271,10 +293,18 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, int, dict]:
         if d.get("time_budget") is not None:
             filled = _fill_budget(final, best, float(d["time_budget"]) * tm.plan_s(rq), tm, cap)
         q, frames, ratio, record = filled if filled is not None else finish(q, frames, ratio)
-    record = {**record, "criterion": d["criterion"], "model": d["model"], "candidates": int(len(pool)),
-              "time_budget": d.get("time_budget"), "random_rig_time_h": tm.plan_s(rq) / 3600.0,
-              "space_filling": float(d["space_filling"]), "sized_against_random_poses": int(len(rq)),
-              "sigma_ratio_max_vs_random": ratio, "random_time_per_pose_s": float(ref_time)}
+    record = {
+        **record,
+        "criterion": d["criterion"],
+        "model": d["model"],
+        "candidates": int(len(pool)),
+        "time_budget": d.get("time_budget"),
+        "random_rig_time_h": tm.plan_s(rq) / 3600.0,
+        "space_filling": float(d["space_filling"]),
+        "sized_against_random_poses": int(len(rq)),
+        "sigma_ratio_max_vs_random": ratio,
+        "random_time_per_pose_s": float(ref_time),
+    }
     return q, frames, record
 
 
@@ -310,14 +340,23 @@ def _polish(campaign: dict, q, ratio, pool, ref, noise, tm, lo, hi):
     phi, free = _phi(campaign, d["model"])
     kern = dd.kernel(campaign)
     rows = np.flatnonzero((pool[:, None, :] == q[None, 1:, :]).all(axis=2).any(axis=1))
-    idx = dd.polish(pool, rows, phi, free, kern, noise.sigma(1), ref * max(1.0, ratio), lo, hi, campaign["seed"])
+    idx = dd.polish(
+        pool, rows, phi, free, kern, noise.sigma(1), ref * max(1.0, ratio), lo, hi, campaign["seed"]
+    )
     before = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
     q, frames, ratio = _visit(campaign, pool[idx], ref, noise, tm)
     after = dd.expected_error(q, phi, free, kern, noise.sigma(1), lo, hi, campaign["seed"])
-    record = {"discrepancy": {"amplitude_um": list(kern.amplitude), "length": list(kern.length),
-                              "from": d["discrepancy"].get("from", "config"),
-                              "bias_um2_before": before["bias"], "bias_um2": after["bias"],
-                              "variance_um2": after["variance"], "swapped_poses": int(len(np.setdiff1d(idx, rows)))}}
+    record = {
+        "discrepancy": {
+            "amplitude_um": list(kern.amplitude),
+            "length": list(kern.length),
+            "from": d["discrepancy"].get("from", "config"),
+            "bias_um2_before": before["bias"],
+            "bias_um2": after["bias"],
+            "variance_um2": after["variance"],
+            "swapped_poses": int(len(np.setdiff1d(idx, rows))),
+        }
+    }
     return q, frames, ratio, record
 
 
@@ -339,10 +378,19 @@ def identification_plan(campaign: dict):
 
     p = campaign["identification"]
     q, frames, record = designed_poses(campaign)
-    rows, measured = approach(q, p["design"]["approach_um"]) if p["design"]["approach_um"] > 0 else (q, np.ones(len(q), bool))
+    rows, measured = (
+        approach(q, p["design"]["approach_um"])
+        if p["design"]["approach_um"] > 0
+        else (q, np.ones(len(q), bool))
+    )
     n = len(rows)
-    plan = Plan(name="identification", commands={"x": rows[:, 0], "y": rows[:, 1], "theta": rows[:, 2]},
-                pose=np.arange(n), cycle=np.zeros(n, dtype=int), direction=np.where(measured, 0, -1).astype(int),
-                dwell_s=p["dwell_s"] + (frames - 1) * time_model(campaign).frame_s,
-                average_last_s=None if frames == 1 else frames * time_model(campaign).frame_s)
+    plan = Plan(
+        name="identification",
+        commands={"x": rows[:, 0], "y": rows[:, 1], "theta": rows[:, 2]},
+        pose=np.arange(n),
+        cycle=np.zeros(n, dtype=int),
+        direction=np.where(measured, 0, -1).astype(int),
+        dwell_s=p["dwell_s"] + (frames - 1) * time_model(campaign).frame_s,
+        average_last_s=None if frames == 1 else frames * time_model(campaign).frame_s,
+    )
     return plan, {**record, **bound(campaign, rows, frames)}

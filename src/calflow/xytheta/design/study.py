@@ -30,7 +30,9 @@ def curves(campaign: dict, counts) -> dict:
     hi = np.array([p["x_um"][1], p["y_um"][1], p["theta_deg"][1]], dtype=float)
     pool = dp.candidates(int(d["candidates"]), p["x_um"], p["y_um"], p["theta_deg"], campaign["seed"])
     base = "MV" if d["criterion"] == "discrepancy" else d["criterion"]  # its polish keeps the MV design's σ
-    ref = design.crlb_sigma(design.pose_jacobians(dp._random_poses(campaign, p["poses"]), phi, free), noise.sigma(1))
+    ref = design.crlb_sigma(
+        design.pose_jacobians(dp._random_poses(campaign, p["poses"]), phi, free), noise.sigma(1)
+    )
     sigma = np.full((2, len(counts), len(free)), np.nan)
     hours = np.full((2, len(counts)), np.nan)
     home = np.zeros((1, 3))
@@ -75,7 +77,8 @@ def study(args) -> None:
     """``calflow design-study``: the study's curves and answer as a metrics dataset."""
     import xarray as xr
 
-    from calflow.commands.common import campaign as load, meta
+    from calflow.commands.common import campaign as load
+    from calflow.commands.common import meta
     from calflow.data.io import write_dataset
 
     c = load(args.campaign)
@@ -85,25 +88,45 @@ def study(args) -> None:
     answer = needed(counts, r["sigma"], r["rig_time_h"], r["parameters"], s.get("sigma_target") or {})
     units = {k: "degree" if k.endswith("_deg") else "um" for k in r["parameters"]}
     ds = xr.Dataset(
-        {"sigma": xr.Variable(("plan", "poses", "parameter"), r["sigma"],
-                              attrs={"units": "1", "long_name": "Cramér–Rao sigma (parameter units: attribute units_by_parameter)"}),
-         "rig_time_h": xr.Variable(("plan", "poses"), r["rig_time_h"], attrs={"units": "h", "long_name": "virtual rig time"})},
-        coords={"plan": xr.Variable(("plan",), np.array(PLANS, dtype=object)),
-                "poses": xr.Variable(("poses",), counts, attrs={"units": "1", "long_name": "poses (home included)"}),
-                "parameter": xr.Variable(("parameter",), np.array(r["parameters"], dtype=object))},
+        {
+            "sigma": xr.Variable(
+                ("plan", "poses", "parameter"),
+                r["sigma"],
+                attrs={
+                    "units": "1",
+                    "long_name": "Cramér–Rao sigma (parameter units: attribute units_by_parameter)",
+                },
+            ),
+            "rig_time_h": xr.Variable(
+                ("plan", "poses"), r["rig_time_h"], attrs={"units": "h", "long_name": "virtual rig time"}
+            ),
+        },
+        coords={
+            "plan": xr.Variable(("plan",), np.array(PLANS, dtype=object)),
+            "poses": xr.Variable(
+                ("poses",), counts, attrs={"units": "1", "long_name": "poses (home included)"}
+            ),
+            "parameter": xr.Variable(("parameter",), np.array(r["parameters"], dtype=object)),
+        },
         attrs=meta(c, "simulated", "design_study").attrs("metrics"),
     )
-    ds.attrs.update(units_by_parameter=json.dumps(units), sigma_target=json.dumps(s.get("sigma_target") or {}),
-                    needed=json.dumps(answer), model=c["identification"]["design"]["model"],
-                    criterion=c["identification"]["design"]["criterion"])
+    ds.attrs.update(
+        units_by_parameter=json.dumps(units),
+        sigma_target=json.dumps(s.get("sigma_target") or {}),
+        needed=json.dumps(answer),
+        model=c["identification"]["design"]["model"],
+        criterion=c["identification"]["design"]["criterion"],
+    )
     write_dataset(ds, args.out)
 
 
 def summary_block(ds) -> dict:
     """The study as the summary's ``design_study`` block."""
     return {
-        "model": ds.attrs.get("model"), "criterion": ds.attrs.get("criterion"),
-        "poses": [int(v) for v in ds["poses"].values], "parameters": [str(v) for v in ds["parameter"].values],
+        "model": ds.attrs.get("model"),
+        "criterion": ds.attrs.get("criterion"),
+        "poses": [int(v) for v in ds["poses"].values],
+        "parameters": [str(v) for v in ds["parameter"].values],
         "sigma": {str(p): [[float(v) for v in row] for row in ds["sigma"].sel(plan=p).values] for p in PLANS},
         "rig_time_h": {str(p): [float(v) for v in ds["rig_time_h"].sel(plan=p).values] for p in PLANS},
         "sigma_target": json.loads(ds.attrs.get("sigma_target", "{}")),
@@ -127,7 +150,9 @@ def figure(summary: dict):
         for plan, style in (("random", "--"), ("designed", "-")):
             sig = np.array(s["sigma"][plan], dtype=float)[:, j] / ref
             label = f"{k}, {plan}"
-            ax[0, 0].loglog(s["poses"], sig, style, marker="o", ms=2, lw=0.9, color=colors[j % 4], label=label)
+            ax[0, 0].loglog(
+                s["poses"], sig, style, marker="o", ms=2, lw=0.9, color=colors[j % 4], label=label
+            )
             ax[0, 1].loglog(s["rig_time_h"][plan], sig, style, marker="o", ms=2, lw=0.9, color=colors[j % 4])
     for a, xlabel in zip(ax[0], ("poses", "virtual rig time (h)")):
         a.axhline(1.0, color=COLORS["thesis"], lw=0.8)
@@ -135,12 +160,21 @@ def figure(summary: dict):
         a.set_ylabel("CRLB σ / σ asked" if target else "CRLB σ / random σ at most poses")
     ax[0, 0].legend(loc="lower left", fontsize="x-small", ncol=2)
     need = s.get("needed") or {}
-    answer = "; ".join(f"{plan}: {v['poses']} poses, {v['rig_time_h']:.2f} h" for plan, v in need.items()
-                       if v.get("poses") is not None)
-    caption = (f"Design study: Cramér–Rao σ of Model {s['model']}'s parameters against the number of poses (a) "
-               f"and the virtual rig time (b), random poses (dashed) against the {s['criterion']}-optimal design "
-               "(solid), from the Fisher information under the sensor's noise model (no acquisition); each "
-               + ("parameter relative to the σ asked (design_study.sigma_target; unasked ones to the random plan's "
-                  "σ at the most poses)" if target else "parameter relative to the random plan's σ at the most poses"))
+    answer = "; ".join(
+        f"{plan}: {v['poses']} poses, {v['rig_time_h']:.2f} h"
+        for plan, v in need.items()
+        if v.get("poses") is not None
+    )
+    caption = (
+        f"Design study: Cramér–Rao σ of Model {s['model']}'s parameters against the number of poses (a) "
+        f"and the virtual rig time (b), random poses (dashed) against the {s['criterion']}-optimal design "
+        "(solid), from the Fisher information under the sensor's noise model (no acquisition); each "
+        + (
+            "parameter relative to the σ asked (design_study.sigma_target; unasked ones to the random plan's "
+            "σ at the most poses)"
+            if target
+            else "parameter relative to the random plan's σ at the most poses"
+        )
+    )
     caption += f". For the σ asked: {answer}." if answer else "."
     return finish(fig, "fig-design-study", "identification", caption, "Fig. 4.21")

@@ -40,8 +40,9 @@ def jacobian(p: Parameters, X, Y, theta, ex=0.0, ey=0.0) -> np.ndarray:
     return np.stack([dx, dy], axis=1).reshape(-1, 4)
 
 
-def reading_residuals(p: Parameters, X, Y, theta, P_mx, P_my, offset=(0.0, 0.0), ex=0.0, ey=0.0,
-                      f_ax=0.0, f_ay=0.0) -> np.ndarray:
+def reading_residuals(
+    p: Parameters, X, Y, theta, P_mx, P_my, offset=(0.0, 0.0), ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0
+) -> np.ndarray:
     """Eq. (4.28) per reading with the initial reading (x_m0, y_m0) = ``offset`` as an unknown, µm.
 
     [ε_x,1, ε_y,1, ε_x,2, ...], 2n elements: the calculated minus the measured tool point
@@ -52,8 +53,9 @@ def reading_residuals(p: Parameters, X, Y, theta, P_mx, P_my, offset=(0.0, 0.0),
     is what (D Dᵀ)⁻¹ weighting does), at linear cost.
     """
     x_c, y_c = forward(X, Y, theta, p, ex=ex, ey=ey, f_ax=f_ax, f_ay=f_ay)
-    return np.column_stack([np.asarray(x_c - P_mx, dtype=float) - offset[0],
-                            np.asarray(y_c - P_my, dtype=float) - offset[1]]).ravel()
+    return np.column_stack(
+        [np.asarray(x_c - P_mx, dtype=float) - offset[0], np.asarray(y_c - P_my, dtype=float) - offset[1]]
+    ).ravel()
 
 
 def reading_jacobian(p: Parameters, X, Y, theta, ex=0.0, ey=0.0) -> np.ndarray:
@@ -103,12 +105,21 @@ class Readings:
             X = np.asarray(X, dtype=float)
             t = np.radians(np.asarray(theta, dtype=float))
             self.columns = np.empty((7, X.size))  # the data rows above as columns, contiguous per column
-            for j, column in enumerate((X - ex, np.asarray(Y, dtype=float) - ey, 1.0 - np.cos(t), np.sin(t), 1.0,
-                                        f_ax - np.asarray(P_mx, dtype=float), f_ay - np.asarray(P_my, dtype=float))):
+            for j, column in enumerate(
+                (
+                    X - ex,
+                    np.asarray(Y, dtype=float) - ey,
+                    1.0 - np.cos(t),
+                    np.sin(t),
+                    1.0,
+                    f_ax - np.asarray(P_mx, dtype=float),
+                    f_ay - np.asarray(P_my, dtype=float),
+                )
+            ):
                 self.columns[j] = column
         self._gram = None
 
-    def subset(self, rows) -> "Readings":
+    def subset(self, rows) -> Readings:
         """The readings at ``rows`` (index or boolean mask)."""
         return Readings(None, None, None, None, None, _columns=self.columns[:, rows])
 
@@ -124,8 +135,17 @@ class Readings:
         """Coefficients (7, 2) of ε_x, ε_y at ``phi``."""
         x_R, y_R, alpha, beta, x0, y0 = phi
         a, ab = np.radians(alpha), np.radians(alpha + beta)
-        return np.array([[np.cos(a), np.sin(a)], [-np.sin(ab), np.cos(ab)], [x_R, y_R], [-y_R, x_R], [-x0, -y0],
-                         [1.0, 0.0], [0.0, 1.0]])
+        return np.array(
+            [
+                [np.cos(a), np.sin(a)],
+                [-np.sin(ab), np.cos(ab)],
+                [x_R, y_R],
+                [-y_R, x_R],
+                [-x0, -y0],
+                [1.0, 0.0],
+                [0.0, 1.0],
+            ]
+        )
 
     @staticmethod
     def _derivatives(phi) -> np.ndarray:

@@ -20,7 +20,6 @@ from calflow.identification.robust import Robust, mad_sigma, outliers
 from calflow.xytheta.models import cost
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, Parameters
 
-
 #: Smallest noise scale (µm) the outlier screening uses: below any sensor's resolution, so
 #: rounding-level residuals of exact data are never called outliers.
 SIGMA_FLOOR_UM = 1e-6
@@ -99,7 +98,9 @@ def profiled_information(J: np.ndarray, n_free: int) -> np.ndarray:
     return information(np.asarray(J)[:, :n_free].reshape(-1, 2, n_free))
 
 
-def crlb(parameters: Parameters, X, Y, theta, sigma_um: float, free=PARAMETER_NAMES, ex=0.0, ey=0.0) -> CramerRao:
+def crlb(
+    parameters: Parameters, X, Y, theta, sigma_um: float, free=PARAMETER_NAMES, ex=0.0, ey=0.0
+) -> CramerRao:
     """Cramér–Rao bound of the free parameters of Eq. (4.18) for the poses (X, Y µm, θ degree).
 
     The readings carry independent noise of ``sigma_um`` (µm) per axis and the initial
@@ -110,7 +111,9 @@ def crlb(parameters: Parameters, X, Y, theta, sigma_um: float, free=PARAMETER_NA
     """
     X, Y, theta = (np.asarray(a, dtype=float) for a in (X, Y, theta))
     idx = _columns(free)
-    J = cost.reading_jacobian(parameters, X, Y, theta, np.broadcast_to(ex, X.shape), np.broadcast_to(ey, X.shape))
+    J = cost.reading_jacobian(
+        parameters, X, Y, theta, np.broadcast_to(ex, X.shape), np.broadcast_to(ey, X.shape)
+    )
     info = profiled_information(J[:, idx], len(free)) / float(sigma_um) ** 2
     cov = _inverse(info)
     cov = np.full_like(info, np.nan) if cov is None else cov
@@ -187,8 +190,20 @@ def _fit(readings: cost.Readings, idx: list[int], base: np.ndarray):
     return problem, _least_squares(problem, base[idx])
 
 
-def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters | None = None,
-             ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0, robust: Robust | None = None) -> Identification:
+def identify(
+    X,
+    Y,
+    theta,
+    P_mx,
+    P_my,
+    free=PARAMETER_NAMES,
+    initial: Parameters | None = None,
+    ex=0.0,
+    ey=0.0,
+    f_ax=0.0,
+    f_ay=0.0,
+    robust: Robust | None = None,
+) -> Identification:
     """Identify the free parameters of Eq. (4.18) from measured tool points.
 
     ``X``, ``Y`` (µm), ``theta`` (degree) are the joint values; ``P_mx``, ``P_my`` the
@@ -208,13 +223,16 @@ def identify(X, Y, theta, P_mx, P_my, free=PARAMETER_NAMES, initial: Parameters 
     f_ax, f_ay = np.broadcast_to(f_ax, X.shape), np.broadcast_to(f_ay, X.shape)
     ok = _valid(X, Y, theta, P_mx, P_my)
     rows = np.flatnonzero(ok)
-    X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay = (a[ok] for a in (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay))
+    X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay = (
+        a[ok] for a in (X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay)
+    )
     n = len(X)
     idx, base = _start(initial, free)
     p = len(free)
     if 2 * n < p + 2 or n < 2:
-        raise ValueError(f"identification of {p} parameters needs at least {max(2, (p + 3) // 2)} valid poses, "
-                         f"got {n}")
+        raise ValueError(
+            f"identification of {p} parameters needs at least {max(2, (p + 3) // 2)} valid poses, got {n}"
+        )
     readings = cost.Readings(X, Y, theta, P_mx, P_my, ex, ey, f_ax, f_ay)
     problem, sol = _fit(readings, idx, base)
     keep = np.ones(n, dtype=bool)
@@ -327,8 +345,21 @@ def _fold_fits(readings: cost.Readings, train: np.ndarray, idx: list[int], base:
     return out
 
 
-def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 5, seed: int = 0,
-                   ex=0.0, ey=0.0, f_ax=0.0, f_ay=0.0) -> float:
+def cross_validate(
+    X,
+    Y,
+    theta,
+    P_mx,
+    P_my,
+    free,
+    initial: Parameters,
+    k: int = 5,
+    seed: int = 0,
+    ex=0.0,
+    ey=0.0,
+    f_ax=0.0,
+    f_ay=0.0,
+) -> float:
     """k-fold prediction RMS (µm) of the pose-difference residuals ε, Eq. (4.30).
 
     The poses after the home row are dealt at random into ``k`` folds; each fold's poses
@@ -345,7 +376,9 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
     if k < 2 or rest.size < 2 * k:
         raise ValueError(f"cross-validation: {rest.size} poses cannot make {k} folds of 2 or more")
     folds = np.array_split(np.random.default_rng(seed).permutation(rest), k)
-    readings = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok])  # Θ's trigonometry once
+    readings = cost.Readings(
+        X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok]
+    )  # Θ's trigonometry once
     predict = cost.Readings(X[ok], Y[ok], theta[ok], P_mx[ok], P_my[ok], ex[ok], ey[ok], f_ax[ok], f_ay[ok])
     position = np.full(X.size, -1)
     position[ok] = np.arange(ok.size)
@@ -362,8 +395,9 @@ def cross_validate(X, Y, theta, P_mx, P_my, free, initial: Parameters, k: int = 
     return float(np.sqrt(sq / count))
 
 
-def bootstrap_std(X, Y, theta, P_mx, P_my, free, initial: Parameters, n_resamples: int = 200, seed: int = 0,
-                  ex=0.0, ey=0.0) -> dict[str, float]:
+def bootstrap_std(
+    X, Y, theta, P_mx, P_my, free, initial: Parameters, n_resamples: int = 200, seed: int = 0, ex=0.0, ey=0.0
+) -> dict[str, float]:
     """Pose-bootstrap standard deviations of the free parameters (µm or degree).
 
     Poses (after the home row, which defines the frame and stays) are resampled with
@@ -383,8 +417,17 @@ def bootstrap_std(X, Y, theta, P_mx, P_my, free, initial: Parameters, n_resample
     estimates = []
     for _ in range(int(n_resamples)):
         rows = np.concatenate([[0], np.sort(rng.integers(1, n, n - 1))])
-        fit = identify(X[rows], Y[rows], theta[rows], P_mx[rows], P_my[rows], free=free, initial=initial,
-                       ex=ex[rows], ey=ey[rows])
+        fit = identify(
+            X[rows],
+            Y[rows],
+            theta[rows],
+            P_mx[rows],
+            P_my[rows],
+            free=free,
+            initial=initial,
+            ex=ex[rows],
+            ey=ey[rows],
+        )
         estimates.append([getattr(fit.parameters, name) for name in free])
     sd = np.std(np.asarray(estimates), axis=0, ddof=1)
     return {name: float(v) for name, v in zip(free, sd)}

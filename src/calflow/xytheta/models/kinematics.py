@@ -32,7 +32,7 @@ class Parameters:
         return np.array([self.x_R, self.y_R, self.alpha, self.beta], dtype=float)
 
     @classmethod
-    def from_array(cls, values) -> "Parameters":
+    def from_array(cls, values) -> Parameters:
         x_R, y_R, alpha, beta = (float(v) for v in values)
         return cls(x_R, y_R, alpha, beta)
 
@@ -64,15 +64,31 @@ def inverse(x_P, y_P, theta, p: Parameters, g_ax=0.0, g_ay=0.0, ex=0.0, ey=0.0):
     t = np.radians(theta)
     cb = np.cos(np.radians(p.beta))
     X = (
-        x_P * np.cos(ab) + y_P * np.sin(ab)
-        - p.x_R * np.cos(ab) - p.y_R * np.sin(ab)
-        + p.x_R * np.cos(t + ab) + p.y_R * np.sin(t + ab)
-    ) / cb + g_ax + ex
+        (
+            x_P * np.cos(ab)
+            + y_P * np.sin(ab)
+            - p.x_R * np.cos(ab)
+            - p.y_R * np.sin(ab)
+            + p.x_R * np.cos(t + ab)
+            + p.y_R * np.sin(t + ab)
+        )
+        / cb
+        + g_ax
+        + ex
+    )
     Y = (
-        -x_P * np.sin(a) + y_P * np.cos(a)
-        + p.x_R * np.sin(a) - p.y_R * np.cos(a)
-        - p.x_R * np.sin(t + a) + p.y_R * np.cos(t + a)
-    ) / cb + g_ay + ey
+        (
+            -x_P * np.sin(a)
+            + y_P * np.cos(a)
+            + p.x_R * np.sin(a)
+            - p.y_R * np.cos(a)
+            - p.x_R * np.sin(t + a)
+            + p.y_R * np.cos(t + a)
+        )
+        / cb
+        + g_ay
+        + ey
+    )
     return X, Y
 
 

@@ -19,8 +19,8 @@ import xarray as xr
 from calflow.data.io import group_names, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.xytheta.models import kinematics as kin
-from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT, infer_directions, joint_increments
 from calflow.xytheta.tables.angle import AngleTable
+from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT, infer_directions, joint_increments
 from calflow.xytheta.tables.pose import PoseAngleLUT
 
 _LONG = {
@@ -84,9 +84,13 @@ class MicroModel:
         approach directions taken from the command sequence starting at ``start``.
         """
         dir_theta = infer_directions(theta_T) if np.ndim(theta_T) else None
-        g_ax, g_ay = (joint_increments(*self.angle_errors(x_T, y_T, theta_T, dir_theta), self.angle.alpha,
-                                       self.angle.beta)
-                      if self.angle is not None else (0.0, 0.0))
+        g_ax, g_ay = (
+            joint_increments(
+                *self.angle_errors(x_T, y_T, theta_T, dir_theta), self.angle.alpha, self.angle.beta
+            )
+            if self.angle is not None
+            else (0.0, 0.0)
+        )
         X0, Y0 = kin.inverse(x_T, y_T, theta_T, self.parameters, g_ax=g_ax, g_ay=g_ay)
         if self.position is None:
             return X0, Y0
@@ -110,18 +114,24 @@ class MicroModel:
                 },
             )
         data["correlation"] = xr.Variable(
-            ("parameter", "parameter_b"), np.asarray(self.correlation, dtype=float),
+            ("parameter", "parameter_b"),
+            np.asarray(self.correlation, dtype=float),
             attrs={"units": "1", "long_name": "correlation of the identified parameters"},
         )
         r_diag = self.diagnostics.get("r_diag")
         if r_diag is not None:
             data["r_diag"] = xr.Variable(
-                ("parameter",), np.asarray(r_diag, dtype=float),
+                ("parameter",),
+                np.asarray(r_diag, dtype=float),
                 attrs={"units": "1", "long_name": "diagonal of R in the QR decomposition of the Jacobian"},
             )
         coords = {
-            "parameter": xr.Variable(("parameter",), np.array(self.free, dtype=object), attrs={"long_name": "free parameter"}),
-            "parameter_b": xr.Variable(("parameter_b",), np.array(self.free, dtype=object), attrs={"long_name": "free parameter"}),
+            "parameter": xr.Variable(
+                ("parameter",), np.array(self.free, dtype=object), attrs={"long_name": "free parameter"}
+            ),
+            "parameter_b": xr.Variable(
+                ("parameter_b",), np.array(self.free, dtype=object), attrs={"long_name": "free parameter"}
+            ),
         }
         ds = xr.Dataset(data, coords=coords, attrs=meta.attrs("model"))
         for key, value in self.diagnostics.items():
@@ -145,25 +155,55 @@ class MicroModel:
         write_dataset(self.to_dataset(meta), path, groups=self.groups())
 
     @classmethod
-    def read(cls, path) -> "MicroModel":
+    def read(cls, path) -> MicroModel:
         ds = open_dataset(path, kind="model")
         groups = group_names(path)
-        position = PositionLUT.from_dataset(open_dataset(path, group="position_table")) \
-            if "position_table" in groups else None
+        position = (
+            PositionLUT.from_dataset(open_dataset(path, group="position_table"))
+            if "position_table" in groups
+            else None
+        )
         angle = None
         if "angle_table" in groups:
             table = open_dataset(path, group="angle_table")
-            kind = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(table.attrs.get("table"), AngleLUT)
+            kind = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(
+                table.attrs.get("table"), AngleLUT
+            )
             angle = kind.from_dataset(table)
         return cls.from_dataset(ds, position, angle)
 
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset, position=None, angle=None) -> "MicroModel":
+    def from_dataset(cls, ds: xr.Dataset, position=None, angle=None) -> MicroModel:
         params = kin.Parameters(**{name: float(ds[name].values) for name in kin.PARAMETER_NAMES})
         free = tuple(str(v) for v in ds["parameter"].values)
         std = {name: float(ds[name].attrs.get("std", np.nan)) for name in kin.PARAMETER_NAMES}
-        diagnostics = {k: v for k, v in ds.attrs.items() if k != "angle_table"
-                       and k.startswith(("O", "residual", "n_poses", "dof", "cv_", "sigma_", "angle_", "uncertainty",
-                                                "rejected", "robust"))}
-        return cls(str(ds.attrs["model"]), params, free, std, ds["correlation"].values, diagnostics,
-                   position, angle, str(ds.attrs.get("interpolation", "linear")))
+        diagnostics = {
+            k: v
+            for k, v in ds.attrs.items()
+            if k != "angle_table"
+            and k.startswith(
+                (
+                    "O",
+                    "residual",
+                    "n_poses",
+                    "dof",
+                    "cv_",
+                    "sigma_",
+                    "angle_",
+                    "uncertainty",
+                    "rejected",
+                    "robust",
+                )
+            )
+        }
+        return cls(
+            str(ds.attrs["model"]),
+            params,
+            free,
+            std,
+            ds["correlation"].values,
+            diagnostics,
+            position,
+            angle,
+            str(ds.attrs.get("interpolation", "linear")),
+        )

@@ -46,8 +46,9 @@ def identification(c: dict, args) -> Acquisition:
         except ValueError as exc:
             raise CalflowError(f"campaign {c['name']}: {exc}") from None
     else:
-        plan = plans.identification(p["poses"], p["x_um"], p["y_um"], p["theta_deg"], seed=c["seed"],
-                                    dwell_s=p["dwell_s"])
+        plan = plans.identification(
+            p["poses"], p["x_um"], p["y_um"], p["theta_deg"], seed=c["seed"], dwell_s=p["dwell_s"]
+        )
         q = np.column_stack([plan.commands["x"], plan.commands["y"], plan.commands["theta"]])
         record = {"criterion": None, **design_plan.bound(c, q)}
     return Acquisition(plan, "identification", attrs={"design": json.dumps({"plan": p["plan"], **record})})
@@ -57,14 +58,21 @@ def validation(c: dict, args) -> Acquisition:
     """The validation targets commanded through a model's inverse (Table 4.7)."""
     model = _model(args, "validation")
     v = c["validation"]
-    return Acquisition(plans.validation(model.inverse, v.get("targets"), v["cycles"], v["dwell_s"]),
-                       f"validation_{model.name}", model.name)
+    return Acquisition(
+        plans.validation(model.inverse, v.get("targets"), v["cycles"], v["dwell_s"]),
+        f"validation_{model.name}",
+        model.name,
+    )
 
 
 def heldout_seed(c: dict) -> int:
     """The held-out targets' seed: ``validation.heldout.seed``, else one derived from the campaign's."""
     seed = c["validation"]["heldout"].get("seed")
-    return int(seed) if seed is not None else int(np.random.SeedSequence([int(c["seed"]), 9_283]).generate_state(1)[0])
+    return (
+        int(seed)
+        if seed is not None
+        else int(np.random.SeedSequence([int(c["seed"]), 9_283]).generate_state(1)[0])
+    )
 
 
 def validation_heldout(c: dict, args) -> Acquisition:
@@ -73,10 +81,13 @@ def validation_heldout(c: dict, args) -> Acquisition:
 
     model = _model(args, "validation_heldout")
     p, h = c["identification"], c["validation"]["heldout"]
-    targets = plans.heldout_targets(h["targets"], p["x_um"], p["y_um"], p["theta_deg"],
-                                    Parameters(**p["initial"]), heldout_seed(c))
-    plan = dataclasses.replace(plans.validation(model.inverse, targets, h["cycles"], c["validation"]["dwell_s"]),
-                               name="validation_heldout")
+    targets = plans.heldout_targets(
+        h["targets"], p["x_um"], p["y_um"], p["theta_deg"], Parameters(**p["initial"]), heldout_seed(c)
+    )
+    plan = dataclasses.replace(
+        plans.validation(model.inverse, targets, h["cycles"], c["validation"]["dwell_s"]),
+        name="validation_heldout",
+    )
     return Acquisition(plan, f"validation_heldout_{model.name}", model.name)
 
 
@@ -102,13 +113,16 @@ def angle_positions(c: dict, base) -> np.ndarray:
             q = sweeps.angle_sweep(base.inverse, [(x, y)], a["theta_deg"], a["step_deg"], 2).commands
         except ValueError:  # the sweep leaves the base model's position tables
             continue
-        if (np.all((q["x"][1:] >= p["x_um"][0]) & (q["x"][1:] <= p["x_um"][1]))
-                and np.all((q["y"][1:] >= p["y_um"][0]) & (q["y"][1:] <= p["y_um"][1]))):
+        if np.all((q["x"][1:] >= p["x_um"][0]) & (q["x"][1:] <= p["x_um"][1])) and np.all(
+            (q["y"][1:] >= p["y_um"][0]) & (q["y"][1:] <= p["y_um"][1])
+        ):
             out.append((x, y))
             if len(out) == int(a["positions"]):
                 return np.array(out)
-    raise CalflowError("angle_residuals.positions: no position found whose Θ sweep stays inside the "
-                       "identification workspace; widen identification.x_um / y_um or narrow theta_deg")
+    raise CalflowError(
+        "angle_residuals.positions: no position found whose Θ sweep stays inside the "
+        "identification workspace; widen identification.x_um / y_um or narrow theta_deg"
+    )
 
 
 def angle_residuals(c: dict, args) -> Acquisition:
@@ -122,17 +136,22 @@ def angle_residuals(c: dict, args) -> Acquisition:
     model = _model(args, "angle_residuals")
     a = c["angle_residuals"]
     if a["table"] == "position_angle":
-        plan = sweeps.angle_residual_plan(model.inverse, a.get("targets"), a["angles_deg"], a["cycles"], a["dwell_s"])
+        plan = sweeps.angle_residual_plan(
+            model.inverse, a.get("targets"), a["angles_deg"], a["cycles"], a["dwell_s"]
+        )
     else:
-        plan = sweeps.angle_sweep(model.inverse, angle_positions(c, model), a["theta_deg"], a["step_deg"],
-                                  a["cycles"], a["dwell_s"])
+        plan = sweeps.angle_sweep(
+            model.inverse, angle_positions(c, model), a["theta_deg"], a["step_deg"], a["cycles"], a["dwell_s"]
+        )
     return Acquisition(plan, f"angle_residuals_{model.name}", model.name, attrs={"angle_table": a["table"]})
 
 
 def _characterisation(axis: str):
     def build(c: dict, args) -> Acquisition:
         ch = c["characterisation"]
-        plan = sweeps.characterisation(axis, ch[f"{axis}_stop_um"], ch["step_um"], ch["cycles"], ch["dwell_s"])
+        plan = sweeps.characterisation(
+            axis, ch[f"{axis}_stop_um"], ch["step_um"], ch["cycles"], ch["dwell_s"]
+        )
         return Acquisition(plan, f"characterisation_{axis}")
 
     build.__doc__ = f"Forward and backward sweeps of the {axis.upper()} stage (Sec. 4.4.1)."
@@ -167,8 +186,14 @@ def square(c: dict, args) -> Acquisition:
     """The 4 × 4 mm square of Sec. 4.4.2, with or without table compensation."""
     xy = c["xy_tests"]
     s = xy["square"]
-    plan = sweeps.square(s["side_um"], s["origin_um"], s["points_per_segment"], s["cycles"],
-                         _compensation(c, args), dwell_s=xy["dwell_s"])
+    plan = sweeps.square(
+        s["side_um"],
+        s["origin_um"],
+        s["points_per_segment"],
+        s["cycles"],
+        _compensation(c, args),
+        dwell_s=xy["dwell_s"],
+    )
     return Acquisition(plan, f"square_{args.compensation}", attrs={"compensation": args.compensation})
 
 

@@ -23,8 +23,14 @@ TABLE_4_7 = np.array(
 )
 
 
-def identification(n_poses: int = 1200, x_range=(0.0, 4000.0), y_range=(0.0, 2000.0),
-                   theta_range=(0.0, 5.0), seed: int = 0, dwell_s: float = 1.0) -> Plan:
+def identification(
+    n_poses: int = 1200,
+    x_range=(0.0, 4000.0),
+    y_range=(0.0, 2000.0),
+    theta_range=(0.0, 5.0),
+    seed: int = 0,
+    dwell_s: float = 1.0,
+) -> Plan:
     """Random joint poses over the given ranges (µm, µm, degree), Sec. 4.5.5.
 
     Row 0 is the home pose (0, 0, 0), whose reading defines the world frame (Eq. 4.27);

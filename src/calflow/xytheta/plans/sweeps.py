@@ -19,7 +19,7 @@ row (0, 0, 0), pose 0, whose reading is the reference.
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -28,8 +28,18 @@ from calflow.xytheta.plans.poses import TABLE_4_7, validation
 
 # Table 4.3: random targets P1..P10 (x_T, y_T in µm).
 TABLE_4_3 = np.array(
-    [[3471, 2311], [6044, 3991], [3673, 39], [5118, 2738], [3643, 2071],
-     [8196, 186], [1702, 756], [3776, 3815], [3903, 1390], [1035, 35]],
+    [
+        [3471, 2311],
+        [6044, 3991],
+        [3673, 39],
+        [5118, 2738],
+        [3643, 2071],
+        [8196, 186],
+        [1702, 756],
+        [3776, 3815],
+        [3903, 1390],
+        [1035, 35],
+    ],
     dtype=float,
 )
 STROKE_UM = {"x": 9500.0, "y": 4200.0}  # Sec. 4.4.1: the pattern's measuring range
@@ -37,8 +47,15 @@ STROKE_UM = {"x": 9500.0, "y": 4200.0}  # Sec. 4.4.1: the pattern's measuring ra
 Compensate = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
-def characterisation(axis: str = "x", stop_um: float | None = None, step_um: float = 5.0, cycles: int = 3,
-                     dwell_s: float = 1.0, start_um: float = 0.0, overtravel_um: float = 10.0) -> Plan:
+def characterisation(
+    axis: str = "x",
+    stop_um: float | None = None,
+    step_um: float = 5.0,
+    cycles: int = 3,
+    dwell_s: float = 1.0,
+    start_um: float = 0.0,
+    overtravel_um: float = 10.0,
+) -> Plan:
     """Forward/backward sweeps of one stage (Sec. 4.4.1; thesis: 5 µm steps, 3 cycles).
 
     Rows: the home row (0, 0, 0) (pose 0, direction 0); then per cycle an approach row at
@@ -54,8 +71,10 @@ def characterisation(axis: str = "x", stop_um: float | None = None, step_um: flo
         raise ValueError(f"characterisation.axis: expected 'x' or 'y', got {axis!r}")
     stop = STROKE_UM[axis] if stop_um is None else float(stop_um)
     if step_um <= 0 or stop <= start_um:
-        raise ValueError(f"characterisation: expected step_um > 0 and stop_um > start_um, got "
-                         f"step {step_um}, start {start_um}, stop {stop}")
+        raise ValueError(
+            f"characterisation: expected step_um > 0 and stop_um > start_um, got "
+            f"step {step_um}, start {start_um}, stop {stop}"
+        )
     if cycles < 1:
         raise ValueError(f"characterisation.cycles: expected at least 1, got {cycles}")
     if overtravel_um <= 0:
@@ -65,23 +84,41 @@ def characterisation(axis: str = "x", stop_um: float | None = None, step_um: flo
     idx = np.arange(1, n + 1)
     q, pose, cyc, direction = [0.0], [0], [0], [0]
     for c in range(cycles):
-        for values, poses, d in (([start_um - overtravel_um], [n + 1], 0), (pos, idx, 1),
-                                 ([stop + overtravel_um], [n + 2], 0), (pos[::-1], idx[::-1], -1)):
+        for values, poses, d in (
+            ([start_um - overtravel_um], [n + 1], 0),
+            (pos, idx, 1),
+            ([stop + overtravel_um], [n + 2], 0),
+            (pos[::-1], idx[::-1], -1),
+        ):
             q.extend(values)
             pose.extend(poses)
             cyc.extend([c] * len(values))
             direction.extend([d] * len(values))
     q = np.asarray(q, dtype=float)
     zeros = np.zeros_like(q)
-    commands = {"x": q if axis == "x" else zeros, "y": q if axis == "y" else zeros.copy(), "theta": zeros.copy()}
-    return Plan(name=f"characterisation_{axis}", commands=commands, pose=np.asarray(pose),
-                cycle=np.asarray(cyc), direction=np.asarray(direction), dwell_s=dwell_s)
+    commands = {
+        "x": q if axis == "x" else zeros,
+        "y": q if axis == "y" else zeros.copy(),
+        "theta": zeros.copy(),
+    }
+    return Plan(
+        name=f"characterisation_{axis}",
+        commands=commands,
+        pose=np.asarray(pose),
+        cycle=np.asarray(cyc),
+        direction=np.asarray(direction),
+        dwell_s=dwell_s,
+    )
 
 
-def _xy_plan(name: str, x_T, y_T, pose, cycle, compensate: Compensate | None, directions: str,
-             dwell_s: float) -> Plan:
+def _xy_plan(
+    name: str, x_T, y_T, pose, cycle, compensate: Compensate | None, directions: str, dwell_s: float
+) -> Plan:
     """Home row + XY targets commanded through ``compensate`` (identity when None)."""
-    from calflow.xytheta.tables.lookup import infer_directions, sequential_commands  # analysis helpers, no rig
+    from calflow.xytheta.tables.lookup import (
+        infer_directions,
+        sequential_commands,
+    )  # analysis helpers, no rig
 
     x_T, y_T = np.asarray(x_T, dtype=float), np.asarray(y_T, dtype=float)
     if compensate is None:
@@ -105,23 +142,33 @@ def _xy_plan(name: str, x_T, y_T, pose, cycle, compensate: Compensate | None, di
     )
 
 
-def square_targets(side_um: float = 4000.0, origin_um: float = 10.0, points_per_segment: int = 40) -> np.ndarray:
+def square_targets(
+    side_um: float = 4000.0, origin_um: float = 10.0, points_per_segment: int = 40
+) -> np.ndarray:
     """Stage-frame targets (4·N, 2) of the square A→B→C→D→(A) of Fig. 4.12, µm.
 
     A = (o, o), B = (o + s, o), C = (o + s, o + s), D = (o, o + s); each segment has
     N points from its first corner (included) towards the next one (excluded).
     """
     if points_per_segment < 1 or side_um <= 0:
-        raise ValueError(f"square: expected points_per_segment >= 1 and side_um > 0, got "
-                         f"{points_per_segment}, {side_um}")
+        raise ValueError(
+            f"square: expected points_per_segment >= 1 and side_um > 0, got {points_per_segment}, {side_um}"
+        )
     o, s = float(origin_um), float(side_um)
     corners = np.array([[o, o], [o + s, o], [o + s, o + s], [o, o + s], [o, o]])
     u = np.arange(points_per_segment) / points_per_segment
     return np.vstack([a + u[:, None] * (b - a) for a, b in zip(corners[:-1], corners[1:])])
 
 
-def square(side_um: float = 4000.0, origin_um: float = 10.0, points_per_segment: int = 40, cycles: int = 5,
-           compensate: Compensate | None = None, directions: str = "command", dwell_s: float = 1.0) -> Plan:
+def square(
+    side_um: float = 4000.0,
+    origin_um: float = 10.0,
+    points_per_segment: int = 40,
+    cycles: int = 5,
+    compensate: Compensate | None = None,
+    directions: str = "command",
+    dwell_s: float = 1.0,
+) -> Plan:
     """Square-trajectory tracking, Fig. 4.12/4.13: ``cycles`` laps of AB BC CD DA.
 
     ``compensate(x_T, y_T, direction_x, direction_y) -> (X, Y)`` maps stage-frame targets
@@ -139,12 +186,25 @@ def square(side_um: float = 4000.0, origin_um: float = 10.0, points_per_segment:
     if cycles < 1:
         raise ValueError(f"square.cycles: expected at least 1, got {cycles}")
     tt = np.tile(t, (cycles, 1))
-    return _xy_plan("square", tt[:, 0], tt[:, 1], np.tile(np.arange(1, m + 1), cycles),
-                    np.repeat(np.arange(cycles), m), compensate, directions, dwell_s)
+    return _xy_plan(
+        "square",
+        tt[:, 0],
+        tt[:, 1],
+        np.tile(np.arange(1, m + 1), cycles),
+        np.repeat(np.arange(cycles), m),
+        compensate,
+        directions,
+        dwell_s,
+    )
 
 
-def random_points(cycles: int = 5, targets=None, compensate: Compensate | None = None,
-                  directions: str = "command", dwell_s: float = 1.0) -> Plan:
+def random_points(
+    cycles: int = 5,
+    targets=None,
+    compensate: Compensate | None = None,
+    directions: str = "command",
+    dwell_s: float = 1.0,
+) -> Plan:
     """Random-point positioning, Table 4.3 / Fig. 4.15: P1..PM in sequence, ``cycles`` times.
 
     ``targets`` (M, 2) stage-frame x_T, y_T in µm, Table 4.3 by default; ``compensate``
@@ -157,8 +217,16 @@ def random_points(cycles: int = 5, targets=None, compensate: Compensate | None =
         raise ValueError(f"random_points.cycles: expected at least 1, got {cycles}")
     m = len(t)
     tt = np.tile(t, (cycles, 1))
-    return _xy_plan("random_points", tt[:, 0], tt[:, 1], np.tile(np.arange(1, m + 1), cycles),
-                    np.repeat(np.arange(cycles), m), compensate, directions, dwell_s)
+    return _xy_plan(
+        "random_points",
+        tt[:, 0],
+        tt[:, 1],
+        np.tile(np.arange(1, m + 1), cycles),
+        np.repeat(np.arange(cycles), m),
+        compensate,
+        directions,
+        dwell_s,
+    )
 
 
 def angle_residuals(targets=None, angles=(1, 2, 3, 4, 5)) -> np.ndarray:
@@ -180,16 +248,24 @@ def angle_residuals(targets=None, angles=(1, 2, 3, 4, 5)) -> np.ndarray:
     return np.column_stack([np.repeat(xy, a.size, axis=0), np.tile(a, len(xy))])
 
 
-def angle_residual_plan(inverse, targets=None, angles=(1, 2, 3, 4, 5), cycles: int = 3,
-                        dwell_s: float = 1.0) -> Plan:
+def angle_residual_plan(
+    inverse, targets=None, angles=(1, 2, 3, 4, 5), cycles: int = 3, dwell_s: float = 1.0
+) -> Plan:
     """The angle-residual run (Fig. 4.26): :func:`angle_residuals` commanded through
     ``inverse(x_T, y_T, Θ_T) -> (X, Y)`` (Model II or III, Eq. 4.19), home row first."""
     plan = validation(inverse, targets=angle_residuals(targets, angles), cycles=cycles, dwell_s=dwell_s)
     return dataclasses.replace(plan, name="angle_residuals")
 
 
-def angle_sweep(inverse, positions, theta_range=(0.0, 5.0), step_deg: float = 0.1, cycles: int = 2,
-                dwell_s: float = 1.0, overtravel_deg: float = 0.2) -> Plan:
+def angle_sweep(
+    inverse,
+    positions,
+    theta_range=(0.0, 5.0),
+    step_deg: float = 0.1,
+    cycles: int = 2,
+    dwell_s: float = 1.0,
+    overtravel_deg: float = 0.2,
+) -> Plan:
     """Angle characterisation (Sec. 4.5.5): Θ swept forward and backward at fixed positions.
 
     ``positions`` (M, 2) are world-frame points x_T, y_T (µm); at each, per cycle: an
@@ -204,7 +280,9 @@ def angle_sweep(inverse, positions, theta_range=(0.0, 5.0), step_deg: float = 0.
         raise ValueError(f"angle_residuals.targets: expected rows of [x_um, y_um], got shape {xy.shape}")
     lo, hi = (float(v) for v in theta_range)
     if not (step_deg > 0 and hi > lo):
-        raise ValueError(f"angle_residuals: expected step_deg > 0 and theta_deg ordered, got {step_deg}, {theta_range}")
+        raise ValueError(
+            f"angle_residuals: expected step_deg > 0 and theta_deg ordered, got {step_deg}, {theta_range}"
+        )
     if cycles < 2:
         raise ValueError(f"angle_residuals.cycles: expected at least 2, got {cycles}")
     n = int(round((hi - lo) / step_deg)) + 1
@@ -223,5 +301,8 @@ def angle_sweep(inverse, positions, theta_range=(0.0, 5.0), step_deg: float = 0.
         name="angle_residuals",
         commands={"x": np.concatenate([[0.0], X]), "y": np.concatenate([[0.0], Y]), "theta": r[:, 2].copy()},
         targets={"x": r[:, 0], "y": r[:, 1], "theta": np.concatenate([[np.nan], r[1:, 2]])},
-        pose=r[:, 3].astype(int), cycle=r[:, 4].astype(int), direction=r[:, 5].astype(int), dwell_s=dwell_s,
+        pose=r[:, 3].astype(int),
+        cycle=r[:, 4].astype(int),
+        direction=r[:, 5].astype(int),
+        dwell_s=dwell_s,
     )

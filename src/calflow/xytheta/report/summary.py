@@ -25,13 +25,27 @@ def parameter_key(name: str) -> str:
 
 
 def _per_target(m: xr.Dataset) -> list[dict]:
-    return [{"target": int(t), "x_um": float(m["target_x"].sel(target=t)), "y_um": float(m["target_y"].sel(target=t)),
-             "theta_deg": float(m["target_theta"].sel(target=t)), "ap_um": float(m["ap"].sel(target=t)),
-             "rp_um": float(m["rp"].sel(target=t))} for t in m["target"].values]
+    return [
+        {
+            "target": int(t),
+            "x_um": float(m["target_x"].sel(target=t)),
+            "y_um": float(m["target_y"].sel(target=t)),
+            "theta_deg": float(m["target_theta"].sel(target=t)),
+            "ap_um": float(m["ap"].sel(target=t)),
+            "rp_um": float(m["rp"].sel(target=t)),
+        }
+        for t in m["target"].values
+    ]
 
 
-def _model_entry(name: str, model: xr.Dataset, heldout: xr.Dataset | None, ref: xr.Dataset | None,
-                 floor: dict, angle: dict | None) -> dict:
+def _model_entry(
+    name: str,
+    model: xr.Dataset,
+    heldout: xr.Dataset | None,
+    ref: xr.Dataset | None,
+    floor: dict,
+    angle: dict | None,
+) -> dict:
     corr = model["correlation"].values
     main = heldout if heldout is not None else ref
     entry = {
@@ -42,18 +56,42 @@ def _model_entry(name: str, model: xr.Dataset, heldout: xr.Dataset | None, ref: 
         "position_table": bool(model.attrs.get("position_table", 0)),
         "angle_table": bool(model.attrs.get("angle_table", 0)),
         "parameters": {
-            parameter_key(p): {"value": float(model[p].values), "std": jsonable(float(model[p].attrs.get("std", np.nan)))}
+            parameter_key(p): {
+                "value": float(model[p].values),
+                "std": jsonable(float(model[p].attrs.get("std", np.nan))),
+            }
             for p in PARAMETER_NAMES
         },
         "correlation": [[jsonable(v) for v in row] for row in corr],
-        "identifiability": {"r_diag": [jsonable(v) for v in model["r_diag"].values] if "r_diag" in model else [],
-                            "not_identifiable": model.attrs.get("not_identifiable", "")},
-        "identification": {k: jsonable(v) for k, v in model.attrs.items()
-                           if k in ("residual_rms_um", "sigma_fit_um", "cv_rms_um", "cv_folds", "n_poses", "dof",
-                                    "condition_number", "uncertainty", "O1", "O2", "O3", "O4", "sigma_um",
-                                    "robust_loss")},
+        "identifiability": {
+            "r_diag": [jsonable(v) for v in model["r_diag"].values] if "r_diag" in model else [],
+            "not_identifiable": model.attrs.get("not_identifiable", ""),
+        },
+        "identification": {
+            k: jsonable(v)
+            for k, v in model.attrs.items()
+            if k
+            in (
+                "residual_rms_um",
+                "sigma_fit_um",
+                "cv_rms_um",
+                "cv_folds",
+                "n_poses",
+                "dof",
+                "condition_number",
+                "uncertainty",
+                "O1",
+                "O2",
+                "O3",
+                "O4",
+                "sigma_um",
+                "robust_loss",
+            )
+        },
         "per_target": _per_target(main) if main is not None else [],
-        "adequacy": adequacy(model.attrs.get("sigma_fit_um"), model.attrs.get("n_poses"), len(model["parameter"]), floor),
+        "adequacy": adequacy(
+            model.attrs.get("sigma_fit_um"), model.attrs.get("n_poses"), len(model["parameter"]), floor
+        ),
     }
     rejected = str(model.attrs.get("rejected_poses", ""))
     entry["identification"]["rejected_poses"] = [int(i) for i in rejected.split(",") if i.strip()]
@@ -89,22 +127,36 @@ def adequacy(sigma_fit, n_poses, n_free: int, floor: dict, alpha: float = 0.01) 
     residuals are noise) understate their error.
     """
     if sigma_fit is None or not floor.get("floor_um") or not n_poses:
-        return {"chi2_dof": None, "p_value": None, "adequate": None,
-                "statement": "No repeatability floor was measured: calflow cannot tell whether the model fits."}
+        return {
+            "chi2_dof": None,
+            "p_value": None,
+            "adequate": None,
+            "statement": "No repeatability floor was measured: calflow cannot tell whether the model fits.",
+        }
     from scipy.stats import f as fisher
 
     ratio = float(sigma_fit) ** 2 / floor["floor_um"] ** 2
     df1 = max(1, 2 * (int(n_poses) - 1) - n_free)
     p = float(fisher.sf(ratio, df1, floor["dof"]))
     ok = p >= alpha
-    statement = ("The residuals are at the repeatability floor: the model fits, and its parameter σ can be trusted."
-                 if ok else
-                 f"The model does not fit: its residuals are {np.sqrt(ratio):.1f} times the repeatability floor "
-                 f"({float(sigma_fit):.2f} against {floor['floor_um']:.2f} µm). Its parameters absorb errors it does "
-                 f"not model, and their σ understate their real error.")
-    return {"chi2_dof": jsonable(ratio), "p_value": jsonable(p), "adequate": bool(ok),
-            "sigma_fit_um": jsonable(float(sigma_fit)), "floor_um": jsonable(floor["floor_um"]),
-            "floor_dof": floor["dof"], "fit_dof": df1, "alpha": alpha, "statement": statement}
+    statement = (
+        "The residuals are at the repeatability floor: the model fits, and its parameter σ can be trusted."
+        if ok
+        else f"The model does not fit: its residuals are {np.sqrt(ratio):.1f} times the repeatability floor "
+        f"({float(sigma_fit):.2f} against {floor['floor_um']:.2f} µm). Its parameters absorb errors it does "
+        f"not model, and their σ understate their real error."
+    )
+    return {
+        "chi2_dof": jsonable(ratio),
+        "p_value": jsonable(p),
+        "adequate": bool(ok),
+        "sigma_fit_um": jsonable(float(sigma_fit)),
+        "floor_um": jsonable(floor["floor_um"]),
+        "floor_dof": floor["dof"],
+        "fit_dof": df1,
+        "alpha": alpha,
+        "statement": statement,
+    }
 
 
 def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
@@ -117,10 +169,18 @@ def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
         return None
     t = open_dataset(model_path, group="angle_table")
     info = {"table": t.attrs.get("table", "")}
-    for k in ("angle_table_kind", "angle_step_deg", "angle_sweep_step_deg", "angle_shortest_period_deg", "angle_noise_um",
-              "angle_interpolation_error_um", "angle_undersampled", "angle_warning"):
+    for k in (
+        "angle_table_kind",
+        "angle_step_deg",
+        "angle_sweep_step_deg",
+        "angle_shortest_period_deg",
+        "angle_noise_um",
+        "angle_interpolation_error_um",
+        "angle_undersampled",
+        "angle_warning",
+    ):
         if k in model.attrs:
-            info[k[len("angle_"):]] = jsonable(model.attrs[k])
+            info[k[len("angle_") :]] = jsonable(model.attrs[k])
     if t.attrs.get("table") == "angle_sweep":
         info["theta_deg"] = [float(v) for v in t["theta"].values]
         info["f_ax_um"] = [[jsonable(float(v)) for v in row] for row in t["f_ax"].values]
@@ -132,13 +192,18 @@ def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
     return info
 
 
-def disjointness(heldout_runs: list[xr.Dataset], training_runs: list[xr.Dataset], tol_um: float = 1.0,
-                 tol_deg: float = 1e-3) -> dict:
+def disjointness(
+    heldout_runs: list[xr.Dataset],
+    training_runs: list[xr.Dataset],
+    tol_um: float = 1.0,
+    tol_deg: float = 1e-3,
+) -> dict:
     """Do held-out commands repeat any identification or table pose? From the run datasets.
 
     A held-out sample coincides with a training sample when their X and Y commands are
     within ``tol_um`` and their Θ commands within ``tol_deg``.
     """
+
     def joints(ds):
         sel = ds["pose"].values > 0
         return np.column_stack([ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")]).astype(float)
@@ -155,21 +220,33 @@ def disjointness(heldout_runs: list[xr.Dataset], training_runs: list[xr.Dataset]
             if hi > lo:
                 d = np.hypot(train[lo:hi, 0] - q[0], train[lo:hi, 1] - q[1])
                 coincident += int(np.any(d <= tol_um))
-    return {"coincident_samples": coincident, "tolerance": {"xy_um": tol_um, "theta_deg": tol_deg},
-            "checked_samples": int(sum((r["pose"].values > 0).sum() for r in heldout_runs)),
-            "training_samples": int(len(train))}
+    return {
+        "coincident_samples": coincident,
+        "tolerance": {"xy_um": tol_um, "theta_deg": tol_deg},
+        "checked_samples": int(sum((r["pose"].values > 0).sum() for r in heldout_runs)),
+        "training_samples": int(len(train)),
+    }
 
 
 def _characterisation(luts: xr.Dataset) -> dict:
-    out = {name: jsonable(float(luts[name])) for name in ("x_stage_angle", "perpendicularity") if name in luts}
-    out["periods_um"] = {k[len("period_"):]: jsonable(float(luts[k])) for k in luts.data_vars if k.startswith("period_")}
+    out = {
+        name: jsonable(float(luts[name])) for name in ("x_stage_angle", "perpendicularity") if name in luts
+    }
+    out["periods_um"] = {
+        k[len("period_") :]: jsonable(float(luts[k])) for k in luts.data_vars if k.startswith("period_")
+    }
     out["repeatability_um"] = {
-        k[len("rep_"):]: {"median": jsonable(float(np.nanmedian(luts[k].values))), "max": jsonable(float(np.nanmax(luts[k].values)))}
-        for k in luts.data_vars if k.startswith("rep_")
+        k[len("rep_") :]: {
+            "median": jsonable(float(np.nanmedian(luts[k].values))),
+            "max": jsonable(float(np.nanmax(luts[k].values))),
+        }
+        for k in luts.data_vars
+        if k.startswith("rep_")
     }
     out["peak_to_valley_um"] = {
-        k[len("err_"):]: jsonable(float(np.nanmax(luts[k].values) - np.nanmin(luts[k].values)))
-        for k in luts.data_vars if k.startswith("err_")
+        k[len("err_") :]: jsonable(float(np.nanmax(luts[k].values) - np.nanmin(luts[k].values)))
+        for k in luts.data_vars
+        if k.startswith("err_")
     }
     return out
 
@@ -178,19 +255,25 @@ def _xy_test(m: xr.Dataset) -> dict:
     return {
         "accuracy_um": jsonable(float(m.attrs["accuracy_um"])),
         "repeatability_um": jsonable(float(m.attrs["repeatability_um"])),
-        "per_target": [{"target": int(t), "ap_um": jsonable(float(m["ap"].sel(target=t)))} for t in m["target"].values],
+        "per_target": [
+            {"target": int(t), "ap_um": jsonable(float(m["ap"].sel(target=t)))} for t in m["target"].values
+        ],
     }
 
 
 def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
     """ISO 230-2 of one stage from its characterisation sweep (stage frame, µm)."""
-    from calflow.xytheta.tables.characterisation import stage_positions
     from calflow.metrics.iso230_2_runs import iso230_2_of_run
+    from calflow.xytheta.tables.characterisation import stage_positions
 
     u, v = stage_positions(run)
     r = iso230_2_of_run(run, attained=u if axis == "x" else v, target=run[f"cmd_{axis}"].values)
-    out = {"units": "um", "targets": len(r["targets_um"]), "cycles_forward": r["cycles_forward"],
-           "cycles_backward": r["cycles_backward"]}
+    out = {
+        "units": "um",
+        "targets": len(r["targets_um"]),
+        "cycles_forward": r["cycles_forward"],
+        "cycles_backward": r["cycles_backward"],
+    }
     for key in ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd", "R_bwd", "A", "A_fwd", "A_bwd"):
         out[f"{key}_um"] = jsonable(r[f"{key}_nm"] / 1000.0)
     return out
@@ -238,8 +321,17 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "calflow_version": __version__,
         "seed": campaign.get("seed"),
         "rig": campaign.get("rig", {}).get("factory"),
-        "models": {name: _model_entry(name, models[name], heldout.get(name), ref.get(name), floor,
-                                      _angle_info(paths[name], models[name])) for name in order},
+        "models": {
+            name: _model_entry(
+                name,
+                models[name],
+                heldout.get(name),
+                ref.get(name),
+                floor,
+                _angle_info(paths[name], models[name]),
+            )
+            for name in order
+        },
         "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
         "reference": reference.BY_ROBOT["xytheta"],
         "inputs": {str(p): sha256_file(p) for p in files},
@@ -271,7 +363,9 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     if truth and truth.get("error_budget") and heldout:
         _add_error_budget(summary, heldout, truth["error_budget"])
     if truth and truth.get("available", True):
-        summary["truth"] = {"parameters": {k: truth[k] for k in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")}}
+        summary["truth"] = {
+            "parameters": {k: truth[k] for k in ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")}
+        }
     return summary
 
 
@@ -284,11 +378,14 @@ def _add_error_budget(summary: dict, heldout: dict, budget: dict) -> None:
     b = combine(ap, budget["replays"])
     for name, entry in b["models"].items():
         if name in summary["models"]:
-            summary["models"][name].update(error_budget_um=entry["error_budget_um"],
-                                           error_budget_rms_um=entry["rms_ap_um"],
-                                           error_budget_groups_um=groups(entry["error_budget_um"], b["unmodelled"]))
+            summary["models"][name].update(
+                error_budget_um=entry["error_budget_um"],
+                error_budget_rms_um=entry["rms_ap_um"],
+                error_budget_groups_um=groups(entry["error_budget_um"], b["unmodelled"]),
+            )
     summary["validation"].setdefault("heldout", {})["error_budget"] = {
-        k: b[k] for k in ("effects", "unmodelled", "combination")}
+        k: b[k] for k in ("effects", "unmodelled", "combination")
+    }
 
 
 def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth) -> dict:
@@ -298,21 +395,31 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
     out = {"repeatability_floor": floor}
     if heldout:
         any_metrics = next(iter(heldout.values()))
-        out["heldout"] = {"n_targets": int(any_metrics.sizes["target"]), "requested_targets": v["heldout"]["targets"],
-                          "cycles": v["heldout"]["cycles"], "seed": heldout_seed(campaign),
-                          "drawn_over": {k: campaign["identification"][k] for k in ("x_um", "y_um", "theta_deg")},
-                          **disjointness(heldout_runs, training_runs)}
+        out["heldout"] = {
+            "n_targets": int(any_metrics.sizes["target"]),
+            "requested_targets": v["heldout"]["targets"],
+            "cycles": v["heldout"]["cycles"],
+            "seed": heldout_seed(campaign),
+            "drawn_over": {k: campaign["identification"][k] for k in ("x_um", "y_um", "theta_deg")},
+            **disjointness(heldout_runs, training_runs),
+        }
         if truth and truth.get("rig") == "simulated_xytheta" and heldout_runs:
             from calflow.xytheta.stage.oracle import oracle_validation  # the simulated truth: reports only
 
             oracle = oracle_validation(truth, heldout_runs[0], int(campaign.get("seed") or 0))
-            out["heldout"].update(floor_um=oracle["floor_um"], oracle_accuracy_um=oracle["accuracy_um"],
-                                  floor_definition="ISO 9283 RP (max over the held-out targets) of the targets "
-                                                   "commanded through the simulated truth's exact inverse")
+            out["heldout"].update(
+                floor_um=oracle["floor_um"],
+                oracle_accuracy_um=oracle["accuracy_um"],
+                floor_definition="ISO 9283 RP (max over the held-out targets) of the targets "
+                "commanded through the simulated truth's exact inverse",
+            )
     if ref:
         any_metrics = next(iter(ref.values()))
-        out["reference_targets"] = {"n_targets": int(any_metrics.sizes["target"]), "cycles": v["cycles"],
-                                    "source": "Table 4.7" if v.get("targets") is None else "validation.targets"}
+        out["reference_targets"] = {
+            "n_targets": int(any_metrics.sizes["target"]),
+            "cycles": v["cycles"],
+            "source": "Table 4.7" if v.get("targets") is None else "validation.targets",
+        }
     return out
 
 
@@ -322,7 +429,9 @@ def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) 
     (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
     next to the achieved ``parameters.<p>.std``; the run's actual virtual time as
     ``.rig_time_h_achieved``; and the plan's design as ``identification_design``."""
-    run = next((r for r in training_runs if r.attrs.get("plan") == "identification" and "design" in r.attrs), None)
+    run = next(
+        (r for r in training_runs if r.attrs.get("plan") == "identification" and "design" in r.attrs), None
+    )
     if run is None:
         return
     record = json.loads(run.attrs["design"])
@@ -333,5 +442,8 @@ def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) 
         spec = campaign["models"][name]
         bound = crlb.get(spec.get("base", name))
         if bound is not None:
-            entry["identification"].update(crlb_sigma=bound, rig_time_h=record.get("rig_time_h"),
-                                           rig_time_h_achieved=jsonable(achieved_h))
+            entry["identification"].update(
+                crlb_sigma=bound,
+                rig_time_h=record.get("rig_time_h"),
+                rig_time_h_achieved=jsonable(achieved_h),
+            )

@@ -84,15 +84,24 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
         write_dataset(acquire_job(c, plan, args)[0], f(out))
 
     def identify(name: str, **files) -> None:
-        ns = dict(campaign=c_path, model_name=name, run=f("identification.nc"), luts=None, base=None,
-                  residuals=None, out=f(f"{name}.nc"))
+        ns = dict(
+            campaign=c_path,
+            model_name=name,
+            run=f("identification.nc"),
+            luts=None,
+            base=None,
+            residuals=None,
+            out=f(f"{name}.nc"),
+        )
         commands.identify(argparse.Namespace(**{**ns, **{k: f(v) for k, v in files.items()}}))
 
     models = c["models"]
     if any(s.get("position_table") for s in models.values()):
         run("characterisation_x", "cx.nc")
         run("characterisation_y", "cy.nc")
-        commands.characterise(argparse.Namespace(campaign=c_path, x=f("cx.nc"), y=f("cy.nc"), out=f("luts.nc")))
+        commands.characterise(
+            argparse.Namespace(campaign=c_path, x=f("cx.nc"), y=f("cy.nc"), out=f("luts.nc"))
+        )
     run("identification", "identification.nc")
     for name, spec in models.items():
         if "base" not in spec:
@@ -105,7 +114,9 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     out = {}
     for name in models:
         run("validation_heldout", f"heldout_{name}.nc", f"{name}.nc")
-        commands.metrics(argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc")))
+        commands.metrics(
+            argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
+        )
         out[name] = [float(v) for v in open_dataset(f(f"m_{name}.nc"))["ap"].values]
     return out
 
@@ -144,16 +155,19 @@ def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
         ms = float(np.mean(np.asarray(ap, dtype=float) ** 2))
         delta = {e: ms - float(np.mean(np.asarray(by[e]["ap_um"][name]) ** 2)) for e in effects}
         ms_base = float(np.mean(np.asarray(by["baseline"]["ap_um"][name]) ** 2))
-        budget = {"baseline": float(np.sqrt(ms_base)), **{e: _signed_root(d) for e, d in delta.items()},
-                  "interaction": _signed_root(ms - ms_base - sum(delta.values()))}
+        budget = {
+            "baseline": float(np.sqrt(ms_base)),
+            **{e: _signed_root(d) for e, d in delta.items()},
+            "interaction": _signed_root(ms - ms_base - sum(delta.values())),
+        }
         models[name] = {"rms_ap_um": float(np.sqrt(ms)), "error_budget_um": budget}
     return {
         "effects": effects,
         "unmodelled": [e for e in effects if e in EXTRA or set(EFFECTS[e]) & set(UNMODELLED)],
         "combination": "rms_ap_um^2 = sum over error_budget_um of sign(v)*v^2, where rms_ap_um^2 is the mean "
-                       "over held-out targets of AP_k^2; an effect's entry is sign*sqrt(rms_ap_um^2 - the same "
-                       "mean after a calibration on the rig without it); baseline: every effect off; "
-                       "interaction: the remainder",
+        "over held-out targets of AP_k^2; an effect's entry is sign*sqrt(rms_ap_um^2 - the same "
+        "mean after a calibration on the rig without it); baseline: every effect off; "
+        "interaction: the remainder",
         "models": models,
     }
 
@@ -161,12 +175,17 @@ def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
 def groups(budget_um: dict[str, float], unmodelled: list[str]) -> dict[str, float]:
     """A model's budget in four parts (signed µm, combining as the entries do): ``baseline``,
     ``modelled`` (effects some calflow model represents), ``unmodelled``, ``interaction``."""
+
     def part(names):
         return _signed_root(sum(np.sign(budget_um[n]) * budget_um[n] ** 2 for n in names))
 
     effects = [n for n in budget_um if n not in ("baseline", "interaction")]
-    return {"baseline": budget_um["baseline"], "modelled": part([n for n in effects if n not in unmodelled]),
-            "unmodelled": part([n for n in effects if n in unmodelled]), "interaction": budget_um["interaction"]}
+    return {
+        "baseline": budget_um["baseline"],
+        "modelled": part([n for n in effects if n not in unmodelled]),
+        "unmodelled": part([n for n in effects if n in unmodelled]),
+        "interaction": budget_um["interaction"],
+    }
 
 
 def _signed_root(value: float) -> float:
@@ -182,7 +201,11 @@ def error_budget_command(args) -> None:
 
     c = load(args.campaign)
     if c["robot"] != "xytheta" or c["rig"]["factory"] != "simulated":
-        raise CalflowError(f"{args.campaign}: key 'rig.factory': the error budget needs the simulated rig "
-                           f"(it replays the calibration on the rig's truth), got {c['rig']['factory']!r}")
+        raise CalflowError(
+            f"{args.campaign}: key 'rig.factory': the error budget needs the simulated rig "
+            f"(it replays the calibration on the rig's truth), got {c['rig']['factory']!r}"
+        )
     output_folder(args.out)
-    write_json({"campaign": c["name"], "replays": replays(args.campaign, REPLAYS, max(1, int(args.jobs)))}, args.out)
+    write_json(
+        {"campaign": c["name"], "replays": replays(args.campaign, REPLAYS, max(1, int(args.jobs)))}, args.out
+    )

@@ -18,16 +18,15 @@ from calflow.xytheta.tables.lookup import infer_directions
 def oracle_validation(truth: dict, run: xr.Dataset, seed: int) -> dict:
     """ISO 9283 AP and RP (µm, maxima over targets) of the held-out targets of ``run``
     commanded through the exact inverse of the rig whose truth dict is ``truth``."""
+    from dataclasses import fields
+
     from calflow.acquisition.runner import acquire
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.evaluation import xytheta_validation_metrics
     from calflow.xytheta.models.kinematics import inverse as nominal_inverse
     from calflow.xytheta.plans.poses import validation
-    from calflow.xytheta.stage.rig import simulated_xytheta
-
-    from dataclasses import fields
-
     from calflow.xytheta.stage.physics import XYThetaTruth
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     physics = {f.name: truth[f.name] for f in fields(XYThetaTruth) if f.name in truth}
     rig = simulated_xytheta(seed=seed, stream="validation_oracle", **physics)
@@ -41,15 +40,21 @@ def oracle_validation(truth: dict, run: xr.Dataset, seed: int) -> dict:
 
     def exact(x, y, theta):
         X0, Y0 = nominal_inverse(x, y, theta, t.parameters)
-        return t.exact_inverse(x + x0, y + y0, theta, infer_directions(X0), infer_directions(Y0),
-                               infer_directions(theta))
+        return t.exact_inverse(
+            x + x0, y + y0, theta, infer_directions(X0), infer_directions(Y0), infer_directions(theta)
+        )
 
-    meta = RunMetadata(campaign="oracle", robot="xytheta", source="simulated", plan="validation",
-                       config_sha256="0" * 64)
+    meta = RunMetadata(
+        campaign="oracle", robot="xytheta", source="simulated", plan="validation", config_sha256="0" * 64
+    )
     try:
         result = acquire(validation(exact, targets, cycles, dwell_s=0.0), rig, meta)
     finally:
         rig.close()
     m = xytheta_validation_metrics(result, meta)
-    return {"accuracy_um": float(m.attrs["accuracy_um"]), "floor_um": float(m.attrs["repeatability_um"]),
-            "cycles": cycles, "n_targets": int(len(targets))}
+    return {
+        "accuracy_um": float(m.attrs["accuracy_um"]),
+        "floor_um": float(m.attrs["repeatability_um"]),
+        "cycles": cycles,
+        "n_targets": int(len(targets)),
+    }

@@ -22,8 +22,14 @@ from calflow.errors import OptionError, UnknownOptionError
 from calflow.xytheta.models.kinematics import Parameters, forward, pattern_from_world
 
 TRAVEL_UM = 15000.0  # Table 4.1: travel range of the M-111.1DG
-UNMODELLED = ("lost_motion", "yaw_urad", "expansion_ppm_per_degC", "decode_error_um", "gross_error_rate",
-              "drift_um_per_degC")  # effects no calflow model represents
+UNMODELLED = (
+    "lost_motion",
+    "yaw_urad",
+    "expansion_ppm_per_degC",
+    "decode_error_um",
+    "gross_error_rate",
+    "drift_um_per_degC",
+)  # effects no calflow model represents
 
 
 def _off(value):
@@ -90,7 +96,7 @@ class XYThetaTruth:
     def parameters(self) -> Parameters:
         return Parameters(self.x_R_um, self.y_R_um, self.alpha_deg, self.beta_deg)
 
-    def without(self, *effects: str) -> "XYThetaTruth":
+    def without(self, *effects: str) -> XYThetaTruth:
         """The same physics with ``effects`` (field names) switched off."""
         return replace(self, **{name: _off(getattr(self, name)) for name in effects})
 
@@ -132,7 +138,12 @@ class XYThetaTruth:
     def expansion(self, q, temperature_degC):
         """Thermal expansion of the stage along its stroke (µm): aluminium, 23 ppm/°C, from
         the room's swing around its mean. *Unmodelled* (no model has time)."""
-        return self.expansion_ppm_per_degC * 1e-6 * np.asarray(q) * (temperature_degC - self.room_temperature_degC)
+        return (
+            self.expansion_ppm_per_degC
+            * 1e-6
+            * np.asarray(q)
+            * (temperature_degC - self.room_temperature_degC)
+        )
 
     def slide_errors(self, X, Y, temperature_degC):
         """Scale, straightness and expansion errors of the attained joints (µm), beyond the
@@ -169,7 +180,10 @@ class XYThetaTruth:
         of the bearing, once per revolution, ``axis_runout_um`` (class figure of miniature
         rotary stages: 1–3 µm)."""
         t = np.radians(np.asarray(theta_a, dtype=float)) + 0.9
-        return (self.axis_runout_um * (np.cos(t) - np.cos(0.9)), self.axis_runout_um * (np.sin(t) - np.sin(0.9)))
+        return (
+            self.axis_runout_um * (np.cos(t) - np.cos(0.9)),
+            self.axis_runout_um * (np.sin(t) - np.sin(0.9)),
+        )
 
     # ------------------------------------------------------------------ the tool point
     def tool_point(self, X, Y, theta, dir_x=1, dir_y=1, dir_theta=1, lash=None, temperature_degC=None):
@@ -179,8 +193,10 @@ class XYThetaTruth:
         long approach in ``dir_*``. Returns ``(x_P, y_P, theta_a)``.
         """
         if lash is None:
-            lash = (np.where(np.asarray(dir_x) < 0, -0.5, 0.5) * self.backlash_um,
-                    np.where(np.asarray(dir_y) < 0, -0.5, 0.5) * self.backlash_um)
+            lash = (
+                np.where(np.asarray(dir_x) < 0, -0.5, 0.5) * self.backlash_um,
+                np.where(np.asarray(dir_y) < 0, -0.5, 0.5) * self.backlash_um,
+            )
         Xa, Ya = self.attained_joints(X, Y, lash[0], lash[1], temperature_degC)
         return self.tool_from_carriages(Xa, Ya, X, Y, theta, dir_theta)
 
@@ -224,8 +240,10 @@ class XYThetaTruth:
         at one pose does not remove it. *Unmodelled*."""
         p = self.pattern_period_um
         a = self.decode_error_um
-        return (a * np.sin(2 * np.pi * (x_m / p + 0.37 * y_m / p) + 0.2),
-                a * np.cos(2 * np.pi * (0.61 * x_m / p - y_m / p) + 1.3))
+        return (
+            a * np.sin(2 * np.pi * (x_m / p + 0.37 * y_m / p) + 0.2),
+            a * np.cos(2 * np.pi * (0.61 * x_m / p - y_m / p) + 1.3),
+        )
 
     def vision(self, x_P, y_P, theta, temperature_degC, noise_um, gross=(0.0, 0.0)):
         """The vision reading (x_m, y_m) of the camera point in the pattern frame, µm.
@@ -258,7 +276,9 @@ class XYThetaTruth:
 
     def room_temperature(self, t_s):
         """Room temperature (degC) at virtual time ``t_s``: a daily swing."""
-        return self.room_temperature_degC + self.room_swing_degC * np.sin(2 * np.pi * np.asarray(t_s) / 86400.0)
+        return self.room_temperature_degC + self.room_swing_degC * np.sin(
+            2 * np.pi * np.asarray(t_s) / 86400.0
+        )
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -281,10 +301,26 @@ EFFECTS = {  # effect name → the fields that switch it off, for the error budg
 }
 
 
-_NON_NEGATIVE = ("backlash_um", "stage_repeatability_um", "sensor_noise_um", "sensor_theta_noise_deg",
-                 "room_swing_degC", "settle_s", "decode_error_um", "gross_error_rate", "theta_backlash_mdeg")
-_POSITIVE = ("thread_pitch_um", "sensor_resolution_um", "velocity_um_s", "velocity_deg_s", "pattern_range_um",
-             "pattern_period_um", "theta_period_deg")
+_NON_NEGATIVE = (
+    "backlash_um",
+    "stage_repeatability_um",
+    "sensor_noise_um",
+    "sensor_theta_noise_deg",
+    "room_swing_degC",
+    "settle_s",
+    "decode_error_um",
+    "gross_error_rate",
+    "theta_backlash_mdeg",
+)
+_POSITIVE = (
+    "thread_pitch_um",
+    "sensor_resolution_um",
+    "velocity_um_s",
+    "velocity_deg_s",
+    "pattern_range_um",
+    "pattern_period_um",
+    "theta_period_deg",
+)
 
 
 def _number(key: str, value, bound: str | None):
@@ -326,7 +362,9 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
                     _number(key, v, bound)
                 except OptionError:
                     expected = {None: "finite", ">": "finite and > 0", ">=": "finite and >= 0"}[bound]
-                    raise OptionError(key, f"a list of {len(default)} numbers, each {expected}", value) from None
+                    raise OptionError(
+                        key, f"a list of {len(default)} numbers, each {expected}", value
+                    ) from None
             out[key] = tuple(float(v) for v in value)
         else:
             out[key] = _number(key, value, bound)

@@ -15,7 +15,7 @@ The vision reading is the camera point M in the pattern frame, Eq. (4.26).
 from __future__ import annotations
 
 import zlib
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -46,8 +46,9 @@ class SimulatedXYTheta:
 
     def _attain(self, cmd: np.ndarray) -> np.ndarray:
         jitter = self._rng.standard_normal(2)  # the draws of normal(0, repeatability, 2)
-        pose = self._poses(cmd[None, :], self._dir[None, 2], self._lash[None, :], np.array([self._time]),
-                           jitter[None, :])
+        pose = self._poses(
+            cmd[None, :], self._dir[None, 2], self._lash[None, :], np.array([self._time]), jitter[None, :]
+        )
         return pose[0]
 
     def _poses(self, cmd, dir_theta, lash, time_s, jitter) -> np.ndarray:
@@ -55,8 +56,14 @@ class SimulatedXYTheta:
         approached in ``dir_theta``, nut plays ``lash`` (n, 2) µm, at virtual times
         ``time_s`` (s), with standard normal draws ``jitter`` (n, 2) for the repeatability."""
         t = self.truth_model
-        x_P, y_P, theta_a = t.tool_point(cmd[:, 0], cmd[:, 1], cmd[:, 2], dir_theta=dir_theta,
-                                         lash=(lash[:, 0], lash[:, 1]), temperature_degC=t.room_temperature(time_s))
+        x_P, y_P, theta_a = t.tool_point(
+            cmd[:, 0],
+            cmd[:, 1],
+            cmd[:, 2],
+            dir_theta=dir_theta,
+            lash=(lash[:, 0], lash[:, 1]),
+            temperature_degC=t.room_temperature(time_s),
+        )
         s = t.stage_repeatability_um
         return np.column_stack([x_P + (0.0 + s * jitter[:, 0]), y_P + (0.0 + s * jitter[:, 1]), theta_a])
 
@@ -69,8 +76,11 @@ class SimulatedXYTheta:
             if delta != 0:
                 self._dir[k] = 1.0 if delta > 0 else -1.0
                 if k < 2:  # lost motion: the play is taken up over the first backlash of travel
-                    self._lash[k] = (min(max(float(self._lash[k]) + delta, -half), half) if t.lost_motion
-                                     else half * self._dir[k])
+                    self._lash[k] = (
+                        min(max(float(self._lash[k]) + delta, -half), half)
+                        if t.lost_motion
+                        else half * self._dir[k]
+                    )
         dx, dy, dt = (abs(float(new[k]) - float(self._cmd[k])) for k in (0, 1, 2))
         self._time += max(dx, dy) / t.velocity_um_s
         self._time += dt / t.velocity_deg_s + t.settle_s
@@ -103,8 +113,14 @@ class SimulatedXYTheta:
         temperature = t.room_temperature(time_s)
         gross = t.gross_error(u[:, 0], u[:, 1])
         s = t.sensor_noise_um
-        x_m, y_m = t.vision(pose[:, 0], pose[:, 1], pose[:, 2], temperature,
-                            (0.0 + s * noise[:, 0], 0.0 + s * noise[:, 1]), gross)
+        x_m, y_m = t.vision(
+            pose[:, 0],
+            pose[:, 1],
+            pose[:, 2],
+            temperature,
+            (0.0 + s * noise[:, 0], 0.0 + s * noise[:, 1]),
+            gross,
+        )
         thermometer = temperature + (0.0 + 0.005 * w[:, 1])
         return {
             "time": np.asarray(time_s, dtype=float),

@@ -10,13 +10,12 @@ the thesis hardware.
 from __future__ import annotations
 
 import zlib
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from calflow.errors import RigError
 from calflow.xytheta.stage.physics import XYThetaTruth, truth_from_options
-
 
 
 class SimulatedVision:
@@ -39,8 +38,9 @@ class SimulatedVision:
         self._last = np.zeros(3)  # the encoder positions of the last reading (home first)
         self._dir = np.ones(3)
         self._lash = np.full(2, 0.5 * truth.backlash_um)
-        self._rng = np.random.default_rng(np.random.SeedSequence(
-            [int(seed), zlib.crc32(f"gcs-vision:{stream}".encode())]))
+        self._rng = np.random.default_rng(
+            np.random.SeedSequence([int(seed), zlib.crc32(f"gcs-vision:{stream}".encode())])
+        )
 
     def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
         t = self.truth_model
@@ -56,15 +56,20 @@ class SimulatedVision:
             if abs(delta[k]) > 1e-9:
                 self._dir[k] = np.sign(delta[k])
                 if k < 2:
-                    self._lash[k] = (np.clip(self._lash[k] + delta[k], -half, half) if t.lost_motion
-                                     else half * self._dir[k])
+                    self._lash[k] = (
+                        np.clip(self._lash[k] + delta[k], -half, half)
+                        if t.lost_motion
+                        else half * self._dir[k]
+                    )
         self._last = q
         Xa, Ya = t.attained_joints(X, Y, self._lash[0], self._lash[1], temperature)
         x_P, y_P, theta_a = t.tool_from_carriages(Xa, Ya, X, Y, theta, self._dir[2])
         jitter = self._rng.normal(0.0, t.stage_repeatability_um, 2)
         noise = self._rng.normal(0.0, t.sensor_noise_um, 2)
         gross = t.gross_error(*self._rng.random(2))
-        x_m, y_m = t.vision(float(x_P) + jitter[0], float(y_P) + jitter[1], float(theta_a), temperature, noise, gross)
+        x_m, y_m = t.vision(
+            float(x_P) + jitter[0], float(y_P) + jitter[1], float(theta_a), temperature, noise, gross
+        )
         return {
             "meas_x": float(x_m),
             "meas_y": float(y_m),

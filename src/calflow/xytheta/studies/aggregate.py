@@ -70,7 +70,9 @@ def coverage(rows: list[dict], z: float = 1.959964) -> float | None:
     0.95 when the reported σ are honest and the model is the rig's; below when the σ are
     optimistic or the estimate biased (an inadequate model). None for a fixed parameter.
     """
-    scored = [r for r in rows if r["free"] and r["std"] is not None and np.isfinite(r["std"]) and r["std"] > 0]
+    scored = [
+        r for r in rows if r["free"] and r["std"] is not None and np.isfinite(r["std"]) and r["std"] > 0
+    ]
     if not scored:
         return None
     return float(np.mean([abs(r["error"]) <= z * r["std"] for r in scored]))
@@ -90,15 +92,20 @@ def aggregate(points: list[dict]) -> dict:
     out = []
     for (noise, poses), pts in sorted(cells.items()):
         ok = [pt for pt in pts if not pt.get("failed")]
-        out.append({
-            "noise_um": noise, "poses": poses, "n": len(pts), "failed": len(pts) - len(ok),
-            "seeds": sorted(pt["seed"] for pt in pts),
-            "parameters": {key: parameter_stats(pts, key) for _, key, _ in PARAMETERS},
-            "accuracy_um": _stats([pt["accuracy_um"] for pt in ok]),
-            "repeatability_um": _stats([pt["repeatability_um"] for pt in ok]),
-            **{o: _stats([pt["diagnostics"][o] for pt in pts]) for o in ("O1", "O2", "O3", "O4")},
-            "residual_rms_um": _stats([pt["diagnostics"]["residual_rms_um"] for pt in pts]),
-        })
+        out.append(
+            {
+                "noise_um": noise,
+                "poses": poses,
+                "n": len(pts),
+                "failed": len(pts) - len(ok),
+                "seeds": sorted(pt["seed"] for pt in pts),
+                "parameters": {key: parameter_stats(pts, key) for _, key, _ in PARAMETERS},
+                "accuracy_um": _stats([pt["accuracy_um"] for pt in ok]),
+                "repeatability_um": _stats([pt["repeatability_um"] for pt in ok]),
+                **{o: _stats([pt["diagnostics"][o] for pt in pts]) for o in ("O1", "O2", "O3", "O4")},
+                "residual_rms_um": _stats([pt["diagnostics"]["residual_rms_um"] for pt in pts]),
+            }
+        )
     return {
         "model": models[0],
         "campaign": points[0].get("campaign"),

@@ -21,7 +21,7 @@ The code keeps three parts apart:
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -29,14 +29,25 @@ import numpy as np
 from calflow.errors import ConfigError
 
 #: Parameters of Eq. (4.18): (model name, summary key, units).
-PARAMETERS = (("x_R", "x_R_um", "um"), ("y_R", "y_R_um", "um"), ("alpha", "alpha_deg", "degree"),
-              ("beta", "beta_deg", "degree"))
+PARAMETERS = (
+    ("x_R", "x_R_um", "um"),
+    ("y_R", "y_R_um", "um"),
+    ("alpha", "alpha_deg", "degree"),
+    ("beta", "beta_deg", "degree"),
+)
 #: calflow modules of a study besides the workflow steps' own (for the rerun digests).
-MODULES = {"point": ("calflow.xytheta.studies.montecarlo",),
-           "report": ("calflow.xytheta.studies.montecarlo", "calflow.xytheta.studies.aggregate", "calflow.xytheta.studies.page")}
+MODULES = {
+    "point": ("calflow.xytheta.studies.montecarlo",),
+    "report": (
+        "calflow.xytheta.studies.montecarlo",
+        "calflow.xytheta.studies.aggregate",
+        "calflow.xytheta.studies.page",
+    ),
+}
 
 
 # ---------------------------------------------------------------------------- study files
+
 
 def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") -> dict:
     """Load and validate a study file; its name is the file's stem.
@@ -53,22 +64,30 @@ def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") 
     study = validate(load_yaml(path), "study", path)
     base = load_campaign(Path(campaign_dir) / f"{study['campaign']}.yaml")
     if base["robot"] != "xytheta":
-        raise ConfigError(f"{path}: key 'campaign': expected an xytheta campaign, got robot {base['robot']!r}")
+        raise ConfigError(
+            f"{path}: key 'campaign': expected an xytheta campaign, got robot {base['robot']!r}"
+        )
     if base["rig"]["factory"] != "simulated":
-        raise ConfigError(f"{path}: key 'campaign': expected a campaign on the simulated rig (the study needs "
-                          f"the rig's truth), got rig.factory {base['rig']['factory']!r}")
+        raise ConfigError(
+            f"{path}: key 'campaign': expected a campaign on the simulated rig (the study needs "
+            f"the rig's truth), got rig.factory {base['rig']['factory']!r}"
+        )
     spec = base["models"].get(study["model"])
     if spec is None or "free" not in spec or spec.get("position_table"):
         usable = sorted(k for k, s in base["models"].items() if "free" in s and not s.get("position_table"))
-        raise ConfigError(f"{path}: key 'model': expected an identified model without position table of "
-                          f"campaign {study['campaign']!r} (one of {usable}), got {study['model']!r}")
+        raise ConfigError(
+            f"{path}: key 'model': expected an identified model without position table of "
+            f"campaign {study['campaign']!r} (one of {usable}), got {study['model']!r}"
+        )
     from calflow.xytheta.stage.rig import XYThetaTruth
 
     fields = set(XYThetaTruth.__dataclass_fields__) - {"sensor_noise_um"}
     unknown = sorted(set(study["rig_options"]) - fields)
     if unknown:
-        raise ConfigError(f"{path}: unknown key 'rig_options.{unknown[0]}' (expected simulated XYΘ rig options: "
-                          f"{', '.join(sorted(fields))}; noise comes from noise_um)")
+        raise ConfigError(
+            f"{path}: unknown key 'rig_options.{unknown[0]}' (expected simulated XYΘ rig options: "
+            f"{', '.join(sorted(fields))}; noise comes from noise_um)"
+        )
     study.update(name=path.stem, file=str(path), base=base)
     return study
 
@@ -80,7 +99,12 @@ def noise_label(noise_um: float) -> str:
 
 def grid(study: dict) -> list[tuple[int, str, int]]:
     """Every point of the study: (seed, noise label, poses)."""
-    return [(s, noise_label(n), p) for s in range(study["seeds"]) for n in study["noise_um"] for p in study["poses"]]
+    return [
+        (s, noise_label(n), p)
+        for s in range(study["seeds"])
+        for n in study["noise_um"]
+        for p in study["poses"]
+    ]
 
 
 def seed_batches(study: dict) -> list[str]:
@@ -103,10 +127,12 @@ def parse_seeds(label: str) -> list[int]:
 
 def jobs(study: dict) -> list[tuple[str, str, int]]:
     """Every job of the study: (seed label, noise label, poses)."""
-    return [(s, noise_label(n), p) for s in seed_batches(study) for n in study["noise_um"] for p in study["poses"]]
+    return [
+        (s, noise_label(n), p) for s in seed_batches(study) for n in study["noise_um"] for p in study["poses"]
+    ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def code_digest(part: str = "point") -> str:
     """Digest of the code of a study's ``point`` jobs (the acquire, identify and metrics steps
     and this module) or of its ``report`` (aggregate and page)."""
@@ -133,8 +159,18 @@ def point_digest(study: dict) -> str:
     used = {"targets": v.get("targets"), "dwell_s": v["dwell_s"]}  # the validation keys a point reads
     if not study.get("validation_cycles"):
         used["cycles"] = v["cycles"]
-    return digest([code_digest("point"), b["seed"], b["start"], b["rig"], b["identification"], used,
-                   b["models"][study["model"]], {k: study[k] for k in ("model", "validation_cycles", "rig_options")}])
+    return digest(
+        [
+            code_digest("point"),
+            b["seed"],
+            b["start"],
+            b["rig"],
+            b["identification"],
+            used,
+            b["models"][study["model"]],
+            {k: study[k] for k in ("model", "validation_cycles", "rig_options")},
+        ]
+    )
 
 
 def study_digest(study: dict) -> str:
@@ -156,6 +192,7 @@ def point_seed(campaign: dict, seed: int) -> int:
 
 
 # ---------------------------------------------------------------------------- simulation
+
 
 def simulate_run(campaign: dict, plan, run_id: str, rig_seed: int, noise_um: float, model: str | None = None):
     """Run ``plan`` on the campaign's simulated rig with sensor noise ``noise_um``.
@@ -180,6 +217,7 @@ def simulate_run(campaign: dict, plan, run_id: str, rig_seed: int, noise_um: flo
 
 # ---------------------------------------------------------------------------- analysis (run datasets only)
 
+
 def identify_run(run, campaign: dict, model: str):
     """Identify ``model`` of the campaign on an identification run, as ``calflow identify``.
 
@@ -196,10 +234,23 @@ def identify_run(run, campaign: dict, model: str):
     theta = run["meas_theta"].values - run["meas_theta"].values[0]
     P_mx, P_my = cost.measured_points(run["meas_x"].values, run["meas_y"].values, theta)
     initial = Parameters(**{**campaign["identification"]["initial"], **spec.get("fixed", {})})
-    result = fit(run["cmd_x"].values, run["cmd_y"].values, theta, P_mx, P_my, free=tuple(spec["free"]),
-                 initial=initial, robust=Robust.from_config(campaign["identification"].get("robust")))
-    diag = {"n_poses": result.n_poses, "residual_rms_um": result.residual_rms_um, "rejected": len(result.rejected),
-            "condition_number": float(np.linalg.cond(result.jacobian)), **diagnostics.observability(result.jacobian)}
+    result = fit(
+        run["cmd_x"].values,
+        run["cmd_y"].values,
+        theta,
+        P_mx,
+        P_my,
+        free=tuple(spec["free"]),
+        initial=initial,
+        robust=Robust.from_config(campaign["identification"].get("robust")),
+    )
+    diag = {
+        "n_poses": result.n_poses,
+        "residual_rms_um": result.residual_rms_um,
+        "rejected": len(result.rejected),
+        "condition_number": float(np.linalg.cond(result.jacobian)),
+        **diagnostics.observability(result.jacobian),
+    }
     if not result.success or not np.all(np.isfinite(result.parameters.as_array())):
         return None, {**diag, "failed": result.message}
     return MicroModel(model, result.parameters, result.free, result.std, result.correlation, diag), diag
@@ -210,11 +261,14 @@ def validation_accuracy(run, campaign: dict) -> dict:
     from calflow.commands.common import meta
     from calflow.xytheta.evaluation import xytheta_validation_metrics
 
-    ds = xytheta_validation_metrics(run, meta(campaign, run.attrs["source"], "validation", run.attrs.get("model")))
+    ds = xytheta_validation_metrics(
+        run, meta(campaign, run.attrs["source"], "validation", run.attrs.get("model"))
+    )
     return {"accuracy_um": ds.attrs["accuracy_um"], "repeatability_um": ds.attrs["repeatability_um"]}
 
 
 # ---------------------------------------------------------------------------- scoring (the only use of truth)
+
 
 def score(model, truth: dict, bound: dict | None = None) -> dict:
     """Per parameter: estimate, reported std, truth, signed and absolute error, z = error/std,
@@ -226,9 +280,17 @@ def score(model, truth: dict, bound: dict | None = None) -> dict:
         est = getattr(model.parameters, name) if model is not None else math.nan
         std = model.std.get(name, math.nan) if free else math.nan
         err = est - float(truth[key])
-        out[key] = {"units": units, "free": free, "estimate": est, "std": std, "truth": float(truth[key]),
-                    "error": err, "abs_error": abs(err), "z": err / std if std and std > 0 else math.nan,
-                    "crlb": bound.get(name, math.nan) if free else math.nan}
+        out[key] = {
+            "units": units,
+            "free": free,
+            "estimate": est,
+            "std": std,
+            "truth": float(truth[key]),
+            "error": err,
+            "abs_error": abs(err),
+            "z": err / std if std and std > 0 else math.nan,
+            "crlb": bound.get(name, math.nan) if free else math.nan,
+        }
     return out
 
 
@@ -244,8 +306,11 @@ def truth_bound(run, truth: dict, free) -> dict:
     theta = run["meas_theta"].values - run["meas_theta"].values[0]
     X, Y = run["cmd_x"].values, run["cmd_y"].values
     ok = np.isfinite(run["meas_x"].values) & np.isfinite(run["meas_y"].values) & np.isfinite(theta)
-    sigma = math.hypot(float(truth["sensor_noise_um"]), float(truth["stage_repeatability_um"]),
-                       float(truth["sensor_resolution_um"]) / math.sqrt(12.0))
+    sigma = math.hypot(
+        float(truth["sensor_noise_um"]),
+        float(truth["stage_repeatability_um"]),
+        float(truth["sensor_resolution_um"]) / math.sqrt(12.0),
+    )
     if sigma <= 0 or ok.sum() < 3:
         return {}
     p = Parameters(*(float(truth[key]) for _, key, _ in PARAMETERS))
@@ -254,8 +319,16 @@ def truth_bound(run, truth: dict, free) -> dict:
 
 # ---------------------------------------------------------------------------- one point
 
-def run_point(base_campaign: dict, seed: int, noise_um: float, poses: int, model: str = "II",
-              validation_cycles: int | None = None, rig_options: dict | None = None) -> dict:
+
+def run_point(
+    base_campaign: dict,
+    seed: int,
+    noise_um: float,
+    poses: int,
+    model: str = "II",
+    validation_cycles: int | None = None,
+    rig_options: dict | None = None,
+) -> dict:
     """One simulated campaign: identification on ``poses`` random poses with sensor noise
     ``noise_um`` (µm), identification of ``model``, validation, then scoring.
 
@@ -268,23 +341,36 @@ def run_point(base_campaign: dict, seed: int, noise_um: float, poses: int, model
         c = {**c, "rig": {**c["rig"], "options": {**c["rig"].get("options", {}), **rig_options}}}
     p, v = c["identification"], c["validation"]
     rig_seed = point_seed(c, seed)
-    plan = plans.identification(int(poses), p["x_um"], p["y_um"], p["theta_deg"], seed=rig_seed, dwell_s=p["dwell_s"])
+    plan = plans.identification(
+        int(poses), p["x_um"], p["y_um"], p["theta_deg"], seed=rig_seed, dwell_s=p["dwell_s"]
+    )
     ident_run, truth = simulate_run(c, plan, "identification", rig_seed, noise_um)
 
     identified, diag = identify_run(ident_run, c, model)  # the run dataset only
     accuracy = {"accuracy_um": math.nan, "repeatability_um": math.nan}
     if identified is not None:
-        vplan = plans.validation(identified.inverse, v.get("targets"), validation_cycles or v["cycles"], v["dwell_s"])
+        vplan = plans.validation(
+            identified.inverse, v.get("targets"), validation_cycles or v["cycles"], v["dwell_s"]
+        )
         val_run, _ = simulate_run(c, vplan, f"validation_{model}", rig_seed, noise_um, model)
         accuracy = validation_accuracy(val_run, c)  # the run dataset only
 
     from calflow.data.io import jsonable  # xarray: not at the workflow's start-up
 
-    return jsonable({
-        "campaign": c["name"], "model": model, "seed": int(seed), "noise_um": float(noise_um), "poses": int(poses),
-        "rig_seed": rig_seed, "failed": diag.pop("failed", None), "diagnostics": diag, **accuracy,
-        "parameters": score(identified, truth, truth_bound(ident_run, truth, c["models"][model]["free"])),
-    })
+    return jsonable(
+        {
+            "campaign": c["name"],
+            "model": model,
+            "seed": int(seed),
+            "noise_um": float(noise_um),
+            "poses": int(poses),
+            "rig_seed": rig_seed,
+            "failed": diag.pop("failed", None),
+            "diagnostics": diag,
+            **accuracy,
+            "parameters": score(identified, truth, truth_bound(ident_run, truth, c["models"][model]["free"])),
+        }
+    )
 
 
 def render_page(aggregate: dict, study: dict) -> str:

@@ -21,10 +21,26 @@ from markupsafe import Markup  # noqa: E402
 from calflow.reference import XYTHETA  # noqa: E402
 
 CSS = Path(__file__).resolve().parent / "report" / "templates" / "style.css"
-LABELS = {"x_R_um": ("x_R", "µm"), "y_R_um": ("y_R", "µm"), "alpha_deg": ("α", "degree"), "beta_deg": ("β", "degree")}
-STYLE = {"font.family": "DejaVu Sans", "font.size": 8.0, "axes.grid": True, "grid.color": "#d9dde3",
-         "grid.linewidth": 0.5, "axes.spines.top": False, "axes.spines.right": False, "legend.frameon": False,
-         "legend.fontsize": 7.0, "lines.linewidth": 1.0, "lines.markersize": 3.5, "svg.fonttype": "none"}
+LABELS = {
+    "x_R_um": ("x_R", "µm"),
+    "y_R_um": ("y_R", "µm"),
+    "alpha_deg": ("α", "degree"),
+    "beta_deg": ("β", "degree"),
+}
+STYLE = {
+    "font.family": "DejaVu Sans",
+    "font.size": 8.0,
+    "axes.grid": True,
+    "grid.color": "#d9dde3",
+    "grid.linewidth": 0.5,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "legend.frameon": False,
+    "legend.fontsize": 7.0,
+    "lines.linewidth": 1.0,
+    "lines.markersize": 3.5,
+    "svg.fonttype": "none",
+}
 COLORS = ["#1f5fa8", "#c0392b", "#2e8b57", "#e67e22", "#7b3fa0", "#17becf", "#7f7f7f", "#bcbd22"]
 
 TEMPLATE = """<!DOCTYPE html>
@@ -83,7 +99,9 @@ efficient estimator when the model is the rig's; above where errors the model la
 
 
 def _env() -> jinja2.Environment:
-    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env = jinja2.Environment(
+        autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True
+    )
     env.filters["num"] = lambda v, d=3: "—" if v is None else f"{v:.{d}f}"
     env.filters["sci"] = lambda v: "—" if v is None else f"{v:.3g}"
     return env
@@ -96,7 +114,7 @@ def to_svg(fig, key: str) -> Markup:
         fig.savefig(buf, format="svg", bbox_inches="tight", pad_inches=0.04, metadata={"Date": None})
     plt.close(fig)
     text = buf.getvalue()
-    text = re.sub(r"<metadata>.*?</metadata>", "", text[text.index("<svg"):], count=1, flags=re.S)
+    text = re.sub(r"<metadata>.*?</metadata>", "", text[text.index("<svg") :], count=1, flags=re.S)
     # every id (and reference to it) gets the figure's key: matplotlib numbers "patch_1" etc. per figure
     text = re.sub(r'(\sid="|url\(#|href="#)([^")]+)', lambda m: f"{m.group(1)}{key}-{m.group(2)}", text)
     end = text.index(">")
@@ -123,8 +141,14 @@ def _noise_lines(ax, agg, path, lo=None, hi=None, ref=None):
         x, y = _series(agg, noise, path)
         ax.plot(x, y, "o-", color=color, label=f"{noise:g} µm")
         if lo and hi:
-            ax.fill_between(x, _series(agg, noise, path[:-1] + (lo,))[1], _series(agg, noise, path[:-1] + (hi,))[1],
-                            color=color, alpha=0.15, lw=0)
+            ax.fill_between(
+                x,
+                _series(agg, noise, path[:-1] + (lo,))[1],
+                _series(agg, noise, path[:-1] + (hi,))[1],
+                color=color,
+                alpha=0.15,
+                lw=0,
+            )
         if ref:
             ax.plot(*_series(agg, noise, ref), ":", color=color)
     ax.set_xscale("log")
@@ -137,17 +161,28 @@ def _figures(agg: dict) -> list[dict]:
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, len(params), figsize=(7.0, 2.4), squeeze=False)
         for ax, k in zip(axes[0], params):
-            _noise_lines(ax, agg, ("parameters", k, "abs_error", "p50"), "p25", "p75",
-                         ref=("parameters", k, "reported_std_rms"))
+            _noise_lines(
+                ax,
+                agg,
+                ("parameters", k, "abs_error", "p50"),
+                "p25",
+                "p75",
+                ref=("parameters", k, "reported_std_rms"),
+            )
             ax.set_yscale("log")
             ax.set_title(f"|Δ{LABELS[k][0]}| ({LABELS[k][1]})")
         axes[0][0].legend(title="sensor noise")
         fig.tight_layout(pad=0.4)
-        figs.append({"key": "fig-error", "svg": to_svg(fig, "fig-error"), "caption":
-                     "Identification error |estimate − truth| against the number of poses, per sensor noise: "
-                     "median over seeds (line), 25–75 % (band), and the RMS of the std the identification reported "
-                     "(dotted). An error that stops falling while the reported std does is a bias: errors the "
-                     "model does not describe (e.g. the angle-dependent errors of Sec. 4.5.5)."})
+        figs.append(
+            {
+                "key": "fig-error",
+                "svg": to_svg(fig, "fig-error"),
+                "caption": "Identification error |estimate − truth| against the number of poses, per sensor noise: "
+                "median over seeds (line), 25–75 % (band), and the RMS of the std the identification reported "
+                "(dotted). An error that stops falling while the reported std does is a bias: errors the "
+                "model does not describe (e.g. the angle-dependent errors of Sec. 4.5.5).",
+            }
+        )
 
         fig, axes = plt.subplots(1, len(params), figsize=(7.0, 2.2), squeeze=False)
         for ax, k in zip(axes[0], params):
@@ -161,22 +196,34 @@ def _figures(agg: dict) -> list[dict]:
         axes[0][0].set_ylabel("error / reported std")
         axes[0][0].legend(title="sensor noise")
         fig.tight_layout(pad=0.4)
-        figs.append({"key": "fig-std", "svg": to_svg(fig, "fig-std"), "caption":
-                     "Honesty of the reported uncertainty: sample std of the error over seeds divided by the RMS "
-                     "of the reported std (solid), and RMS of error/std, which includes the bias (dotted). 1 "
-                     "(dashed) is honest; above 1 the reported std is optimistic."})
+        figs.append(
+            {
+                "key": "fig-std",
+                "svg": to_svg(fig, "fig-std"),
+                "caption": "Honesty of the reported uncertainty: sample std of the error over seeds divided by the RMS "
+                "of the reported std (solid), and RMS of error/std, which includes the bias (dotted). 1 "
+                "(dashed) is honest; above 1 the reported std is optimistic.",
+            }
+        )
 
         fig, ax = plt.subplots(figsize=(4.2, 2.6))
         _noise_lines(ax, agg, ("accuracy_um", "p50"), "p05", "p95")
         ref = XYTHETA["models"].get(agg["model"], {}).get("accuracy_um")
         if ref is not None:
-            ax.axhline(ref, color="#9aa0a6", ls="--", lw=1.0, label=f"thesis Model {agg['model']} (1200 poses)")
+            ax.axhline(
+                ref, color="#9aa0a6", ls="--", lw=1.0, label=f"thesis Model {agg['model']} (1200 poses)"
+            )
         ax.set_ylabel("ISO 9283 AP, max over targets (µm)")
         ax.legend()
         fig.tight_layout(pad=0.4)
-        figs.append({"key": "fig-accuracy", "svg": to_svg(fig, "fig-accuracy"), "caption":
-                     f"Validation accuracy of Model {agg['model']} (ISO 9283 AP, max over the Table 4.7 targets) "
-                     "against the number of identification poses: median over seeds, 5–95 % band."})
+        figs.append(
+            {
+                "key": "fig-accuracy",
+                "svg": to_svg(fig, "fig-accuracy"),
+                "caption": f"Validation accuracy of Model {agg['model']} (ISO 9283 AP, max over the Table 4.7 targets) "
+                "against the number of identification poses: median over seeds, 5–95 % band.",
+            }
+        )
 
         fig, (a, b) = plt.subplots(1, 2, figsize=(7.0, 2.5))
         low = min(agg["noise_um"])
@@ -198,10 +245,15 @@ def _figures(agg: dict) -> list[dict]:
         b.set_title(f"median error / error at {int(agg['poses'][0])} poses ({low:g} µm noise)")
         b.legend()
         fig.tight_layout(pad=0.4)
-        figs.append({"key": "fig-observability", "svg": to_svg(fig, "fig-observability"), "caption":
-                     "What the observability indices predict: O2 and O4 of the identification Jacobian (median "
-                     "over seeds, normalised to their maximum) beside the identification error they stand for, "
-                     "at the lowest noise level."})
+        figs.append(
+            {
+                "key": "fig-observability",
+                "svg": to_svg(fig, "fig-observability"),
+                "caption": "What the observability indices predict: O2 and O4 of the identification Jacobian (median "
+                "over seeds, normalised to their maximum) beside the identification error they stand for, "
+                "at the lowest noise level.",
+            }
+        )
     return figs
 
 
@@ -211,10 +263,23 @@ def render(agg: dict, study: dict) -> str:
 
     cells = [c for c in agg["cells"] if c["poses"] == max(agg["poses"])]
     shown = {k: v for k, v in study.items() if k not in ("base", "name", "file")}
-    return _env().from_string(TEMPLATE).render(
-        name=study["name"], study=study, agg=agg, css=Markup(CSS.read_text()) if CSS.exists() else "",
-        figures=_figures(agg), headline=cells, best=cells[0], params=agg["parameters"], labels=LABELS,
-        thesis_ap=XYTHETA["models"].get(agg["model"], {}).get("accuracy_um"),
-        failed=sum(c["failed"] for c in agg["cells"]), rig_options=json.dumps(study.get("rig_options", {})),
-        study_json=json.dumps(shown, indent=2, sort_keys=True), version=__version__,
+    return (
+        _env()
+        .from_string(TEMPLATE)
+        .render(
+            name=study["name"],
+            study=study,
+            agg=agg,
+            css=Markup(CSS.read_text()) if CSS.exists() else "",
+            figures=_figures(agg),
+            headline=cells,
+            best=cells[0],
+            params=agg["parameters"],
+            labels=LABELS,
+            thesis_ap=XYTHETA["models"].get(agg["model"], {}).get("accuracy_um"),
+            failed=sum(c["failed"] for c in agg["cells"]),
+            rig_options=json.dumps(study.get("rig_options", {})),
+            study_json=json.dumps(shown, indent=2, sort_keys=True),
+            version=__version__,
+        )
     )

@@ -85,13 +85,24 @@ def _spectrum(curves: list[np.ndarray], step: float) -> tuple[np.ndarray, np.nda
     for k, c in enumerate(curves):
         ok = np.isfinite(c)
         filled[k] = np.interp(x, x[ok], c[ok])
-    trend = np.polynomial.polynomial.polyvander(x, min(3, n - 1)) @ np.polyfit(x, filled.T, min(3, n - 1))[::-1]
+    trend = (
+        np.polynomial.polynomial.polyvander(x, min(3, n - 1)) @ np.polyfit(x, filled.T, min(3, n - 1))[::-1]
+    )
     power = np.sum(np.abs(2.0 * np.fft.rfft((filled - trend.T) * w, PAD * n, axis=1) / w.sum()) ** 2, axis=0)
     return np.fft.rfftfreq(PAD * n, step), np.sqrt(power / len(curves))
 
 
-def angle_spectrum(theta, f_ax, f_ay, direction, cycle, grid, samples_per_period: int = 10,
-                   significance: float = 4.0, min_fraction: float = 0.05) -> tuple[AngleSpectrum, np.ndarray]:
+def angle_spectrum(
+    theta,
+    f_ax,
+    f_ay,
+    direction,
+    cycle,
+    grid,
+    samples_per_period: int = 10,
+    significance: float = 4.0,
+    min_fraction: float = 0.05,
+) -> tuple[AngleSpectrum, np.ndarray]:
     """Spectrum of the swept residuals and the table step it calls for.
 
     Returns the :class:`AngleSpectrum` and the mean curves, shape (2 axes, 2 directions,
@@ -126,12 +137,17 @@ def angle_spectrum(theta, f_ax, f_ay, direction, cycle, grid, samples_per_period
     bound = float(np.sum(amp[sig] * (1 - np.cos(np.pi * step * freq[sig])))) if sig.any() else 0.0
     warning = ""
     if undersampled:
-        warning = (f"The angle table undersamples the angle-dependent error: its shortest significant period "
-                   f"is {period:.3g}° and the sweep's {s:.3g}° step gives {period / s:.1f} samples per period "
-                   f"(wanted {samples_per_period})"
-                   + ("; significant content near the sweep's Nyquist frequency may be aliased"
-                      if nyquist_band.any() else "")
-                   + ". Sweep with a finer angle_residuals.step_deg.")
+        warning = (
+            f"The angle table undersamples the angle-dependent error: its shortest significant period "
+            f"is {period:.3g}° and the sweep's {s:.3g}° step gives {period / s:.1f} samples per period "
+            f"(wanted {samples_per_period})"
+            + (
+                "; significant content near the sweep's Nyquist frequency may be aliased"
+                if nyquist_band.any()
+                else ""
+            )
+            + ". Sweep with a finer angle_residuals.step_deg."
+        )
     with np.errstate(divide="ignore"):
         periods = np.where(freq > 0, 1.0 / np.where(freq > 0, freq, 1.0), np.inf)
     spectrum = AngleSpectrum(s, step, periods, amp, noise, shortest, bound, undersampled, warning)
@@ -154,13 +170,23 @@ class AngleTable:
     info: dict = field(default_factory=dict)
 
     @classmethod
-    def from_sweep(cls, run: xr.Dataset, alpha: float, beta: float, samples_per_period: int = 10,
-                   significance: float = 4.0, min_fraction: float = 0.05) -> tuple["AngleTable", AngleSpectrum]:
+    def from_sweep(
+        cls,
+        run: xr.Dataset,
+        alpha: float,
+        beta: float,
+        samples_per_period: int = 10,
+        significance: float = 4.0,
+        min_fraction: float = 0.05,
+    ) -> tuple[AngleTable, AngleSpectrum]:
         """Tabulate the angle characterisation ``run`` (plan ``angle_residuals``, Θ swept)."""
         from calflow.xytheta.evaluation import attained_points
 
         x, y = attained_points(run)
-        v = {k: run.variables[k].values for k in ("direction", "pose", "target_theta", "target_x", "target_y", "cycle")}
+        v = {
+            k: run.variables[k].values
+            for k in ("direction", "pose", "target_theta", "target_x", "target_y", "cycle")
+        }
         d = v["direction"]
         sel = (v["pose"] > 0) & (d != 0)
         theta = v["target_theta"][sel].astype(float)
@@ -179,10 +205,17 @@ class AngleTable:
             f[has_ref] -= mean[position[has_ref]]
         grid_all = np.unique(np.round(theta, 9))
         if grid_all.size < 4:
-            raise ValueError(f"angle table: run {run.attrs.get('plan')!r} sweeps {grid_all.size} angles, expected 4 or more")
-        grid = np.linspace(grid_all[0], grid_all[-1], int(round((grid_all[-1] - grid_all[0]) / np.min(np.diff(grid_all)))) + 1)
-        spectrum, curves = angle_spectrum(theta, fx, fy, d[sel], v["cycle"][sel], grid,
-                                          samples_per_period, significance, min_fraction)
+            raise ValueError(
+                f"angle table: run {run.attrs.get('plan')!r} sweeps {grid_all.size} angles, expected 4 or more"
+            )
+        grid = np.linspace(
+            grid_all[0],
+            grid_all[-1],
+            int(round((grid_all[-1] - grid_all[0]) / np.min(np.diff(grid_all)))) + 1,
+        )
+        spectrum, curves = angle_spectrum(
+            theta, fx, fy, d[sel], v["cycle"][sel], grid, samples_per_period, significance, min_fraction
+        )
         every = int(round(spectrum.step_deg / spectrum.sweep_step_deg))
         idx = np.arange(0, grid.size, every)
         if idx[-1] != grid.size - 1:
@@ -217,31 +250,55 @@ class AngleTable:
 
     def to_dataset(self) -> xr.Dataset:
         def var(data, dims, units, long_name):
-            return xr.Variable(dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name})
+            return xr.Variable(
+                dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name}
+            )
 
         d = ("direction", "theta")
-        data = {"f_ax": var(self.f_ax, d, "um", "angle-dependent error along x_WF, f_ax(Θ) (Eq. 4.18)"),
-                "f_ay": var(self.f_ay, d, "um", "angle-dependent error along y_WF, f_ay(Θ) (Eq. 4.18)"),
-                "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
-                "beta": var(self.beta, (), "degree", "beta used to compute g")}
-        coords = {"theta": var(self.theta, ("theta",), "degree", "tabulated rotation angle"),
-                  "direction": xr.Variable(("direction",), np.array(DIRECTIONS, dtype="int8"),
-                                           attrs={"units": "1", "long_name": "approach direction of the rotation"})}
+        data = {
+            "f_ax": var(self.f_ax, d, "um", "angle-dependent error along x_WF, f_ax(Θ) (Eq. 4.18)"),
+            "f_ay": var(self.f_ay, d, "um", "angle-dependent error along y_WF, f_ay(Θ) (Eq. 4.18)"),
+            "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
+            "beta": var(self.beta, (), "degree", "beta used to compute g"),
+        }
+        coords = {
+            "theta": var(self.theta, ("theta",), "degree", "tabulated rotation angle"),
+            "direction": xr.Variable(
+                ("direction",),
+                np.array(DIRECTIONS, dtype="int8"),
+                attrs={"units": "1", "long_name": "approach direction of the rotation"},
+            ),
+        }
         if "sweep_theta" in self.info:
             s = ("direction", "sweep_theta")
-            data["sweep_f_ax"] = var(self.info["sweep_f_ax"], s, "um", "swept f_ax, mean over positions and cycles")
-            data["sweep_f_ay"] = var(self.info["sweep_f_ay"], s, "um", "swept f_ay, mean over positions and cycles")
-            coords["sweep_theta"] = var(self.info["sweep_theta"], ("sweep_theta",), "degree", "swept rotation angle")
+            data["sweep_f_ax"] = var(
+                self.info["sweep_f_ax"], s, "um", "swept f_ax, mean over positions and cycles"
+            )
+            data["sweep_f_ay"] = var(
+                self.info["sweep_f_ay"], s, "um", "swept f_ay, mean over positions and cycles"
+            )
+            coords["sweep_theta"] = var(
+                self.info["sweep_theta"], ("sweep_theta",), "degree", "swept rotation angle"
+            )
         ds = xr.Dataset(data, coords=coords)
         ds.attrs["table"] = "angle_sweep"
         ds.attrs.update({k: v for k, v in self.info.items() if isinstance(v, (int, float, str))})
         return ds
 
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset) -> "AngleTable":
+    def from_dataset(cls, ds: xr.Dataset) -> AngleTable:
         info = {k: v for k, v in ds.attrs.items() if k != "table"}
         if "sweep_theta" in ds:
-            info.update(sweep_theta=ds["sweep_theta"].values, sweep_f_ax=ds["sweep_f_ax"].values,
-                        sweep_f_ay=ds["sweep_f_ay"].values)
-        return cls(ds["theta"].values.astype(float), ds["f_ax"].values.astype(float), ds["f_ay"].values.astype(float),
-                   float(ds["alpha"]), float(ds["beta"]), info)
+            info.update(
+                sweep_theta=ds["sweep_theta"].values,
+                sweep_f_ax=ds["sweep_f_ax"].values,
+                sweep_f_ay=ds["sweep_f_ay"].values,
+            )
+        return cls(
+            ds["theta"].values.astype(float),
+            ds["f_ax"].values.astype(float),
+            ds["f_ay"].values.astype(float),
+            float(ds["alpha"]),
+            float(ds["beta"]),
+            info,
+        )

@@ -36,7 +36,9 @@ from calflow.data.runs import RunMetadata
 from calflow.errors import DataError
 from calflow.metrics import iso9283
 
-REPEATABILITY_DEFINITION = "range (max - min) over cycles of the error at one position and direction (Fig. 4.7)"
+REPEATABILITY_DEFINITION = (
+    "range (max - min) over cycles of the error at one position and direction (Fig. 4.7)"
+)
 DIRECTIONS = np.array([1, -1], dtype=np.int8)
 _AXES = ("x", "y")
 
@@ -75,7 +77,7 @@ def dominant_period(position, error, min_periods: float = 2.0, pad: int = 16) ->
         return float("nan")
     starts, stops = edges[::2], edges[1::2]
     k = np.argmax(stops - starts)
-    q, e = q[starts[k]:stops[k]], e[starts[k]:stops[k]]
+    q, e = q[starts[k] : stops[k]], e[starts[k] : stops[k]]
     order = np.argsort(q)
     q, e = q[order], e[order]
     if q.size < 8:
@@ -93,7 +95,7 @@ def dominant_period(position, error, min_periods: float = 2.0, pad: int = 16) ->
     valid = freq >= min_periods / span
     if not valid[1:-1].any():
         return float("nan")
-    i = int(np.argmax(np.where(valid, spec, -np.inf)[: -1]))
+    i = int(np.argmax(np.where(valid, spec, -np.inf)[:-1]))
     i = min(max(i, 1), len(spec) - 2)
     a, b, c = spec[i - 1], spec[i], spec[i + 1]
     shift = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
@@ -186,21 +188,44 @@ def characterise_axis(run: xr.Dataset, axis: str | None = None) -> xr.Dataset:
         return xr.Variable(dims_, data, attrs={"units": units, "long_name": long_name})
 
     data = {
-        f"err_{a}{a}": var(m_drive, dims, "um", f"{a} error (target - measured) while {moving_name} moves: "
-                           f"f_{a}{a} forward, b_{a}{a} backward (Eq. 4.14/4.15, Fig. 4.8)"),
-        f"err_{a}{b}": var(m_cross, dims, "um", f"{b} coupling error (0 - measured) while {moving_name} moves, "
-                           f"minus its linear trend delta_{b}: f_{a}{b} / b_{a}{b} (Eq. 4.14/4.15, Fig. 4.9)"),
+        f"err_{a}{a}": var(
+            m_drive,
+            dims,
+            "um",
+            f"{a} error (target - measured) while {moving_name} moves: "
+            f"f_{a}{a} forward, b_{a}{a} backward (Eq. 4.14/4.15, Fig. 4.8)",
+        ),
+        f"err_{a}{b}": var(
+            m_cross,
+            dims,
+            "um",
+            f"{b} coupling error (0 - measured) while {moving_name} moves, "
+            f"minus its linear trend delta_{b}: f_{a}{b} / b_{a}{b} (Eq. 4.14/4.15, Fig. 4.9)",
+        ),
         f"rep_{a}{a}": var(r_drive, dims, "um", f"repeatability of err_{a}{a}: {REPEATABILITY_DEFINITION}"),
         f"rep_{a}{b}": var(r_cross, dims, "um", f"repeatability of err_{a}{b}: {REPEATABILITY_DEFINITION}"),
         f"cycles_{a}": var(count.reshape(shape), dims, "1", f"valid readings per {a} position and direction"),
-        f"delta_{b}": var(trend, (dim,), "um", f"linear trend of the {b} error while {moving_name} moves"
-                          + (" (perpendicularity bias delta_x(y), Eq. 4.14)" if b == "x" else " (X misalignment)")),
+        f"delta_{b}": var(
+            trend,
+            (dim,),
+            "um",
+            f"linear trend of the {b} error while {moving_name} moves"
+            + (" (perpendicularity bias delta_x(y), Eq. 4.14)" if b == "x" else " (X misalignment)"),
+        ),
         f"delta_{b}_intercept": var(intercept, (), "um", f"intercept of delta_{b}"),
         f"delta_{b}_slope": var(slope, (), "1", f"slope of delta_{b} (um per um of {a})"),
-        f"period_{a}{a}": var(dominant_period(positions, m_drive[:, 0]), (), "um",
-                              f"dominant period of the detrended forward err_{a}{a} (FFT)"),
-        f"period_{a}{b}": var(dominant_period(positions, m_cross[:, 0]), (), "um",
-                              f"dominant period of the forward err_{a}{b} (FFT)"),
+        f"period_{a}{a}": var(
+            dominant_period(positions, m_drive[:, 0]),
+            (),
+            "um",
+            f"dominant period of the detrended forward err_{a}{a} (FFT)",
+        ),
+        f"period_{a}{b}": var(
+            dominant_period(positions, m_cross[:, 0]),
+            (),
+            "um",
+            f"dominant period of the forward err_{a}{b} (FFT)",
+        ),
     }
     coords = {
         dim: var(positions, (dim,), "um", f"commanded {moving_name} joint position (table abscissa)"),
@@ -227,13 +252,26 @@ def characterise(run_x: xr.Dataset, run_y: xr.Dataset, meta: RunMetadata | None 
     k_xy, k_yx = float(ds["delta_y_slope"]), float(ds["delta_x_slope"])
     theta_x = np.degrees(np.arctan2(-k_xy, 1.0 - k_xx))  # u = (1-k_xx) X, v = -k_xy X
     theta_y = np.degrees(np.arctan2(1.0 - k_yy, -k_yx))  # u = -k_yx Y, v = (1-k_yy) Y
-    ds["x_stage_angle"] = xr.Variable((), theta_x, attrs={
-        "units": "degree", "long_name": "angle of X-stage motion from x_PF (alpha - 180 deg, Eq. 4.18)"})
-    ds["perpendicularity"] = xr.Variable((), theta_y - theta_x - 90.0, attrs={
-        "units": "degree", "long_name": "angle from X to Y motion minus 90 deg (beta, Eq. 4.18)"})
+    ds["x_stage_angle"] = xr.Variable(
+        (),
+        theta_x,
+        attrs={
+            "units": "degree",
+            "long_name": "angle of X-stage motion from x_PF (alpha - 180 deg, Eq. 4.18)",
+        },
+    )
+    ds["perpendicularity"] = xr.Variable(
+        (),
+        theta_y - theta_x - 90.0,
+        attrs={"units": "degree", "long_name": "angle from X to Y motion minus 90 deg (beta, Eq. 4.18)"},
+    )
     attrs = meta.attrs("luts") if meta is not None else {}
-    ds.attrs = {**attrs, **dx.attrs, **dy.attrs,
-                "error_convention": "target - measured, stage frame u = x_m - x_m0, v = y_m - y_m0 (Theta = 0)"}
+    ds.attrs = {
+        **attrs,
+        **dx.attrs,
+        **dy.attrs,
+        "error_convention": "target - measured, stage frame u = x_m - x_m0, v = y_m - y_m0 (Theta = 0)",
+    }
     return ds
 
 
@@ -266,15 +304,22 @@ def xy_positioning_metrics(run: xr.Dataset, meta: RunMetadata | None = None) -> 
         return xr.Variable(("target",), values, attrs={"units": units, "long_name": long_name})
 
     ds = xr.Dataset(
-        {"target_x": var(cols[1], "um", "stage-frame target x"), "target_y": var(cols[2], "um", "stage-frame target y"),
-         "ap": var(cols[3], "um", "ISO 9283 position accuracy AP"),
-         "rp": var(cols[4], "um", "ISO 9283 position repeatability RP"),
-         "ap_x": var(cols[5], "um", "barycentre minus target, x"),
-         "ap_y": var(cols[6], "um", "barycentre minus target, y"),
-         "visits": var(cols[7].astype(np.int32), "1", "number of valid visits")},
+        {
+            "target_x": var(cols[1], "um", "stage-frame target x"),
+            "target_y": var(cols[2], "um", "stage-frame target y"),
+            "ap": var(cols[3], "um", "ISO 9283 position accuracy AP"),
+            "rp": var(cols[4], "um", "ISO 9283 position repeatability RP"),
+            "ap_x": var(cols[5], "um", "barycentre minus target, x"),
+            "ap_y": var(cols[6], "um", "barycentre minus target, y"),
+            "visits": var(cols[7].astype(np.int32), "1", "number of valid visits"),
+        },
         coords={"target": var(cols[0].astype(np.int32), "1", "plan pose index of the target")},
         attrs=meta.attrs("metrics") if meta is not None else {},
     )
-    ds.attrs.update(accuracy_um=float(ds["ap"].max()), repeatability_um=float(ds["rp"].max()),
-                    nan_readings=int((~finite & (pose > 0)).sum()), skipped_targets=len(skipped))
+    ds.attrs.update(
+        accuracy_um=float(ds["ap"].max()),
+        repeatability_um=float(ds["rp"].max()),
+        nan_readings=int((~finite & (pose > 0)).sum()),
+        skipped_targets=len(skipped),
+    )
     return ds

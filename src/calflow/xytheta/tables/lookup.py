@@ -36,8 +36,9 @@ moves the tool point by M g; the increment that cancels f solves M g = −f::
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -71,8 +72,10 @@ def _interpolator(pos: np.ndarray, values: np.ndarray, method: str, what: str, b
         tol = 1e-9 * max(1.0, abs(lo), abs(hi))
         bad = (q < lo - tol) | (q > hi + tol)
         if np.any(bad):
-            raise ValueError(f"{what}: position {float(q[bad].flat[0]):.3f} outside the table "
-                             f"[{lo:g}, {hi:g}]; characterise a longer stroke or use bounds='clamp'")
+            raise ValueError(
+                f"{what}: position {float(q[bad].flat[0]):.3f} outside the table "
+                f"[{lo:g}, {hi:g}]; characterise a longer stroke or use bounds='clamp'"
+            )
         return base(np.clip(q, lo, hi))
 
     return f
@@ -81,7 +84,9 @@ def _interpolator(pos: np.ndarray, values: np.ndarray, method: str, what: str, b
 def _check_directions(d, name: str) -> np.ndarray:
     d = np.asarray(d)
     if not np.all(np.isin(d, (-1, 1))):
-        raise ValueError(f"{name}: expected +1 (forward) or -1 (backward) everywhere; infer them with infer_directions")
+        raise ValueError(
+            f"{name}: expected +1 (forward) or -1 (backward) everywhere; infer them with infer_directions"
+        )
     return d
 
 
@@ -138,8 +143,10 @@ def sequential_commands(compensate, x_T, y_T, start=(0.0, 0.0), start_direction=
         gy = int(np.sign(y_T[k] - typ)) or dyp
         combos = [(gx, gy), (gx, -gy), (-gx, gy), (-gx, -gy)]
         results = {c: call(k, *c) for c in combos}
-        chosen = next((c for c in combos if fits(results[c][0], xp, c[0], dxp) and fits(results[c][1], yp, c[1], dyp)),
-                      None)
+        chosen = next(
+            (c for c in combos if fits(results[c][0], xp, c[0], dxp) and fits(results[c][1], yp, c[1], dyp)),
+            None,
+        )
         if chosen is not None:
             (cx, cy), (sx, sy) = results[chosen], chosen
         else:
@@ -178,11 +185,16 @@ class PositionLUT:
     def __post_init__(self) -> None:
         if self.bounds not in BOUNDS:
             raise ValueError(f"PositionLUT.bounds: expected one of {BOUNDS}, got {self.bounds!r}")
-        for name, pos in (("xx", self.x_position), ("xy", self.x_position), ("yx", self.y_position),
-                          ("yy", self.y_position)):
+        for name, pos in (
+            ("xx", self.x_position),
+            ("xy", self.x_position),
+            ("yx", self.y_position),
+            ("yy", self.y_position),
+        ):
             if np.shape(getattr(self, name)) != (len(pos), 2):
-                raise ValueError(f"PositionLUT.{name}: expected shape ({len(pos)}, 2), "
-                                 f"got {np.shape(getattr(self, name))}")
+                raise ValueError(
+                    f"PositionLUT.{name}: expected shape ({len(pos)}, 2), got {np.shape(getattr(self, name))}"
+                )
 
     def _table(self, name: str, q, d, method: str) -> np.ndarray:
         pos = self.x_position if name[0] == "x" else self.y_position
@@ -191,8 +203,13 @@ class PositionLUT:
             key = (name, col, method)
             if key not in self._cache:
                 label = f"{'XY'['xy'.index(name[0])]} table {name} ({'forward' if col == 0 else 'backward'})"
-                self._cache[key] = _interpolator(np.asarray(pos, float), np.asarray(getattr(self, name))[:, col],
-                                                 method, label, self.bounds)
+                self._cache[key] = _interpolator(
+                    np.asarray(pos, float),
+                    np.asarray(getattr(self, name))[:, col],
+                    method,
+                    label,
+                    self.bounds,
+                )
             out.append(self._cache[key])
         fwd, bwd = d > 0, d < 0
         res = np.zeros(np.shape(q))
@@ -202,8 +219,9 @@ class PositionLUT:
             res[bwd] = out[1](q[bwd])
         return res
 
-    def errors(self, x, y, dir_x, dir_y, method: str = "linear",
-               trends: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def errors(
+        self, x, y, dir_x, dir_y, method: str = "linear", trends: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
         """ex, ey (µm) at joint positions x, y (µm) approached in dir_x, dir_y (±1), Eq. (4.14)/(4.15).
 
         ``trends=False`` gives the stages' own errors along and across their travel, for use
@@ -218,8 +236,12 @@ class PositionLUT:
         home pose (Eq. 4.27), and a table referenced to one home reading carries that
         reading's noise as an offset of every joint, which rotates with Θ.
         """
-        x, y, dx, dy = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float),
-                                           _check_directions(dir_x, "dir_x"), _check_directions(dir_y, "dir_y"))
+        x, y, dx, dy = np.broadcast_arrays(
+            np.asarray(x, float),
+            np.asarray(y, float),
+            _check_directions(dir_x, "dir_x"),
+            _check_directions(dir_y, "dir_y"),
+        )
         ex = self._table("xx", x, dx, method) + self._table("yx", y, dy, method)
         ey = self._table("xy", x, dx, method) + self._table("yy", y, dy, method)
         if trends:
@@ -230,8 +252,9 @@ class PositionLUT:
         ey0 = self._table("xy", 0 * one, one, method) + self._table("yy", 0 * one, one, method)
         return ex - ex0[0] - x * (1.0 - cos_x), ey - ey0[0] - y * (1.0 - cos_y)
 
-    def compensate(self, x_T, y_T, dir_x, dir_y, method: str = "linear",
-                   iterations: int = 6, trends: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def compensate(
+        self, x_T, y_T, dir_x, dir_y, method: str = "linear", iterations: int = 6, trends: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Joint commands X, Y (µm) that bring the stage onto targets x_T, y_T (Fig. 4.11).
 
         Fixed point of X = x_T + ex(X, Y), Y = y_T + ey(X, Y) (see module docstring);
@@ -245,35 +268,57 @@ class PositionLUT:
         return X, Y
 
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset, bounds: str = "error") -> "PositionLUT":
+    def from_dataset(cls, ds: xr.Dataset, bounds: str = "error") -> PositionLUT:
         """From a ``characterise`` result or a ``to_dataset`` file (direction [+1, -1])."""
+
         def tab(name: str) -> np.ndarray:
             return ds[name].sel(direction=[1, -1]).transpose(..., "direction").values.astype(float)
 
-        return cls(ds["x_position"].values.astype(float), ds["y_position"].values.astype(float),
-                   tab("err_xx"), tab("err_xy"), tab("err_yx"), tab("err_yy"),
-                   (float(ds["delta_x_intercept"]), float(ds["delta_x_slope"])),
-                   (float(ds["delta_y_intercept"]), float(ds["delta_y_slope"])), bounds)
+        return cls(
+            ds["x_position"].values.astype(float),
+            ds["y_position"].values.astype(float),
+            tab("err_xx"),
+            tab("err_xy"),
+            tab("err_yx"),
+            tab("err_yy"),
+            (float(ds["delta_x_intercept"]), float(ds["delta_x_slope"])),
+            (float(ds["delta_y_intercept"]), float(ds["delta_y_slope"])),
+            bounds,
+        )
 
     def to_dataset(self, meta: RunMetadata | None = None) -> xr.Dataset:
         """The tables as a ``calflow_kind = "luts"`` dataset (``from_dataset`` reads it back)."""
+
         def var(data, dims, units, long_name):
-            return xr.Variable(dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name})
+            return xr.Variable(
+                dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name}
+            )
 
         xd, yd = ("x_position", "direction"), ("y_position", "direction")
         ds = xr.Dataset(
-            {"err_xx": var(self.xx, xd, "um", "x error while X moves: f_xx, b_xx (Eq. 4.14)"),
-             "err_xy": var(self.xy, xd, "um", "y error while X moves minus delta_y: f_xy, b_xy (Eq. 4.15)"),
-             "err_yx": var(self.yx, yd, "um", "x error while Y moves minus delta_x: f_yx, b_yx (Eq. 4.14)"),
-             "err_yy": var(self.yy, yd, "um", "y error while Y moves: f_yy, b_yy (Eq. 4.15)"),
-             "delta_x_intercept": var(self.delta_x[0], (), "um", "intercept of delta_x(y) (Eq. 4.14)"),
-             "delta_x_slope": var(self.delta_x[1], (), "1", "slope of delta_x(y) (Eq. 4.14)"),
-             "delta_y_intercept": var(self.delta_y[0], (), "um", "intercept of delta_y(x)"),
-             "delta_y_slope": var(self.delta_y[1], (), "1", "slope of delta_y(x)")},
-            coords={"x_position": var(self.x_position, ("x_position",), "um", "commanded X joint position"),
-                    "y_position": var(self.y_position, ("y_position",), "um", "commanded Y joint position"),
-                    "direction": xr.Variable(("direction",), np.array([1, -1], dtype=np.int8), attrs={
-                        "units": "1", "long_name": "approach direction (+1 forward, -1 backward)"})},
+            {
+                "err_xx": var(self.xx, xd, "um", "x error while X moves: f_xx, b_xx (Eq. 4.14)"),
+                "err_xy": var(
+                    self.xy, xd, "um", "y error while X moves minus delta_y: f_xy, b_xy (Eq. 4.15)"
+                ),
+                "err_yx": var(
+                    self.yx, yd, "um", "x error while Y moves minus delta_x: f_yx, b_yx (Eq. 4.14)"
+                ),
+                "err_yy": var(self.yy, yd, "um", "y error while Y moves: f_yy, b_yy (Eq. 4.15)"),
+                "delta_x_intercept": var(self.delta_x[0], (), "um", "intercept of delta_x(y) (Eq. 4.14)"),
+                "delta_x_slope": var(self.delta_x[1], (), "1", "slope of delta_x(y) (Eq. 4.14)"),
+                "delta_y_intercept": var(self.delta_y[0], (), "um", "intercept of delta_y(x)"),
+                "delta_y_slope": var(self.delta_y[1], (), "1", "slope of delta_y(x)"),
+            },
+            coords={
+                "x_position": var(self.x_position, ("x_position",), "um", "commanded X joint position"),
+                "y_position": var(self.y_position, ("y_position",), "um", "commanded Y joint position"),
+                "direction": xr.Variable(
+                    ("direction",),
+                    np.array([1, -1], dtype=np.int8),
+                    attrs={"units": "1", "long_name": "approach direction (+1 forward, -1 backward)"},
+                ),
+            },
             attrs=meta.attrs("luts") if meta is not None else {},
         )
         ds.attrs["error_convention"] = "target - measured; command = target + error"
@@ -309,9 +354,14 @@ def angle_residuals_from_run(run: xr.Dataset) -> AngleResiduals:
     x, y = attained_points(run)
     visit = run["pose"].values > 0
     ok = visit & np.isfinite(x) & np.isfinite(y)
-    return AngleResiduals(run["target_theta"].values[ok].astype(float), x[ok] - run["target_x"].values[ok],
-                          y[ok] - run["target_y"].values[ok], int((visit & ~ok).sum()),
-                          run["target_x"].values[ok].astype(float), run["target_y"].values[ok].astype(float))
+    return AngleResiduals(
+        run["target_theta"].values[ok].astype(float),
+        x[ok] - run["target_x"].values[ok],
+        y[ok] - run["target_y"].values[ok],
+        int((visit & ~ok).sum()),
+        run["target_x"].values[ok].astype(float),
+        run["target_y"].values[ok].astype(float),
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -332,8 +382,17 @@ class AngleLUT:
             raise ValueError(f"AngleLUT.bounds: expected one of {BOUNDS}, got {self.bounds!r}")
 
     @classmethod
-    def from_residuals(cls, theta, f_ax, f_ay, alpha: float, beta: float, include_zero: bool = True,
-                       decimals: int = 6, bounds: str = "error") -> "AngleLUT":
+    def from_residuals(
+        cls,
+        theta,
+        f_ax,
+        f_ay,
+        alpha: float,
+        beta: float,
+        include_zero: bool = True,
+        decimals: int = 6,
+        bounds: str = "error",
+    ) -> AngleLUT:
         """Tabulate residuals: mean over the targets at each angle (rounded to ``decimals``).
 
         NaN residuals are skipped. ``include_zero`` adds f(0) = 0 when 0° was not
@@ -359,8 +418,13 @@ class AngleLUT:
         for name in ("f_ax", "f_ay"):
             key = (name, method)
             if key not in self._cache:
-                self._cache[key] = _interpolator(np.asarray(self.theta, float), np.asarray(getattr(self, name), float),
-                                                 method, f"angle table {name}", self.bounds)
+                self._cache[key] = _interpolator(
+                    np.asarray(self.theta, float),
+                    np.asarray(getattr(self, name), float),
+                    method,
+                    f"angle table {name}",
+                    self.bounds,
+                )
             out.append(self._cache[key](np.asarray(theta, dtype=float)))
         return out[0], out[1]
 
@@ -372,21 +436,31 @@ class AngleLUT:
         g_ax, g_ay = joint_increments(self.f_ax, self.f_ay, self.alpha, self.beta)
 
         def var(data, dims, units, long_name):
-            return xr.Variable(dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name})
+            return xr.Variable(
+                dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name}
+            )
 
         t = ("theta",)
         return xr.Dataset(
-            {"f_ax": var(self.f_ax, t, "um", "angle-dependent error along x_WF, f_ax (Eq. 4.18)"),
-             "f_ay": var(self.f_ay, t, "um", "angle-dependent error along y_WF, f_ay (Eq. 4.18)"),
-             "g_ax": var(g_ax, t, "um", "X joint increment cancelling f, g_ax (Eq. 4.19)"),
-             "g_ay": var(g_ay, t, "um", "Y joint increment cancelling f, g_ay (Eq. 4.19)"),
-             "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
-             "beta": var(self.beta, (), "degree", "beta used to compute g")},
+            {
+                "f_ax": var(self.f_ax, t, "um", "angle-dependent error along x_WF, f_ax (Eq. 4.18)"),
+                "f_ay": var(self.f_ay, t, "um", "angle-dependent error along y_WF, f_ay (Eq. 4.18)"),
+                "g_ax": var(g_ax, t, "um", "X joint increment cancelling f, g_ax (Eq. 4.19)"),
+                "g_ay": var(g_ay, t, "um", "Y joint increment cancelling f, g_ay (Eq. 4.19)"),
+                "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
+                "beta": var(self.beta, (), "degree", "beta used to compute g"),
+            },
             coords={"theta": var(self.theta, t, "degree", "rotation angle")},
             attrs=meta.attrs("luts") if meta is not None else {},
         )
 
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset, bounds: str = "error") -> "AngleLUT":
-        return cls(ds["theta"].values.astype(float), ds["f_ax"].values.astype(float), ds["f_ay"].values.astype(float),
-                   float(ds["alpha"]), float(ds["beta"]), bounds)
+    def from_dataset(cls, ds: xr.Dataset, bounds: str = "error") -> AngleLUT:
+        return cls(
+            ds["theta"].values.astype(float),
+            ds["f_ax"].values.astype(float),
+            ds["f_ay"].values.astype(float),
+            float(ds["alpha"]),
+            float(ds["beta"]),
+            bounds,
+        )

@@ -36,8 +36,9 @@ class PoseAngleLUT:
     beta: float
 
     @classmethod
-    def from_residuals(cls, x_T, y_T, theta, f_ax, f_ay, alpha: float, beta: float,
-                       decimals: int = 6) -> "PoseAngleLUT":
+    def from_residuals(
+        cls, x_T, y_T, theta, f_ax, f_ay, alpha: float, beta: float, decimals: int = 6
+    ) -> PoseAngleLUT:
         """Tabulate residuals: mean over the visits of each (position, angle); NaN skipped."""
         x_T, y_T, t = (np.round(np.asarray(a, dtype=float).ravel(), decimals) for a in (x_T, y_T, theta))
         fx, fy = np.asarray(f_ax, dtype=float).ravel(), np.asarray(f_ay, dtype=float).ravel()
@@ -54,16 +55,27 @@ class PoseAngleLUT:
                 if sel.any():
                     table_x[i, j + 1], table_y[i, j + 1] = fx[sel].mean(), fy[sel].mean()
         if np.isnan(table_x).any():
-            raise ValueError("position-angle table: some (position, angle) has no valid residual; "
-                             "the angle-residual run must visit every position at every angle")
-        return cls(positions[:, 0], positions[:, 1], np.concatenate([[0.0], angles]), table_x, table_y,
-                   float(alpha), float(beta))
+            raise ValueError(
+                "position-angle table: some (position, angle) has no valid residual; "
+                "the angle-residual run must visit every position at every angle"
+            )
+        return cls(
+            positions[:, 0],
+            positions[:, 1],
+            np.concatenate([[0.0], angles]),
+            table_x,
+            table_y,
+            float(alpha),
+            float(beta),
+        )
 
     def f(self, x, y, theta, method: str = "linear") -> tuple[np.ndarray, np.ndarray]:
         """f_ax, f_ay (µm) at target positions x, y (µm) and angles Θ (degree)."""
         x, y, theta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, theta)))
         if np.any(theta < self.theta[0]) or np.any(theta > self.theta[-1]):
-            raise ValueError(f"position-angle table: angle outside the table [{self.theta[0]}, {self.theta[-1]}] degree")
+            raise ValueError(
+                f"position-angle table: angle outside the table [{self.theta[0]}, {self.theta[-1]}] degree"
+            )
         fx = np.stack([np.interp(theta, self.theta, row) for row in self.f_ax], axis=-1)
         fy = np.stack([np.interp(theta, self.theta, row) for row in self.f_ay], axis=-1)
         d2 = (x[..., None] - self.x) ** 2 + (y[..., None] - self.y) ** 2
@@ -78,16 +90,20 @@ class PoseAngleLUT:
 
     def to_dataset(self, meta: RunMetadata | None = None) -> xr.Dataset:
         def var(data, dims, units, long_name):
-            return xr.Variable(dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name})
+            return xr.Variable(
+                dims, np.asarray(data, dtype=float), attrs={"units": units, "long_name": long_name}
+            )
 
         d = ("position", "theta")
         ds = xr.Dataset(
-            {"f_ax": var(self.f_ax, d, "um", "angle-dependent error along x_WF at each target position"),
-             "f_ay": var(self.f_ay, d, "um", "angle-dependent error along y_WF at each target position"),
-             "position_x": var(self.x, ("position",), "um", "target position x in the world frame"),
-             "position_y": var(self.y, ("position",), "um", "target position y in the world frame"),
-             "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
-             "beta": var(self.beta, (), "degree", "beta used to compute g")},
+            {
+                "f_ax": var(self.f_ax, d, "um", "angle-dependent error along x_WF at each target position"),
+                "f_ay": var(self.f_ay, d, "um", "angle-dependent error along y_WF at each target position"),
+                "position_x": var(self.x, ("position",), "um", "target position x in the world frame"),
+                "position_y": var(self.y, ("position",), "um", "target position y in the world frame"),
+                "alpha": var(self.alpha, (), "degree", "alpha used to compute g"),
+                "beta": var(self.beta, (), "degree", "beta used to compute g"),
+            },
             coords={"theta": var(self.theta, ("theta",), "degree", "rotation angle")},
             attrs=meta.attrs("luts") if meta is not None else {},
         )
@@ -95,7 +111,13 @@ class PoseAngleLUT:
         return ds
 
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset) -> "PoseAngleLUT":
-        return cls(ds["position_x"].values.astype(float), ds["position_y"].values.astype(float),
-                   ds["theta"].values.astype(float), ds["f_ax"].values.astype(float), ds["f_ay"].values.astype(float),
-                   float(ds["alpha"]), float(ds["beta"]))
+    def from_dataset(cls, ds: xr.Dataset) -> PoseAngleLUT:
+        return cls(
+            ds["position_x"].values.astype(float),
+            ds["position_y"].values.astype(float),
+            ds["theta"].values.astype(float),
+            ds["f_ax"].values.astype(float),
+            ds["f_ay"].values.astype(float),
+            float(ds["alpha"]),
+            float(ds["beta"]),
+        )
