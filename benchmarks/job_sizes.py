@@ -57,9 +57,7 @@ def rule_patterns(rules_dir: Path) -> dict[str, dict]:
     texts = [smk.read_text() for smk in sorted(rules_dir.glob("*.smk"))]
     constraints = wildcard_constraints(texts)
     for text in texts:
-        starts = [(m.start(), m.group(1)) for m in RULE.finditer(text)] + [
-            (len(text), None)
-        ]
+        starts = [(m.start(), m.group(1)) for m in RULE.finditer(text)] + [(len(text), None)]
         for (start, name), (end, _) in zip(starts, starts[1:]):
             body = text[start:end]
             bench = BENCH.search(body)
@@ -102,10 +100,7 @@ def measured(results: Path, rules: dict[str, dict]) -> dict[str, list[dict]]:
 def proposal(rows: list[dict]) -> dict:
     """The sizes of the module docstring from one rule's benchmark records."""
     wall = max(float(r["s"]) for r in rows)
-    rss = max(
-        float(r["max_rss"]) if r["max_rss"] not in ("", "NA", "-") else 0.0
-        for r in rows
-    )
+    rss = max(float(r["max_rss"]) if r["max_rss"] not in ("", "NA", "-") else 0.0 for r in rows)
     cpu = max(float(r["cpu_time"]) / max(float(r["s"]), 1e-9) for r in rows)
     return {
         "jobs": len(rows),
@@ -127,9 +122,7 @@ def main(argv=None) -> int:
     rules = rule_patterns(args.rules)
     runs = measured(args.results.resolve(), rules)
     if not runs:
-        sys.stderr.write(
-            f"job_sizes: error: {args.results}: no benchmark file of a known rule\n"
-        )
+        sys.stderr.write(f"job_sizes: error: {args.results}: no benchmark file of a known rule\n")
         return 2
     short = []
     print(
@@ -143,15 +136,10 @@ def main(argv=None) -> int:
             f"| {rule} | {p['jobs']} | {p['max_s']:.1f} | {p['max_rss_mb']:.0f} | {p['cores_used']:.1f}"
             f" | {p['mem_mb']} | {p['runtime']} | {p['threads']} | {declared} |"
         )
-        if (
-            spec.get("mem_mb", 0) < p["max_rss_mb"]
-            or 60 * spec.get("runtime", 0) < p["max_s"]
-        ):
+        if spec.get("mem_mb", 0) < p["max_rss_mb"] or 60 * spec.get("runtime", 0) < p["max_s"]:
             short.append(rule)
     if args.check and short:
-        sys.stderr.write(
-            f"job_sizes: declared mem_mb/runtime below the measured use: {', '.join(short)}\n"
-        )
+        sys.stderr.write(f"job_sizes: declared mem_mb/runtime below the measured use: {', '.join(short)}\n")
         return 1
     return 0
 

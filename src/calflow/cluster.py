@@ -45,10 +45,7 @@ def parse_sinfo(text: str) -> tuple[dict[str, tuple[str, list[str]]], str | None
 
 def _runnable(state: str) -> bool:
     flags = set(state) & UNAVAILABLE_FLAGS
-    return (
-        state.rstrip("".join(UNAVAILABLE_FLAGS)).lower() in RUNNABLE_STATES
-        and not flags
-    )
+    return state.rstrip("".join(UNAVAILABLE_FLAGS)).lower() in RUNNABLE_STATES and not flags
 
 
 def partition_problem(partition: str | None, sinfo_text: str) -> str | None:
@@ -57,9 +54,7 @@ def partition_problem(partition: str | None, sinfo_text: str) -> str | None:
     partitions, default = parse_sinfo(sinfo_text)
     if partition is None:
         if default is None:
-            return (
-                "no SLURM partition was given and the cluster has no default partition"
-            )
+            return "no SLURM partition was given and the cluster has no default partition"
         partition = default
     if partition not in partitions:
         known = ", ".join(sorted(partitions)) or "none"
@@ -93,23 +88,17 @@ def run_sinfo() -> str:
             "run Snakemake on a machine of the cluster (a login node)"
         ) from None
     except subprocess.TimeoutExpired:
-        raise ConfigError(
-            "'sinfo' did not answer within 60 s: is slurmctld reachable?"
-        ) from None
+        raise ConfigError("'sinfo' did not answer within 60 s: is slurmctld reachable?") from None
     if proc.returncode != 0:
         reason = " ".join(proc.stderr.split()) or f"exit status {proc.returncode}"
         raise ConfigError(f"'sinfo' failed: {reason}")
     return proc.stdout
 
 
-def check_partitions(
-    partitions: Iterable[str | None], sinfo_text: str | None = None
-) -> None:
+def check_partitions(partitions: Iterable[str | None], sinfo_text: str | None = None) -> None:
     """Raise :class:`ConfigError` with one line naming the first partition of ``partitions``
     that cannot run a job now (see :func:`partition_problem`); empty names mean the default."""
-    wanted = sorted(
-        {p or None for p in partitions}, key=lambda p: (p is not None, p or "")
-    )
+    wanted = sorted({p or None for p in partitions}, key=lambda p: (p is not None, p or ""))
     if not wanted:
         return
     text = run_sinfo() if sinfo_text is None else sinfo_text

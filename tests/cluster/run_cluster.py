@@ -77,9 +77,7 @@ def snakemake(work: Path, *extra: str, background: bool = False, log: str = "run
     ]
     env = {**os.environ, **EPOCH, "PATH": f"{BIN}:{os.environ['PATH']}"}
     out = (work / log).open("w")
-    proc = subprocess.Popen(
-        cmd, cwd=work, env=env, stdout=out, stderr=subprocess.STDOUT, text=True
-    )
+    proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=out, stderr=subprocess.STDOUT, text=True)
     return proc if background else proc.wait()
 
 
@@ -91,26 +89,16 @@ def steps(work: Path, log: str = "run.log") -> int:
 
 def submissions() -> int:
     """Batch jobs slurmctld has accepted since it started (its log's submit lines)."""
-    return (
-        (STATE / "log" / "slurmctld.log")
-        .read_text()
-        .count("_slurm_rpc_submit_batch_job: JobId=")
-    )
+    return (STATE / "log" / "slurmctld.log").read_text().count("_slurm_rpc_submit_batch_job: JobId=")
 
 
 def squeue(*fields: str) -> list[list[str]]:
-    out = subprocess.run(
-        ["squeue", "-h", "-o", "|".join(fields)], capture_output=True, text=True
-    ).stdout
+    out = subprocess.run(["squeue", "-h", "-o", "|".join(fields)], capture_output=True, text=True).stdout
     return [line.split("|") for line in out.splitlines() if line.strip()]
 
 
 def outputs(results: Path) -> dict[str, Path]:
-    return {
-        p.relative_to(results).as_posix(): p
-        for pattern in COMPARED
-        for p in results.glob(pattern)
-    }
+    return {p.relative_to(results).as_posix(): p for pattern in COMPARED for p in results.glob(pattern)}
 
 
 def differences(a: Path, b: Path, under: str = "") -> list[str]:
@@ -119,20 +107,14 @@ def differences(a: Path, b: Path, under: str = "") -> list[str]:
     if not fa:
         return [f"no output under {a / 'results' / under}"]
     diff = sorted(set(fa) ^ set(fb))
-    diff += [
-        k for k in sorted(set(fa) & set(fb)) if fa[k].read_bytes() != fb[k].read_bytes()
-    ]
+    diff += [k for k in sorted(set(fa) & set(fb)) if fa[k].read_bytes() != fb[k].read_bytes()]
     return diff
 
 
 def leftovers(work: Path) -> list[str]:
     """Half-written files: Snakemake's incomplete markers, calflow's temporary names."""
     marks = work / ".snakemake" / "incomplete"
-    found = (
-        [f"incomplete marker {p.name}" for p in marks.rglob("*") if p.is_file()]
-        if marks.exists()
-        else []
-    )
+    found = [f"incomplete marker {p.name}" for p in marks.rglob("*") if p.is_file()] if marks.exists() else []
     temps = ("*.tmp", "*.partial", "*.part", ".*.tmp*")
     return found + [str(p) for t in temps for p in (work / "results").rglob(t)]
 
@@ -146,9 +128,7 @@ def wait_mid_run(work: Path, campaign: str, done: int, timeout: float = 600) -> 
         if running and bench.exists() and len(list(bench.glob("*.tsv"))) >= done:
             return running[0]
         time.sleep(0.5)
-    raise AssertionError(
-        f"no SLURM job of {campaign} ran {done} steps within {timeout} s"
-    )
+    raise AssertionError(f"no SLURM job of {campaign} ran {done} steps within {timeout} s")
 
 
 def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dict:
@@ -156,9 +136,7 @@ def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dic
     the result must equal ``reference``'s and leave nothing incomplete."""
     work = project(base, name)
     cfg = ["--config", f'campaigns=["{campaign}"]', "studies=[]"]
-    proc = snakemake(
-        work, *SLURM_ARGS, "--retries", "0", *cfg, background=True, log="fault.log"
-    )
+    proc = snakemake(work, *SLURM_ARGS, "--retries", "0", *cfg, background=True, log="fault.log")
     what = act(work)
     first = proc.wait()
     left_after_fault = leftovers(work)
@@ -205,9 +183,7 @@ def slurmd_restart_mid_run(campaign: str):
     return act
 
 
-def one_line_failure(
-    base: Path, name: str, campaign: str, expect: str, profile_edit=None
-) -> dict:
+def one_line_failure(base: Path, name: str, campaign: str, expect: str, profile_edit=None) -> dict:
     """A run that must stop before submitting: non-zero exit, one ``calflow: error:`` line."""
     work = project(base, name)
     if profile_edit:
@@ -215,26 +191,15 @@ def one_line_failure(
         conf.write_text(profile_edit(conf.read_text()))
     before = submissions()
     start = time.time()
-    code = snakemake(
-        work, *SLURM_ARGS, "--config", f'campaigns=["{campaign}"]', "studies=[]"
-    )
-    lines = [
-        ln
-        for ln in (work / "run.log").read_text().splitlines()
-        if ln.startswith("calflow: error:")
-    ]
+    code = snakemake(work, *SLURM_ARGS, "--config", f'campaigns=["{campaign}"]', "studies=[]")
+    lines = [ln for ln in (work / "run.log").read_text().splitlines() if ln.startswith("calflow: error:")]
     result = {
         "exit": code,
         "line": lines[0] if lines else None,
         "seconds": round(time.time() - start, 1),
         "submitted": submissions() - before,
     }
-    result["ok"] = (
-        code != 0
-        and len(lines) == 1
-        and expect in lines[0]
-        and result["submitted"] == 0
-    )
+    result["ok"] = code != 0 and len(lines) == 1 and expect in lines[0] and result["submitted"] == 0
     say(f"{name}: {result}")
     return result
 
@@ -260,9 +225,7 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--work",
         type=Path,
-        default=Path(
-            os.environ.get("CALFLOW_CLUSTER_WORK", "/tmp/calflow-cluster-test")
-        ),
+        default=Path(os.environ.get("CALFLOW_CLUSTER_WORK", "/tmp/calflow-cluster-test")),
     )
     ap.add_argument(
         "--campaigns",
@@ -288,9 +251,7 @@ def main(argv=None) -> int:
     slurm = project(args.work, "slurm")
     say(f"SLURM run in {slurm}")
     before, t0 = submissions(), time.time()
-    assert snakemake(slurm, *SLURM_ARGS, *config_args(args)) == 0, (
-        f"SLURM run failed: {slurm}/run.log"
-    )
+    assert snakemake(slurm, *SLURM_ARGS, *config_args(args)) == 0, f"SLURM run failed: {slurm}/run.log"
     wall_slurm = time.time() - t0
     diff = differences(local, slurm)
     if diff:
@@ -306,12 +267,8 @@ def main(argv=None) -> int:
     faults = {}
     if not args.no_faults:
         c = args.fault_campaign
-        faults["scancel"] = fault_run(
-            args.work, "fault-scancel", c, local, scancel_mid_run(c)
-        )
-        faults["slurmd_restart"] = fault_run(
-            args.work, "fault-slurmd", c, local, slurmd_restart_mid_run(c)
-        )
+        faults["scancel"] = fault_run(args.work, "fault-scancel", c, local, scancel_mid_run(c))
+        faults["slurmd_restart"] = fault_run(args.work, "fault-slurmd", c, local, slurmd_restart_mid_run(c))
         node = platform.node().split(".")[0]
         subprocess.run(
             [
@@ -328,17 +285,13 @@ def main(argv=None) -> int:
                 args.work, "fault-node-down", c, "has no node that can run"
             )
         finally:
-            subprocess.run(
-                ["scontrol", "update", f"nodename={node}", "state=resume"], check=True
-            )
+            subprocess.run(["scontrol", "update", f"nodename={node}", "state=resume"], check=True)
         faults["no_partition"] = one_line_failure(
             args.work,
             "fault-partition",
             c,
             "does not exist",
-            lambda text: text.replace(
-                'slurm_partition: "normal"', 'slurm_partition: "no-such-partition"'
-            ),
+            lambda text: text.replace('slurm_partition: "normal"', 'slurm_partition: "no-such-partition"'),
         )
     report.update(
         wall_s_slurm=round(wall_slurm, 1),
