@@ -39,6 +39,7 @@ SLURM_ARGS = [
     "--slurm-no-account",
     "--slurm-init-seconds-before-status-checks",
     "2",
+    "--slurm-keep-successful-logs",
 ]
 COMPARED = ("**/summary.json", "**/aggregate.json", "**/*.nc")
 
@@ -236,6 +237,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cores", type=int, default=os.cpu_count())
     ap.add_argument("--fault-campaign", default="nano1d-thesis")
     ap.add_argument("--no-faults", action="store_true")
+    ap.add_argument("--target", nargs="*", default=[], help="Snakemake targets (default: all)")
+    ap.add_argument("--max-slurm-jobs", type=int, default=30)
+    ap.add_argument("--max-ratio", type=float, default=3.0, help="SLURM wall time / local wall time")
     args = ap.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     report = {"machine": machine()}
@@ -243,7 +247,7 @@ def main(argv=None) -> int:
     local = project(args.work, "local")
     say(f"local run ({args.cores} cores) in {local}")
     t0 = time.time()
-    assert snakemake(local, "--cores", str(args.cores), *config_args(args)) == 0, (
+    assert snakemake(local, "--cores", str(args.cores), *args.target, *config_args(args)) == 0, (
         f"local run failed: {local}/run.log"
     )
     wall_local = time.time() - t0
@@ -251,7 +255,9 @@ def main(argv=None) -> int:
     slurm = project(args.work, "slurm")
     say(f"SLURM run in {slurm}")
     before, t0 = submissions(), time.time()
-    assert snakemake(slurm, *SLURM_ARGS, *config_args(args)) == 0, f"SLURM run failed: {slurm}/run.log"
+    assert snakemake(slurm, *SLURM_ARGS, *args.target, *config_args(args)) == 0, (
+        f"SLURM run failed: {slurm}/run.log"
+    )
     wall_slurm = time.time() - t0
     diff = differences(local, slurm)
     if diff:
@@ -298,6 +304,9 @@ def main(argv=None) -> int:
         wall_s_local=round(wall_local, 1),
         faults_ok=all(f["ok"] for f in faults.values()) if faults else None,
     )
+    report["within_limits"] = (
+        report["slurm_jobs"] <= args.max_slurm_jobs and wall_slurm <= args.max_ratio * wall_local
+    )
     (args.work / "faults.json").write_text(json.dumps(faults, indent=1))
     line = {
         k: report[k]
@@ -308,11 +317,12 @@ def main(argv=None) -> int:
             "wall_s_local",
             "equal",
             "faults_ok",
+            "within_limits",
             "compared_files",
             "machine",
         )
     }
-    ok = report["equal"] and report["faults_ok"] is not False
+    ok = report["equal"] and report["faults_ok"] is not False and report["within_limits"]
     print(json.dumps(line), flush=True)
     return 0 if ok else 1
 

@@ -3,6 +3,14 @@
 from calflow.cluster import check_partitions
 
 
+# Jobs of a second or two that gather the others' results run where Snakemake runs (on a
+# cluster, the login node) instead of waiting in the queue as a SLURM job of their own.
+localrules:
+    index,
+    mc_aggregate,
+    mc_report,
+
+
 onstart:
     if (
         workflow.executor_plugin is not None
