@@ -6,7 +6,7 @@ CORES  ?= 2
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.calflow-installed
 
-.PHONY: run test cluster-test dry-run lint clean
+.PHONY: run test cluster-test cluster-study dry-run lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,10 @@ test: $(STAMP)  ## run the test suite
 
 cluster-test: $(STAMP)  ## as root: a one-node SLURM cluster runs the workflow, compared with a local run
 	VENV=$(VENV) bash tests/cluster/run.sh
+
+cluster-study: $(STAMP)  ## as root: the 2048-point Monte-Carlo study through the one-node cluster and locally
+	VENV=$(VENV) bash tests/cluster/run.sh --studies montecarlo-xytheta-cluster --no-faults \
+		--target reports/studies/montecarlo-xytheta-cluster.html --max-slurm-jobs 100
 
 dry-run: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) -n
