@@ -18,6 +18,7 @@ import os
 import platform
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -42,6 +43,9 @@ SLURM_ARGS = [
     "--slurm-keep-successful-logs",
 ]
 COMPARED = ("**/summary.json", "**/aggregate.json", "**/*.nc")
+
+
+CHILDREN: list[subprocess.Popen] = []  # Snakemake processes still to be ended if this one is
 
 
 def say(msg: str) -> None:
@@ -79,6 +83,7 @@ def snakemake(work: Path, *extra: str, background: bool = False, log: str = "run
     env = {**os.environ, **EPOCH, "PATH": f"{BIN}:{os.environ['PATH']}"}
     out = (work / log).open("w")
     proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=out, stderr=subprocess.STDOUT, text=True)
+    CHILDREN.append(proc)
     return proc if background else proc.wait()
 
 
@@ -327,5 +332,21 @@ def main(argv=None) -> int:
     return 0 if ok else 1
 
 
+def _end_children(*_) -> None:
+    """Stop the Snakemake runs this test started (a stopped test leaves no submitter
+    behind; tests/cluster/run.sh then cancels the jobs and stops the daemons)."""
+    for proc in CHILDREN:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    raise SystemExit(130)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    signal.signal(signal.SIGTERM, _end_children)
+    try:
+        sys.exit(main())
+    finally:
+        for child in CHILDREN:
+            if child.poll() is None:
+                child.kill()
