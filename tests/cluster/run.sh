@@ -9,8 +9,20 @@ start=$(date +%s)
 bash tests/cluster/cluster.sh install
 # the executor plugin at the version this test ran with (pyproject.toml, extra `cluster`)
 "$VENV/bin/python" -m pip install --quiet -e '.[cluster]'
-trap 'bash tests/cluster/cluster.sh stop' EXIT
+child=""
+cleanup() {
+    # the test first (it ends its Snakemake runs), then the jobs and the daemons
+    if [[ -n "$child" ]] && kill -0 "$child" 2>/dev/null; then
+        kill -TERM "$child" 2>/dev/null || true
+        wait "$child" 2>/dev/null || true
+    fi
+    bash tests/cluster/cluster.sh stop
+}
+trap cleanup EXIT
 trap 'exit 130' INT TERM
 bash tests/cluster/cluster.sh start
-"$VENV/bin/python" tests/cluster/run_cluster.py "$@"
+# in the background and waited for, so that a signal to this script runs the trap at once
+"$VENV/bin/python" tests/cluster/run_cluster.py "$@" &
+child=$!
+wait "$child"
 echo "cluster-test: $(( $(date +%s) - start )) s including installs and cluster start" >&2
