@@ -17,6 +17,7 @@ include: "workflow/rules/validate.smk"
 include: "workflow/rules/export.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/montecarlo.smk"
+include: "workflow/rules/stages.smk"
 
 
 rule all:
@@ -25,3 +26,5 @@ rule all:
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
         expand("reports/studies/{study}.html", study=STUDIES),
+        expand("reports/stages/{stage}/history.html", stage=STAGES),
+        expand("reports/stages/{stage}/history.pdf", stage=STAGES),

@@ -67,7 +67,8 @@ def cmd_index(args) -> None:
     from calflow.data.io import load_summary, write_text
     from calflow.report import render_index
 
-    write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
+    histories = [load_summary(p) for p in args.histories or []]
+    write_text(render_index([load_summary(p) for p in args.summaries], histories), args.out)
 
 
 def cmd_import_csv(args) -> None:
@@ -190,7 +191,22 @@ def parser() -> argparse.ArgumentParser:
 
     x = _sub(sub, "index", cmd_index, "render reports/index.html over all campaigns")
     x.add_argument("--summaries", nargs="+", required=True)
+    x.add_argument("--histories", nargs="*", help="stage histories (results/stages/<id>/history.json)")
     x.add_argument("--out", required=True)
+
+    from calflow.lifecycle.commands import history_arguments, report_arguments
+
+    history_arguments(
+        _sub(sub, "history", _run("calflow.lifecycle.commands:run_history"), "write a stage's history.json")
+    )
+    report_arguments(
+        _sub(
+            sub,
+            "history-report",
+            _run("calflow.lifecycle.commands:run_report"),
+            "render a stage's history report (HTML and PDF)",
+        )
+    )
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

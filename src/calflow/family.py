@@ -63,6 +63,9 @@ class Family:
     * ``sensors``: short names of sensor factories for the ``gcs`` rig.
     * ``emulator``: ``"module:function"``, ``function(argv, prog=...) -> int`` serving a
       campaign's stages as a GCS controller (``calflow emulate gcs --campaign FILE``).
+    * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
+      {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
+      history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
     """
 
     name: str
@@ -77,6 +80,7 @@ class Family:
     commands: tuple[Command, ...] = ()
     sensors: Mapping[str, str] = field(default_factory=dict)
     emulator: str | None = None
+    history_entry: str | None = None
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:

@@ -12,6 +12,7 @@ from calflow.config import (
     load_workflow_config,
 )
 from calflow.provenance import code_digest
+from calflow.lifecycle.stages import stages_of
 from calflow.errors import ConfigError
 from calflow.xytheta.studies.montecarlo import load_study
 
@@ -35,6 +36,7 @@ try:
         name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml", RIG_PLUGINS)
         for name in CAMPAIGNS
     }
+    STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)

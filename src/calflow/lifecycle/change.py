@@ -108,8 +108,14 @@ def changes(series: list[dict[str, Estimate]], alpha: float = 0.05, min_pairs: i
             k2, pairs = inflation(history.get(m, []), min_pairs)
             pv, ref = p_value(w / k2, dof, k2, pairs)
             raw[m] = (w, dof)
-            res[m] = {"statistic": w / k2, "dof": dof, "p_value": pv, "reference": ref,
-                      "inflation": k2, "pairs": pairs}
+            res[m] = {
+                "statistic": w / k2,
+                "dof": dof,
+                "p_value": pv,
+                "reference": ref,
+                "inflation": k2,
+                "pairs": pairs,
+            }
         flags = holm({m: r["p_value"] for m, r in res.items()}, alpha)
         for m, r in res.items():
             r["significant"] = flags[m]

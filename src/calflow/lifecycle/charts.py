@@ -37,8 +37,14 @@ def ewma(x, lam: float = 0.2, width: float = 2.7) -> dict:
     beyond them; σ from the moving range as for :func:`individuals`."""
     x = np.asarray(x, float)
     if x.size < 2:
-        return {"lambda": lam, "L": width, "z": x.tolist(), "lcl": [None] * x.size, "ucl": [None] * x.size,
-                "out": []}
+        return {
+            "lambda": lam,
+            "L": width,
+            "z": x.tolist(),
+            "lcl": [None] * x.size,
+            "ucl": [None] * x.size,
+            "out": [],
+        }
     centre = float(np.mean(x))
     sigma = float(np.mean(np.abs(np.diff(x)))) / D2
     z = np.empty_like(x)
@@ -50,5 +56,12 @@ def ewma(x, lam: float = 0.2, width: float = 2.7) -> dict:
     half = width * sigma * np.sqrt(lam / (2 - lam) * (1 - (1 - lam) ** (2 * i)))
     lcl, ucl = centre - half, centre + half
     out = [int(k) for k in np.flatnonzero((z < lcl) | (z > ucl))]
-    return {"lambda": lam, "L": width, "centre": centre, "z": z.tolist(), "lcl": lcl.tolist(),
-            "ucl": ucl.tolist(), "out": out}
+    return {
+        "lambda": lam,
+        "L": width,
+        "centre": centre,
+        "z": z.tolist(),
+        "lcl": lcl.tolist(),
+        "ucl": ucl.tolist(),
+        "out": out,
+    }

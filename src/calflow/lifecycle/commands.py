@@ -30,19 +30,25 @@ def run_history(args) -> None:
     from calflow.lifecycle.stages import stages_of
 
     if len(args.campaigns) != len(args.summaries):
-        raise ConfigError(f"calflow history: --campaigns gives {len(args.campaigns)} files, --summaries "
-                          f"{len(args.summaries)}; expected one summary per campaign")
+        raise ConfigError(
+            f"calflow history: --campaigns gives {len(args.campaigns)} files, --summaries "
+            f"{len(args.summaries)}; expected one summary per campaign"
+        )
     try:
         settings = json.loads(args.settings)
     except json.JSONDecodeError as exc:
-        raise ConfigError(f"calflow history: --settings: expected JSON, got {args.settings!r} ({exc})") from None
+        raise ConfigError(
+            f"calflow history: --settings: expected JSON, got {args.settings!r} ({exc})"
+        ) from None
     campaigns = [load_campaign(f) for f in args.campaigns]
     folder = Path(args.campaigns[0]).parent
     groups = stages_of({c["name"]: c for c in campaigns}, folder)
     others = [c["name"] for c in campaigns if c.get("stage") != args.stage]
     if others or args.stage not in groups:
-        raise ConfigError(f"{folder / (others[0] if others else campaigns[0]['name'])}.yaml: key 'stage': expected "
-                          f"{args.stage!r}, the stage whose history is asked for")
+        raise ConfigError(
+            f"{folder / (others[0] if others else campaigns[0]['name'])}.yaml: key 'stage': expected "
+            f"{args.stage!r}, the stage whose history is asked for"
+        )
     pairs = [(c, load_summary(s)) for c, s in zip(campaigns, args.summaries)]
     write_json(jsonable(build(args.stage, pairs, settings)), args.out)
 

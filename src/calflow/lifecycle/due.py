@@ -20,17 +20,26 @@ import datetime as dt
 
 import numpy as np
 
-METHOD = ("NCSLI RP-1 variables method (V1): OLS drift of the held-out AP with one intercept per segment "
-          "between detected changes and a common slope; due when the one-sided upper prediction bound at "
-          "the reliability target reaches the tolerance (the control-chart method of ILAC-G24 / OIML D 10)")
+METHOD = (
+    "NCSLI RP-1 variables method (V1): OLS drift of the held-out AP with one intercept per segment "
+    "between detected changes and a common slope; due when the one-sided upper prediction bound at "
+    "the reliability target reaches the tolerance (the control-chart method of ILAC-G24 / OIML D 10)"
+)
 
 
 def parse(start: str) -> dt.datetime:
     return dt.datetime.fromisoformat(str(start).replace("Z", "+00:00"))
 
 
-def due_date(starts: list[str], ap_um: list[float], segments: list[int], tolerance_um: float,
-             reliability: float = 0.95, horizon_days: float = 3 * 365.0, min_dof: int = 2) -> dict:
+def due_date(
+    starts: list[str],
+    ap_um: list[float],
+    segments: list[int],
+    tolerance_um: float,
+    reliability: float = 0.95,
+    horizon_days: float = 3 * 365.0,
+    min_dof: int = 2,
+) -> dict:
     """``{date, days_after_last, statement, fit: {slope_um_per_day, dof, n}}`` for the series
     (ISO dates, AP in µm, segment index per point, increasing); the prediction is for the
     last segment. ``date`` is None with the reason in ``statement`` when it cannot be told."""
@@ -45,12 +54,21 @@ def due_date(starts: list[str], ap_um: list[float], segments: list[int], toleran
     labels = sorted(set(seg.tolist()))
     last = labels[-1] if labels else 0
     dof = len(y) - len(labels) - 1
-    base = {"date": None, "days_after_last": None, "reliability": reliability,
-            "fit": {"n": int(len(y)), "segments": len(labels), "dof": int(max(dof, 0)), "slope_um_per_day": None}}
+    base = {
+        "date": None,
+        "days_after_last": None,
+        "reliability": reliability,
+        "fit": {"n": int(len(y)), "segments": len(labels), "dof": int(max(dof, 0)), "slope_um_per_day": None},
+    }
     if dof < min_dof:
-        return {**base, "statement": (f"not enough history: {len(y)} values in {len(labels)} segment(s) leave "
-                                      f"{max(dof, 0)} residual degrees of freedom, at least {min_dof} are needed "
-                                      "for a prediction interval")}
+        return {
+            **base,
+            "statement": (
+                f"not enough history: {len(y)} values in {len(labels)} segment(s) leave "
+                f"{max(dof, 0)} residual degrees of freedom, at least {min_dof} are needed "
+                "for a prediction interval"
+            ),
+        }
     X = np.column_stack([(seg == k).astype(float) for k in labels] + [days])
     fit = sm.OLS(y, X).fit()
     slope = float(fit.params[-1])
@@ -62,12 +80,24 @@ def due_date(starts: list[str], ap_um: list[float], segments: list[int], toleran
     upper = frame["obs_ci_upper"].to_numpy()
     hit = np.flatnonzero(upper >= tolerance_um)
     if hit.size == 0:
-        return {**base, "statement": (f"the upper {reliability:.0%} prediction bound stays below "
-                                      f"{tolerance_um:g} µm for {horizon_days:.0f} days after the last value")}
+        return {
+            **base,
+            "statement": (
+                f"the upper {reliability:.0%} prediction bound stays below "
+                f"{tolerance_um:g} µm for {horizon_days:.0f} days after the last value"
+            ),
+        }
     day = float(grid[hit[0]])
     date = t0 + dt.timedelta(days=day)
     after = day - days[-1]
-    words = ("already at or above the tolerance at the last value: recalibrate now" if after == 0 else
-             f"{after:.0f} days after the last value")
-    return {**base, "date": date.date().isoformat(), "days_after_last": after,
-            "statement": f"the upper {reliability:.0%} prediction bound reaches {tolerance_um:g} µm {words}"}
+    words = (
+        "already at or above the tolerance at the last value: recalibrate now"
+        if after == 0
+        else f"{after:.0f} days after the last value"
+    )
+    return {
+        **base,
+        "date": date.date().isoformat(),
+        "days_after_last": after,
+        "statement": f"the upper {reliability:.0%} prediction bound reaches {tolerance_um:g} µm {words}",
+    }

@@ -29,14 +29,20 @@ def entry(campaign: dict, summary: dict) -> dict:
         base["tolerance_um"] = campaign["tolerance_um"]
     if "interim_check" in summary:
         check = summary["interim_check"]
-        return {**base, "kind": "interim", "reference": check.get("reference"),
-                "decision": check.get("decision"),
-                "models": {check["model"]: {"accuracy_um": check.get("accuracy_um")}}}
+        return {
+            **base,
+            "kind": "interim",
+            "reference": check.get("reference"),
+            "decision": check.get("decision"),
+            "models": {check["model"]: {"accuracy_um": check.get("accuracy_um")}},
+        }
     family = family_of(campaign["robot"])
     target = getattr(family, "history_entry", None)
     if not target:
-        raise CalflowError(f"stage history: the {family.name} family does not describe its campaigns for a "
-                           f"history (no history_entry); campaign {campaign['name']!r} cannot enter one")
+        raise CalflowError(
+            f"stage history: the {family.name} family does not describe its campaigns for a "
+            f"history (no history_entry); campaign {campaign['name']!r} cannot enter one"
+        )
     return {**base, "kind": "calibration", "models": resolve(target)(summary)}
 
 
@@ -107,8 +113,11 @@ def _charts(entries: list[dict]) -> dict:
     for m in models:
         pts = [(e["campaign"], e["models"][m].get("accuracy_um")) for e in entries if m in e["models"]]
         pts = [(c, a) for c, a in pts if isinstance(a, (int, float)) and np.isfinite(a)]
-        acc[m] = {"campaigns": [c for c, _ in pts], "individuals": charts.individuals([a for _, a in pts]),
-                  "ewma": charts.ewma([a for _, a in pts])}
+        acc[m] = {
+            "campaigns": [c for c, _ in pts],
+            "individuals": charts.individuals([a for _, a in pts]),
+            "ewma": charts.ewma([a for _, a in pts]),
+        }
     par: dict = {}
     for m in models:
         cal = [e for e in entries if e["kind"] == "calibration" and m in e["models"]]
@@ -119,9 +128,11 @@ def _charts(entries: list[dict]) -> dict:
             stds = [e["models"][m]["parameters"].get(p, {}).get("std") for e in cal]
             if not any(isinstance(x, (int, float)) and x > 0 for x in stds):
                 continue  # a fixed parameter: nothing to chart
-            par.setdefault(m, {})[p] = {"campaigns": [c for c, _ in vals],
-                                        "individuals": charts.individuals([v for _, v in vals]),
-                                        "ewma": charts.ewma([v for _, v in vals])}
+            par.setdefault(m, {})[p] = {
+                "campaigns": [c for c, _ in vals],
+                "individuals": charts.individuals([v for _, v in vals]),
+                "ewma": charts.ewma([v for _, v in vals]),
+            }
     return {"accuracy_um": acc, "parameters": par}
 
 
@@ -130,12 +141,19 @@ def _due(entries, segments, model, tol, s) -> dict:
     if model is None:
         return {**out, "statement": "not enough history: no calibration with an accuracy"}
     if tol is None:
-        return {**out, "statement": "no tolerance stated (tolerance_um in the stage's settings or a campaign)"}
-    pts = [(e["start"], e["models"][model].get("accuracy_um"), g) for e, g in zip(entries, segments)
-           if model in e["models"]]
+        return {
+            **out,
+            "statement": "no tolerance stated (tolerance_um in the stage's settings or a campaign)",
+        }
+    pts = [
+        (e["start"], e["models"][model].get("accuracy_um"), g)
+        for e, g in zip(entries, segments)
+        if model in e["models"]
+    ]
     pts = [p for p in pts if isinstance(p[1], (int, float)) and np.isfinite(p[1])]
     if not pts:
         return {**out, "statement": f"not enough history: no accuracy of model {model}"}
-    res = due.due_date([p[0] for p in pts], [p[1] for p in pts], [p[2] for p in pts], tol,
-                       reliability=s["reliability"])
+    res = due.due_date(
+        [p[0] for p in pts], [p[1] for p in pts], [p[2] for p in pts], tol, reliability=s["reliability"]
+    )
     return {**out, **res}

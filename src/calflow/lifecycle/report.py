@@ -34,15 +34,26 @@ def accuracy_figure(history: dict) -> common.Figure:
     due = history["due"]
     for i, (m, ch) in enumerate(sorted(charts.items())):
         dates = _dates(history, ch["campaigns"])
-        vals = [next(c["models"][m]["accuracy_um"] for c in history["campaigns"] if c["campaign"] == n)
-                for n in ch["campaigns"]]
+        vals = [
+            next(c["models"][m]["accuracy_um"] for c in history["campaigns"] if c["campaign"] == n)
+            for n in ch["campaigns"]
+        ]
         kinds = [next(c["kind"] for c in history["campaigns"] if c["campaign"] == n) for n in ch["campaigns"]]
         color = common.COLORS.get(m, COLORS[i % len(COLORS)])
         ax.plot(dates, vals, "-", color=color, lw=0.8, label=f"model {m}")
-        ax.plot([d for d, k in zip(dates, kinds) if k == "calibration"],
-                [v for v, k in zip(vals, kinds) if k == "calibration"], "o", color=color)
-        ax.plot([d for d, k in zip(dates, kinds) if k == "interim"],
-                [v for v, k in zip(vals, kinds) if k == "interim"], "s", mfc="none", color=color)
+        ax.plot(
+            [d for d, k in zip(dates, kinds) if k == "calibration"],
+            [v for v, k in zip(vals, kinds) if k == "calibration"],
+            "o",
+            color=color,
+        )
+        ax.plot(
+            [d for d, k in zip(dates, kinds) if k == "interim"],
+            [v for v, k in zip(vals, kinds) if k == "interim"],
+            "s",
+            mfc="none",
+            color=color,
+        )
         if m == due.get("model") and ch["individuals"]["ucl"] is not None:
             ax.axhline(ch["individuals"]["ucl"], color=color, ls=":", lw=0.8, label=f"model {m} UCL")
     if due.get("tolerance_um") is not None:
@@ -54,9 +65,14 @@ def accuracy_figure(history: dict) -> common.Figure:
     ax.set_xlabel("campaign start")
     fig.autofmt_xdate()
     common.legend_below(fig, ax, ncol=4)
-    return common.finish(fig, "fig-accuracy", "history",
-                         "Held-out accuracy AP of each model at each calibration (filled) and interim check "
-                         "(open), the due model's upper Shewhart limit, the tolerance and the due date.", "")
+    return common.finish(
+        fig,
+        "fig-accuracy",
+        "history",
+        "Held-out accuracy AP of each model at each calibration (filled) and interim check "
+        "(open), the due model's upper Shewhart limit, the tolerance and the due date.",
+        "",
+    )
 
 
 def change_figure(history: dict) -> common.Figure:
@@ -77,14 +93,21 @@ def change_figure(history: dict) -> common.Figure:
             if s:
                 ax.text(xi, yi, "*", ha="center", va="bottom", fontsize=9)
     k = max(1, len(models))
-    ax.axhline(-np.log10(history["alpha"] / k), color="#7f7f7f", ls="--", lw=0.8, label=f"α/{k} (Holm's first)")
+    ax.axhline(
+        -np.log10(history["alpha"] / k), color="#7f7f7f", ls="--", lw=0.8, label=f"α/{k} (Holm's first)"
+    )
     ax.axhline(-np.log10(history["alpha"]), color="#7f7f7f", ls=":", lw=0.8, label="α (Holm's last)")
     ax.set_xticks(np.arange(len(changes)), [f"{c['from']} →\n{c['to']}" for c in changes], fontsize=6.5)
     ax.set_ylabel("−log₁₀ p")
     common.legend_below(fig, ax, ncol=4)
-    return common.finish(fig, "fig-changes", "history",
-                         "Change test between consecutive calibrations: −log10 of each model's p-value; "
-                         "* marks the models Holm's procedure flags at the stated α.", "")
+    return common.finish(
+        fig,
+        "fig-changes",
+        "history",
+        "Change test between consecutive calibrations: −log10 of each model's p-value; "
+        "* marks the models Holm's procedure flags at the stated α.",
+        "",
+    )
 
 
 def parameter_figure(history: dict, model: str) -> common.Figure | None:
@@ -98,10 +121,22 @@ def parameter_figure(history: dict, model: str) -> common.Figure | None:
     fig, axes = common.new_figure(ncols=ncols, nrows=nrows, height=1.7 * nrows + 0.4)
     for ax, (p, ch) in zip(axes.flat, charts.items()):
         dates = _dates(history, ch["campaigns"])
-        vals = [next(c["models"][model]["parameters"][p]["value"] for c in history["campaigns"]
-                     if c["campaign"] == n) for n in ch["campaigns"]]
-        stds = [next(c["models"][model]["parameters"][p]["std"] or 0 for c in history["campaigns"]
-                     if c["campaign"] == n) for n in ch["campaigns"]]
+        vals = [
+            next(
+                c["models"][model]["parameters"][p]["value"]
+                for c in history["campaigns"]
+                if c["campaign"] == n
+            )
+            for n in ch["campaigns"]
+        ]
+        stds = [
+            next(
+                c["models"][model]["parameters"][p]["std"] or 0
+                for c in history["campaigns"]
+                if c["campaign"] == n
+            )
+            for n in ch["campaigns"]
+        ]
         ax.errorbar(dates, vals, yerr=[2 * s for s in stds], fmt="o-", lw=0.8, capsize=2)
         ind = ch["individuals"]
         if ind["ucl"] is not None:
@@ -111,9 +146,14 @@ def parameter_figure(history: dict, model: str) -> common.Figure | None:
         ax.tick_params(axis="x", labelrotation=30)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
-    return common.finish(fig, f"fig-parameters-{model}", "history",
-                         f"Model {model}'s parameters at each calibration (± 2σ within the campaign) with the "
-                         "individuals chart's centre line and 3σ limits from the moving range.", "")
+    return common.finish(
+        fig,
+        f"fig-parameters-{model}",
+        "history",
+        f"Model {model}'s parameters at each calibration (± 2σ within the campaign) with the "
+        "individuals chart's centre line and 3σ limits from the moving range.",
+        "",
+    )
 
 
 def figures(history: dict) -> list[common.Figure]:
@@ -141,8 +181,13 @@ def render(history: dict, command: str, pdf: bool = True) -> tuple[str, str]:
     finally:
         RASTER.reset(token)
     template = environment().get_template("history.html.j2")
-    context = dict(h=history, command=command, versions=_versions(), machine=_machine(),
-                   css=(TEMPLATES / "style.css").read_text())
+    context = dict(
+        h=history,
+        command=command,
+        versions=_versions(),
+        machine=_machine(),
+        css=(TEMPLATES / "style.css").read_text(),
+    )
     html = template.render(figures=figs, **context)
     if not pdf:
         return html, html

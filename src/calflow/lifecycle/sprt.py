@@ -37,11 +37,15 @@ class SPRT:
 
     def __post_init__(self) -> None:
         if not 0 < self.r0_um < self.r1_um:
-            raise ValueError(f"interim check: expected 0 < reference rms error ({self.r0_um!r} µm) < "
-                             f"tolerance ({self.r1_um!r} µm)")
+            raise ValueError(
+                f"interim check: expected 0 < reference rms error ({self.r0_um!r} µm) < "
+                f"tolerance ({self.r1_um!r} µm)"
+            )
         if not (0 < self.alpha < 1 and 0 < self.beta < 1 and self.alpha + self.beta < 1):
-            raise ValueError(f"interim check: expected error rates in (0, 1) with alpha + beta < 1, got "
-                             f"alpha {self.alpha!r}, beta {self.beta!r}")
+            raise ValueError(
+                f"interim check: expected error rates in (0, 1) with alpha + beta < 1, got "
+                f"alpha {self.alpha!r}, beta {self.beta!r}"
+            )
 
     @property
     def bounds(self) -> tuple[float, float]:
@@ -63,14 +67,30 @@ class SPRT:
         planned = int(steps.size)
         for i, s in enumerate(steps):
             if s >= high:
-                return {"decision": "recalibrate", "visits": i + 1, "planned": planned, "llr": float(s),
-                        "bounds": [low, high]}
+                return {
+                    "decision": "recalibrate",
+                    "visits": i + 1,
+                    "planned": planned,
+                    "llr": float(s),
+                    "bounds": [low, high],
+                }
             if s <= low:
-                return {"decision": "within tolerance", "visits": i + 1, "planned": planned, "llr": float(s),
-                        "bounds": [low, high]}
+                return {
+                    "decision": "within tolerance",
+                    "visits": i + 1,
+                    "planned": planned,
+                    "llr": float(s),
+                    "bounds": [low, high],
+                }
         last = float(steps[-1]) if planned else 0.0
-        return {"decision": "undecided", "visits": planned, "planned": planned, "llr": last,
-                "bounds": [low, high], "leaning": "recalibrate" if last > 0 else "within tolerance"}
+        return {
+            "decision": "undecided",
+            "visits": planned,
+            "planned": planned,
+            "llr": last,
+            "bounds": [low, high],
+            "leaning": "recalibrate" if last > 0 else "within tolerance",
+        }
 
     def expected_visits(self) -> dict:
         """Wald's approximate average sample numbers under H0 and H1 (visits)."""

@@ -21,8 +21,10 @@ STAGE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 def check_stage_id(stage: str, file: str | Path = "config") -> str:
     """``stage`` if it is safe as a folder name under results/stages/ and reports/stages/."""
     if not isinstance(stage, str) or not STAGE_ID.fullmatch(stage):
-        raise ConfigError(f"{file}: key 'stage': expected letters, digits, '-' or '_' (at most 64), starting "
-                          f"with a letter or digit, got {stage!r}")
+        raise ConfigError(
+            f"{file}: key 'stage': expected letters, digits, '-' or '_' (at most 64), starting "
+            f"with a letter or digit, got {stage!r}"
+        )
     return stage
 
 
@@ -45,29 +47,39 @@ def stages_of(campaigns: dict[str, dict], folder: str | Path = "config/campaigns
         file = Path(folder) / f"{name}.yaml"
         ref = check.get("reference")
         if ref not in campaigns:
-            raise ConfigError(f"{file}: key 'interim_check.reference': expected a calibration campaign of this "
-                              f"run, got {ref!r} (not among the configuration's campaigns)")
+            raise ConfigError(
+                f"{file}: key 'interim_check.reference': expected a calibration campaign of this "
+                f"run, got {ref!r} (not among the configuration's campaigns)"
+            )
         if "interim_check" in campaigns[ref]:
-            raise ConfigError(f"{file}: key 'interim_check.reference': expected a calibration campaign, got "
-                              f"{ref!r}, itself an interim check")
+            raise ConfigError(
+                f"{file}: key 'interim_check.reference': expected a calibration campaign, got "
+                f"{ref!r}, itself an interim check"
+            )
         if campaigns[ref].get("stage") != c.get("stage"):
-            raise ConfigError(f"{file}: key 'interim_check.reference': expected a calibration of stage "
-                              f"{c.get('stage')!r}, got {ref!r} of stage {campaigns[ref].get('stage')!r}")
+            raise ConfigError(
+                f"{file}: key 'interim_check.reference': expected a calibration of stage "
+                f"{c.get('stage')!r}, got {ref!r} of stage {campaigns[ref].get('stage')!r}"
+            )
     for stage, names in groups.items():
         robots = {campaigns[n]["robot"] for n in names}
         if len(robots) > 1:
             first = names[0]
             other = next(n for n in names if campaigns[n]["robot"] != campaigns[first]["robot"])
-            raise ConfigError(f"{Path(folder) / f'{other}.yaml'}: key 'robot': expected "
-                              f"{campaigns[first]['robot']!r} as the other campaigns of stage {stage!r} "
-                              f"({first}), got {campaigns[other]['robot']!r}")
+            raise ConfigError(
+                f"{Path(folder) / f'{other}.yaml'}: key 'robot': expected "
+                f"{campaigns[first]['robot']!r} as the other campaigns of stage {stage!r} "
+                f"({first}), got {campaigns[other]['robot']!r}"
+            )
         seen: dict[dt.datetime, str] = {}
         for n in names:
             t = _start(campaigns[n])
             if t in seen:
-                raise ConfigError(f"{Path(folder) / f'{n}.yaml'}: key 'start': expected a start different from "
-                                  f"every other campaign of stage {stage!r}, got {campaigns[n]['start']!r} "
-                                  f"as {seen[t]}")
+                raise ConfigError(
+                    f"{Path(folder) / f'{n}.yaml'}: key 'start': expected a start different from "
+                    f"every other campaign of stage {stage!r}, got {campaigns[n]['start']!r} "
+                    f"as {seen[t]}"
+                )
             seen[t] = n
         names.sort(key=lambda n: _start(campaigns[n]))
     return groups

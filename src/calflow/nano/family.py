@@ -74,7 +74,9 @@ FAMILY = Family(
     templates="calflow.nano.report",
     sensors={"simulated_interferometer": "calflow.nano.stage.interferometer_sensor:simulated_interferometer"},
     emulator="calflow.nano.stage.emulate:main",
+    history_entry="calflow.nano.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.nano.report.history"),
         "acquire": _CORE
         + _MODELS
         + (

@@ -136,7 +136,9 @@ FAMILY = Family(
         "check": "calflow.xytheta.checks:check_campaign",
     },
     templates="calflow.xytheta.report",
+    history_entry="calflow.xytheta.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.xytheta.report.history"),
         "acquire": _CORE
         + (
             "calflow.acquisition",

@@ -12,11 +12,16 @@ def history_entry(summary: dict) -> dict:
     out = {}
     for name, m in (summary.get("models") or {}).items():
         params = m.get("parameters") or {}
-        free = [next((k for k in params if k == f or k.startswith(f"{f}_")), None) for f in m.get("free") or []]
+        free = [
+            next((k for k in params if k == f or k.startswith(f"{f}_")), None) for f in m.get("free") or []
+        ]
         free = [k for k in free if k is not None]
         ordered = {k: {"value": params[k]["value"], "std": params[k].get("std")} for k in free}
         ordered.update({k: {"value": v["value"], "std": None} for k, v in params.items() if k not in ordered})
         corr = m.get("correlation")
-        out[name] = {"parameters": ordered, "accuracy_um": m.get("accuracy_um"),
-                     "correlation": corr if corr is not None and len(corr) == len(free) else None}
+        out[name] = {
+            "parameters": ordered,
+            "accuracy_um": m.get("accuracy_um"),
+            "correlation": corr if corr is not None and len(corr) == len(free) else None,
+        }
     return out

@@ -21,6 +21,9 @@ def history_entry(summary: dict) -> dict:
         params = {c["name"]: {"value": c["value"], "std": c.get("std_error")} for c in kept}
         test = tests.get(_MODE.get(name, name)) or {}
         nm = test.get("heldout_max_accuracy_nm", test.get("max_accuracy_nm"))
-        out[name] = {"parameters": params, "correlation": None,
-                     "accuracy_um": nm / 1000.0 if isinstance(nm, (int, float)) else None}
+        out[name] = {
+            "parameters": params,
+            "correlation": None,
+            "accuracy_um": nm / 1000.0 if isinstance(nm, (int, float)) else None,
+        }
     return out
