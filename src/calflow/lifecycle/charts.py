@@ -19,22 +19,29 @@ import numpy as np
 D2 = 1.128  # E[range of two normal values] / σ
 
 
-def individuals(x) -> dict:
-    """Centre line, limits and out-of-limit points of an individuals chart of ``x``; the
-    limits need at least two points (``lcl``/``ucl`` None otherwise)."""
+def _phase_one(x: np.ndarray, baseline: int | None) -> tuple[float, float]:
+    """Centre and σ (moving range / d₂) from the first ``baseline`` points (all when None)."""
+    ref = x if baseline is None else x[: max(2, baseline)]
+    return float(np.mean(ref)), float(np.mean(np.abs(np.diff(ref)))) / D2
+
+
+def individuals(x, baseline: int | None = None) -> dict:
+    """Centre line, limits and out-of-limit points of an individuals chart of ``x``, its
+    centre and σ from the first ``baseline`` points (all by default: limits from the
+    data); the limits need at least two points (``lcl``/``ucl`` None otherwise)."""
     x = np.asarray(x, float)
     centre = float(np.mean(x)) if x.size else None
     if x.size < 2:
         return {"centre": centre, "lcl": None, "ucl": None, "sigma": None, "out": []}
-    sigma = float(np.mean(np.abs(np.diff(x)))) / D2
+    centre, sigma = _phase_one(x, baseline)
     lcl, ucl = centre - 3 * sigma, centre + 3 * sigma
     out = [int(i) for i in np.flatnonzero((x < lcl) | (x > ucl))]
     return {"centre": centre, "lcl": lcl, "ucl": ucl, "sigma": sigma, "out": out}
 
 
-def ewma(x, lam: float = 0.2, width: float = 2.7) -> dict:
+def ewma(x, lam: float = 0.2, width: float = 2.7, baseline: int | None = None) -> dict:
     """The EWMA statistic of ``x`` with its time-varying limits (lists) and the points
-    beyond them; σ from the moving range as for :func:`individuals`."""
+    beyond them; centre and σ as for :func:`individuals`."""
     x = np.asarray(x, float)
     if x.size < 2:
         return {
@@ -45,8 +52,7 @@ def ewma(x, lam: float = 0.2, width: float = 2.7) -> dict:
             "ucl": [None] * x.size,
             "out": [],
         }
-    centre = float(np.mean(x))
-    sigma = float(np.mean(np.abs(np.diff(x)))) / D2
+    centre, sigma = _phase_one(x, baseline)
     z = np.empty_like(x)
     prev = centre
     for i, v in enumerate(x):
