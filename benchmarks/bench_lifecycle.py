@@ -47,7 +47,8 @@ FULL_CALIBRATION_H = 1.04
 VISIT_S = 0.5 + 0.5 + 1.0  # settle, dwell, move between nearby targets at 1 mm/s (stage physics defaults)
 
 
-def calibration(rng, shift=np.zeros(4), spread=1.0):
+def calibration(rng, shift=None, spread=1.0):
+    shift = np.zeros(4) if shift is None else shift
     return {
         m: change.Estimate(NAMES, rng.multivariate_normal(TRUE + shift, spread**2 * c), c)
         for m, c in COV.items()
