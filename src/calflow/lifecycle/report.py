@@ -20,6 +20,14 @@ from calflow.report import figures as common
 COLORS = common.CYCLE
 
 
+def _label(p: str) -> str:
+    """``alpha_deg`` → ``alpha (°)``, ``x_R_um`` → ``x R (µm)``."""
+    for suffix, unit in (("_deg", "°"), ("_um", "µm")):
+        if p.endswith(suffix):
+            return f"{p[: -len(suffix)].replace('_', ' ')} ({unit})"
+    return p.replace("_", " ")
+
+
 def _dates(history: dict, names: list[str]) -> list:
     start = {c["campaign"]: parse(c["start"]) for c in history["campaigns"]}
     return [start[n] for n in names]
@@ -142,7 +150,8 @@ def parameter_figure(history: dict, model: str) -> common.Figure | None:
         if ind["ucl"] is not None:
             for v, ls in ((ind["centre"], "-"), (ind["lcl"], ":"), (ind["ucl"], ":")):
                 ax.axhline(v, color="#7f7f7f", ls=ls, lw=0.7)
-        ax.set_title(p.replace("_", " "))
+        ax.set_title(_label(p))
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.tick_params(axis="x", labelrotation=30)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
