@@ -6,6 +6,7 @@ import copy
 import json
 
 import numpy as np
+import pytest
 import yaml
 from conftest import SMALL_XYTHETA, make_workdir, snakemake
 
@@ -119,3 +120,29 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
     assert (work / "reports/stages/SN-7/history.pdf").read_bytes()[:4] == b"%PDF"
     assert "stages/SN-7/history.html" in (work / "reports/index.html").read_text()
     yaml.safe_dump(h)
+
+
+def test_nano_entry_takes_kept_coefficients_and_heldout_max_error():
+    from calflow.nano.report.history import history_entry as nano_entry
+
+    s = {
+        "models": {
+            "two_dof": [
+                {"name": "a_1x", "value": 0.975, "std_error": 1.6e-4, "in_model": True, "unit": "1"},
+                {"name": "b_3x", "value": 0.0, "std_error": 3.9e-8, "in_model": False, "unit": "um-2"},
+            ]
+        },
+        "tests": {"single": {"heldout_max_accuracy_nm": 110.9, "max_accuracy_nm": 121.6}},
+    }
+    e = nano_entry(s)
+    assert list(e) == ["two_dof"]
+    assert e["two_dof"]["parameters"] == {"a_1x": {"value": 0.975, "std": 1.6e-4}}
+    assert e["two_dof"]["accuracy_um"] == pytest.approx(0.1109)
+    one = build(
+        "N1",
+        [
+            (dict(camp("a", "2026-01-05T08:00:00+00:00"), robot="stage2d"), s),
+            (dict(camp("b", "2026-02-05T08:00:00+00:00"), robot="stage2d"), s),
+        ],
+    )
+    assert one["changes"][0]["models"]["two_dof"]["statistic"] == 0.0
