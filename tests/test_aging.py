@@ -9,11 +9,16 @@ import yaml
 
 from calflow.config import load_campaign
 from calflow.errors import ConfigError
-from calflow.xytheta.stage.aging import DEFAULT_SINCE, resolve
+from calflow.xytheta.stage.aging import DEFAULT_SINCE
+from calflow.xytheta.stage.aging import resolve as _resolve
 from calflow.xytheta.stage.physics import XYThetaTruth
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = XYThetaTruth()
+
+
+def resolve(options, start):
+    return _resolve(options, start, BASE)
 
 
 def test_no_change_at_commissioning_or_when_off():

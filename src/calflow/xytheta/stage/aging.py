@@ -105,18 +105,18 @@ def _season(day_of_year: float, peak: float) -> float:
     return math.cos(2 * math.pi * (day_of_year - peak) / 365.25)
 
 
-def resolve(physics: dict, start: str) -> dict:
+def resolve(physics: dict, start: str, base=None) -> dict:
     """The rig's physics options for a campaign starting at ``start``: ``physics`` without
-    ``aging``, with the aged values of the fields ageing moves (only those that differ)."""
-    from calflow.xytheta.stage.physics import XYThetaTruth
-
+    ``aging``, with the aged values of the fields ageing moves (only those that differ).
+    ``base``: the rig's defaults (an :class:`~calflow.xytheta.stage.physics.XYThetaTruth`)."""
     physics = dict(physics)
     a = check(physics.pop("aging", None))
     if a is None:
         return physics
     t, t0 = _date(start, "start"), _date(a["since"], "aging.since")
     years = (t - t0).total_seconds() / (365.25 * 86400.0)
-    base = XYThetaTruth()
+    if base is None:
+        raise ValueError("aging.resolve: the rig's defaults (base) are needed")
     get = lambda k: physics.get(k, getattr(base, k))  # noqa: E731
     out = dict(physics)
     growth = 1.0 + a["wear_per_year"] * max(years, 0.0)
