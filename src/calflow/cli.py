@@ -120,9 +120,15 @@ def cmd_check_config(args) -> None:
     from calflow.config import check_campaign_name, load_campaign, load_workflow_config, load_yaml
 
     cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
+    from calflow.lifecycle.stages import stages_of
+
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
+    campaigns = {}
     for name in cfg["campaigns"]:
-        load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+        campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+    stages_of(
+        campaigns, folder
+    )  # the campaigns of each stage agree (robot, distinct starts, interim references)
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 

@@ -32,6 +32,18 @@ def _start(campaign: dict) -> dt.datetime:
     return dt.datetime.fromisoformat(str(campaign["start"]).replace("Z", "+00:00"))
 
 
+def _check_family(campaign: dict, file: Path) -> None:
+    """The campaign's robot family can describe a campaign for a history."""
+    from calflow.family import family_of
+
+    family = family_of(campaign["robot"])
+    if not family.history_entry or "history" not in family.modules:
+        raise ConfigError(
+            f"{file}: key 'stage': the {family.name} family does not take part in stage histories "
+            "(no history_entry); remove the key"
+        )
+
+
 def stages_of(campaigns: dict[str, dict], folder: str | Path = "config/campaigns") -> dict[str, list[str]]:
     """Stage id → its campaign names (in ``start`` order), checked as the module says.
     ``campaigns`` maps a campaign's name to its loaded configuration."""
@@ -62,6 +74,7 @@ def stages_of(campaigns: dict[str, dict], folder: str | Path = "config/campaigns
                 f"{c.get('stage')!r}, got {ref!r} of stage {campaigns[ref].get('stage')!r}"
             )
     for stage, names in groups.items():
+        _check_family(campaigns[names[0]], Path(folder) / f"{names[0]}.yaml")
         robots = {campaigns[n]["robot"] for n in names}
         if len(robots) > 1:
             first = names[0]
