@@ -106,6 +106,7 @@ def change_figure(history: dict) -> common.Figure:
     )
     ax.axhline(-np.log10(history["alpha"]), color="#7f7f7f", ls=":", lw=0.8, label="α (Holm's last)")
     ax.set_xticks(np.arange(len(changes)), [f"{c['from']} →\n{c['to']}" for c in changes], fontsize=6.5)
+    ax.set_yscale("symlog", linthresh=3.0)  # linear up to p = 0.001, then by decades: both ends readable
     ax.set_ylabel("−log₁₀ p")
     common.legend_below(fig, ax, ncol=4)
     return common.finish(
