@@ -97,7 +97,7 @@ def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = No
         "stage": stage,
         "robot": entries[0]["robot"] if entries else None,
         "alpha": s["alpha"],
-        "correction": "Holm step-down over the models of a change (family-wise alpha)",
+        "correction": "Holm's step-down procedure over the models of a change",
         "campaigns": [{k: v for k, v in e.items() if k != "robot"} for e in entries],
         "changes": changes,
         "segments": segments,
