@@ -246,3 +246,18 @@ def _combine(u: dict, err: np.ndarray) -> dict:
     out["interaction"] = float(np.sign(total**2 - ss) * np.sqrt(abs(total**2 - ss)))
     out["total"] = total
     return out
+
+
+def humidity_ranges(truth: dict, training: xr.Dataset, metrics: xr.Dataset) -> dict:
+    """The simulated room's relative humidity (%RH) over the training run and over each test of
+    a validation metrics dataset (``time_start_h``/``time_end_h``, campaign hours), for the
+    report's extrapolation sentences (:mod:`calflow.nano.report.extrapolation`); on a 10 min grid."""
+    rig = rig_from_truth(truth)
+    t = run_seconds(training)
+    grid = np.arange(np.nanmin(t), np.nanmax(t) + 600.0, 600.0)
+    train = rig._weather_at(grid)[1]
+    tests = []
+    for a, b in zip(metrics["time_start_h"].values * 3600.0, metrics["time_end_h"].values * 3600.0):
+        rh = rig._weather_at(np.append(np.arange(a, b, 600.0), b))[1]
+        tests.append([float(rh.min()), float(rh.max())])
+    return {"training_pct": [float(train.min()), float(train.max())], "tests_pct": tests}
