@@ -198,7 +198,7 @@ def test_extrapolation_says_which_day_leaves_training_for_every_model():
     out = extrapolation_block(m, (20.4, 20.7), tests, hum)
     words = [d["words"] for d in out["days"]]
     assert out["days"][0]["temperature_outside"] is False and out["days"][0]["humidity_outside"] is False
-    assert "humidity" in words[1] and "beyond training's 40–50 %RH by up to 2 %RH" in words[1]
+    assert "humidity" in words[1] and "beyond training's 40.0–50.0 %RH by up to 2.0 %RH" in words[1]
     assert "thermocouples 19.80–20.60 °C, beyond" in words[2] and "by up to 0.60 °C" in words[2]
     for t in tests.values():  # beside every model's day figures
         assert t["extrapolation_by_day"][0] is None and t["extrapolation_by_day"][2] == words[2]

@@ -68,7 +68,7 @@ def extrapolation_block(metrics, training_range_c, tests: dict, humidity: dict |
                 "%RH",
                 (hum[rows, 0].min(), hum[rows, 1].max()),
                 humidity["training_pct"],
-                ".0f",
+                ".1f",
             )
             parts.append(h_words)
         leaves = [k for k, flag in (("temperature", t_out), ("humidity", h_out)) if flag]
