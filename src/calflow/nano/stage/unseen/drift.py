@@ -75,7 +75,10 @@ class UnseenDrift:
         rates, self._w_heat, self._out_heat = heat.structural_modes(net)
         self.rates = np.concatenate([rates, np.tile(1.0 / _DECADES, n_joints)])
         self._n_heat = rates.size
+        self._cache = (None, None)  # the last scalar time's heat and states: a read asks twice
         self._eps0 = self._eps(0.0) if self.active else 1.0
+        self._rh_lag0 = humidity.lagged_humidity(o, phases, 0.0, o["bond_moisture_tau_h"] * 3600.0)
+        self._laser0 = [self._laser(0.0, k) for k in range(n_s)]
 
     # ------------------------------------------------------------------ network with the sensors' states
     def _extend(self, A, b):
@@ -138,7 +141,7 @@ class UnseenDrift:
         if not self.active:
             return {name: [zero for _ in self.axes] for name in out}
         o = self.o
-        rises = self.heat.rises(tc)
+        rises = dict(self._now(tc)[0])
         if memory is not None:
             t_last, s = memory
             modes = s * np.exp(-self.rates * np.asarray(np.asarray(t_rig, dtype=float) - t_last)[..., None])
@@ -146,11 +149,7 @@ class UnseenDrift:
         eps = self._eps(tc) / self._eps0 - 1.0
         tau_b = o["bond_moisture_tau_h"] * 3600.0
         lag = humidity.lagged_humidity
-        swell = (
-            o["bond_swelling_nm_per_pct"]
-            * 1e-3
-            * (lag(o, self.phases, tc, tau_b) - lag(o, self.phases, 0.0, tau_b))
-        )
+        swell = o["bond_swelling_nm_per_pct"] * 1e-3 * (lag(o, self.phases, tc, tau_b) - self._rh_lag0)
         age = o["mounted_h_before"] * 3600.0
         mount = (
             o["mount_settling_nm_per_decade"]
@@ -175,7 +174,7 @@ class UnseenDrift:
             out["sensor_air"].append(eps * (gap + x) + zero if axis is not None and gap > 0 else zero)
             path = dead + true_pos[k]
             out["laser_wander"].append(
-                instruments.laser_wander_um(self._laser, k, tc, path, o["laser_wander_ppm"]) + zero
+                -o["laser_wander_ppm"] * 1e-6 * (self._laser(tc, k) - self._laser0[k]) * path + zero
             )
             out["periodic_nonlinearity"].append(
                 instruments.periodic_um(
@@ -198,10 +197,22 @@ class UnseenDrift:
             + o["expansion_ppm_per_c"] * 1e-6 * x * rise[..., 0]
         )
 
+    def _now(self, tc):
+        """(each source's rise since the zeroing, their absolute sum, every state of the extended
+        network: room-driven plus heat), K and degC; the last scalar time's kept."""
+        scalar = np.ndim(tc) == 0
+        if scalar and self._cache[0] == float(tc):
+            return self._cache[1]
+        rises, total = self.heat.at(tc)
+        room = self._room_bank.at(float(tc)) if scalar else self._room_bank(tc)
+        out = (rises, total, room + total)
+        if scalar:
+            self._cache = (float(tc), out)
+        return out
+
     def _states(self, tc):
         """Every state (degC) of the extended network: room-driven plus the heat sources."""
-        room = self._room_bank.at(float(tc)) if np.ndim(tc) == 0 else self._room_bank(tc)
-        return room + self.heat.total(tc)
+        return self._now(tc)[2]
 
     def _eps(self, tc):
         """Permittivity of the capacitive sensor's air (at the stage node's temperature)."""
@@ -217,7 +228,7 @@ class UnseenDrift:
         if not self.active:
             return {"heat": zeros, **{e: zeros for e in TC_ERRORS}}
         states = self._states(tc)
-        out = {"heat": self.heat.total(tc)[..., 3 : 3 + n]}
+        out = {"heat": self._now(tc)[1][..., 3 : 3 + n]}
         out["thermocouple_calibration"] = np.asarray(tc, dtype=float)[..., None] * self._rates_tc
         out["junction_lag"] = states[..., self._glue] - states[..., 3 : 3 + n] if self._glue else zeros
         out["reference_junction"] = zeros

@@ -91,21 +91,15 @@ class HeatBanks:
             )
             self.banks[name] = (bank, bank.at(0.0))
 
-    def rises(self, t_campaign) -> dict:
-        """``{effect: states (..., n)}``: each source's rise now minus at the zeroing (K)."""
+    def at(self, t_campaign) -> tuple[dict, np.ndarray]:
+        """``({effect: rise now minus at the zeroing}, sum of the absolute rises)`` (K, states
+        (..., n)): each source's drift, and what the thermocouples read of them all."""
         scalar = np.ndim(t_campaign) == 0
-        return {
-            k: (b.at(float(t_campaign)) if scalar else b(t_campaign)) - x0
-            for k, (b, x0) in self.banks.items()
-        }
-
-    def total(self, t_campaign):
-        """Sum over sources of the absolute rise (K, states (..., n)): what the thermocouples read."""
-        scalar = np.ndim(t_campaign) == 0
-        out = np.zeros(np.shape(t_campaign) + (self.n,))
-        for b, _ in self.banks.values():
-            out = out + (b.at(float(t_campaign)) if scalar else b(t_campaign))
-        return out
+        now = {k: (b.at(float(t_campaign)) if scalar else b(t_campaign)) for k, (b, _) in self.banks.items()}
+        total = np.zeros(np.shape(t_campaign) + (self.n,))
+        for v in now.values():
+            total = total + v
+        return {k: v - self.banks[k][1] for k, v in now.items()}, total
 
 
 def structural_modes(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
