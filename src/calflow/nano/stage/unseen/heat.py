@@ -16,8 +16,9 @@ their hosts (the air, the base plate):
 * ``electronics_heating``: the controller/amplifier on the table; its heat reaching the base
   plate rises from switch-on with the housing's time constant, P (1 - exp(-t/tau)).
 * ``piezo_heating``: the stack's own dielectric loss. In sinusoidal drive it dissipates
-  P = pi/4 tan(delta) f C U_pp^2 (Noliac, "Heat dissipation", and PI's piezo actuator
-  manuals; C and tan(delta) at large signal, 7-10x the small-signal product); a move of
+  P = pi/4 tan(delta) f C U_pp^2 (Noliac tutorial "Heat dissipation": C and tan(delta) at
+  large signal, their product 7-10x the datasheet's small-signal one; PI's P-88x manual adds
+  70 % to the small-signal capacitance for large signals); a move of
   dU is half a cycle, E = pi/8 tan(delta) C dU^2 (J), dU = step / stroke x drive span.
   Quasi-static stepping dissipates microwatts: the term is tiny, and says so.
 """
