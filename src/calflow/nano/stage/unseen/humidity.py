@@ -11,7 +11,8 @@ outdoor air's over days; ``humidity_weather_pct``). Two effects follow from it:
 * ``humidity_swelling``: epoxy bond lines in the measuring loop (a mirror glued to the stage,
   the stack's bonded end pieces) take up moisture and swell. Hygroscopic swelling of epoxies
   is ~0.2-0.4 strain per unit moisture concentration with ~1-2 wt% uptake at 50 %RH (E.H.
-  Wong et al., IEEE Trans. Compon. Packag. Technol. 26 (2003) 115), ~1e-4 strain per %RH:
+  Wong et al., hygroscopic swelling of epoxy compounds, IEEE Trans. Compon. Packag.
+  Technol., 2003), ~1e-4 strain per %RH:
   a ~20 um bond line gives ~2 nm per %RH, following rh through a diffusion lag (hours). The
   thesis measured humidity beside its drift record and saw no correlation (Sec. 5.2.2):
   a few nm against its hundreds.
