@@ -203,3 +203,8 @@ def test_extrapolation_says_which_day_leaves_training_for_every_model():
     for t in tests.values():  # beside every model's day figures
         assert t["extrapolation_by_day"][0] is None and t["extrapolation_by_day"][2] == words[2]
     assert extrapolation_block(m, None, tests) is None
+    recorded = extrapolation_block(m, (20.4, 20.7), tests)  # a recorded campaign: no humidity known
+    assert recorded["training_humidity_pct"] is None and "humidity" not in recorded["days"][2]["words"]
+    assert (
+        tests["single"]["extrapolation_by_day"][1] is None and "temperature" in recorded["days"][2]["words"]
+    )
