@@ -79,6 +79,14 @@ def due_date(
     frame = fit.get_prediction(Xg).summary_frame(alpha=2 * (1 - reliability))
     upper = frame["obs_ci_upper"].to_numpy()
     hit = np.flatnonzero(upper >= tolerance_um)
+    # the projection the report draws: mean and upper bound weekly, up to the due date or a year
+    end = int(hit[0]) if hit.size else min(365, grid.size - 1)
+    weeks = np.unique(np.r_[np.arange(0, end + 1, 7), end])
+    base["trend"] = {
+        "dates": [(t0 + dt.timedelta(days=float(grid[i]))).date().isoformat() for i in weeks],
+        "mean_um": frame["mean"].to_numpy()[weeks].tolist(),
+        "upper_um": upper[weeks].tolist(),
+    }
     if hit.size == 0:
         return {
             **base,

@@ -64,6 +64,18 @@ def accuracy_figure(history: dict) -> common.Figure:
         )
         if m == due.get("model") and ch["individuals"]["ucl"] is not None:
             ax.axhline(ch["individuals"]["ucl"], color=color, ls=":", lw=0.8, label=f"model {m} UCL")
+    trend = due.get("trend")
+    if trend:
+        when = [parse(d + "T00:00:00+00:00") for d in trend["dates"]]
+        ax.plot(when, trend["mean_um"], color="#7f7f7f", lw=0.9, label=f"trend of model {due.get('model')}")
+        ax.plot(
+            when,
+            trend["upper_um"],
+            color="#7f7f7f",
+            ls="--",
+            lw=0.8,
+            label=f"upper {due.get('reliability', 0.95):.0%} prediction",
+        )
     if due.get("tolerance_um") is not None:
         ax.axhline(due["tolerance_um"], color="#c0392b", ls="--", lw=1.0, label="tolerance")
     if due.get("date"):
@@ -78,7 +90,8 @@ def accuracy_figure(history: dict) -> common.Figure:
         "fig-accuracy",
         "history",
         "Held-out accuracy AP of each model at each calibration (filled) and interim check "
-        "(open), the due model's upper Shewhart limit, the tolerance and the due date.",
+        "(open), the due model's upper Shewhart limit, its trend with the upper prediction bound, "
+        "the tolerance and the due date.",
         "",
     )
 
