@@ -20,7 +20,7 @@ import jsonschema
 import yaml
 
 from calflow.errors import ConfigError
-from calflow.family import family_of, resolve, robots
+from calflow.family import family_of, missing_family, resolve, robots
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -43,15 +43,29 @@ def safe_yaml(text: str) -> Any:
 def schema(name: str) -> dict:
     """The JSON Schema ``workflow/schemas/<name>.schema.yaml``.
 
-    ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in.
+    ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in; a family
+    whose schemas live in its own package says so (:attr:`calflow.family.Family.schemas`).
     """
-    sch = safe_yaml((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
+    sch = safe_yaml(_schema_file(name).read_text())
     if name.startswith("campaign-") and name != "campaign-common":
         common = safe_yaml((SCHEMA_DIR / "campaign-common.schema.yaml").read_text())
         sch["properties"] = {**common["properties"], **sch.get("properties", {})}
         sch["$defs"] = {**common.get("$defs", {}), **sch.get("$defs", {})}
         sch["required"] = sorted(set(common.get("required", [])) | set(sch.get("required", [])))
     return sch
+
+
+def _schema_file(name: str) -> Path:
+    """``<name>.schema.yaml`` in the core's folder, or in the ``schemas/`` folder of the
+    package of the family of robot ``<robot>`` for ``campaign-<robot>``."""
+    robot = name[len("campaign-"):] if name.startswith("campaign-") else None
+    if robot and robot in robots():
+        package = family_of(robot).schemas
+        if package:
+            from importlib.resources import files
+
+            return Path(str(files(package) / "schemas" / f"{name}.schema.yaml"))
+    return SCHEMA_DIR / f"{name}.schema.yaml"
 
 
 def _key(path) -> str:
@@ -230,7 +244,10 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     if robot is None:
         raise ConfigError(f"{path}: key 'robot': missing, it is required (one of {known})")
     if robot not in known:
-        raise ConfigError(f"{path}: key 'robot': expected one of {known}, got {robot!r}")
+        distribution = data.get("distribution")
+        raise ConfigError(f"{path}: key 'robot': {missing_family(str(robot), distribution)}"
+                          if isinstance(distribution, str) and distribution else
+                          f"{path}: key 'robot': expected one of {known}, got {robot!r}")
     campaign = validate(data, f"campaign-{robot}", path)
     _check_start(campaign, path)
     _check_dwells(campaign, path)

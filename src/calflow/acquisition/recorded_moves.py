@@ -24,7 +24,7 @@ import numpy as np
 import xarray as xr
 
 from calflow.acquisition.streams import reduce_dwell
-from calflow.data.conventions import RUN_VARIABLES, time_units
+from calflow.data.conventions import run_variables, time_units
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import RigError
 from calflow.plan import Plan
@@ -76,7 +76,7 @@ def acquire_recorded_moves(plan: Plan, rig, meta: RunMetadata, journal=None,
     ds["record_time"] = xr.Variable(("sample", "record"), rel,
                                     attrs={"units": "s", "long_name": "time of the record point since the start of the move"})
     for name in rig.sensors:
-        units, long_name = RUN_VARIABLES[name]
+        units, long_name = run_variables()[name]
         ds[f"record_{name}"] = xr.Variable(("sample", "record"), np.array([r[name][:n] for r in records]),
                                            attrs={"units": units, "long_name": f"{long_name}, recorded during the move"})
     ds["move_start"] = xr.Variable(("sample",), np.array(starts) + plan.start_s,

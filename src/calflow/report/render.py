@@ -29,7 +29,6 @@ _UNITS = {"um": "µm", "um-1": "µm⁻¹", "um-2": "µm⁻²", "um degC-1": "µm
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-_MODES = {"no_calibration": "no calibration", "adaptive_kmz": "adaptive model (KMZ)", "single": "single model"}
 
 
 def dig(data, key: str):
@@ -83,7 +82,17 @@ def _family_templates() -> list[Path]:
     return [Path(str(files(family.templates) / "templates")) for family in families()]
 
 
+def index_row(robot: str) -> str | None:
+    """The template of ``robot``'s headline rows in the index (its family's ``index_row``)."""
+    from calflow.family import families
+
+    return next((fam.index_row for fam in families() if robot in fam.robots), None)
+
+
 def environment() -> jinja2.Environment:
+    from calflow.family import modes
+
+    labels = modes()
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader([TEMPLATES, *_family_templates()]),
         autoescape=True,
@@ -92,8 +101,8 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
     )
     env.filters.update(num=num, sig=sig, unit=unit, label=lambda n: str(n).replace("_", " "),
-                       mode=lambda n: _MODES.get(str(n), str(n).replace("_", " ")))
-    env.globals.update(dig=dig, is_number=is_number)
+                       mode=lambda n: labels.get(str(n), str(n).replace("_", " ")))
+    env.globals.update(dig=dig, is_number=is_number, index_row=index_row)
     return env
 
 

@@ -20,7 +20,7 @@ rule mc_point:
     benchmark:
         "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
     params:
@@ -42,7 +42,7 @@ rule mc_aggregate:
     benchmark:
         "results/studies/{study}/benchmarks/aggregate.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=2000,
     params:
@@ -60,7 +60,7 @@ rule mc_report:
     output:
         html=report(
             "reports/studies/{study}.html",
-            caption="../report/study.rst",
+            caption=os.path.join(REPORT_DIR, "study.rst"),
             category="Studies",
             labels={"study": "{study}"},
         ),
@@ -69,7 +69,7 @@ rule mc_report:
     benchmark:
         "results/studies/{study}/benchmarks/report.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=2000,
     params:

@@ -1,4 +1,31 @@
-# Validation on the rig through the models' inverse kinematics, and the metrics of each run.
+# XYΘ validation on the rig through each model's inverse kinematics, on the reference
+# targets and on held-out targets no identification saw, and the error budget's replays.
+
+
+def reference_validation(w):
+    """The validation section without its held-out part: what the reference runs read."""
+    v = CAMPAIGN[w.campaign]["validation"]
+    return {k: v[k] for k in v if k != "heldout"}
+
+
+def budget_digest(w):
+    """What the budget's replays read: the rig, the calibration's sections, the held-out targets."""
+    c = CAMPAIGN[w.campaign]
+    keys = (
+        "seed",
+        "start",
+        "rig",
+        "characterisation",
+        "identification",
+        "angle_residuals",
+        "models",
+    )
+    v = c["validation"]
+    return digest(
+        [code_digest("error_budget", "xytheta")]
+        + [c.get(k) for k in keys]
+        + [v["heldout"], v["dwell_s"]]
+    )
 
 
 ruleorder: acquire_validation_heldout > acquire_validation_model
@@ -15,7 +42,7 @@ rule acquire_validation_model:
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
         rig=rig_slots,
@@ -43,7 +70,7 @@ rule acquire_validation_heldout:
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
         rig=rig_slots,
@@ -70,7 +97,7 @@ rule error_budget:
     benchmark:
         "results/{campaign}/benchmarks/error_budget.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     threads: 2
     resources:
         mem_mb=2000,
@@ -80,56 +107,3 @@ rule error_budget:
     shell:
         "calflow error-budget --campaign {params.campaign} --jobs {threads}"
         " --out {output.budget} > {log} 2>&1"
-
-
-rule acquire_validation_tests:
-    input:
-        models=lambda w: expand(
-            "results/{c}/models/{m}.nc",
-            c=w.campaign,
-            m=nano_models(CAMPAIGN[w.campaign]),
-        ),
-    output:
-        run="results/{campaign}/runs/validation.nc",
-        truth="results/{campaign}/truth/validation.json",
-    log:
-        "results/{campaign}/logs/acquire_validation.log",
-    benchmark:
-        "results/{campaign}/benchmarks/acquire_validation.tsv"
-    conda:
-        "../envs/calflow.yaml"
-    resources:
-        mem_mb=2000,
-        rig=rig_slots,
-    params:
-        campaign=campaign_file,
-        models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
-        digest=lambda w: digest(
-            [rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]
-        ),
-    shell:
-        "calflow acquire --campaign {params.campaign} --plan validation"
-        " {params.models} --out {output.run} --truth {output.truth} > {log} 2>&1"
-
-
-rule metrics:
-    input:
-        run="results/{campaign}/runs/{name}.nc",
-    output:
-        metrics="results/{campaign}/metrics/{name}.nc",
-    log:
-        "results/{campaign}/logs/metrics_{name}.log",
-    benchmark:
-        "results/{campaign}/benchmarks/metrics_{name}.tsv"
-    wildcard_constraints:
-        name="validation|validation_[A-Za-z0-9_]+|training|metrology|(square|random_points)_(none|linear|cubic)",
-    conda:
-        "../envs/calflow.yaml"
-    resources:
-        mem_mb=2000,
-    params:
-        campaign=campaign_file,
-        digest=section("metrics"),
-    shell:
-        "calflow metrics --campaign {params.campaign} --run {input.run}"
-        " --out {output.metrics} > {log} 2>&1"
