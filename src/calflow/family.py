@@ -120,10 +120,11 @@ class Family:
     def plan(self, robot: str, name: str) -> Callable[..., Any]:
         plans = self.plans.get(robot, {})
         if name not in plans:
-            raise CalflowError(f"calflow acquire: --plan {name!r} is not a plan of a {robot} campaign; "
-                               f"expected one of {', '.join(plans)}")
+            raise CalflowError(
+                f"calflow acquire: --plan {name!r} is not a plan of a {robot} campaign; "
+                f"expected one of {', '.join(plans)}"
+            )
         return resolve(plans[name])
-
 
     def joints_of(self, robot: str) -> tuple[str, ...]:
         """The joints of ``robot``'s runs, in order (empty when the family does not say)."""
@@ -150,7 +151,6 @@ class Family:
 
         package, *names = self.rules
         return [str(files(package).joinpath(name)) for name in names]
-
 
 
 def resolve(target: str) -> Any:
@@ -187,8 +187,10 @@ def missing_family(robot: str, distribution: str | None = None) -> str:
     """The one-line reason no installed family serves ``robot``."""
     known = sorted(r for fam in families() for r in fam.robots)
     if distribution:
-        return (f"robot {robot!r}: its family's distribution {distribution!r} is not installed "
-                f"(pip install {distribution}); installed robots: {known}")
+        return (
+            f"robot {robot!r}: its family's distribution {distribution!r} is not installed "
+            f"(pip install {distribution}); installed robots: {known}"
+        )
     return f"robot {robot!r}: no installed calflow family serves it; expected one of {known}"
 
 

@@ -110,14 +110,10 @@ def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") 
         )
     base_file = Path(campaign_dir) / f"{base}.yaml"
     if not base_file.is_file():
-        raise ConfigError(
-            f"{path}: key 'campaign': expected a campaign of {campaign_dir}, got {base!r}"
-        )
+        raise ConfigError(f"{path}: key 'campaign': expected a campaign of {campaign_dir}, got {base!r}")
     campaign = load_yaml(base_file)
     robot = campaign.get("robot") if isinstance(campaign, dict) else None
-    family = family_of(
-        str(robot), campaign.get("distribution") if isinstance(campaign, dict) else None
-    )
+    family = family_of(str(robot), campaign.get("distribution") if isinstance(campaign, dict) else None)
     if family.studies is None:
         raise ConfigError(
             f"{path}: key 'campaign': the {family.name} family of robot {robot!r} has no studies"

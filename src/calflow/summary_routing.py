@@ -16,9 +16,7 @@ from collections.abc import Mapping
 from calflow.errors import DataError
 
 
-def section_of(
-    kind: str | None, plan: str | None, sections: Mapping[str, str]
-) -> str | None:
+def section_of(kind: str | None, plan: str | None, sections: Mapping[str, str]) -> str | None:
     """The section a file of ``kind`` and ``plan`` feeds; None when the registry has none."""
     return sections.get(f"{kind}:{plan}", sections.get(str(kind)))
 

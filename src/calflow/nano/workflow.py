@@ -33,7 +33,9 @@ class NanoWorkflow(FamilyWorkflow):
             files += [f"{base}/metrics/training.nc", f"{base}/runs/training.nc"]
         if has("validation"):
             files.append(f"{base}/metrics/validation.nc")
-            files.append(f"{base}/runs/validation.nc")  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
+            files.append(
+                f"{base}/runs/validation.nc"
+            )  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
         if c["robot"] == "stage1d" and has("metrology"):
             files.append(f"{base}/metrics/metrology.nc")
             if not has("training"):  # the ISO 230-2 figures then come from the metrology run
