@@ -301,7 +301,7 @@ def xytheta_pages(tmp_path_factory, strict):
         "seed": 7,
         "rig": "simulated",
         "models": {name: _xy_model_entry(k, free) for k, (name, (free, _, _)) in enumerate(MODELS.items())},
-        "reference": copy.deepcopy(reference.XYTHETA),
+        "reference": copy.deepcopy(reference.of("xytheta")),
         "inputs": _inputs(files),
         "characterisation": {
             "x_stage_angle": -2.31,
@@ -559,7 +559,7 @@ def _nano(tmp_path_factory, robot):
                 },
             ],
         },
-        "reference": copy.deepcopy(reference.BY_ROBOT[robot]),
+        "reference": copy.deepcopy(reference.of(robot)),
         "inputs": _inputs(files),
         "tests": tests,
         "robustness": {

@@ -61,7 +61,8 @@ class Family:
     * ``templates``: the package whose ``templates/`` folder holds ``<robot>.html.j2``.
     * ``modules``: per step, the modules whose code decides that step's outputs, so a
       change to them reruns the step's jobs (:mod:`calflow.provenance`).
-    * ``acquire_arguments``: options the family's plans read from ``calflow acquire``.
+    * ``acquire_arguments``, ``identify_arguments``: options the family's plans read from
+      ``calflow acquire``, and its identification from ``calflow identify``.
     * ``commands``: the family's own subcommands.
     * ``sensors``: short names of sensor factories for the ``gcs`` rig.
     * ``emulator``: ``"module:function"``, ``function(argv, prog=...) -> int`` serving a
@@ -98,6 +99,7 @@ class Family:
     templates: str
     modules: Mapping[str, tuple[str, ...]]
     acquire_arguments: Callable[[argparse.ArgumentParser], None] | None = None
+    identify_arguments: Callable[[argparse.ArgumentParser], None] | None = None
     commands: tuple[Command, ...] = ()
     sensors: Mapping[str, str] = field(default_factory=dict)
     emulator: str | None = None
@@ -137,11 +139,7 @@ class Family:
 
     def hooks(self) -> Any:
         """The family's :class:`calflow.family_workflow.FamilyWorkflow` (the core's defaults when none)."""
-        if self.workflow is None:
-            from calflow.family_workflow import FamilyWorkflow
-
-            return FamilyWorkflow()
-        return resolve(self.workflow)
+        return resolve(self.workflow or "calflow.family_workflow:DEFAULT")
 
     def rules_files(self) -> list[str]:
         """Absolute paths of the family's Snakemake rules files (``rules``)."""

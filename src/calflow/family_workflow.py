@@ -66,6 +66,9 @@ class FamilyWorkflow:
         return []
 
 
+DEFAULT = FamilyWorkflow()
+
+
 def hooks(c: dict) -> FamilyWorkflow:
     """The :class:`FamilyWorkflow` of campaign ``c``'s family."""
     from calflow.family import family_of

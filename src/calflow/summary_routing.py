@@ -27,12 +27,11 @@ def route(
     """Open each netCDF result file and group ``(path, dataset)`` by summary section, in the
     order of ``files``. A file whose kind and plan feed no section is bad input: the one-line
     error names the file, its kind and plan and the sections the family registers."""
-    import xarray as xr
+    from calflow.data.io import open_dataset
 
     out: dict[str, list[tuple[str, object]]] = {}
     for path in files:
-        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
-            ds = ds.load()
+        ds = open_dataset(path)
         kind, plan = ds.attrs.get("calflow_kind"), ds.attrs.get("plan")
         name = section_of(kind, plan, sections)
         if name is None:

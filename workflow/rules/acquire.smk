@@ -18,9 +18,7 @@ rule acquire:
         rig=rig_slots,
     params:
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [rig_digest(w.run)(w), plan_section(w)]
-        ),
+        digest=lambda w: digest([rig_digest(w.run)(w), plan_section(w)]),
         args=input_args,
     shell:
         "calflow acquire --campaign {params.campaign} --plan {wildcards.run} {params.args}"

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from markupsafe import Markup  # noqa: E402
 
-from calflow.reference import XYTHETA  # noqa: E402
+from calflow.xytheta.report.reference import XYTHETA  # noqa: E402
 
 CSS = Path(__file__).resolve().parent / "report" / "templates" / "style.css"
 LABELS = {

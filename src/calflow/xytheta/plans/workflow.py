@@ -5,7 +5,7 @@ identification run → Models I–V (Sec. 4.5), Models IV/V from an angle-residu
 base model; validation through each model on reference and held-out targets; the square and
 random-points tests with and without table compensation (Sec. 4.4.2); the export of each
 model and its closed-loop check. The rules of the steps the core does not have are in this
-package's ``rules/`` files.
+family's ``rules/`` files.
 """
 
 from __future__ import annotations

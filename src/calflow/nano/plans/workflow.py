@@ -5,7 +5,7 @@ The nano step graph (Ch. 5): a training run → the stage's models (Sec. 5.2); a
 run through every model; on the 1-DoF stage a metrology-room run (intrinsic accuracy); a
 step-response run when enabled (ISO 9283 stabilisation). A replay campaign with
 recordings analyses the runs it has recordings of. The validation and step-response rules
-are in this package's ``rules/`` files.
+are in this family's ``rules/`` files.
 """
 
 from __future__ import annotations
