@@ -11,6 +11,7 @@ report: "workflow/report/workflow.rst"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/acquire.smk"
 include: "workflow/rules/identify.smk"
+include: "workflow/rules/heldout.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/report.smk"
 

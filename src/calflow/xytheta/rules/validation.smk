@@ -1,5 +1,5 @@
-# XYΘ validation on the rig through each model's inverse kinematics, on the reference
-# targets and on held-out targets no identification saw, and the error budget's replays.
+# XYΘ validation on the rig through each model's inverse kinematics on the reference
+# targets (the held-out targets are the core's rule), and the error budget's replays.
 
 
 ruleorder: acquire_validation_heldout > acquire_validation_model
@@ -30,36 +30,6 @@ rule acquire_validation_model:
         ),
     shell:
         "calflow acquire --campaign {params.campaign} --plan validation"
-        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
-
-
-rule acquire_validation_heldout:
-    input:
-        model="results/{campaign}/models/{model}.nc",
-    output:
-        run="results/{campaign}/runs/validation_heldout_{model}.nc",
-        truth="results/{campaign}/truth/validation_heldout_{model}.json",
-    log:
-        "results/{campaign}/logs/acquire_validation_heldout_{model}.log",
-    benchmark:
-        "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
-    conda:
-        CONDA_ENV
-    resources:
-        mem_mb=1000,
-        rig=rig_slots,
-    params:
-        campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"validation_heldout_{w.model}")(w),
-                CAMPAIGN[w.campaign]["validation"]["heldout"],
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-                CAMPAIGN[w.campaign]["identification"],
-            ]
-        ),
-    shell:
-        "calflow acquire --campaign {params.campaign} --plan validation_heldout"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
