@@ -46,17 +46,32 @@ def main(argv=None) -> dict:
     controller = h811()
     nominal = Parameters.nominal(controller)
     rng = np.random.default_rng(12345)
-    probe, lam = synthetic.simulate(nominal, synthetic.random_poses(a.poses, rng), controller, rng, SIGMA_POSE)
+    probe, lam = synthetic.simulate(
+        nominal, synthetic.random_poses(a.poses, rng), controller, rng, SIGMA_POSE
+    )
     free = identify(probe, lam, controller.zero_lengths, LADDER[a.model], nominal, sigma_pose=SIGMA_POSE).free
     t0 = time.perf_counter()
     hits, chi2, dropped = [], [], set()
     for seed in range(a.seeds):
         rng = np.random.default_rng(seed)
         truth = synthetic.perturbed(rng, nominal, only=free)
-        measured, lam = synthetic.simulate(truth, synthetic.random_poses(a.poses, rng), controller, rng, SIGMA_POSE,
-                                           sigma_leg_um=a.sigma_leg_um)
-        fit = identify(measured, lam, controller.zero_lengths, LADDER[a.model], nominal, sigma_pose=SIGMA_POSE,
-                       sigma_leg_um=a.sigma_leg_um)
+        measured, lam = synthetic.simulate(
+            truth,
+            synthetic.random_poses(a.poses, rng),
+            controller,
+            rng,
+            SIGMA_POSE,
+            sigma_leg_um=a.sigma_leg_um,
+        )
+        fit = identify(
+            measured,
+            lam,
+            controller.zero_lengths,
+            LADDER[a.model],
+            nominal,
+            sigma_pose=SIGMA_POSE,
+            sigma_leg_um=a.sigma_leg_um,
+        )
         dropped.update(fit.dropped)
         est, true = fit.parameters.as_dict(), truth.as_dict()
         hits.append([abs(est[n] - true[n]) <= Z95 * fit.std[n] for n in free])
@@ -64,12 +79,20 @@ def main(argv=None) -> dict:
     hits = np.asarray(hits, dtype=float)
     per = hits.mean(axis=0)
     out = {
-        "model": a.model, "seeds": a.seeds, "poses": a.poses, "free": len(free), "intervals": int(hits.size),
-        "coverage_95": round(float(hits.mean()), 4), "target": [0.90, 0.99],
+        "model": a.model,
+        "seeds": a.seeds,
+        "poses": a.poses,
+        "free": len(free),
+        "intervals": int(hits.size),
+        "coverage_95": round(float(hits.mean()), 4),
+        "target": [0.90, 0.99],
         "ok": bool(0.90 <= hits.mean() <= 0.99),
-        "per_parameter_min": round(float(per.min()), 3), "per_parameter_max": round(float(per.max()), 3),
-        "chi2_dof_mean": round(float(np.mean(chi2)), 4), "dropped": sorted(dropped),
-        "seconds": round(time.perf_counter() - t0, 1), "load_average": [round(x, 2) for x in os.getloadavg()],
+        "per_parameter_min": round(float(per.min()), 3),
+        "per_parameter_max": round(float(per.max()), 3),
+        "chi2_dof_mean": round(float(np.mean(chi2)), 4),
+        "dropped": sorted(dropped),
+        "seconds": round(time.perf_counter() - t0, 1),
+        "load_average": [round(x, 2) for x in os.getloadavg()],
     }
     if a.json:
         print(json.dumps(out))

@@ -57,11 +57,15 @@ def main(argv=None) -> dict:
     controller = h811()
     nominal = Parameters.nominal(controller)
     truth = synthetic.perturbed(rng, nominal)
-    measured, lam = synthetic.simulate(truth, synthetic.random_poses(a.poses, rng), controller, rng, SIGMA_POSE)
+    measured, lam = synthetic.simulate(
+        truth, synthetic.random_poses(a.poses, rng), controller, rng, SIGMA_POSE
+    )
     out = {"poses": a.poses, "repeats": a.repeats, "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")}
     for model in ("geometric", "scale"):
         wall, cpu, fit = _best(
-            lambda m=model: identify(measured, lam, controller.zero_lengths, LADDER[m], nominal, sigma_pose=SIGMA_POSE),
+            lambda m=model: identify(
+                measured, lam, controller.zero_lengths, LADDER[m], nominal, sigma_pose=SIGMA_POSE
+            ),
             a.repeats,
         )
         out[f"{model}_{a.poses}_ms"] = round(wall, 1)
