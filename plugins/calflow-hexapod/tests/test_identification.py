@@ -9,7 +9,7 @@ from calflow.errors import CalflowError
 from calflow.identification.robust import Robust
 from calflow_hexapod import synthetic
 from calflow_hexapod.geometry import compose, h811, pose_of, transform
-from calflow_hexapod.identification import _Data, identifiable, identify, prediction_rms
+from calflow_hexapod.identification import _Data, identifiable, identify, prediction_rms, run_inputs
 from calflow_hexapod.loop import closure
 from calflow_hexapod.models import LADDER, NAMES, Parameters
 
@@ -175,3 +175,25 @@ def test_bad_input_is_one_line_naming_what_was_expected():
         identify(measured, lam, CONTROLLER.zero_lengths, free=("b1_x", "q7"))
     with pytest.raises(CalflowError, match="needs more than"):
         identify(measured[:5], lam[:5], CONTROLLER.zero_lengths, LADDER["geometric"])
+
+
+def test_a_run_dataset_gives_the_identification_its_inputs():
+    import xarray as xr
+
+    rng = np.random.default_rng(15)
+    commands = synthetic.random_poses(30, rng)
+    measured, lam = synthetic.simulate(NOMINAL, commands, CONTROLLER, rng, SIGMA)
+    data = {f"cmd_{a}": ("sample", commands[:, k]) for k, a in enumerate("xyzuvw")}
+    data |= {f"meas_{a}": ("sample", measured[:, k]) for k, a in enumerate("xyzuvw")}
+    data["temperature"] = (
+        ("sample", "sensor"),
+        np.column_stack([np.full(30, 21.0), np.linspace(20, 21, 30)]),
+    )
+    run = xr.Dataset(data, coords={"sensor": ["T1", "T2"]})
+    M, L, T = run_inputs(run, CONTROLLER)
+    np.testing.assert_array_equal(M, measured)
+    np.testing.assert_allclose(L, lam, rtol=1e-15)
+    np.testing.assert_array_equal(T, np.linspace(20, 21, 30))
+    assert run_inputs(run.drop_vars("temperature"), CONTROLLER)[2] is None
+    with pytest.raises(CalflowError, match=r"run.nc: missing variables \['meas_w'\]"):
+        run_inputs(run.drop_vars("meas_w"), CONTROLLER, source="run.nc")
