@@ -31,6 +31,7 @@ commands.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -72,7 +73,7 @@ def axis_configs(
             needs_reference=True,
             settle_window=1e-5,
             settle_time=0.01,
-            counts_per_unit=1e5 if k < 3 else 1e5,
+            counts_per_unit=1e5,  # 10 nm or 10 µ° counts of the pose axes
         )
     return out
 
@@ -80,7 +81,7 @@ def axis_configs(
 class HexapodController(EmulatedController):
     """The C-887-class controller: GCS semantics of the six pose axes (module docstring)."""
 
-    HELP = [
+    HELP: ClassVar[list[str]] = [
         *EmulatedController.HELP,
         "SPI {<PPCoordinate> <PPValue>}",
         "SPI? [{<PPCoordinate>}]",
