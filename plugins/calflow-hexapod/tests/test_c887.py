@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from calflow.gcs import GCSController, GCSControllerError
+from calflow.gcs.emulator import GCSEmulator
 from calflow_hexapod.c887 import AXIS_IDS, HexapodController
 from calflow_hexapod.emulate import (
     SENSOR,
@@ -17,17 +20,12 @@ from calflow_hexapod.kinematics import forward, inverse
 from calflow_hexapod.rig import simulated_hexapod
 from calflow_hexapod.workspace import leg_stroke_um, reachable
 
-from calflow.gcs import GCSController, GCSControllerError
-from calflow.gcs.emulator import GCSEmulator
-
 MM = 1000.0
 
 
 @pytest.fixture
 def ctl():
-    with GCSEmulator(
-        controller=HexapodController(time_scale=50.0, resolution_um=1.0)
-    ) as emu:
+    with GCSEmulator(controller=HexapodController(time_scale=50.0, resolution_um=1.0)) as emu:
         c = GCSController.connect_tcp(*emu.address, timeout=2.0)
         yield c
         c.close()
@@ -46,11 +44,7 @@ def test_axes_identity_and_limits(ctl):
     assert ctl.axes() == list(AXIS_IDS)
     assert "C-887" in ctl.idn()
     lim = ctl.limits(["X", "Z", "W"])
-    assert (
-        lim["X"] == (-17.0, 17.0)
-        and lim["Z"] == (-6.5, 6.5)
-        and lim["W"] == (-21.0, 21.0)
-    )
+    assert lim["X"] == (-17.0, 17.0) and lim["Z"] == (-6.5, 6.5) and lim["W"] == (-21.0, 21.0)
 
 
 def test_move_before_reference_is_error_5(ctl):
@@ -113,9 +107,7 @@ def test_spi_sets_the_pivot_rotations_turn_about_it(ctl):
     assert ctl.query("SPI?") == ["R=0.000000", "S=0.000000", "T=50.000000"]
     ctl.move({"U": 2.0})
     settle(ctl)
-    with pytest.raises(
-        GCSControllerError
-    ) as exc:  # U is not 0: the pivot cannot change
+    with pytest.raises(GCSControllerError) as exc:  # U is not 0: the pivot cannot change
         ctl.command("SPI", "T", "0")
     assert exc.value.code == 9
     assert ctl.query("SPI? T") == ["T=50.000000"]
@@ -129,9 +121,7 @@ def test_pivot_changes_the_legs_of_a_rotation():
     b.pivot_um = np.array([0.0, 0.0, 50000.0])
     pose = np.array([0.0, 0.0, 0.0, 3.0, 0.0, 0.0])
     la, lb = a.encoder_legs(pose), b.encoder_legs(pose)
-    assert (
-        np.abs(la - lb).max() > 100.0
-    )  # a 3° tilt about a point 50 mm higher moves the legs
+    assert np.abs(la - lb).max() > 100.0  # a 3° tilt about a point 50 mm higher moves the legs
     np.testing.assert_allclose(a.encoder_legs(np.zeros(6)), b.encoder_legs(np.zeros(6)))
 
 
@@ -144,9 +134,7 @@ def test_leg_stroke_admits_every_single_axis_extreme():
 @pytest.fixture
 def allow_sensor(monkeypatch):
     """The family registers the tracker as the gcs rig's ``simulated_tracker`` sensor."""
-    monkeypatch.setattr(
-        "calflow.gcs.sensors.builtin_sensors", lambda: {SENSOR: SENSOR_TARGET}
-    )
+    monkeypatch.setattr("calflow.gcs.sensors.builtin_sensors", lambda: {SENSOR: SENSOR_TARGET})
 
 
 def test_gcs_rig_through_the_emulator_sees_the_simulated_physics(allow_sensor):

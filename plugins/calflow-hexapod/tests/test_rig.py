@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calflow.errors import OptionError, RigError
+from calflow.rigs.protocol import missing_members
 from calflow_hexapod import tracker
 from calflow_hexapod.geometry import H811_TRAVEL, rotation
 from calflow_hexapod.kinematics import forward, inverse
@@ -17,11 +22,6 @@ from calflow_hexapod.rig_physics import (
     check_options,
     options_off,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
-from calflow.errors import OptionError, RigError
-from calflow.rigs.protocol import missing_members
 
 NOISE_OFF = {
     "leg_repeatability_um": 0.0,
@@ -51,9 +51,7 @@ CMDS = np.array(
 
 def perfect(**on) -> HexapodTruth:
     """A truth with every effect, the noise and the frames off, then ``on`` switched on."""
-    opts = {
-        k: (tuple(v) if isinstance(v, list) else v) for k, v in options_off().items()
-    }
+    opts = {k: (tuple(v) if isinstance(v, list) else v) for k, v in options_off().items()}
     return HexapodTruth(**{**opts, **NOISE_OFF, **FRAMES_OFF, **on})
 
 
@@ -83,9 +81,7 @@ def test_without_errors_the_platform_attains_the_command_and_the_tracker_reads_i
     poses = true_poses(t)
     np.testing.assert_allclose(poses, CMDS, atol=1e-6)
     r = tracker.read(t, poses, np.zeros((len(CMDS), 6)))
-    np.testing.assert_allclose(
-        np.column_stack([r[s] for s in SENSORS]), CMDS, atol=1e-6
-    )
+    np.testing.assert_allclose(np.column_stack([r[s] for s in SENSORS]), CMDS, atol=1e-6)
 
 
 @pytest.mark.parametrize(
@@ -104,9 +100,7 @@ def test_each_leg_effect_alone_moves_the_platform(effect, on):
     assert set(on) == set(EFFECTS[effect])
     moved = np.abs(true_poses(perfect(**on), temperature=22.0) - CMDS).max(axis=0)
     assert moved[:3].max() > 0.05  # µm: the effect moves the platform ...
-    assert (
-        np.abs(true_poses(perfect(), temperature=22.0) - CMDS).max() < 1e-6
-    )  # ... and it alone
+    assert np.abs(true_poses(perfect(), temperature=22.0) - CMDS).max() < 1e-6  # ... and it alone
 
 
 def test_leg_terms_are_their_own_size():
@@ -126,12 +120,8 @@ def test_leg_terms_are_their_own_size():
     play = perfect(joint_play_um=2.0)
     forth = play.true_legs(enc, np.ones((4, 6)), np.full(4, 21.0), CMDS)
     back = play.true_legs(enc, -np.ones((4, 6)), np.full(4, 21.0), CMDS)
-    np.testing.assert_allclose(
-        forth - back, 2.0
-    )  # the whole play between the two approach sides
-    hot = perfect(expansion_ppm_per_degC=11.5).true_legs(
-        enc, np.ones((4, 6)), np.full(4, 23.0), CMDS
-    )
+    np.testing.assert_allclose(forth - back, 2.0)  # the whole play between the two approach sides
+    hot = perfect(expansion_ppm_per_degC=11.5).true_legs(enc, np.ones((4, 6)), np.full(4, 23.0), CMDS)
     np.testing.assert_allclose(hot - enc, 11.5e-6 * enc * 2.0, rtol=1e-9)
 
 
@@ -170,9 +160,7 @@ def test_leg_forces_balance_the_weight(frac, mass):
     n = (P - t.nominal().base) / np.linalg.norm(P - t.nominal().base, axis=1)[:, None]
     np.testing.assert_allclose(f @ n, [0.0, 0.0, mass * G], atol=1e-9 * mass)
     C = pose[:3] + R @ np.array(t.payload_com_um)
-    np.testing.assert_allclose(
-        np.sum(np.cross(P - C, f[:, None] * n), axis=0), 0.0, atol=1e-6 * mass
-    )
+    np.testing.assert_allclose(np.sum(np.cross(P - C, f[:, None] * n), axis=0), 0.0, atol=1e-6 * mass)
 
 
 def test_tracker_systematic_error_is_across_the_beam_and_leaves_the_angles():
@@ -182,18 +170,13 @@ def test_tracker_systematic_error_is_across_the_beam_and_leaves_the_angles():
     p, _ = tracker.probe_pose(t_on, CMDS)
     beam = tracker.beam_basis(t_on, p)[0]
     np.testing.assert_allclose(np.sum(d * beam, axis=1), 0.0, atol=1e-9)
-    assert (
-        np.all(np.linalg.norm(d, axis=1) <= 3.0 * np.sqrt(2) + 1e-9)
-        and np.abs(d).max() > 0.1
-    )
+    assert np.all(np.linalg.norm(d, axis=1) <= 3.0 * np.sqrt(2) + 1e-9) and np.abs(d).max() > 0.1
     for k in ("meas_u", "meas_v", "meas_w"):
         np.testing.assert_array_equal(a[k], b[k])
 
 
 def test_tracker_noise_follows_the_mpe():
-    t = perfect(
-        **{k: getattr(HexapodTruth(), k) for k in NOISE_OFF if k.startswith("tracker")}
-    )
+    t = perfect(**{k: getattr(HexapodTruth(), k) for k in NOISE_OFF if k.startswith("tracker")})
     z = np.random.default_rng(3).standard_normal((4000, 6))
     pose = np.zeros((4000, 6))
     r = tracker.read(t, pose, z)
@@ -201,9 +184,7 @@ def test_tracker_noise_follows_the_mpe():
     D = t.tracker_distance_m
     adm, across = (10.0 + 0.3 * D) / 4, (15.0 + 6.0 * D) / 4
     # the beam runs mostly along x (10° down): x sees the ADM, y the transverse error
-    assert spread[0] == pytest.approx(
-        np.hypot(adm * np.cos(0.1745), across * np.sin(0.1745)), rel=0.08
-    )
+    assert spread[0] == pytest.approx(np.hypot(adm * np.cos(0.1745), across * np.sin(0.1745)), rel=0.08)
     assert spread[1] == pytest.approx(across, rel=0.08)
     assert np.std(r["meas_u"]) == pytest.approx(0.01 / 4, rel=0.08)
 
@@ -248,12 +229,8 @@ def test_positions_are_encoder_true_not_true():
     rig = simulated_hexapod(seed=0)
     rig.move(dict(zip(rig.joints, CMDS[2])))
     pos = np.array(list(rig.positions().values()))
-    assert (
-        np.abs(pos - CMDS[2]).max() < 0.01
-    )  # the nominal FK of the encoders: the command, quantised
-    assert (
-        np.abs(rig._pose - CMDS[2]).max() > 5.0
-    )  # where the platform really is: tens of µm off
+    assert np.abs(pos - CMDS[2]).max() < 0.01  # the nominal FK of the encoders: the command, quantised
+    assert np.abs(rig._pose - CMDS[2]).max() > 5.0  # where the platform really is: tens of µm off
 
 
 def test_thermometers_read_room_and_lagging_legs():
@@ -265,9 +242,7 @@ def test_thermometers_read_room_and_lagging_legs():
         temps.append((r["T1"], r["T2"]))
     temps = np.array(temps)
     assert np.ptp(temps[:, 0]) > 0.1 and np.ptp(temps[:, 1]) > 0.05
-    assert np.ptp(temps[:, 1]) < np.ptp(
-        temps[:, 0]
-    )  # the lag damps the daily swing ...
+    assert np.ptp(temps[:, 1]) < np.ptp(temps[:, 0])  # the lag damps the daily swing ...
     assert np.argmax(temps[:, 1]) > np.argmax(temps[:, 0])  # ... and delays its peak
 
 
@@ -304,6 +279,4 @@ def test_forward_of_true_geometry_is_consistent():
     t = HexapodTruth()
     poses = true_poses(t)
     legs = inverse(t.geometry(), poses)
-    np.testing.assert_allclose(
-        forward(t.geometry(), legs, start=CMDS), poses, atol=1e-6
-    )
+    np.testing.assert_allclose(forward(t.geometry(), legs, start=CMDS), poses, atol=1e-6)

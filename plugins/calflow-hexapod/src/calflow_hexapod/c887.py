@@ -54,9 +54,7 @@ PIVOT = ("R", "S", "T")
 PIVOT_LIMIT_MM = 1000.0
 
 
-def axis_configs(
-    travel=H811_TRAVEL, velocity_mm_s: float = 5.0, velocity_deg_s: float = 5.0
-) -> dict:
+def axis_configs(travel=H811_TRAVEL, velocity_mm_s: float = 5.0, velocity_deg_s: float = 5.0) -> dict:
     """One :class:`AxisConfig` per axis: ± ``travel`` (µm, degree → mm, degree), referenced at
     0, velocities of the H-811.I2 class (max. 10 mm/s), settling window of 2 encoder counts."""
     out = {}
@@ -148,10 +146,7 @@ class HexapodController(EmulatedController):
 
     def reachable(self, pose) -> bool:
         """The pose (µm, degree, about the pivot) keeps every leg within its stroke."""
-        legs = (
-            inverse(self.geometry(), np.asarray(pose, dtype=float))
-            - self.nominal.zero_lengths
-        )
+        legs = inverse(self.geometry(), np.asarray(pose, dtype=float)) - self.nominal.zero_lengths
         return bool(np.all(np.abs(legs) <= leg_stroke_um() + 1e-9))
 
     # ------------------------------------------------------------------ commands
@@ -168,10 +163,7 @@ class HexapodController(EmulatedController):
 
     def _c_MOV(self, args: list[str], now: float) -> None:
         pairs = self._pairs(args, float)
-        if any(
-            not ax.servo or not ax.referenced or ax.referencing(now)
-            for ax in self.axes.values()
-        ):
+        if any(not ax.servo or not ax.referenced or ax.referencing(now) for ax in self.axes.values()):
             raise _Err(5)
         if any(not ax.within_limits(v) for ax, v in pairs):
             raise _Err(7)

@@ -39,9 +39,7 @@ def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     if rig.get("factory", "simulated") != "simulated":
         sensor = options.get("sensor") or {}
         options = (
-            dict(sensor.get("options") or {})
-            if sensor.get("factory") in (SENSOR, SENSOR_TARGET)
-            else {}
+            dict(sensor.get("options") or {}) if sensor.get("factory") in (SENSOR, SENSOR_TARGET) else {}
         )
     return {k: v for k, v in options.items() if k not in ("seed", "stream", "pivot_um")}
 
@@ -142,9 +140,7 @@ def emulate_main(
         prog=prog,
         stop_event=stop_event,
         description="Serve a campaign's simulated hexapod as a C-887-class PI GCS 2.0 controller on 127.0.0.1.",
-        start=lambda c, port, ts: campaign_emulator(
-            c, port=port, time_scale=ts
-        ).start(),
+        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
         banner=banner,
         rig_section=lambda emu, c, ts: {
             "factory": "gcs",

@@ -53,20 +53,14 @@ class Environment:
 
     def __init__(self, truth: HexapodTruth) -> None:
         self.offset = truth.start_offset_s
-        self.room = room_profile(
-            truth.room_profile, base_c=truth.room_base_degC, seed=truth.room_seed
-        )
+        self.room = room_profile(truth.room_profile, base_c=truth.room_base_degC, seed=truth.room_seed)
         self.legs = LagBank(self.room, [truth.leg_lag_s], earliest_s=self.offset)
 
     def air(self, t_s) -> np.ndarray:
-        return np.asarray(
-            self.room(np.asarray(t_s, dtype=float) + self.offset), dtype=float
-        )
+        return np.asarray(self.room(np.asarray(t_s, dtype=float) + self.offset), dtype=float)
 
     def leg(self, t_s) -> np.ndarray:
-        return np.asarray(
-            self.legs(np.asarray(t_s, dtype=float) + self.offset), dtype=float
-        )[..., 0]
+        return np.asarray(self.legs(np.asarray(t_s, dtype=float) + self.offset), dtype=float)[..., 0]
 
 
 class HexapodState:
@@ -105,23 +99,16 @@ class HexapodState:
             else np.asarray(encoders, float)
         )
         delta = enc - self.encoders
-        self.direction = np.where(
-            delta > 0, 1.0, np.where(delta < 0, -1.0, self.direction)
-        )
+        self.direction = np.where(delta > 0, 1.0, np.where(delta < 0, -1.0, self.direction))
         self.time += self.travel_s(new)
         self.encoders, self.cmd = enc, np.asarray(new, dtype=float).copy()
 
 
-def attained(
-    truth: HexapodTruth, geometry, encoders, direction, leg_temperature, cmd, jitter
-) -> np.ndarray:
+def attained(truth: HexapodTruth, geometry, encoders, direction, leg_temperature, cmd, jitter) -> np.ndarray:
     """True platform poses (n, 6) for encoder lengths (n, 6) µm approached in ``direction``
     (n, 6), leg temperatures (n,) degC, from the commands ``cmd`` (n, 6) (the Newton start) and
     standard normal draws ``jitter`` (n, 6) of the legs' repeatability."""
-    legs = (
-        truth.true_legs(encoders, direction, leg_temperature, cmd)
-        + truth.leg_repeatability_um * jitter
-    )
+    legs = truth.true_legs(encoders, direction, leg_temperature, cmd) + truth.leg_repeatability_um * jitter
     return forward(geometry, legs, start=cmd)
 
 
@@ -131,15 +118,11 @@ class SimulatedHexapod:
     joints = AXES
     sensors = SENSORS
     thermometers = THERMOMETERS
-    replayable = (
-        True  # deterministic given its seed: acquisition may replay it to resume
-    )
+    replayable = True  # deterministic given its seed: acquisition may replay it to resume
 
     def __init__(self, truth: HexapodTruth, seed: int = 0, stream: str = "") -> None:
         self.truth_model = truth
-        self._rng = np.random.default_rng(
-            np.random.SeedSequence([int(seed), zlib.crc32(stream.encode())])
-        )
+        self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(stream.encode())]))
         self._geometry = truth.geometry()
         self._env = Environment(truth)
         self._state = HexapodState(truth)
@@ -169,9 +152,7 @@ class SimulatedHexapod:
         try:
             return np.array([float(command[j]) for j in self.joints])
         except KeyError as exc:
-            raise RigError(
-                f"simulated hexapod rig: command lacks joint {exc.args[0]!r}"
-            ) from None
+            raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
 
     def move(self, command: Mapping[str, float]) -> None:
         new = self._command(command)
@@ -193,9 +174,7 @@ class SimulatedHexapod:
         if self._closed:
             raise RigError("simulated hexapod rig: read() after close()")
         z, w = self._rng.standard_normal(6), self._rng.standard_normal(2)
-        r = self._sense(
-            self._pose[None], np.array([self._state.time]), z[None], w[None]
-        )
+        r = self._sense(self._pose[None], np.array([self._state.time]), z[None], w[None])
         return {k: float(v[0]) for k, v in r.items()}
 
     def _sense(self, pose, t_s, z, w) -> dict[str, np.ndarray]:
@@ -205,28 +184,20 @@ class SimulatedHexapod:
             "time": np.asarray(t_s, dtype=float),
             **tracker.read(self.truth_model, pose, z),
         }
-        for k, (name, temp) in enumerate(
-            (("T1", self._env.air(t_s)), ("T2", self._env.leg(t_s)))
-        ):
+        for k, (name, temp) in enumerate((("T1", self._env.air(t_s)), ("T2", self._env.leg(t_s)))):
             out[name] = np.round(temp + THERMOMETER_NOISE_DEGC * w[:, k], 3)
         return out
 
-    def visit(
-        self, commands: Mapping[str, np.ndarray], dwell_s: float
-    ) -> dict[str, np.ndarray]:
+    def visit(self, commands: Mapping[str, np.ndarray], dwell_s: float) -> dict[str, np.ndarray]:
         """``move`` to each row of ``commands`` (arrays by joint), ``wait(dwell_s)``, ``read``:
         the same readings, final state and random draws as those calls one by one, with the
         kinematics solved once over all rows (the acquisition runner's fast path)."""
         if self._closed:
             raise RigError("simulated hexapod rig: visit() after close()")
         try:
-            cmd = np.column_stack(
-                [np.asarray(commands[j], dtype=float) for j in self.joints]
-            )
+            cmd = np.column_stack([np.asarray(commands[j], dtype=float) for j in self.joints])
         except KeyError as exc:
-            raise RigError(
-                f"simulated hexapod rig: command lacks joint {exc.args[0]!r}"
-            ) from None
+            raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
         n, s, rng = len(cmd), self._state, self._rng
         enc, direction, t_move, t_read = (
             np.empty((n, 6)),
@@ -235,14 +206,8 @@ class SimulatedHexapod:
             np.empty(n),
         )
         jitter, z, w = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 2))
-        legs = (
-            self.truth_model.quantise(inverse(s.nominal, cmd))
-            if n
-            else np.empty((0, 6))
-        )
-        for i in range(
-            n
-        ):  # the sequential part: state and draws, in the order move/read take them
+        legs = self.truth_model.quantise(inverse(s.nominal, cmd)) if n else np.empty((0, 6))
+        for i in range(n):  # the sequential part: state and draws, in the order move/read take them
             s.step(cmd[i], legs[i])
             enc[i], direction[i], t_move[i] = s.encoders, s.direction, s.time
             jitter[i] = rng.standard_normal(6)
@@ -289,6 +254,4 @@ def simulated_hexapod(seed: int = 0, stream: str = "", **physics) -> SimulatedHe
     return SimulatedHexapod(HexapodTruth(**o), seed=seed, stream=stream)
 
 
-simulated_hexapod.check_options = (
-    check_options  # the config check calls it (calflow.rigs.plugin)
-)
+simulated_hexapod.check_options = check_options  # the config check calls it (calflow.rigs.plugin)

@@ -77,9 +77,7 @@ class HexapodTruth:
     )  # centre of mass, platform frame
     stiffness_z_n_per_um: float = 2.0
     expansion_ppm_per_degC: float = 11.5
-    reference_temperature_degC: float = (
-        21.0  # the nominal lengths hold at this leg temperature
-    )
+    reference_temperature_degC: float = 20.0  # the nominal lengths hold at this leg temperature (ISO 1)
     leg_lag_s: float = 1800.0
     encoder_resolution_um: float = 0.005
     leg_repeatability_um: float = 0.03
@@ -179,10 +177,7 @@ class HexapodTruth:
     def expansion(self, legs, leg_temperature_degC):
         """Thermal expansion of the legs (µm): ``expansion_ppm_per_degC`` of each length per
         degree of the leg temperature above ``reference_temperature_degC``."""
-        dT = (
-            np.asarray(leg_temperature_degC, dtype=float)[..., None]
-            - self.reference_temperature_degC
-        )
+        dT = np.asarray(leg_temperature_degC, dtype=float)[..., None] - self.reference_temperature_degC
         return self.expansion_ppm_per_degC * 1e-6 * np.asarray(legs) * dT
 
     def leg_stiffness_n_per_um(self) -> float:
@@ -200,16 +195,12 @@ class HexapodTruth:
         a, b = g.base, g.platform
         pose = np.atleast_2d(np.asarray(pose, dtype=float))
         R = rotation(pose[:, 3], pose[:, 4], pose[:, 5])
-        P = pose[:, None, :3] + np.einsum(
-            "nij,kj->nki", R, b
-        )  # platform joints in the work frame
+        P = pose[:, None, :3] + np.einsum("nij,kj->nki", R, b)  # platform joints in the work frame
         C = pose[:, :3] + np.einsum("nij,j->ni", R, np.asarray(self.payload_com_um))
         L = P - a[None]
         n = L / np.linalg.norm(L, axis=2, keepdims=True)
         arm = (P - C[:, None, :]) * 1e-6  # m
-        A = np.concatenate([n, np.cross(arm, n)], axis=2).transpose(
-            0, 2, 1
-        )  # (N, 6, 6): columns per leg
+        A = np.concatenate([n, np.cross(arm, n)], axis=2).transpose(0, 2, 1)  # (N, 6, 6): columns per leg
         w = np.zeros((len(pose), 6))
         w[:, 2] = self.payload_kg * G  # the legs carry the weight: Σ f n = +m g ẑ
         return np.linalg.solve(A, w[..., None])[..., 0]
@@ -220,24 +211,13 @@ class HexapodTruth:
             return np.zeros(np.atleast_2d(pose).shape[:-1] + (6,))
         return -self.leg_forces(pose, geometry) / self.leg_stiffness_n_per_um()
 
-    def true_legs(
-        self, encoder_legs, direction, leg_temperature_degC, pose_guess
-    ) -> np.ndarray:
+    def true_legs(self, encoder_legs, direction, leg_temperature_degC, pose_guess) -> np.ndarray:
         """True joint-to-joint leg lengths (µm, (n, 6)) for encoder lengths (n, 6): offset,
         scale of the stroke, play, thermal expansion and compliance at ``pose_guess`` (n, 6)."""
         enc = np.asarray(encoder_legs, dtype=float)
         l0 = self.home_lengths()
-        legs = (
-            enc
-            + self.leg_offsets()
-            + self.leg_scales() * (enc - l0)
-            + self.play(direction)
-        )
-        return (
-            legs
-            + self.expansion(legs, leg_temperature_degC)
-            + self.compliance(pose_guess)
-        )
+        legs = enc + self.leg_offsets() + self.leg_scales() * (enc - l0) + self.play(direction)
+        return legs + self.expansion(legs, leg_temperature_degC) + self.compliance(pose_guess)
 
 
 EFFECTS = {  # effect name → the fields that switch it off, for the error budget and the tests
@@ -282,14 +262,8 @@ _SIGNED = (
 
 
 def _number(key: str, value, bound: str | None) -> float:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_)
-    )
-    ok = (
-        ok
-        and bool(np.isfinite(value))
-        and (bound is None or (value > 0 if bound == ">" else value >= 0))
-    )
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    ok = ok and bool(np.isfinite(value)) and (bound is None or (value > 0 if bound == ">" else value >= 0))
     if not ok:
         raise OptionError(
             key,
@@ -310,16 +284,10 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
     known = {f.name: f.default for f in fields(HexapodTruth)}
     for key in physics:
         if key not in known:
-            raise UnknownOptionError(
-                key, f"expected one of: seed, stream, {', '.join(sorted(known))}"
-            )
+            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(known))}")
     for key in ("seed", *[k for k in _INTEGERS if k in physics]):
         value = seed if key == "seed" else physics[key]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, np.integer))
-            or value < 0
-        ):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
             raise OptionError(key, "an integer >= 0", value)
     if not isinstance(stream, str):
         raise OptionError("stream", "a string", stream)

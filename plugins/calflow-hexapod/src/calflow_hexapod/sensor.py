@@ -49,9 +49,7 @@ class SimulatedTracker:
         pivot_um=(0.0, 0.0, 0.0),
     ) -> None:
         self.truth_model = truth
-        self._rng = np.random.default_rng(
-            np.random.SeedSequence([int(seed), zlib.crc32(stream.encode())])
-        )
+        self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(stream.encode())]))
         self._geometry = truth.geometry()
         self._env = Environment(truth)
         self._state = HexapodState(truth)
@@ -62,9 +60,7 @@ class SimulatedTracker:
         try:
             return np.array([float(positions[a]) for a in AXES])
         except KeyError as exc:
-            raise RigError(
-                f"simulated tracker: positions lack joint {exc.args[0]!r}"
-            ) from None
+            raise RigError(f"simulated tracker: positions lack joint {exc.args[0]!r}") from None
 
     def moved(self, settled: Mapping[str, float], started: float) -> None:
         """After a move: the encoders behind the settled ``POS?`` pose, the legs' directions,
@@ -86,26 +82,13 @@ class SimulatedTracker:
 
     def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
         """The tracker's pose of the probe and the thermometers at rig time ``time_s`` (s)."""
-        if self._pose is None or np.any(
-            np.abs(self._pose_of(positions) - self._state.cmd) > 1e-6
-        ):
-            self.moved(
-                positions, time_s
-            )  # a reading without a reported move: the pose it is at
+        if self._pose is None or np.any(np.abs(self._pose_of(positions) - self._state.cmd) > 1e-6):
+            self.moved(positions, time_s)  # a reading without a reported move: the pose it is at
         z, w = self._rng.standard_normal(6), self._rng.standard_normal(2)
-        out = {
-            k: float(v[0])
-            for k, v in tracker.read(
-                self.truth_model, self._pose[None], z[None]
-            ).items()
-        }
+        out = {k: float(v[0]) for k, v in tracker.read(self.truth_model, self._pose[None], z[None]).items()}
         t = np.array([float(time_s)])
-        out["T1"] = float(
-            np.round(self._env.air(t)[0] + THERMOMETER_NOISE_DEGC * w[0], 3)
-        )
-        out["T2"] = float(
-            np.round(self._env.leg(t)[0] + THERMOMETER_NOISE_DEGC * w[1], 3)
-        )
+        out["T1"] = float(np.round(self._env.air(t)[0] + THERMOMETER_NOISE_DEGC * w[0], 3))
+        out["T2"] = float(np.round(self._env.leg(t)[0] + THERMOMETER_NOISE_DEGC * w[1], 3))
         return out
 
     def truth(self) -> dict:

@@ -31,9 +31,7 @@ def leg_stroke_um() -> float:
     return _stroke()
 
 
-def reachable(
-    poses, geometry: Geometry | None = None, travel=H811_TRAVEL
-) -> np.ndarray:
+def reachable(poses, geometry: Geometry | None = None, travel=H811_TRAVEL) -> np.ndarray:
     """True per pose (…, 6) (µm, degree, about ``geometry``'s pivot; default the nominal
     H-811-class geometry) inside the per-axis travel and the legs' stroke."""
     g = h811() if geometry is None else geometry
