@@ -121,7 +121,8 @@ def test_leg_terms_are_their_own_size():
     forth = play.true_legs(enc, np.ones((4, 6)), np.full(4, 21.0), CMDS)
     back = play.true_legs(enc, -np.ones((4, 6)), np.full(4, 21.0), CMDS)
     np.testing.assert_allclose(forth - back, 2.0)  # the whole play between the two approach sides
-    hot = perfect(expansion_ppm_per_degC=11.5).true_legs(enc, np.ones((4, 6)), np.full(4, 23.0), CMDS)
+    warm = perfect(expansion_ppm_per_degC=11.5)
+    hot = warm.true_legs(enc, np.ones((4, 6)), np.full(4, warm.reference_temperature_degC + 2.0), CMDS)
     np.testing.assert_allclose(hot - enc, 11.5e-6 * enc * 2.0, rtol=1e-9)
 
 
