@@ -255,3 +255,22 @@ def simulated_hexapod(seed: int = 0, stream: str = "", **physics) -> SimulatedHe
 
 
 simulated_hexapod.check_options = check_options  # the config check calls it (calflow.rigs.plugin)
+
+
+def truth_parameters(truth: HexapodTruth):
+    """The rig's truth in the models' parameters (:class:`calflow_hexapod.models.Parameters`):
+    frames, joints, leg offsets and scales, the legs' expansion coefficient (1/K) — for tests and
+    reports only. Effects no model represents (play, compliance, the tracker's systematic
+    error, quantisation) have no parameter."""
+    from calflow_hexapod.models import Parameters
+
+    g = truth.geometry()
+    return Parameters(
+        np.array([*truth.frame_offset_um, *truth.frame_rotation_deg]),
+        np.array([*truth.tool_offset_um, *truth.tool_rotation_deg]),
+        g.base,
+        g.platform,
+        truth.leg_offsets(),
+        truth.leg_scales(),
+        truth.expansion_ppm_per_degC * 1e-6,
+    )
