@@ -36,6 +36,8 @@ from calflow.errors import CalflowError
 from calflow.identification import gauss_newton
 from calflow.identification.diagnostics import identifiability
 from calflow.identification.robust import Robust, mad_sigma, outliers
+from calflow_hexapod import kinematics
+from calflow_hexapod.geometry import AXES, Geometry
 from calflow_hexapod.loop import closure
 from calflow_hexapod.models import LADDER, NAMES, Parameters
 
@@ -255,6 +257,29 @@ def _screen(data: _Data, cols, scale, sol, robust: Robust):
         sol = gauss_newton.solve(fun, jac, x, rtol=RTOL)
         x = sol.x
     return keep, sub, sol
+
+
+def run_inputs(run, controller: Geometry, leg_sensor: str | None = "T2", source: str = "run"):
+    """(measured (n, 6), commanded leg lengths λ (n, 6), temperature (n,) or None) of a run dataset.
+
+    ``meas_x`` … ``meas_w`` are the instrument's target poses (µm, degree); λ is the controller's
+    inverse kinematics of ``cmd_x`` … ``cmd_w`` through its nominal geometry ``controller`` (about
+    its pivot) — what its encoders are servoed to; the temperature is the ``temperature``
+    reading of ``leg_sensor`` (degC), when the run has it. ``source`` names the file in errors.
+    """
+    missing = [f"{kind}_{a}" for kind in ("cmd", "meas") for a in AXES if f"{kind}_{a}" not in run]
+    if missing:
+        raise CalflowError(
+            f"{source}: missing variables {missing}; expected cmd_* and meas_* for x y z u v w"
+        )
+    commands = np.stack([np.asarray(run[f"cmd_{a}"].values, dtype=float) for a in AXES], axis=-1)
+    measured = np.stack([np.asarray(run[f"meas_{a}"].values, dtype=float) for a in AXES], axis=-1)
+    temperature = None
+    if leg_sensor is not None and "temperature" in run and "sensor" in run["temperature"].dims:
+        sensors = [str(v) for v in run["sensor"].values]
+        if leg_sensor in sensors:
+            temperature = np.asarray(run["temperature"].sel(sensor=leg_sensor).values, dtype=float)
+    return measured, kinematics.inverse(controller, commands), temperature
 
 
 def prediction_rms(fit: Identification, measured, commanded, zero_lengths, temperature=None) -> float:

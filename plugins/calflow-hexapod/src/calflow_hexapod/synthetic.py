@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from calflow_hexapod import kinematics
-from calflow_hexapod.geometry import H811_TRAVEL, Geometry, compose, invert, pose_of, transform
-from calflow_hexapod.models import Parameters
+from calflow_hexapod.calibration import reading
+from calflow_hexapod.geometry import H811_TRAVEL, Geometry
+from calflow_hexapod.models import NAMES, Parameters
 
 #: Size of each error of a simulated hexapod (1 σ): joint centres 50 µm, leg offsets 20 µm,
 #: leg scales 100 ppm; the frames (instrument placement) 2 mm and 1°, 0.5 mm and 0.5°.
@@ -48,8 +49,6 @@ def perturbed(
     )
     step = rng.normal(0.0, 1.0, sizes.size) * sizes
     if only is not None:
-        from calflow_hexapod.models import NAMES
-
         step[[k for k, name in enumerate(NAMES) if name not in set(only)]] = 0.0
     return Parameters.from_vector(nominal.vector() + step)
 
@@ -70,11 +69,5 @@ def simulate(
     lam = kinematics.inverse(controller, commands)
     lengths = truth.leg_lengths(lam, controller.zero_lengths, temperature)
     lengths = lengths + rng.normal(0.0, 1.0, lengths.shape) * sigma_leg_um
-    real = truth.geometry(controller.pivot)
-    pose = kinematics.forward(real, lengths, start=commands)
-    RP, tP = transform(pose, controller.pivot)
-    RF, tF = transform(truth.frame)
-    RG, tG = transform(truth.tool)
-    R, t = compose(*compose(*invert(RF, tF), RP, tP), RG, tG)  # M = F⁻¹ P G
-    measured = pose_of(R, t) + rng.normal(0.0, 1.0, commands.shape) * np.asarray(sigma_pose, dtype=float)
-    return measured, lam
+    measured = reading(truth, controller, lengths, commands)
+    return measured + rng.normal(0.0, 1.0, commands.shape) * np.asarray(sigma_pose, dtype=float), lam
