@@ -11,6 +11,7 @@ import pytest
 
 from calflow.identification import design
 from calflow_hexapod import campaign_plans, design_plan, plans, tracker
+from calflow_hexapod.calibration import command
 from calflow_hexapod.geometry import AXES, h811
 from calflow_hexapod.kinematics import inverse
 from calflow_hexapod.rig import attained, truth_parameters
@@ -85,12 +86,12 @@ def test_model_inverse_of_the_truth_puts_the_probe_on_the_targets():
     }
     t = HexapodTruth(**off)
     targets = plans.heldout_targets(6, 0.6, design_plan.nominal_parameters(campaign()), seed=1)
-    q = plans.ModelInverse(truth_parameters(t), h811())(targets)
+    q = command(truth_parameters(t), h811(), targets)
     enc = inverse(h811(), q)
     pose = attained(t, t.geometry(), enc, np.ones((6, 6)), np.full(6, 20.0), q, np.zeros((6, 6)))
     r = tracker.read(t, pose, np.zeros((6, 6)))
     np.testing.assert_allclose(np.column_stack([r[f"meas_{a}"] for a in AXES]), targets, atol=1e-5)
-    nominal = plans.ModelInverse(design_plan.nominal_parameters(campaign()), h811())(targets)
+    nominal = command(design_plan.nominal_parameters(campaign()), h811(), targets)
     assert np.abs(nominal - q)[:, :3].max() > 20.0  # the nominal model misses by the rig's errors
 
 

@@ -16,29 +16,16 @@ import numpy as np
 from calflow.errors import CalflowError
 from calflow.plan import Acquisition
 from calflow_hexapod import design_plan, plans
-from calflow_hexapod.geometry import AXES, h811
-from calflow_hexapod.models import NAMES, Parameters
+from calflow_hexapod.geometry import AXES
 
 
-def read_parameters(path) -> tuple[str, Parameters]:
-    """A model file's name and parameters: variable ``value`` over the coordinate ``parameter``
-    (names of :data:`calflow_hexapod.models.NAMES`); parameters it lacks keep their nominal value."""
-    from calflow.data.io import open_dataset
+def _model(args, plan: str):
+    """The model of ``--model`` (:class:`calflow_hexapod.calibration.HexapodModel`)."""
+    from calflow_hexapod.calibration import HexapodModel
 
-    ds = open_dataset(path)
-    names = [str(v) for v in ds["parameter"].values]
-    unknown = sorted(set(names) - set(NAMES))
-    if unknown:
-        raise CalflowError(f"{path}: variable 'parameter': unknown parameters {unknown}")
-    phi = Parameters.nominal().replace(**dict(zip(names, (float(v) for v in ds["value"].values))))
-    return str(ds.attrs.get("model", ds.attrs.get("name", "model"))), phi
-
-
-def _model(args, plan: str) -> tuple[str, plans.ModelInverse]:
     if not getattr(args, "model", None):
         raise CalflowError(f"calflow acquire --plan {plan}: --model MODEL.nc is required")
-    name, phi = read_parameters(args.model[0])
-    return name, plans.ModelInverse(phi, h811())
+    return HexapodModel.read(args.model[0])
 
 
 def identification(c: dict, args) -> Acquisition:
@@ -78,10 +65,10 @@ def heldout_targets(c: dict) -> np.ndarray:
 
 def validation_heldout(c: dict, args) -> Acquisition:
     """Held-out validation through a model's inverse: targets no identification saw."""
-    name, inverse_of = _model(args, "validation_heldout")
+    model = _model(args, "validation_heldout")
     h = c["validation"]["heldout"]
-    plan = plans.validation(inverse_of, heldout_targets(c), h["cycles"], c["validation"]["dwell_s"])
-    return Acquisition(plan, f"validation_heldout_{name}", name)
+    plan = plans.validation(model.command, heldout_targets(c), h["cycles"], c["validation"]["dwell_s"])
+    return Acquisition(plan, f"validation_heldout_{model.name}", model.name)
 
 
 def iso9283(c: dict, args) -> Acquisition:
@@ -89,15 +76,15 @@ def iso9283(c: dict, args) -> Acquisition:
     cube (``iso9283.fraction`` of the travel, at ``iso9283.orientation_deg``), as targets the
     nominal model maps to the measurement frame, ``iso9283.cycles`` cycles (30 in the
     standard) through a model's inverse."""
-    name, inverse_of = _model(args, "iso9283")
+    model = _model(args, "iso9283")
     s = c["iso9283"]
     q = plans.iso9283_commands(float(s["fraction"]), s.get("orientation_deg", (0.0, 0.0, 0.0)))
     targets = plans.target_of(q, design_plan.nominal_parameters(c))
     plan = plans.validation(
-        inverse_of,
+        model.command,
         targets,
         int(s.get("cycles", 30)),
         s.get("dwell_s", c["validation"]["dwell_s"]),
         name="iso9283",
     )
-    return Acquisition(plan, f"iso9283_{name}", name)
+    return Acquisition(plan, f"iso9283_{model.name}", model.name)

@@ -3,23 +3,20 @@
 Commands are the controller's pose axes ``x y z`` (µm) and ``u v w`` (degree) about its
 pivot. *Targets* are poses of the measured target (the tracker's probe) in the measurement
 frame — what the instrument reads — so a validation compares readings with targets without
-any model's frames. A model commands a target through its inverse (:class:`ModelInverse`):
-the platform pose that puts the target there (P = F M G⁻¹), the real legs' lengths for it
-(the model's joints), the lengths the controller must command for those (the model's leg
-offsets, scales, expansion), and the pose the controller's nominal forward kinematics gives
-for them — the command.
+any model's frames. A model commands a target through its inverse
+(:func:`calflow_hexapod.calibration.command`); held-out and ISO 9283 targets are the readings
+the campaign's nominal model predicts for drawn commands
+(:func:`calflow_hexapod.calibration.predict`), the same targets for every model.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from calflow.identification.design import latin_hypercube
 from calflow.plan import Plan
-from calflow_hexapod.geometry import AXES, H811_TRAVEL, Geometry, compose, h811, invert, pose_of, transform
-from calflow_hexapod.kinematics import forward, inverse
+from calflow_hexapod.calibration import predict
+from calflow_hexapod.geometry import AXES, H811_TRAVEL, Geometry, h811
 from calflow_hexapod.models import Parameters
 from calflow_hexapod.workspace import reachable
 
@@ -65,16 +62,8 @@ def identification(n_poses: int, fraction: float, seed: int, dwell_s: float = 1.
 
 
 def target_of(commands, nominal: Parameters, controller: Geometry | None = None) -> np.ndarray:
-    """Targets (n, 6) the ``nominal`` parameters say commands (n, 6) reach: M = F⁻¹ P G with P
-    the platform pose of the nominal model's legs (the held-out targets are drawn this way, the
-    same for every model)."""
-    ctl = h811() if controller is None else controller
-    q = np.atleast_2d(np.asarray(commands, dtype=float))
-    legs = nominal.leg_lengths(inverse(ctl, q), ctl.zero_lengths)
-    P = forward(nominal.geometry(ctl.pivot), legs, start=q)
-    R, t = compose(*invert(*transform(nominal.frame)), *transform(P, ctl.pivot))
-    R, t = compose(R, t, *transform(nominal.tool))
-    return pose_of(R, t)
+    """Targets (n, 6): the readings the ``nominal`` parameters predict for commands (n, 6)."""
+    return predict(nominal, h811() if controller is None else controller, np.atleast_2d(commands))
 
 
 def heldout_targets(n_targets: int, fraction: float, nominal: Parameters, seed: int) -> np.ndarray:
@@ -95,24 +84,6 @@ def iso9283_commands(fraction: float, orientation_deg=(0.0, 0.0, 0.0), travel=H8
     corners = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, 1], [-1, 1, 1]], dtype=float) * h  # C1 C2 C7 C8
     pts = np.vstack([np.zeros(3), 0.8 * corners])
     return np.column_stack([pts, np.tile(np.asarray(orientation_deg, dtype=float), (5, 1))])
-
-
-@dataclass(frozen=True)
-class ModelInverse:
-    """A model's inverse: the commands that put the measured target on targets (module doc)."""
-
-    parameters: Parameters
-    controller: Geometry
-
-    def __call__(self, targets, temperature=None) -> np.ndarray:
-        p, ctl = self.parameters, self.controller
-        M = np.atleast_2d(np.asarray(targets, dtype=float))
-        R, t = compose(*transform(p.frame), *transform(M))
-        R, t = compose(R, t, *invert(*transform(p.tool)))
-        P = pose_of(R, t, ctl.pivot)
-        lengths = inverse(p.geometry(ctl.pivot), P)
-        lam = p.commanded_lengths(lengths, ctl.zero_lengths, temperature)
-        return forward(ctl, lam, start=P)
 
 
 def validation(
