@@ -281,3 +281,25 @@ def test_forward_of_true_geometry_is_consistent():
     poses = true_poses(t)
     legs = inverse(t.geometry(), poses)
     np.testing.assert_allclose(forward(t.geometry(), legs, start=CMDS), poses, atol=1e-6)
+
+
+def test_run_options_give_each_run_its_stream_and_start():
+    from calflow_hexapod.run_options import rig_options
+
+    c = {"seed": 9}
+    sim = rig_options(c, "simulated", "validation_heldout_geometric", {"payload_kg": 1.0}, 3600.0)
+    assert sim == {
+        "payload_kg": 1.0,
+        "seed": 9,
+        "stream": "validation_heldout_geometric",
+        "start_offset_s": 3600.0,
+    }
+    a, b = (
+        simulated_hexapod(**rig_options(c, "simulated", run, {}, 0.0))
+        for run in ("identification", "iso9283")
+    )
+    a.move(dict(zip(a.joints, CMDS[1])))
+    b.move(dict(zip(b.joints, CMDS[1])))
+    assert a.read()["meas_x"] != b.read()["meas_x"]
+    gcs = rig_options(c, "gcs", "identification", {"sensor": {"factory": "simulated_tracker"}}, 0.0)
+    assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification"}

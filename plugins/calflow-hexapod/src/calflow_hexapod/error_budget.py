@@ -207,3 +207,14 @@ def error_budget(c: dict, names=REPLAYS) -> dict:
     records = [replay(c, n) for n in names]
     full = replay(c, "none")["ap"]
     return {"campaign": c["name"], "replays": records, "budget": combine(full, records), "floor": floor(c)}
+
+
+def error_budget_command(args) -> None:
+    """``calflow error-budget --campaign FILE --out FILE.json`` for a hexapod campaign: the
+    budget's replays, combination and floor, written as JSON for the summary (tests and reports)."""
+    from calflow.commands.common import campaign as load
+    from calflow.data.io import output_folder, write_json
+
+    c = load(args.campaign)
+    output_folder(args.out)
+    write_json(error_budget(c), args.out)
