@@ -1,0 +1,26 @@
+"""What a run adds to a hexapod campaign's rig options (the family's ``rig_options`` hook).
+
+``rig_options(campaign, factory, run_id, options, start_s)``: the simulated rig draws its
+noise from (seed, run id) and reads the room profile from the run's campaign time
+(``start_offset_s``), so every run of a campaign is reproducible to the byte and sees the
+room as it was when the run started; through the ``gcs`` rig the simulated tracker sensor
+gets the same seed and stream. Kept free of numerical imports.
+"""
+
+from __future__ import annotations
+
+SENSORS = ("simulated_tracker", "calflow_hexapod.sensor:simulated_tracker")
+
+
+def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
+    """Per-run options of the simulated hexapod, or of the tracker sensor of a ``gcs`` rig."""
+    if factory == "simulated":
+        options.setdefault("seed", c["seed"])
+        options["stream"] = run_id
+        options.setdefault("start_offset_s", float(start_s))
+    elif factory == "gcs":
+        sensor = dict(options.get("sensor") or {})
+        if sensor.get("factory") in SENSORS:
+            sensor["options"] = {"seed": c["seed"], **(sensor.get("options") or {}), "stream": run_id}
+            options["sensor"] = sensor
+    return options
