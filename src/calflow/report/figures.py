@@ -97,11 +97,10 @@ class Figure:
 
 
 def mode_label(name: str) -> str:
-    return {
-        "no_calibration": "no calibration",
-        "adaptive_kmz": "adaptive model (KMZ)",
-        "single": "single model",
-    }.get(name, name.replace("_", " "))
+    """The report label of a test mode or model name, as its family registers it."""
+    from calflow.family import modes
+
+    return modes().get(name, name.replace("_", " "))
 
 
 def new_figure(ncols: int = 1, nrows: int = 1, height: float = 2.6, width: float = TEXT_WIDTH_IN, **kw):
