@@ -197,3 +197,28 @@ def test_a_run_dataset_gives_the_identification_its_inputs():
     assert run_inputs(run.drop_vars("temperature"), CONTROLLER)[2] is None
     with pytest.raises(CalflowError, match=r"run.nc: missing variables \['meas_w'\]"):
         run_inputs(run.drop_vars("meas_w"), CONTROLLER, source="run.nc")
+
+
+def test_a_probe_far_from_the_platform_is_weighted_at_the_estimate_not_at_the_start():
+    kept, _, _ = _free()
+    truth = synthetic.perturbed(np.random.default_rng(16), NOMINAL, only=kept)
+    truth = truth.replace(tool_z=60_000.0, tool_w=1.0)  # a 6-D probe 60 mm above the platform, turned 1°
+    measured, lam = _data(truth, 400, 17)
+    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    assert 0.9 < fit.chi2_dof < 1.1  # weights at the nominal probe (on the platform) would misstate the noise
+    assert np.max(np.abs(_z(fit, truth))) < 4.5
+
+
+def test_a_covariance_of_the_readings_weights_like_the_sigmas_it_holds():
+    measured, lam = _data(NOMINAL, 100, 18)
+    by_sigma = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["offsets"], NOMINAL, sigma_pose=SIGMA)
+    by_cov = identify(
+        measured,
+        lam,
+        CONTROLLER.zero_lengths,
+        LADDER["offsets"],
+        NOMINAL,
+        sigma_pose=np.diag(np.square(SIGMA)),
+    )
+    np.testing.assert_allclose(by_cov.parameters.vector(), by_sigma.parameters.vector(), rtol=0, atol=1e-9)
+    assert by_cov.chi2_dof == pytest.approx(by_sigma.chi2_dof, rel=1e-9)

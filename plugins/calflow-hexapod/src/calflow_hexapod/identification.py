@@ -46,9 +46,17 @@ from calflow_hexapod.models import LADDER, NAMES, Parameters
 SIGMA_POSE = (1.0, 1.0, 1.0, 1e-4, 1e-4, 1e-4)
 #: Relative tolerance of the QR analysis: |R_kk| below it, relative to the largest, is zero.
 QR_RTOL = 1e-8
+#: The loop covariances C_k are recomputed at the estimate and the fit repeated (at most
+#: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
+REWEIGHT = 3
+WEIGHT_RTOL = 1e-3
 #: Gauss–Newton stops when a step changes the whitened residuals by less than this fraction of
 #: their norm: far below their noise, and above the rounding of ‖P p_i − b_i‖ (10⁵ µm legs).
 RTOL = 1e-8
+#: The loop covariances C_k are recomputed at the estimate and the fit repeated (at most
+#: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
+REWEIGHT = 3
+WEIGHT_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -89,14 +97,21 @@ class _Data:
         self.sigma_pose, self.sigma_leg = np.asarray(sigma_pose, dtype=float), float(sigma_leg_um)
         self.base = initial.vector()
         _, J, A = closure(initial, measured, commanded, zero_lengths, temperature)
-        C = (A * self.sigma_pose**2) @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
-        self.W = np.linalg.inv(np.linalg.cholesky(C))  # whitening, C_k⁻¹ = W_kᵀ W_k
+        S = np.diag(self.sigma_pose**2) if self.sigma_pose.ndim == 1 else self.sigma_pose
+        self.C = A @ S @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
+        self.W = np.linalg.inv(np.linalg.cholesky(self.C))  # whitening, C_k⁻¹ = W_kᵀ W_k
         self.J0 = self.W @ J
 
     def subset(self, keep: np.ndarray) -> _Data:
         out = object.__new__(_Data)
         out.__dict__.update(self.__dict__)
-        out.M, out.lam, out.W, out.J0 = self.M[keep], self.lam[keep], self.W[keep], self.J0[keep]
+        out.M, out.lam, out.W, out.J0, out.C = (
+            self.M[keep],
+            self.lam[keep],
+            self.W[keep],
+            self.J0[keep],
+            self.C[keep],
+        )
         out.T = None if self.T is None else self.T[keep]
         return out
 
@@ -170,8 +185,9 @@ def identify(
 
     ``measured`` (n, 6) µm/degree: target poses in the measurement frame; ``commanded`` (n, 6)
     µm: the controller's leg lengths λ at each pose (its nominal inverse kinematics of the
-    commanded pose, or its encoders); ``zero_lengths`` (6,) µm: its λ₀; ``sigma_pose`` (6,) the
-    instrument's σ per axis and ``sigma_leg_um`` the legs' own σ (the weights of the implicit
+    commanded pose, or its encoders); ``zero_lengths`` (6,) µm: its λ₀; ``sigma_pose`` the
+    instrument's σ per axis (6,) or its covariance (6, 6) (µm, degree; e.g. of the readings
+    of a repeatability run) and ``sigma_leg_um`` the legs' own σ (the weights of the implicit
     loop; their overall scale is re-estimated as ``chi2_dof``); ``temperature`` (n,) degC for
     the thermal term. Rows with a NaN are dropped. With ``reduce``, parameters the QR analysis
     finds not identifiable are fixed at ``initial`` (default: nominal geometry, identity frames)
@@ -197,6 +213,16 @@ def identify(
     scale = np.where(scale > 0, scale, 1.0)
     fun, jac, params = data.problem(cols, scale)
     sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
+    for _ in range(
+        REWEIGHT
+    ):  # the weights at the estimate, not at the start (a tool 60 mm off moves the levers)
+        fitted = params(sol.x)
+        again = _Data(M, lam, data.lam0, T, sigma_pose, sigma_leg_um, fitted)
+        if np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
+            break
+        data = again
+        fun, jac, params = data.problem(cols, scale)
+        sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
     keep = np.ones(len(M), dtype=bool)
     if robust is not None:
         keep, data, sol = _screen(data, cols, scale, sol, robust)
