@@ -50,13 +50,22 @@ QR_RTOL = 1e-8
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
+#: ... the fits before the last one stop at this coarser tolerance: the weights only need φ
+#: to a fraction of σ.
+COARSE_RTOL = 1e-3
 #: Gauss–Newton stops when a step changes the whitened residuals by less than this fraction of
-#: their norm: far below their noise, and above the rounding of ‖P p_i − b_i‖ (10⁵ µm legs).
-RTOL = 1e-8
+#: their norm (≈ √(6n) σ, so 10⁻⁶ of it moves no parameter by 10⁻⁴ σ). Smaller is not
+#: verifiable: ‖P p_i − b_i‖ of 10⁵ µm legs, whitened by leg-space σ of 10 nm, carries
+#: rounding of 10⁻⁹ per residual, and a step whose predicted decrease is below the cost's
+#: rounding fails the core's line search and falls back to scipy.
+RTOL = 1e-6
 #: The loop covariances C_k are recomputed at the estimate and the fit repeated (at most
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
+#: ... the fits before the last one stop at this coarser tolerance: the weights only need φ
+#: to a fraction of σ.
+COARSE_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -100,7 +109,11 @@ class _Data:
         S = np.diag(self.sigma_pose**2) if self.sigma_pose.ndim == 1 else self.sigma_pose
         self.C = A @ S @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
         self.W = np.linalg.inv(np.linalg.cholesky(self.C))  # whitening, C_k⁻¹ = W_kᵀ W_k
-        self.J0 = self.W @ J
+        self.J0 = self.W @ J  # whitened ∂r/∂φ at the start (n, 6, 61)
+
+    def reweighted(self, phi: Parameters) -> _Data:
+        """The same poses with the loop covariances C_k at ``phi``, which becomes the start."""
+        return _Data(self.M, self.lam, self.lam0, self.T, self.sigma_pose, self.sigma_leg, phi)
 
     def subset(self, keep: np.ndarray) -> _Data:
         out = object.__new__(_Data)
@@ -212,17 +225,15 @@ def identify(
     scale = np.linalg.norm(data.J0[..., cols].reshape(-1, p), axis=0)
     scale = np.where(scale > 0, scale, 1.0)
     fun, jac, params = data.problem(cols, scale)
-    sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
-    for _ in range(
-        REWEIGHT
-    ):  # the weights at the estimate, not at the start (a tool 60 mm off moves the levers)
-        fitted = params(sol.x)
-        again = _Data(M, lam, data.lam0, T, sigma_pose, sigma_leg_um, fitted)
+    sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
+    for _ in range(REWEIGHT):  # weights at the estimate, not at the start: a probe far off moves the levers
+        again = data.reweighted(params(sol.x))
         if np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
             break
         data = again
         fun, jac, params = data.problem(cols, scale)
-        sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
+        sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
+    sol = gauss_newton.solve(fun, jac, sol.x, rtol=RTOL)
     keep = np.ones(len(M), dtype=bool)
     if robust is not None:
         keep, data, sol = _screen(data, cols, scale, sol, robust)
