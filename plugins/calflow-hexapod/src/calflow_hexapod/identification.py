@@ -101,30 +101,37 @@ class Identification:
 class _Data:
     """One identification problem: the poses, their whitening and the free columns."""
 
-    def __init__(self, measured, commanded, zero_lengths, temperature, sigma_pose, sigma_leg_um, initial):
+    def __init__(
+        self,
+        measured,
+        commanded,
+        zero_lengths,
+        temperature,
+        sigma_pose,
+        sigma_leg_um,
+        initial,
+        jacobian: bool = True,
+    ):
         self.M, self.lam, self.lam0, self.T = measured, commanded, zero_lengths, temperature
         self.sigma_pose, self.sigma_leg = np.asarray(sigma_pose, dtype=float), float(sigma_leg_um)
         self.base = initial.vector()
-        _, J, A = closure(initial, measured, commanded, zero_lengths, temperature)
+        _, J, A = closure(initial, measured, commanded, zero_lengths, temperature, parameters=jacobian)
         S = np.diag(self.sigma_pose**2) if self.sigma_pose.ndim == 1 else self.sigma_pose
         self.C = A @ S @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
         self.W = np.linalg.inv(np.linalg.cholesky(self.C))  # whitening, C_k⁻¹ = W_kᵀ W_k
-        self.J0 = self.W @ J  # whitened ∂r/∂φ at the start (n, 6, 61)
+        self.J0 = None if J is None else self.W @ J  # whitened ∂r/∂φ at the start (n, 6, 61)
 
     def reweighted(self, phi: Parameters) -> _Data:
         """The same poses with the loop covariances C_k at ``phi``, which becomes the start."""
-        return _Data(self.M, self.lam, self.lam0, self.T, self.sigma_pose, self.sigma_leg, phi)
+        return _Data(
+            self.M, self.lam, self.lam0, self.T, self.sigma_pose, self.sigma_leg, phi, jacobian=False
+        )
 
     def subset(self, keep: np.ndarray) -> _Data:
         out = object.__new__(_Data)
         out.__dict__.update(self.__dict__)
-        out.M, out.lam, out.W, out.J0, out.C = (
-            self.M[keep],
-            self.lam[keep],
-            self.W[keep],
-            self.J0[keep],
-            self.C[keep],
-        )
+        out.M, out.lam, out.W, out.C = self.M[keep], self.lam[keep], self.W[keep], self.C[keep]
+        out.J0 = None if self.J0 is None else self.J0[keep]
         out.T = None if self.T is None else self.T[keep]
         return out
 
