@@ -50,8 +50,7 @@ QR_RTOL = 1e-8
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
-#: ... the fits before the last one stop at this coarser tolerance: the weights only need φ
-#: to a fraction of σ.
+#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
 COARSE_RTOL = 1e-3
 #: Gauss–Newton stops when a step changes the whitened residuals by less than this fraction of
 #: their norm (≈ √(6n) σ, so 10⁻⁶ of it moves no parameter by 10⁻⁴ σ). Smaller is not
@@ -63,8 +62,7 @@ RTOL = 1e-6
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
-#: ... the fits before the last one stop at this coarser tolerance: the weights only need φ
-#: to a fraction of σ.
+#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
 COARSE_RTOL = 1e-3
 
 
@@ -233,14 +231,16 @@ def identify(
     scale = np.where(scale > 0, scale, 1.0)
     fun, jac, params = data.problem(cols, scale)
     sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
+    tight = False
     for _ in range(REWEIGHT):  # weights at the estimate, not at the start: a probe far off moves the levers
         again = data.reweighted(params(sol.x))
         if np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
             break
         data = again
         fun, jac, params = data.problem(cols, scale)
-        sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
-    sol = gauss_newton.solve(fun, jac, sol.x, rtol=RTOL)
+        sol, tight = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL), True
+    if not tight:
+        sol = gauss_newton.solve(fun, jac, sol.x, rtol=RTOL)
     keep = np.ones(len(M), dtype=bool)
     if robust is not None:
         keep, data, sol = _screen(data, cols, scale, sol, robust)
