@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from calflow.errors import CalflowError
 from calflow.identification.robust import Robust
@@ -24,6 +28,7 @@ def _data(truth, n, seed, sigma=SIGMA, temperature=None):
     return synthetic.simulate(truth, commands, CONTROLLER, rng, sigma, temperature=temperature)
 
 
+@functools.cache
 def _free(model="geometric"):
     measured, lam = _data(NOMINAL, 200, 99)
     J = _Data(measured, lam, CONTROLLER.zero_lengths, None, SIGMA, 0.0, NOMINAL).J0.reshape(-1, len(NAMES))
@@ -35,10 +40,12 @@ def _z(fit, truth):
     return np.array([(est[n] - true[n]) / fit.std[n] for n in fit.free])
 
 
-def test_noiseless_poses_give_back_the_geometry():
+@settings(max_examples=6, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_noiseless_poses_give_back_the_geometry(seed):
     kept, _, _ = _free()
-    truth = synthetic.perturbed(np.random.default_rng(1), NOMINAL, only=kept)
-    measured, lam = _data(truth, 100, 2, sigma=(0.0,) * 6)
+    truth = synthetic.perturbed(np.random.default_rng(seed), NOMINAL, only=kept)
+    measured, lam = _data(truth, 100, seed + 1, sigma=(0.0,) * 6)
     fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
     assert fit.free == kept and fit.success
     error = fit.parameters.vector() - truth.vector()
