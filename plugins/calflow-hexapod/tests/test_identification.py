@@ -229,3 +229,16 @@ def test_a_covariance_of_the_readings_weights_like_the_sigmas_it_holds():
     )
     np.testing.assert_allclose(by_cov.parameters.vector(), by_sigma.parameters.vector(), rtol=0, atol=1e-9)
     assert by_cov.chi2_dof == pytest.approx(by_sigma.chi2_dof, rel=1e-9)
+
+
+def test_the_fit_keeps_its_whitened_jacobian_for_the_observability_indices():
+    from calflow.identification.diagnostics import observability
+
+    measured, lam = _data(NOMINAL, 150, 19)
+    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    assert fit.jacobian.shape == (6 * 150, 42)
+    # the covariance is the inverse information of that Jacobian, scaled by chi2/dof
+    d = np.sqrt(np.diag(fit.covariance))
+    inverse = fit.chi2_dof * np.linalg.inv(fit.jacobian.T @ fit.jacobian)
+    np.testing.assert_allclose(inverse / np.outer(d, d), fit.covariance / np.outer(d, d), atol=1e-6)
+    assert observability(fit.jacobian)["O3"] > 0

@@ -75,7 +75,10 @@ class Identification:
     ``correlation``, ``covariance`` of the free parameters (µm, degree, 1, 1/K), scaled by
     ``chi2_dof``; ``chi2_dof``: the whitened residuals' mean square per degree of freedom
     (1 when the residuals are the stated noise); ``residual_rms_um``: RMS of the leg-length
-    residuals r; ``rejected``: indices of the input poses rejected as outliers.
+    residuals r; ``rejected``: indices of the input poses rejected as outliers; ``jacobian``:
+    the whitened ∂r̃/∂φ of the free parameters at the estimate (6 n_poses × free, 1 per
+    parameter unit), for the core's observability indices
+    (:func:`calflow.identification.diagnostics.observability`).
     """
 
     parameters: Parameters
@@ -94,6 +97,7 @@ class Identification:
     r_diag: np.ndarray | None = None
     rejected: tuple[int, ...] = ()
     loss: str = "none"
+    jacobian: np.ndarray | None = None
 
 
 class _Data:
@@ -274,6 +278,7 @@ def identify(
         r_diag=r_diag,
         rejected=tuple(int(i) for i in rows[~keep]),
         loss="none" if robust is None else robust.loss,
+        jacobian=A * scale,
     )
 
 
