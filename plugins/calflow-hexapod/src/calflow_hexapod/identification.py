@@ -18,7 +18,9 @@ by C_k = A_k Σ_M A_kᵀ + σ_λ² I (A_k = ∂r_k/∂M_k, Σ_M the instrument's
 σ_λ the legs' own noise) is Wampler et al.'s error allocation: the fit is then the maximum
 likelihood estimate for Gaussian errors, its covariance (J̃ᵀ J̃)⁻¹ (J̃ the whitened
 Jacobian) is the Cramér–Rao bound, and χ²/dof of the whitened residuals is 1 when the
-model leaves only noise — the adequacy test.
+model leaves only noise — the adequacy test. A_k depends on φ (the lever arms from the
+measured target to the joints), so C_k is recomputed at the estimate and the fit repeated
+until the weights settle, as the implicit-loop method linearises at the current estimate.
 
 Gauss–Newton, robust losses and outlier rejection are the core's
 (:mod:`calflow.identification.gauss_newton`, :mod:`calflow.identification.robust`); the
@@ -41,8 +43,9 @@ from calflow_hexapod.geometry import AXES, Geometry
 from calflow_hexapod.loop import closure
 from calflow_hexapod.models import LADDER, NAMES, Parameters
 
-#: Default instrument noise per axis (µm for x y z, degree for u v w), used only as relative
-#: weights when none is given: a 6-D laser-tracker probe's order of magnitude.
+#: Default instrument noise per axis (µm for x y z, degree for u v w) when none is given:
+#: 1 µm weighs as much as 10⁻⁴ degree (1.7 µrad). Pass the instrument's own σ: their ratio
+#: sets the weights, and with it the efficiency of the fit and the truth of its σ.
 SIGMA_POSE = (1.0, 1.0, 1.0, 1e-4, 1e-4, 1e-4)
 #: Relative tolerance of the QR analysis: |R_kk| below it, relative to the largest, is zero.
 QR_RTOL = 1e-8
