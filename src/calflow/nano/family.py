@@ -72,6 +72,7 @@ FAMILY = Family(
         "figures": "calflow.nano.report.figures:build",
     },
     templates="calflow.nano.report",
+    schemas="calflow.nano",
     sensors={"simulated_interferometer": "calflow.nano.stage.interferometer_sensor:simulated_interferometer"},
     emulator="calflow.nano.stage.emulate:main",
     joints={"stage1d": ("x",), "stage2d": ("x", "y")},

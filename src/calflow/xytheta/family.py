@@ -142,6 +142,7 @@ FAMILY = Family(
         "check": "calflow.xytheta.checks:check_campaign",
     },
     templates="calflow.xytheta.report",
+    schemas="calflow.xytheta",
     modules={
         "acquire": _CORE
         + (
