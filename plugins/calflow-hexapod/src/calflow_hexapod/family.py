@@ -66,6 +66,7 @@ FAMILY = Family(
         "metrics": _CORE + ("calflow.metrics",) + _ALL,
         "summarise": _CORE + ("calflow.metrics", "calflow.summary_routing") + _ALL,
         "report": _CORE + ("calflow.report",) + _ALL,
+        "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.identification") + _ALL,
     },
     commands=(
         Command(

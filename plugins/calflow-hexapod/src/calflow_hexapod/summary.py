@@ -102,6 +102,16 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "reference": {},
         "inputs": {str(p): sha256_file(p) for p in files},
     }
+    budget = (truth or {}).get("error_budget")
+    if budget:  # replays on the simulated truth (calflow_hexapod.error_budget): reports only
+        for name, entry in budget["budget"]["models"].items():
+            if name in summary["models"]:
+                summary["models"][name]["error_budget"] = entry
+        summary["error_budget"] = {
+            "effects": budget["budget"]["effects"],
+            "unmodelled": budget["budget"]["unmodelled"],
+            "floor": budget.get("floor"),
+        }
     for _, run in found.get("identification", []):
         if "design" in run.attrs:
             summary["identification_design"] = json.loads(run.attrs["design"])

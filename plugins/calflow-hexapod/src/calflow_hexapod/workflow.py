@@ -31,6 +31,12 @@ class HexapodWorkflow(FamilyWorkflow):
         files.append(f"{base}/runs/identification.nc")
         return files
 
+    def budget_files(self, c: dict) -> list[str]:
+        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
+        if c["rig"]["factory"] != "simulated" or not c["validation"]["heldout"].get("error_budget"):
+            return []
+        return [f"results/{c['name']}/truth/hexapod_error_budget.json"]
+
     def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
         return {"run": f"results/{c['name']}/runs/identification.nc"}
 
