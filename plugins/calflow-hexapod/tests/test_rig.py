@@ -303,3 +303,27 @@ def test_run_options_give_each_run_its_stream_and_start():
     assert a.read()["meas_x"] != b.read()["meas_x"]
     gcs = rig_options(c, "gcs", "identification", {"sensor": {"factory": "simulated_tracker"}}, 0.0)
     assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification"}
+
+
+@pytest.mark.parametrize("effect", ["leg_offsets", "leg_scale", "joint_play", "compliance", "expansion"])
+def test_switching_a_leg_effect_off_removes_exactly_its_term(effect):
+    """On the full rig, the true legs with ``effect`` off differ from those with it on by that
+    effect's own term, and by nothing else."""
+    full = HexapodTruth()
+    off = full.without(*EFFECTS[effect])
+    enc = full.quantise(inverse(full.nominal(), CMDS))
+    direction = np.where(np.arange(6) % 2, -1.0, 1.0) * np.ones((len(CMDS), 1))
+    T = np.full(len(CMDS), 21.3)
+    diff = full.true_legs(enc, direction, T, CMDS) - off.true_legs(enc, direction, T, CMDS)
+    base = enc + full.leg_offsets() + full.leg_scales() * (enc - full.home_lengths()) + full.play(direction)
+    term = {
+        "leg_offsets": full.leg_offsets() * (1 + full.expansion_ppm_per_degC * 1e-6 * (21.3 - 20.0)),
+        "leg_scale": full.leg_scales()
+        * (enc - full.home_lengths())
+        * (1 + full.expansion_ppm_per_degC * 1e-6 * 1.3),
+        "joint_play": full.play(direction) * (1 + full.expansion_ppm_per_degC * 1e-6 * 1.3),
+        "compliance": full.compliance(CMDS),
+        "expansion": full.expansion(base, T),
+    }[effect]
+    np.testing.assert_allclose(diff, np.broadcast_to(term, diff.shape), atol=1e-9)
+    assert np.abs(diff).max() > 0.1
