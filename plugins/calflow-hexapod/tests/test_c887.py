@@ -155,6 +155,10 @@ def test_gcs_rig_through_the_emulator_sees_the_simulated_physics(allow_sensor):
         opts["sensor"]["options"]["stream"] = "s"
         rig = gcs(**opts)
         sim = simulated_hexapod(seed=3, stream="s", **physics)
+        a, b = rig.read(), sim.read()  # at home, before any move
+        assert a["meas_x"] == pytest.approx(b["meas_x"], abs=0.11) and a["meas_w"] == pytest.approx(
+            b["meas_w"]
+        )
         cmds = [
             [1500.0, -800.0, 300.0, 0.5, -0.3, 1.0],
             [-4000.0, 2500.0, -900.0, -1.5, 2.0, -4.0],

@@ -302,7 +302,7 @@ def test_run_options_give_each_run_its_stream_and_start():
     b.move(dict(zip(b.joints, CMDS[1])))
     assert a.read()["meas_x"] != b.read()["meas_x"]
     gcs = rig_options(c, "gcs", "identification", {"sensor": {"factory": "simulated_tracker"}}, 0.0)
-    assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification"}
+    assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification", "start_offset_s": 0.0}
 
 
 @pytest.mark.parametrize("effect", ["leg_offsets", "leg_scale", "joint_play", "compliance", "expansion"])

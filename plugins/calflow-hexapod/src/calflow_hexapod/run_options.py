@@ -4,7 +4,7 @@
 noise from (seed, run id) and reads the room profile from the run's campaign time
 (``start_offset_s``), so every run of a campaign is reproducible to the byte and sees the
 room as it was when the run started; through the ``gcs`` rig the simulated tracker sensor
-gets the same seed and stream. Kept free of numerical imports.
+gets the same seed, stream and start. Kept free of numerical imports.
 """
 
 from __future__ import annotations
@@ -21,6 +21,11 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
     elif factory == "gcs":
         sensor = dict(options.get("sensor") or {})
         if sensor.get("factory") in SENSORS:
-            sensor["options"] = {"seed": c["seed"], **(sensor.get("options") or {}), "stream": run_id}
+            sensor["options"] = {
+                "seed": c["seed"],
+                "start_offset_s": float(start_s),
+                **(sensor.get("options") or {}),
+                "stream": run_id,
+            }
             options["sensor"] = sensor
     return options
