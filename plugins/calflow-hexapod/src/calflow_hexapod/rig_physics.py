@@ -26,7 +26,7 @@ Effects (README.md lists them with their source, default and switch):
   from the leg temperature, a first-order lag of the room profile
   (:mod:`calflow.rigs.thermal`); thermometer ``T2`` sits on a leg, ``T1`` reads the air.
 * ``encoder_resolution_um`` — the leg encoders' quantisation: the servo holds each leg at
-  a whole count of its commanded length.
+  a whole count of its commanded length. *Unmodelled* (5 nm: far below the instrument).
 * ``leg_repeatability_um`` — random leg positioning error per move (σ), the datasheet's
   unidirectional repeatability class (H-811.I2: ±0.06 µm in X, Y).
 
@@ -44,11 +44,8 @@ from calflow.errors import OptionError, UnknownOptionError
 from calflow_hexapod.geometry import Geometry, h811, rotation
 
 G = 9.80665  # standard gravity, m/s²
-UNMODELLED = (
-    "joint_play_um",
-    "payload_kg",
-    "tracker_systematic_um",
-)  # no hexapod model represents these
+# no hexapod model represents these (the encoders' rounding is a deterministic function of each pose)
+UNMODELLED = ("joint_play_um", "payload_kg", "tracker_systematic_um", "encoder_resolution_um")
 
 
 def _off(value):
