@@ -71,11 +71,22 @@ def jacobians(q: np.ndarray, phi: Parameters, free, noise: dict) -> np.ndarray:
     return J[..., [NAMES.index(f) for f in free]] / sigma
 
 
-def design_free(phi: Parameters, model: str, pool: np.ndarray, noise: dict) -> tuple[str, ...]:
-    """The parameters of ``model`` (a name of :data:`LADDER`) the design bounds: the identifiable
-    ones on the pool (the identification's QR analysis), less the leg offsets (the nuisance)."""
+def model_free(campaign: dict, model: str) -> tuple[str, ...]:
+    """The free parameters of a campaign's model: its ``free`` list, else its rung of :data:`LADDER`."""
+    spec = (campaign.get("models") or {}).get(model) or {}
+    free = spec.get("free") or LADDER.get(model)
+    if free is None:
+        raise ValueError(
+            f"models.{model}: expected a 'free' list or a model of the ladder ({', '.join(LADDER)})"
+        )
+    return tuple(free)
+
+
+def design_free(phi: Parameters, free, pool: np.ndarray, noise: dict) -> tuple[str, ...]:
+    """The parameters of ``free`` the design bounds: those identifiable on the pool (the
+    identification's QR analysis), less the leg offsets (the nuisance)."""
     J = jacobians(pool, phi, NAMES, noise)
-    kept, _, _ = identifiable(J.reshape(-1, len(NAMES)), LADDER[model])
+    kept, _, _ = identifiable(J.reshape(-1, len(NAMES)), tuple(free))
     return tuple(f for f in kept if f not in OFFSET)
 
 
@@ -126,9 +137,7 @@ def bound(campaign: dict, q: np.ndarray) -> dict:
     phi = nominal_parameters(campaign)
     out["crlb_sigma"] = {}
     for name in campaign.get("models") or LADDER:
-        if name not in LADDER:
-            continue
-        free = design_free(phi, name, q, noise)
+        free = design_free(phi, model_free(campaign, name), q, noise)
         s = design.crlb_sigma(jacobians(q, phi, free, noise))
         out["crlb_sigma"][name] = {f: float(v) for f, v in zip(free, s)}
     return out
@@ -153,7 +162,7 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, dict]:
     rng = np.random.default_rng(np.random.SeedSequence([int(campaign["seed"]), 15]))
     pool = workspace_poses(int(d.get("candidates", 2000)), float(p["fraction"]), rng)
     phi = nominal_parameters(campaign)
-    free = design_free(phi, d.get("model", "geometric"), pool, noise)
+    free = design_free(phi, model_free(campaign, d.get("model", "geometric")), pool, noise)
     J = jacobians(pool, phi, free, noise)
     from calflow_hexapod.plans import identification as random_plan
 
