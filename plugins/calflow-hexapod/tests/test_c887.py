@@ -116,6 +116,15 @@ def test_spi_sets_the_pivot_rotations_turn_about_it(ctl):
     assert exc.value.code == 1
 
 
+def test_system_velocity(ctl):
+    ctl.command("VLS", "2.5")
+    assert ctl.query("VLS?") == ["2.500000"]
+    assert ctl.velocity(["X", "W"]) == {"X": 2.5, "W": 2.5}
+    with pytest.raises(GCSControllerError) as exc:
+        ctl.command("VLS", "1000")
+    assert exc.value.code == 8
+
+
 def test_pivot_changes_the_legs_of_a_rotation():
     a, b = HexapodController(resolution_um=0.0), HexapodController(resolution_um=0.0)
     b.pivot_um = np.array([0.0, 0.0, 50000.0])
