@@ -60,10 +60,20 @@ def test_heldout_poses_are_not_identification_poses():
     assert np.min(np.linalg.norm(held[:, None, :] - ident[None], axis=2)) > 1.0
 
 
+def test_heldout_poses_leave_the_margin_free():
+    from calflow_hexapod.plans import MARGIN_UM, workspace_poses
+
+    q = workspace_poses(50, 0.8, np.random.default_rng(1), margin_um=MARGIN_UM)
+    assert reachable(q, margin_um=MARGIN_UM).all()
+    assert not reachable(workspace_poses(200, 0.8, np.random.default_rng(1)), margin_um=MARGIN_UM).all()
+    with pytest.raises(ValueError, match="iso9283.fraction"):
+        plans.iso9283_commands(1.0)
+
+
 def test_iso9283_poses():
-    q = plans.iso9283_commands(0.5, (1.0, 0.0, 2.0))
+    q = plans.iso9283_commands(0.4, (1.0, 0.0, 2.0))
     assert np.all(q[0, :3] == 0) and np.all(q[:, 3:] == [1.0, 0.0, 2.0])
-    np.testing.assert_allclose(np.abs(q[1:, :3]), np.tile(0.8 * 0.5 * np.array([17000, 17000, 6500]), (4, 1)))
+    np.testing.assert_allclose(np.abs(q[1:, :3]), np.tile(0.8 * 0.4 * np.array([17000, 17000, 6500]), (4, 1)))
     assert reachable(q).all()
 
 

@@ -43,7 +43,7 @@ CMDS = np.array(
         [0, 0, 0, 0, 0, 0],
         [3000, -2000, 1500, 2, -1, 5],
         [-8000, 6000, -3000, -4, 3, -10],
-        [12000, 9000, 2000, 6, 5, 15],
+        [9000, 6000, 1500, 4, 3, 10],
     ],
     dtype=float,
 )
@@ -327,3 +327,13 @@ def test_switching_a_leg_effect_off_removes_exactly_its_term(effect):
     }[effect]
     np.testing.assert_allclose(diff, np.broadcast_to(term, diff.shape), atol=1e-9)
     assert np.abs(diff).max() > 0.1
+
+
+def test_the_rig_refuses_what_the_controller_refuses():
+    rig = simulated_hexapod()
+    beyond = [16000.0, 16000.0, 6000.0, 9.0, 9.0, 20.0]  # each coordinate inside its travel
+    with pytest.raises(RigError, match="outside the workspace"):
+        rig.move(dict(zip(rig.joints, beyond)))
+    with pytest.raises(RigError, match="outside the workspace"):
+        rig.visit({j: np.array([0.0, v]) for j, v in zip(rig.joints, beyond)}, 1.0)
+    rig.move(dict(zip(rig.joints, CMDS[3])))  # still usable

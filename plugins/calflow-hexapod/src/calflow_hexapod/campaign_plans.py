@@ -60,7 +60,10 @@ def heldout_targets(c: dict) -> np.ndarray:
     """The campaign's held-out targets (n, 6) in the measurement frame (:func:`plans.heldout_targets`)."""
     h = c["validation"]["heldout"]
     fraction = float(h.get("fraction", c["identification"]["fraction"]))
-    return plans.heldout_targets(h["targets"], fraction, design_plan.nominal_parameters(c), heldout_seed(c))
+    margin = float(h.get("margin_um", plans.MARGIN_UM))
+    return plans.heldout_targets(
+        h["targets"], fraction, design_plan.nominal_parameters(c), heldout_seed(c), margin
+    )
 
 
 def validation_heldout(c: dict, args) -> Acquisition:
