@@ -142,3 +142,21 @@ def test_designed_plan_carries_more_information_than_random(tmp_path):
 def test_plans_without_a_model_say_so():
     with pytest.raises(Exception, match="--model"):
         campaign_plans.validation_heldout(campaign(), argparse.Namespace(model=None))
+
+
+def test_noise_model_of_the_simulated_hexapod_behind_the_emulator():
+    """A gcs rig whose sensor is the simulated tracker has the simulated rig's noise model (the
+    identification's weights); another sensor declares none."""
+    sim = campaign()
+    sim["rig"]["options"] = {"tracker_distance_m": 3.0}
+    gcs = campaign()
+    gcs["rig"] = {
+        "factory": "gcs",
+        "options": {
+            "sensor": {"factory": "simulated_tracker", "options": {"seed": 1, "tracker_distance_m": 3.0}}
+        },
+    }
+    assert design_plan.noise_model(gcs) == design_plan.noise_model(sim)
+    assert design_plan.noise_model(gcs)["position_um"] > design_plan.noise_model(campaign())["position_um"]
+    gcs["rig"]["options"]["sensor"]["factory"] = "my_lab.sensors:tracker"
+    assert design_plan.noise_model(gcs) is None

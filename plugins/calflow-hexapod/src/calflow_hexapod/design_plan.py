@@ -38,18 +38,21 @@ def nominal_parameters(campaign: dict) -> Parameters:
 def noise_model(campaign: dict) -> dict | None:
     """σ of a reading: ``position_um`` and ``angle_deg`` per axis of the instrument, ``leg_um`` of
     the legs. ``identification.design.noise`` when given, else the simulated rig's tracker
-    (MPE/4 at the station's distance, :mod:`calflow_hexapod.tracker`) and leg repeatability;
-    None for another rig that declares none."""
+    (MPE/4 at the station's distance, :mod:`calflow_hexapod.tracker`) and leg repeatability,
+    also when the simulated hexapod is served by the C-887 emulator (``rig: gcs`` with the
+    tracker sensor); None for another rig that declares none."""
     given = (campaign["identification"].get("design") or {}).get("noise") or {}
     if {"position_um", "angle_deg", "leg_um"} <= set(given):
         return {k: float(given[k]) for k in ("position_um", "angle_deg", "leg_um")}
-    if campaign["rig"]["factory"] != "simulated":
+    from calflow_hexapod.run_options import simulated_physics
+
+    physics = simulated_physics(campaign)
+    if physics is None:
         return None
     from calflow_hexapod import tracker
     from calflow_hexapod.rig_physics import truth_from_options
 
-    opts = {k: v for k, v in (campaign["rig"].get("options") or {}).items() if k not in ("seed", "stream")}
-    t = truth_from_options(opts)
+    t = truth_from_options(physics)
     p = tracker.probe_pose(t, np.zeros((1, 6)))[0]
     s_r, s_t, s_a = tracker.sigmas(t, p)
     return {
@@ -98,9 +101,10 @@ def move_times(q: np.ndarray, velocity_um_s: float, velocity_deg_s: float, settl
 
 def _timing(campaign: dict) -> tuple[float, float, float]:
     from calflow_hexapod.rig_physics import HexapodTruth
+    from calflow_hexapod.run_options import simulated_physics
 
     d = HexapodTruth()
-    o = (campaign["rig"].get("options") or {}) if campaign["rig"]["factory"] == "simulated" else {}
+    o = simulated_physics(campaign) or {}
     return (
         float(o.get("velocity_um_s", d.velocity_um_s)),
         float(o.get("velocity_deg_s", d.velocity_deg_s)),

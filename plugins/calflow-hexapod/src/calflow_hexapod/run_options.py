@@ -12,6 +12,20 @@ from __future__ import annotations
 SENSORS = ("simulated_tracker", "calflow_hexapod.sensor:simulated_tracker")
 
 
+def simulated_physics(campaign: dict) -> dict | None:
+    """The :class:`~calflow_hexapod.rig_physics.HexapodTruth` overrides of a campaign whose
+    hexapod is simulated — the simulated rig's options, or the tracker sensor's options of a
+    ``gcs`` rig (an emulated controller) — without seed, stream and pivot; None for a real rig."""
+    rig = campaign.get("rig") or {}
+    options = dict(rig.get("options") or {})
+    if rig.get("factory", "simulated") != "simulated":
+        sensor = options.get("sensor") or {}
+        if sensor.get("factory") not in SENSORS:
+            return None
+        options = dict(sensor.get("options") or {})
+    return {k: v for k, v in options.items() if k not in ("seed", "stream", "pivot_um", "start_offset_s")}
+
+
 def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
     """Per-run options of the simulated hexapod, or of the tracker sensor of a ``gcs`` rig."""
     if factory == "simulated":
