@@ -160,3 +160,12 @@ def test_noise_model_of_the_simulated_hexapod_behind_the_emulator():
     assert design_plan.noise_model(gcs)["position_um"] > design_plan.noise_model(campaign())["position_um"]
     gcs["rig"]["options"]["sensor"]["factory"] = "my_lab.sensors:tracker"
     assert design_plan.noise_model(gcs) is None
+
+
+def test_too_large_an_iso_cube_is_one_line(tmp_path):
+    from calflow.errors import CalflowError
+
+    c = campaign()
+    c["iso9283"] = {"fraction": 0.9, "cycles": 30}
+    with pytest.raises(CalflowError, match=r"campaign hexapod-test: iso9283.fraction"):
+        campaign_plans.iso9283(c, argparse.Namespace(model=["unused.nc"]))
