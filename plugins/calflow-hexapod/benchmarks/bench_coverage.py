@@ -42,6 +42,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", type=int, default=100)
     ap.add_argument("--poses", type=int, default=300)
     ap.add_argument("--sigma-leg-um", type=float, default=0.05, help="the legs' own noise (µm)")
+    ap.add_argument(
+        "--probe-z-um",
+        type=float,
+        default=0.0,
+        help="the measured target this far above the platform (µm; a 6-D probe: 60000)",
+    )
     a = ap.parse_args(argv)
     controller = h811()
     nominal = Parameters.nominal(controller)
@@ -55,6 +61,7 @@ def main(argv=None) -> dict:
     for seed in range(a.seeds):
         rng = np.random.default_rng(seed)
         truth = synthetic.perturbed(rng, nominal, only=free)
+        truth = truth.replace(tool_z=truth.tool[2] + a.probe_z_um)
         measured, lam = synthetic.simulate(
             truth,
             synthetic.random_poses(a.poses, rng),
@@ -80,6 +87,7 @@ def main(argv=None) -> dict:
     per = hits.mean(axis=0)
     out = {
         "model": a.model,
+        "probe_z_um": a.probe_z_um,
         "seeds": a.seeds,
         "poses": a.poses,
         "free": len(free),

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from calflow.errors import CalflowError
 from calflow.identification.robust import Robust
@@ -24,6 +28,7 @@ def _data(truth, n, seed, sigma=SIGMA, temperature=None):
     return synthetic.simulate(truth, commands, CONTROLLER, rng, sigma, temperature=temperature)
 
 
+@functools.cache
 def _free(model="geometric"):
     measured, lam = _data(NOMINAL, 200, 99)
     J = _Data(measured, lam, CONTROLLER.zero_lengths, None, SIGMA, 0.0, NOMINAL).J0.reshape(-1, len(NAMES))
@@ -35,10 +40,12 @@ def _z(fit, truth):
     return np.array([(est[n] - true[n]) / fit.std[n] for n in fit.free])
 
 
-def test_noiseless_poses_give_back_the_geometry():
+@settings(max_examples=6, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_noiseless_poses_give_back_the_geometry(seed):
     kept, _, _ = _free()
-    truth = synthetic.perturbed(np.random.default_rng(1), NOMINAL, only=kept)
-    measured, lam = _data(truth, 100, 2, sigma=(0.0,) * 6)
+    truth = synthetic.perturbed(np.random.default_rng(seed), NOMINAL, only=kept)
+    measured, lam = _data(truth, 100, seed + 1, sigma=(0.0,) * 6)
     fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
     assert fit.free == kept and fit.success
     error = fit.parameters.vector() - truth.vector()
@@ -197,3 +204,41 @@ def test_a_run_dataset_gives_the_identification_its_inputs():
     assert run_inputs(run.drop_vars("temperature"), CONTROLLER)[2] is None
     with pytest.raises(CalflowError, match=r"run.nc: missing variables \['meas_w'\]"):
         run_inputs(run.drop_vars("meas_w"), CONTROLLER, source="run.nc")
+
+
+def test_a_probe_far_from_the_platform_is_weighted_at_the_estimate_not_at_the_start():
+    kept, _, _ = _free()
+    truth = synthetic.perturbed(np.random.default_rng(16), NOMINAL, only=kept)
+    truth = truth.replace(tool_z=60_000.0, tool_w=1.0)  # a 6-D probe 60 mm above the platform, turned 1°
+    measured, lam = _data(truth, 400, 17)
+    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    assert 0.9 < fit.chi2_dof < 1.1  # weights at the nominal probe (on the platform) would misstate the noise
+    assert np.max(np.abs(_z(fit, truth))) < 4.5
+
+
+def test_a_covariance_of_the_readings_weights_like_the_sigmas_it_holds():
+    measured, lam = _data(NOMINAL, 100, 18)
+    by_sigma = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["offsets"], NOMINAL, sigma_pose=SIGMA)
+    by_cov = identify(
+        measured,
+        lam,
+        CONTROLLER.zero_lengths,
+        LADDER["offsets"],
+        NOMINAL,
+        sigma_pose=np.diag(np.square(SIGMA)),
+    )
+    np.testing.assert_allclose(by_cov.parameters.vector(), by_sigma.parameters.vector(), rtol=0, atol=1e-9)
+    assert by_cov.chi2_dof == pytest.approx(by_sigma.chi2_dof, rel=1e-9)
+
+
+def test_the_fit_keeps_its_whitened_jacobian_for_the_observability_indices():
+    from calflow.identification.diagnostics import observability
+
+    measured, lam = _data(NOMINAL, 150, 19)
+    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    assert fit.jacobian.shape == (6 * 150, 42)
+    # the covariance is the inverse information of that Jacobian, scaled by chi2/dof
+    d = np.sqrt(np.diag(fit.covariance))
+    inverse = fit.chi2_dof * np.linalg.inv(fit.jacobian.T @ fit.jacobian)
+    np.testing.assert_allclose(inverse / np.outer(d, d), fit.covariance / np.outer(d, d), atol=1e-6)
+    assert observability(fit.jacobian)["O3"] > 0

@@ -18,7 +18,9 @@ by C_k = A_k Σ_M A_kᵀ + σ_λ² I (A_k = ∂r_k/∂M_k, Σ_M the instrument's
 σ_λ the legs' own noise) is Wampler et al.'s error allocation: the fit is then the maximum
 likelihood estimate for Gaussian errors, its covariance (J̃ᵀ J̃)⁻¹ (J̃ the whitened
 Jacobian) is the Cramér–Rao bound, and χ²/dof of the whitened residuals is 1 when the
-model leaves only noise — the adequacy test.
+model leaves only noise — the adequacy test. A_k depends on φ (the lever arms from the
+measured target to the joints), so C_k is recomputed at the estimate and the fit repeated
+until the weights settle, as the implicit-loop method linearises at the current estimate.
 
 Gauss–Newton, robust losses and outlier rejection are the core's
 (:mod:`calflow.identification.gauss_newton`, :mod:`calflow.identification.robust`); the
@@ -41,14 +43,30 @@ from calflow_hexapod.geometry import AXES, Geometry
 from calflow_hexapod.loop import closure
 from calflow_hexapod.models import LADDER, NAMES, Parameters
 
-#: Default instrument noise per axis (µm for x y z, degree for u v w), used only as relative
-#: weights when none is given: a 6-D laser-tracker probe's order of magnitude.
+#: Default instrument noise per axis (µm for x y z, degree for u v w) when none is given:
+#: 1 µm weighs as much as 10⁻⁴ degree (1.7 µrad). Pass the instrument's own σ: their ratio
+#: sets the weights, and with it the efficiency of the fit and the truth of its σ.
 SIGMA_POSE = (1.0, 1.0, 1.0, 1e-4, 1e-4, 1e-4)
 #: Relative tolerance of the QR analysis: |R_kk| below it, relative to the largest, is zero.
 QR_RTOL = 1e-8
+#: The loop covariances C_k are recomputed at the estimate and the fit repeated (at most
+#: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
+REWEIGHT = 3
+WEIGHT_RTOL = 1e-3
+#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
+COARSE_RTOL = 1e-3
 #: Gauss–Newton stops when a step changes the whitened residuals by less than this fraction of
-#: their norm: far below their noise, and above the rounding of ‖P p_i − b_i‖ (10⁵ µm legs).
-RTOL = 1e-8
+#: their norm (≈ √(6n) σ, so 10⁻⁶ of it moves no parameter by 10⁻⁴ σ). Smaller is not
+#: verifiable: ‖P p_i − b_i‖ of 10⁵ µm legs, whitened by leg-space σ of 10 nm, carries
+#: rounding of 10⁻⁹ per residual, and a step whose predicted decrease is below the cost's
+#: rounding fails the core's line search and falls back to scipy.
+RTOL = 1e-6
+#: The loop covariances C_k are recomputed at the estimate and the fit repeated (at most
+#: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
+REWEIGHT = 3
+WEIGHT_RTOL = 1e-3
+#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
+COARSE_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -60,7 +78,10 @@ class Identification:
     ``correlation``, ``covariance`` of the free parameters (µm, degree, 1, 1/K), scaled by
     ``chi2_dof``; ``chi2_dof``: the whitened residuals' mean square per degree of freedom
     (1 when the residuals are the stated noise); ``residual_rms_um``: RMS of the leg-length
-    residuals r; ``rejected``: indices of the input poses rejected as outliers.
+    residuals r; ``rejected``: indices of the input poses rejected as outliers; ``jacobian``:
+    the whitened ∂r̃/∂φ of the free parameters at the estimate (6 n_poses × free, 1 per
+    parameter unit), for the core's observability indices
+    (:func:`calflow.identification.diagnostics.observability`).
     """
 
     parameters: Parameters
@@ -79,30 +100,57 @@ class Identification:
     r_diag: np.ndarray | None = None
     rejected: tuple[int, ...] = ()
     loss: str = "none"
+    jacobian: np.ndarray | None = None
 
 
 class _Data:
     """One identification problem: the poses, their whitening and the free columns."""
 
-    def __init__(self, measured, commanded, zero_lengths, temperature, sigma_pose, sigma_leg_um, initial):
+    def __init__(
+        self,
+        measured,
+        commanded,
+        zero_lengths,
+        temperature,
+        sigma_pose,
+        sigma_leg_um,
+        initial,
+        jacobian: bool = True,
+    ):
         self.M, self.lam, self.lam0, self.T = measured, commanded, zero_lengths, temperature
         self.sigma_pose, self.sigma_leg = np.asarray(sigma_pose, dtype=float), float(sigma_leg_um)
         self.base = initial.vector()
-        _, J, A = closure(initial, measured, commanded, zero_lengths, temperature)
-        C = (A * self.sigma_pose**2) @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
-        self.W = np.linalg.inv(np.linalg.cholesky(C))  # whitening, C_k⁻¹ = W_kᵀ W_k
-        self.J0 = self.W @ J
+        _, J, A = closure(initial, measured, commanded, zero_lengths, temperature, parameters=jacobian)
+        S = np.diag(self.sigma_pose**2) if self.sigma_pose.ndim == 1 else self.sigma_pose
+        self.C = A @ S @ np.swapaxes(A, -1, -2) + self.sigma_leg**2 * np.eye(6)
+        self.W = np.linalg.inv(np.linalg.cholesky(self.C))  # whitening, C_k⁻¹ = W_kᵀ W_k
+        self.J0 = None if J is None else self.W @ J  # whitened ∂r/∂φ at the start (n, 6, 61)
+
+    def reweighted(self, phi: Parameters) -> _Data:
+        """The same poses with the loop covariances C_k at ``phi``, which becomes the start."""
+        return _Data(
+            self.M, self.lam, self.lam0, self.T, self.sigma_pose, self.sigma_leg, phi, jacobian=False
+        )
 
     def subset(self, keep: np.ndarray) -> _Data:
         out = object.__new__(_Data)
         out.__dict__.update(self.__dict__)
-        out.M, out.lam, out.W, out.J0 = self.M[keep], self.lam[keep], self.W[keep], self.J0[keep]
+        out.M, out.lam, out.W, out.C = self.M[keep], self.lam[keep], self.W[keep], self.C[keep]
+        out.J0 = None if self.J0 is None else self.J0[keep]
         out.T = None if self.T is None else self.T[keep]
         return out
 
     def problem(self, cols: list[int], scale: np.ndarray):
-        """fun, jac over x = (φ_free − φ₀_free) · scale (whitened residuals, dimensionless)."""
+        """fun, jac over x = (φ_free − φ₀_free) · scale (whitened residuals, dimensionless).
+
+        ``jac`` writes into buffers of its own, so its result holds until its next call: a
+        few-MB Jacobian allocated afresh at every iteration costs more in page faults than
+        it takes to compute."""
         start = self.base[cols]
+        n = len(self.M)
+        J, WJ = np.zeros((n, 6, len(NAMES))), np.empty((n, 6, len(NAMES)))
+        out = np.empty((n, 6, len(cols)))
+        index = np.asarray(cols)
 
         def params(x):
             phi = self.base.copy()
@@ -114,8 +162,11 @@ class _Data:
             return (self.W @ r[..., None]).ravel()
 
         def jac(x):
-            _, J = closure(params(x), self.M, self.lam, self.lam0, self.T, measurement=False)
-            return (self.W @ J[..., cols]).reshape(-1, len(cols)) / scale
+            closure(params(x), self.M, self.lam, self.lam0, self.T, measurement=False, out=J)
+            np.matmul(self.W, J, out=WJ)  # (W J)[cols]: 10 times faster than W (J[cols])
+            np.take(WJ, index, axis=-1, out=out)
+            np.divide(out, scale, out=out)
+            return out.reshape(-1, len(cols))
 
         return fun, jac, params
 
@@ -170,8 +221,9 @@ def identify(
 
     ``measured`` (n, 6) µm/degree: target poses in the measurement frame; ``commanded`` (n, 6)
     µm: the controller's leg lengths λ at each pose (its nominal inverse kinematics of the
-    commanded pose, or its encoders); ``zero_lengths`` (6,) µm: its λ₀; ``sigma_pose`` (6,) the
-    instrument's σ per axis and ``sigma_leg_um`` the legs' own σ (the weights of the implicit
+    commanded pose, or its encoders); ``zero_lengths`` (6,) µm: its λ₀; ``sigma_pose`` the
+    instrument's σ per axis (6,) or its covariance (6, 6) (µm, degree; e.g. of the readings
+    of a repeatability run) and ``sigma_leg_um`` the legs' own σ (the weights of the implicit
     loop; their overall scale is re-estimated as ``chi2_dof``); ``temperature`` (n,) degC for
     the thermal term. Rows with a NaN are dropped. With ``reduce``, parameters the QR analysis
     finds not identifiable are fixed at ``initial`` (default: nominal geometry, identity frames)
@@ -196,12 +248,22 @@ def identify(
     scale = np.linalg.norm(data.J0[..., cols].reshape(-1, p), axis=0)
     scale = np.where(scale > 0, scale, 1.0)
     fun, jac, params = data.problem(cols, scale)
-    sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
+    sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
+    tight = False
+    for _ in range(REWEIGHT):  # weights at the estimate, not at the start: a probe far off moves the levers
+        again = data.reweighted(params(sol.x))
+        if np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
+            break
+        data = again
+        fun, jac, params = data.problem(cols, scale)
+        sol, tight = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL), True
+    if not tight:
+        sol = gauss_newton.solve(fun, jac, sol.x, rtol=RTOL)
     keep = np.ones(len(M), dtype=bool)
     if robust is not None:
         keep, data, sol = _screen(data, cols, scale, sol, robust)
         fun, jac, params = data.problem(cols, scale)
-    A = jac(sol.x)
+    A = jac(sol.x).copy()
     dof = A.shape[0] - p
     chi2 = float(sol.fun @ sol.fun) / dof
     try:
@@ -230,6 +292,7 @@ def identify(
         r_diag=r_diag,
         rejected=tuple(int(i) for i in rows[~keep]),
         loss="none" if robust is None else robust.loss,
+        jacobian=A * scale,
     )
 
 

@@ -34,8 +34,12 @@ def closure(
     temperature=None,
     derivatives: bool = True,
     measurement: bool = True,
+    parameters: bool = True,
+    out: np.ndarray | None = None,
 ):
-    """r (n, 6) µm and, with ``derivatives``, ∂r/∂φ (n, 6, 61) and (with ``measurement``) ∂r/∂M (n, 6, 6).
+    """r (n, 6) µm and, with ``derivatives``, ∂r/∂φ (n, 6, 61; None without ``parameters``) and
+    (with ``measurement``) ∂r/∂M (n, 6, 6). ``out``: an array (n, 6, 61) to write ∂r/∂φ into,
+    zero where ∂r/∂φ is structurally zero (as a previous call leaves it).
 
     ``measured`` (n, 6): target poses M_k in the measurement frame (µm, degree, the C-887
     convention about the target's origin); ``commanded`` (n, 6): the controller's leg lengths
@@ -59,8 +63,21 @@ def closure(
     u = d / rho[..., None]  # unit leg vectors n_ki
     uF = u @ RF  # n̂ᵀ R_F
     uFM = uF @ RM  # n̂ᵀ R_F R_M
+    J = _parameter_jacobian(phi, lam, zero_lengths, dT, y, u, uFM, RG, out) if parameters else None
+    if not measurement:
+        return r, J
+    A = np.empty((n, 6, 6))
+    A[..., :3] = uF
+    dRM = rotation_derivatives(M[:, 3], M[:, 4], M[:, 5])  # (3, n, 3, 3)
+    A[..., 3:] = np.moveaxis(_dot(uF, z @ np.swapaxes(dRM, -1, -2)), 0, -1)
+    return r, J, A
+
+
+def _parameter_jacobian(phi: Parameters, lam, zero_lengths, dT, y, u, uFM, RG, out=None) -> np.ndarray:
+    """∂r/∂φ (n, 6, 61) from the unit leg vectors u, y = M_k G⁻¹ p_i and n̂ᵀ R_F R_M."""
+    n = u.shape[0]
     uP = uFM @ RG.T  # n̂ᵀ R_P, R_P = R_F R_M R_Gᵀ
-    J = np.zeros((n, 6, N_PARAMETERS))
+    J = np.zeros((n, 6, N_PARAMETERS)) if out is None else out
     J[..., 0:3] = u
     J[..., 3:6] = np.moveaxis(
         _dot(u, y @ np.swapaxes(rotation_derivatives(*phi.frame[3:]), -1, -2)[:, None]), 0, -1
@@ -75,13 +92,7 @@ def closure(
     J[:, legs, 48 + legs] = -1.0
     J[:, legs, 54 + legs] = -(lam - zero_lengths)
     J[..., 60] = -lam * dT[:, None]
-    if not measurement:
-        return r, J
-    A = np.empty((n, 6, 6))
-    A[..., :3] = uF
-    dRM = rotation_derivatives(M[:, 3], M[:, 4], M[:, 5])  # (3, n, 3, 3)
-    A[..., 3:] = np.moveaxis(_dot(uF, z @ np.swapaxes(dRM, -1, -2)), 0, -1)
-    return r, J, A
+    return J
 
 
 def _dot(a, b):
