@@ -116,6 +116,15 @@ def test_spi_sets_the_pivot_rotations_turn_about_it(ctl):
     assert exc.value.code == 1
 
 
+def test_system_velocity(ctl):
+    ctl.command("VLS", "2.5")
+    assert ctl.query("VLS?") == ["2.500000"]
+    assert ctl.velocity(["X", "W"]) == {"X": 2.5, "W": 2.5}
+    with pytest.raises(GCSControllerError) as exc:
+        ctl.command("VLS", "1000")
+    assert exc.value.code == 8
+
+
 def test_pivot_changes_the_legs_of_a_rotation():
     a, b = HexapodController(resolution_um=0.0), HexapodController(resolution_um=0.0)
     b.pivot_um = np.array([0.0, 0.0, 50000.0])
@@ -155,6 +164,10 @@ def test_gcs_rig_through_the_emulator_sees_the_simulated_physics(allow_sensor):
         opts["sensor"]["options"]["stream"] = "s"
         rig = gcs(**opts)
         sim = simulated_hexapod(seed=3, stream="s", **physics)
+        a, b = rig.read(), sim.read()  # at home, before any move
+        assert a["meas_x"] == pytest.approx(b["meas_x"], abs=0.11) and a["meas_w"] == pytest.approx(
+            b["meas_w"]
+        )
         cmds = [
             [1500.0, -800.0, 300.0, 0.5, -0.3, 1.0],
             [-4000.0, 2500.0, -900.0, -1.5, 2.0, -4.0],

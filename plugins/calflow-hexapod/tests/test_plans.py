@@ -60,10 +60,20 @@ def test_heldout_poses_are_not_identification_poses():
     assert np.min(np.linalg.norm(held[:, None, :] - ident[None], axis=2)) > 1.0
 
 
+def test_heldout_poses_leave_the_margin_free():
+    from calflow_hexapod.plans import MARGIN_UM, workspace_poses
+
+    q = workspace_poses(50, 0.8, np.random.default_rng(1), margin_um=MARGIN_UM)
+    assert reachable(q, margin_um=MARGIN_UM).all()
+    assert not reachable(workspace_poses(200, 0.8, np.random.default_rng(1)), margin_um=MARGIN_UM).all()
+    with pytest.raises(ValueError, match="iso9283.fraction"):
+        plans.iso9283_commands(1.0)
+
+
 def test_iso9283_poses():
-    q = plans.iso9283_commands(0.5, (1.0, 0.0, 2.0))
+    q = plans.iso9283_commands(0.4, (1.0, 0.0, 2.0))
     assert np.all(q[0, :3] == 0) and np.all(q[:, 3:] == [1.0, 0.0, 2.0])
-    np.testing.assert_allclose(np.abs(q[1:, :3]), np.tile(0.8 * 0.5 * np.array([17000, 17000, 6500]), (4, 1)))
+    np.testing.assert_allclose(np.abs(q[1:, :3]), np.tile(0.8 * 0.4 * np.array([17000, 17000, 6500]), (4, 1)))
     assert reachable(q).all()
 
 
@@ -132,3 +142,30 @@ def test_designed_plan_carries_more_information_than_random(tmp_path):
 def test_plans_without_a_model_say_so():
     with pytest.raises(Exception, match="--model"):
         campaign_plans.validation_heldout(campaign(), argparse.Namespace(model=None))
+
+
+def test_noise_model_of_the_simulated_hexapod_behind_the_emulator():
+    """A gcs rig whose sensor is the simulated tracker has the simulated rig's noise model (the
+    identification's weights); another sensor declares none."""
+    sim = campaign()
+    sim["rig"]["options"] = {"tracker_distance_m": 3.0}
+    gcs = campaign()
+    gcs["rig"] = {
+        "factory": "gcs",
+        "options": {
+            "sensor": {"factory": "simulated_tracker", "options": {"seed": 1, "tracker_distance_m": 3.0}}
+        },
+    }
+    assert design_plan.noise_model(gcs) == design_plan.noise_model(sim)
+    assert design_plan.noise_model(gcs)["position_um"] > design_plan.noise_model(campaign())["position_um"]
+    gcs["rig"]["options"]["sensor"]["factory"] = "my_lab.sensors:tracker"
+    assert design_plan.noise_model(gcs) is None
+
+
+def test_too_large_an_iso_cube_is_one_line(tmp_path):
+    from calflow.errors import CalflowError
+
+    c = campaign()
+    c["iso9283"] = {"fraction": 0.9, "cycles": 30}
+    with pytest.raises(CalflowError, match=r"campaign hexapod-test: iso9283.fraction"):
+        campaign_plans.iso9283(c, argparse.Namespace(model=["unused.nc"]))

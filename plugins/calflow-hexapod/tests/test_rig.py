@@ -43,7 +43,7 @@ CMDS = np.array(
         [0, 0, 0, 0, 0, 0],
         [3000, -2000, 1500, 2, -1, 5],
         [-8000, 6000, -3000, -4, 3, -10],
-        [12000, 9000, 2000, 6, 5, 15],
+        [9000, 6000, 1500, 4, 3, 10],
     ],
     dtype=float,
 )
@@ -302,4 +302,38 @@ def test_run_options_give_each_run_its_stream_and_start():
     b.move(dict(zip(b.joints, CMDS[1])))
     assert a.read()["meas_x"] != b.read()["meas_x"]
     gcs = rig_options(c, "gcs", "identification", {"sensor": {"factory": "simulated_tracker"}}, 0.0)
-    assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification"}
+    assert gcs["sensor"]["options"] == {"seed": 9, "stream": "identification", "start_offset_s": 0.0}
+
+
+@pytest.mark.parametrize("effect", ["leg_offsets", "leg_scale", "joint_play", "compliance", "expansion"])
+def test_switching_a_leg_effect_off_removes_exactly_its_term(effect):
+    """On the full rig, the true legs with ``effect`` off differ from those with it on by that
+    effect's own term, and by nothing else."""
+    full = HexapodTruth()
+    off = full.without(*EFFECTS[effect])
+    enc = full.quantise(inverse(full.nominal(), CMDS))
+    direction = np.where(np.arange(6) % 2, -1.0, 1.0) * np.ones((len(CMDS), 1))
+    T = np.full(len(CMDS), 21.3)
+    diff = full.true_legs(enc, direction, T, CMDS) - off.true_legs(enc, direction, T, CMDS)
+    base = enc + full.leg_offsets() + full.leg_scales() * (enc - full.home_lengths()) + full.play(direction)
+    term = {
+        "leg_offsets": full.leg_offsets() * (1 + full.expansion_ppm_per_degC * 1e-6 * (21.3 - 20.0)),
+        "leg_scale": full.leg_scales()
+        * (enc - full.home_lengths())
+        * (1 + full.expansion_ppm_per_degC * 1e-6 * 1.3),
+        "joint_play": full.play(direction) * (1 + full.expansion_ppm_per_degC * 1e-6 * 1.3),
+        "compliance": full.compliance(CMDS),
+        "expansion": full.expansion(base, T),
+    }[effect]
+    np.testing.assert_allclose(diff, np.broadcast_to(term, diff.shape), atol=1e-9)
+    assert np.abs(diff).max() > 0.1
+
+
+def test_the_rig_refuses_what_the_controller_refuses():
+    rig = simulated_hexapod()
+    beyond = [16000.0, 16000.0, 6000.0, 9.0, 9.0, 20.0]  # each coordinate inside its travel
+    with pytest.raises(RigError, match="outside the workspace"):
+        rig.move(dict(zip(rig.joints, beyond)))
+    with pytest.raises(RigError, match="outside the workspace"):
+        rig.visit({j: np.array([0.0, v]) for j, v in zip(rig.joints, beyond)}, 1.0)
+    rig.move(dict(zip(rig.joints, CMDS[3])))  # still usable

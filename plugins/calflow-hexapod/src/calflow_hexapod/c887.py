@@ -19,6 +19,8 @@ What differs from the single-axis C-863 emulation (:mod:`calflow.gcs.controller`
   (PI MS207E, "pivot point"; the coordinates R, S, T of the C-887's GCS). Rotations in
   ``MOV`` are about it. Setting it while U, V or W is not 0 is refused with error 9
   (PI_CNTR_SET_PIVOT_NOT_POSSIBLE); a coordinate other than R, S, T is a syntax error (1);
+* ``VLS <v>`` / ``VLS?``: the platform's system velocity (mm/s, and degree/s for U V W), out
+  of range: error 8 (PI_CNTR_VEL_OUT_OF_LIMITS);
 * ``ONT?`` is the base's settling rule per axis; ``#5`` / ``#7`` / ``STP`` / ``#24``,
   ``SVO``, ``VEL``, ``ERR?``, ``SPA`` as the base controller.
 
@@ -83,6 +85,8 @@ class HexapodController(EmulatedController):
         *EmulatedController.HELP,
         "SPI {<PPCoordinate> <PPValue>}",
         "SPI? [{<PPCoordinate>}]",
+        "VLS <SystemVelocity>",
+        "VLS?",
     ]
     IDN = "(c)2024 calflow, C-887.52-EMU, 0000000000, 0.1.0"
 
@@ -204,3 +208,22 @@ class HexapodController(EmulatedController):
             raise _Err(9)
         self._cache = None
         self.pivot_um = new
+
+    def _q_VLS(self, args: list[str], now: float) -> list[str]:
+        if args:
+            raise _Err(1)
+        return [f"{self.axes['X'].velocity:.6f}"]
+
+    def _c_VLS(self, args: list[str], now: float) -> None:
+        """VLS: the platform's system velocity (mm/s for X Y Z, the same number in degree/s for
+        U V W), within every axis's maximum; error 8 otherwise."""
+        if len(args) != 1:
+            raise _Err(1)
+        try:
+            v = float(args[0])
+        except ValueError:
+            raise _Err(1) from None
+        if not (math.isfinite(v) and all(0 < v <= ax.config.max_velocity for ax in self.axes.values())):
+            raise _Err(8)
+        for ax in self.axes.values():
+            ax.velocity = v

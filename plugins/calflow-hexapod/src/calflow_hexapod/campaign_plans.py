@@ -60,14 +60,20 @@ def heldout_targets(c: dict) -> np.ndarray:
     """The campaign's held-out targets (n, 6) in the measurement frame (:func:`plans.heldout_targets`)."""
     h = c["validation"]["heldout"]
     fraction = float(h.get("fraction", c["identification"]["fraction"]))
-    return plans.heldout_targets(h["targets"], fraction, design_plan.nominal_parameters(c), heldout_seed(c))
+    margin = float(h.get("margin_um", plans.MARGIN_UM))
+    return plans.heldout_targets(
+        h["targets"], fraction, design_plan.nominal_parameters(c), heldout_seed(c), margin
+    )
 
 
 def validation_heldout(c: dict, args) -> Acquisition:
     """Held-out validation through a model's inverse: targets no identification saw."""
     model = _model(args, "validation_heldout")
     h = c["validation"]["heldout"]
-    plan = plans.validation(model.command, heldout_targets(c), h["cycles"], c["validation"]["dwell_s"])
+    try:
+        plan = plans.validation(model.command, heldout_targets(c), h["cycles"], c["validation"]["dwell_s"])
+    except ValueError as exc:
+        raise CalflowError(f"campaign {c['name']}: {exc}") from None
     return Acquisition(plan, f"validation_heldout_{model.name}", model.name)
 
 
@@ -76,9 +82,12 @@ def iso9283(c: dict, args) -> Acquisition:
     cube (``iso9283.fraction`` of the travel, at ``iso9283.orientation_deg``), as targets the
     nominal model maps to the measurement frame, ``iso9283.cycles`` cycles (30 in the
     standard) through a model's inverse."""
-    model = _model(args, "iso9283")
     s = c["iso9283"]
-    q = plans.iso9283_commands(float(s["fraction"]), s.get("orientation_deg", (0.0, 0.0, 0.0)))
+    try:
+        q = plans.iso9283_commands(float(s["fraction"]), s.get("orientation_deg", (0.0, 0.0, 0.0)))
+    except ValueError as exc:
+        raise CalflowError(f"campaign {c['name']}: {exc}") from None
+    model = _model(args, "iso9283")
     targets = plans.target_of(q, design_plan.nominal_parameters(c))
     plan = plans.validation(
         model.command,

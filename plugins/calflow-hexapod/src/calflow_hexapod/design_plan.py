@@ -38,18 +38,21 @@ def nominal_parameters(campaign: dict) -> Parameters:
 def noise_model(campaign: dict) -> dict | None:
     """σ of a reading: ``position_um`` and ``angle_deg`` per axis of the instrument, ``leg_um`` of
     the legs. ``identification.design.noise`` when given, else the simulated rig's tracker
-    (MPE/4 at the station's distance, :mod:`calflow_hexapod.tracker`) and leg repeatability;
-    None for another rig that declares none."""
+    (MPE/4 at the station's distance, :mod:`calflow_hexapod.tracker`) and leg repeatability,
+    also when the simulated hexapod is served by the C-887 emulator (``rig: gcs`` with the
+    tracker sensor); None for another rig that declares none."""
     given = (campaign["identification"].get("design") or {}).get("noise") or {}
     if {"position_um", "angle_deg", "leg_um"} <= set(given):
         return {k: float(given[k]) for k in ("position_um", "angle_deg", "leg_um")}
-    if campaign["rig"]["factory"] != "simulated":
+    from calflow_hexapod.run_options import simulated_physics
+
+    physics = simulated_physics(campaign)
+    if physics is None:
         return None
     from calflow_hexapod import tracker
     from calflow_hexapod.rig_physics import truth_from_options
 
-    opts = {k: v for k, v in (campaign["rig"].get("options") or {}).items() if k not in ("seed", "stream")}
-    t = truth_from_options(opts)
+    t = truth_from_options(physics)
     p = tracker.probe_pose(t, np.zeros((1, 6)))[0]
     s_r, s_t, s_a = tracker.sigmas(t, p)
     return {
@@ -71,11 +74,22 @@ def jacobians(q: np.ndarray, phi: Parameters, free, noise: dict) -> np.ndarray:
     return J[..., [NAMES.index(f) for f in free]] / sigma
 
 
-def design_free(phi: Parameters, model: str, pool: np.ndarray, noise: dict) -> tuple[str, ...]:
-    """The parameters of ``model`` (a name of :data:`LADDER`) the design bounds: the identifiable
-    ones on the pool (the identification's QR analysis), less the leg offsets (the nuisance)."""
+def model_free(campaign: dict, model: str) -> tuple[str, ...]:
+    """The free parameters of a campaign's model: its ``free`` list, else its rung of :data:`LADDER`."""
+    spec = (campaign.get("models") or {}).get(model) or {}
+    free = spec.get("free") or LADDER.get(model)
+    if free is None:
+        raise ValueError(
+            f"models.{model}: expected a 'free' list or a model of the ladder ({', '.join(LADDER)})"
+        )
+    return tuple(free)
+
+
+def design_free(phi: Parameters, free, pool: np.ndarray, noise: dict) -> tuple[str, ...]:
+    """The parameters of ``free`` the design bounds: those identifiable on the pool (the
+    identification's QR analysis), less the leg offsets (the nuisance)."""
     J = jacobians(pool, phi, NAMES, noise)
-    kept, _, _ = identifiable(J.reshape(-1, len(NAMES)), LADDER[model])
+    kept, _, _ = identifiable(J.reshape(-1, len(NAMES)), tuple(free))
     return tuple(f for f in kept if f not in OFFSET)
 
 
@@ -87,9 +101,10 @@ def move_times(q: np.ndarray, velocity_um_s: float, velocity_deg_s: float, settl
 
 def _timing(campaign: dict) -> tuple[float, float, float]:
     from calflow_hexapod.rig_physics import HexapodTruth
+    from calflow_hexapod.run_options import simulated_physics
 
     d = HexapodTruth()
-    o = (campaign["rig"].get("options") or {}) if campaign["rig"]["factory"] == "simulated" else {}
+    o = simulated_physics(campaign) or {}
     return (
         float(o.get("velocity_um_s", d.velocity_um_s)),
         float(o.get("velocity_deg_s", d.velocity_deg_s)),
@@ -126,9 +141,7 @@ def bound(campaign: dict, q: np.ndarray) -> dict:
     phi = nominal_parameters(campaign)
     out["crlb_sigma"] = {}
     for name in campaign.get("models") or LADDER:
-        if name not in LADDER:
-            continue
-        free = design_free(phi, name, q, noise)
+        free = design_free(phi, model_free(campaign, name), q, noise)
         s = design.crlb_sigma(jacobians(q, phi, free, noise))
         out["crlb_sigma"][name] = {f: float(v) for f, v in zip(free, s)}
     return out
@@ -153,7 +166,7 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, dict]:
     rng = np.random.default_rng(np.random.SeedSequence([int(campaign["seed"]), 15]))
     pool = workspace_poses(int(d.get("candidates", 2000)), float(p["fraction"]), rng)
     phi = nominal_parameters(campaign)
-    free = design_free(phi, d.get("model", "geometric"), pool, noise)
+    free = design_free(phi, model_free(campaign, d.get("model", "geometric")), pool, noise)
     J = jacobians(pool, phi, free, noise)
     from calflow_hexapod.plans import identification as random_plan
 

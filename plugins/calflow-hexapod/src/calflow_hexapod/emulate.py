@@ -25,6 +25,7 @@ from calflow.gcs.emulator import Faults, GCSEmulator
 from calflow_hexapod.c887 import AXIS_IDS, SCALE, HexapodController
 from calflow_hexapod.geometry import AXES
 from calflow_hexapod.rig_physics import truth_from_options
+from calflow_hexapod.run_options import simulated_physics
 
 SENSOR = "simulated_tracker"  # the gcs rig's sensor, as the family registers it
 SENSOR_TARGET = "calflow_hexapod.sensor:simulated_tracker"
@@ -33,15 +34,9 @@ JOINT_AXES = dict(zip(AXES, AXIS_IDS))
 
 def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`HexapodTruth` overrides of a campaign: the simulated rig's options, or the
-    tracker sensor's options of a ``gcs`` rig (seed, stream and pivot removed)."""
-    rig = campaign.get("rig") or {}
-    options = dict(rig.get("options") or {})
-    if rig.get("factory", "simulated") != "simulated":
-        sensor = options.get("sensor") or {}
-        options = (
-            dict(sensor.get("options") or {}) if sensor.get("factory") in (SENSOR, SENSOR_TARGET) else {}
-        )
-    return {k: v for k, v in options.items() if k not in ("seed", "stream", "pivot_um")}
+    tracker sensor's options of a ``gcs`` rig (seed, stream, pivot and start removed; none
+    for another sensor)."""
+    return simulated_physics(dict(campaign)) or {}
 
 
 def campaign_emulator(

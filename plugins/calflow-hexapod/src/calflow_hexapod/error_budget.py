@@ -77,9 +77,11 @@ def _run_dataset(readings: dict):
     return xr.Dataset({**data, "temperature": (("sample", "sensor"), temps)}, coords={"sensor": ["T1", "T2"]})
 
 
-def identify_models(c: dict, overrides: dict) -> dict[str, HexapodModel]:
-    """Every model of the campaign identified from the identification run on the rig with ``overrides``."""
-    run = _run_dataset(_acquire(c, overrides, campaign_plans.identification(c, None)))
+def identify_models(c: dict, overrides: dict, acquire=_acquire) -> dict[str, HexapodModel]:
+    """Every model of the campaign identified from the identification run on the rig with
+    ``overrides``; ``acquire(campaign, overrides, acquisition) -> readings`` runs a plan (default:
+    the simulated rig, :func:`_acquire`)."""
+    run = _run_dataset(acquire(c, overrides, campaign_plans.identification(c, None)))
     ctl = h811()
     measured, lam, temperature = run_inputs(run, ctl)
     noise = design_plan.noise_model(c) or {"position_um": 1.0, "angle_deg": 1e-4, "leg_um": 0.0}
@@ -118,20 +120,20 @@ def per_target(readings: dict, plan) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return np.array(ap_um), np.array(ap_deg), np.vstack(scatter)
 
 
-def _heldout(c: dict, overrides: dict, commands, name: str):
+def _heldout(c: dict, overrides: dict, commands, name: str, acquire=_acquire):
     h = c["validation"]["heldout"]
     plan = validation(commands, campaign_plans.heldout_targets(c), h["cycles"], c["validation"]["dwell_s"])
     from calflow.plan import Acquisition
 
-    return per_target(_acquire(c, overrides, Acquisition(plan, f"validation_heldout_{name}", name)), plan)
+    return per_target(acquire(c, overrides, Acquisition(plan, f"validation_heldout_{name}", name)), plan)
 
 
-def replay_heldout(c: dict, overrides: dict) -> dict[str, dict[str, list[float]]]:
+def replay_heldout(c: dict, overrides: dict, acquire=_acquire) -> dict[str, dict[str, list[float]]]:
     """Per-target held-out AP of every model (``ap_um``, ``ap_deg``) after the calibration replayed
-    on the rig with ``overrides``."""
+    on the rig with ``overrides`` (through ``acquire``, default the simulated rig)."""
     out = {}
-    for name, model in identify_models(c, overrides).items():
-        ap_um, ap_deg, _ = _heldout(c, overrides, model.command, name)
+    for name, model in identify_models(c, overrides, acquire).items():
+        ap_um, ap_deg, _ = _heldout(c, overrides, model.command, name, acquire)
         out[name] = {"ap_um": ap_um.tolist(), "ap_deg": ap_deg.tolist()}
     return out
 

@@ -100,7 +100,9 @@ def forward(
         idx, f, J = idx[~singular], f[~singular], J[~singular]
         if idx.size:
             q[idx] -= np.linalg.solve(J, f[..., None])[..., 0]
-            bad = ~np.all(np.isfinite(q[idx]), axis=1) | (np.abs(q[idx, 3:]) > 89.0).any(axis=1)
+            bad = ~np.all(np.isfinite(q[idx]), axis=1) | (
+                np.abs(q[idx, 4]) > 89.0
+            )  # V = ±90°: U and W lose meaning
             failed[idx[bad]] = True
             active[idx[bad]] = False
     failed |= active  # still iterating after max_iter

@@ -6,7 +6,8 @@ frame — what the instrument reads — so a validation compares readings with t
 any model's frames. A model commands a target through its inverse
 (:func:`calflow_hexapod.calibration.command`); held-out and ISO 9283 targets are the readings
 the campaign's nominal model predicts for drawn commands
-(:func:`calflow_hexapod.calibration.predict`), the same targets for every model.
+(:func:`calflow_hexapod.calibration.predict`), the same targets for every model, drawn with a margin of the legs' stroke
+(:data:`MARGIN_UM`) so that every model's command for them stays reachable.
 """
 
 from __future__ import annotations
@@ -34,18 +35,20 @@ def _plan(name: str, q: np.ndarray, targets: np.ndarray | None = None, cycle=Non
     )
 
 
-def workspace_poses(n: int, fraction: float, rng: np.random.Generator, travel=H811_TRAVEL) -> np.ndarray:
+def workspace_poses(
+    n: int, fraction: float, rng: np.random.Generator, travel=H811_TRAVEL, margin_um: float = 0.0
+) -> np.ndarray:
     """``n`` reachable command poses (n, 6): a Latin hypercube over ± ``fraction`` of the
     datasheet travel per axis (McKay et al. 1979, :func:`calflow.identification.design.latin_hypercube`),
-    poses the legs cannot reach (:func:`calflow_hexapod.workspace.reachable`) replaced by
-    fresh draws of the same hypercube size until ``n`` are reachable."""
+    poses the legs cannot reach with ``margin_um`` to spare (:func:`calflow_hexapod.workspace.reachable`)
+    replaced by fresh draws of the same hypercube size until ``n`` are reachable."""
     if not 0 < fraction <= 1:
         raise ValueError(f"fraction of the travel: expected a number in (0, 1], got {fraction}")
     half = fraction * np.asarray(travel, dtype=float)
     out = np.empty((0, 6))
     for _ in range(100):
         q = latin_hypercube(rng, max(n, 1), -half, half)
-        out = np.vstack([out, q[reachable(q)]])
+        out = np.vstack([out, q[reachable(q, margin_um=margin_um)]])
         if len(out) >= n:
             return out[:n]
     raise ValueError(f"no {n} reachable poses within {fraction} of the travel")
@@ -66,14 +69,25 @@ def target_of(commands, nominal: Parameters, controller: Geometry | None = None)
     return predict(nominal, h811() if controller is None else controller, np.atleast_2d(commands))
 
 
-def heldout_targets(n_targets: int, fraction: float, nominal: Parameters, seed: int) -> np.ndarray:
-    """Held-out validation targets (n, 6) in the measurement frame: reachable command poses drawn
+MARGIN_UM = 1000.0  # leg stroke kept free around held-out and ISO 9283 targets (µm)
+
+
+def heldout_targets(
+    n_targets: int, fraction: float, nominal: Parameters, seed: int, margin_um: float = MARGIN_UM
+) -> np.ndarray:
+    """Held-out validation targets (n, 6) in the measurement frame: command poses drawn
     continuously from their own random stream over ± ``fraction`` of the travel (never an
-    identification pose), mapped by the campaign's nominal model (:func:`target_of`)."""
+    identification pose), mapped by the campaign's nominal model (:func:`target_of`).
+
+    Reaching a target in the instrument's frame moves the platform by the instrument's
+    misalignment, which the nominal model does not know (tenths of a millimetre and of a
+    degree for a frame set up on the base's features and a probe mounted by hand; the legs
+    move by about as much): each drawn pose keeps ``margin_um`` of every leg's stroke free,
+    so every model's command for it stays inside the workspace."""
     if n_targets < 1:
         raise ValueError(f"validation.heldout.targets: expected at least 1, got {n_targets}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 9_283]))
-    return target_of(workspace_poses(int(n_targets), fraction, rng), nominal)
+    return target_of(workspace_poses(int(n_targets), fraction, rng, margin_um=margin_um), nominal)
 
 
 def iso9283_commands(fraction: float, orientation_deg=(0.0, 0.0, 0.0), travel=H811_TRAVEL) -> np.ndarray:
@@ -83,7 +97,13 @@ def iso9283_commands(fraction: float, orientation_deg=(0.0, 0.0, 0.0), travel=H8
     h = fraction * np.asarray(travel[:3], dtype=float)
     corners = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, 1], [-1, 1, 1]], dtype=float) * h  # C1 C2 C7 C8
     pts = np.vstack([np.zeros(3), 0.8 * corners])
-    return np.column_stack([pts, np.tile(np.asarray(orientation_deg, dtype=float), (5, 1))])
+    q = np.column_stack([pts, np.tile(np.asarray(orientation_deg, dtype=float), (5, 1))])
+    if not reachable(q, margin_um=MARGIN_UM).all():
+        raise ValueError(
+            f"iso9283.fraction: the test cube of {fraction} of the travel at {list(orientation_deg)} degree "
+            f"leaves less than {MARGIN_UM:g} µm of a leg's stroke free; expected a smaller cube"
+        )
+    return q
 
 
 def validation(

@@ -32,6 +32,7 @@ from calflow_hexapod import tracker
 from calflow_hexapod.geometry import AXES
 from calflow_hexapod.kinematics import forward, inverse
 from calflow_hexapod.rig_physics import HexapodTruth, check_options
+from calflow_hexapod.workspace import reachable
 
 __all__ = [
     "SENSORS",
@@ -154,8 +155,20 @@ class SimulatedHexapod:
         except KeyError as exc:
             raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
 
+    def _check_reachable(self, cmd: np.ndarray) -> None:
+        """Refuse commands outside the workspace, as the C-887 does (GCS error 7)."""
+        ok = reachable(np.atleast_2d(cmd))
+        if not ok.all():
+            row = np.atleast_2d(cmd)[int(np.argmin(ok))]
+            raise RigError(
+                f"simulated hexapod rig: command {dict(zip(self.joints, (round(float(v), 4) for v in row)))} is "
+                "outside the workspace (a coordinate's travel or a leg's stroke; the C-887 refuses it with "
+                "GCS error 7)"
+            )
+
     def move(self, command: Mapping[str, float]) -> None:
         new = self._command(command)
+        self._check_reachable(new)
         self._state.step(new)
         jitter = self._rng.standard_normal(6)
         s = self._state
@@ -198,6 +211,8 @@ class SimulatedHexapod:
             cmd = np.column_stack([np.asarray(commands[j], dtype=float) for j in self.joints])
         except KeyError as exc:
             raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
+        if len(cmd):
+            self._check_reachable(cmd)
         n, s, rng = len(cmd), self._state, self._rng
         enc, direction, t_move, t_read = (
             np.empty((n, 6)),

@@ -26,7 +26,7 @@ Effects (README.md lists them with their source, default and switch):
   from the leg temperature, a first-order lag of the room profile
   (:mod:`calflow.rigs.thermal`); thermometer ``T2`` sits on a leg, ``T1`` reads the air.
 * ``encoder_resolution_um`` — the leg encoders' quantisation: the servo holds each leg at
-  a whole count of its commanded length.
+  a whole count of its commanded length. *Unmodelled* (5 nm: far below the instrument).
 * ``leg_repeatability_um`` — random leg positioning error per move (σ), the datasheet's
   unidirectional repeatability class (H-811.I2: ±0.06 µm in X, Y).
 
@@ -44,11 +44,8 @@ from calflow.errors import OptionError, UnknownOptionError
 from calflow_hexapod.geometry import Geometry, h811, rotation
 
 G = 9.80665  # standard gravity, m/s²
-UNMODELLED = (
-    "joint_play_um",
-    "payload_kg",
-    "tracker_systematic_um",
-)  # no hexapod model represents these
+# no hexapod model represents these (the encoders' rounding is a deterministic function of each pose)
+UNMODELLED = ("joint_play_um", "payload_kg", "tracker_systematic_um", "encoder_resolution_um")
 
 
 def _off(value):
@@ -95,18 +92,13 @@ class HexapodTruth:
     tracker_angle_mdeg: float = 10.0
     tracker_resolution_um: float = 0.1
     tracker_systematic_um: float = 3.0
-    frame_offset_um: tuple[float, float, float] = (
-        1200.0,
-        -800.0,
-        300.0,
-    )  # measurement frame in the base frame
-    frame_rotation_deg: tuple[float, float, float] = (0.05, -0.03, 0.2)
-    tool_offset_um: tuple[float, float, float] = (
-        150.0,
-        -90.0,
-        60000.0,
-    )  # probe in the platform frame
-    tool_rotation_deg: tuple[float, float, float] = (0.3, -0.2, 1.0)
+    # the measurement frame in the base frame: the tracker's user frame, set up by probing the
+    # base's reference features (a few 0.1 mm, a few 0.01°); the probe in the platform frame, as
+    # mounted by hand on its 60 mm post (0.1 mm, tenths of a degree)
+    frame_offset_um: tuple[float, float, float] = (250.0, -150.0, 80.0)
+    frame_rotation_deg: tuple[float, float, float] = (0.03, -0.02, 0.1)
+    tool_offset_um: tuple[float, float, float] = (150.0, -90.0, 60000.0)
+    tool_rotation_deg: tuple[float, float, float] = (0.2, -0.1, 0.5)
     # timing
     velocity_um_s: float = 5000.0
     velocity_deg_s: float = 5.0

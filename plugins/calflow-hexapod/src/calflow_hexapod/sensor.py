@@ -54,7 +54,16 @@ class SimulatedTracker:
         self._env = Environment(truth)
         self._state = HexapodState(truth)
         self._controller = truth.nominal().with_pivot(np.asarray(pivot_um, dtype=float))
-        self._pose: np.ndarray | None = None
+        s = self._state  # at home, as the simulated rig starts: no repeatability draw yet
+        self._pose = attained(
+            truth,
+            self._geometry,
+            s.encoders[None],
+            s.direction[None],
+            self._env.leg(np.array([0.0])),
+            np.zeros((1, 6)),
+            np.zeros((1, 6)),
+        )[0]
 
     def _pose_of(self, positions: Mapping[str, float]) -> np.ndarray:
         try:
@@ -82,7 +91,7 @@ class SimulatedTracker:
 
     def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
         """The tracker's pose of the probe and the thermometers at rig time ``time_s`` (s)."""
-        if self._pose is None or np.any(np.abs(self._pose_of(positions) - self._state.cmd) > 1e-6):
+        if np.any(np.abs(self._pose_of(positions) - self._state.cmd) > 1e-6):
             self.moved(positions, time_s)  # a reading without a reported move: the pose it is at
         z, w = self._rng.standard_normal(6), self._rng.standard_normal(2)
         out = {k: float(v[0]) for k, v in tracker.read(self.truth_model, self._pose[None], z[None]).items()}

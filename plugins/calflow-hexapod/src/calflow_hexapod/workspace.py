@@ -31,11 +31,13 @@ def leg_stroke_um() -> float:
     return _stroke()
 
 
-def reachable(poses, geometry: Geometry | None = None, travel=H811_TRAVEL) -> np.ndarray:
+def reachable(
+    poses, geometry: Geometry | None = None, travel=H811_TRAVEL, margin_um: float = 0.0
+) -> np.ndarray:
     """True per pose (…, 6) (µm, degree, about ``geometry``'s pivot; default the nominal
-    H-811-class geometry) inside the per-axis travel and the legs' stroke."""
+    H-811-class geometry) inside the per-axis travel and every leg's stroke less ``margin_um``."""
     g = h811() if geometry is None else geometry
     poses = np.asarray(poses, dtype=float)
     inside = np.all(np.abs(poses) <= np.asarray(travel, dtype=float), axis=-1)
     legs = inverse(g, poses) - g.zero_lengths
-    return inside & np.all(np.abs(legs) <= leg_stroke_um() + 1e-9, axis=-1)
+    return inside & np.all(np.abs(legs) <= leg_stroke_um() - float(margin_um) + 1e-9, axis=-1)
