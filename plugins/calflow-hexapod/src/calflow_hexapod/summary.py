@@ -58,6 +58,28 @@ def _model(ds) -> dict:
     }
 
 
+def _bound(ds, crlb: dict | None) -> dict | None:
+    """The bound before beside the result after: each parameter's identified σ over the
+    Cramér–Rao σ the design promised before acquisition (1 when the rig's noise is as the
+    design assumed and the model fits; above 1 when the model does not)."""
+    if not crlb:
+        return None
+    ratios = {
+        p: float(ds[p].attrs["std"]) / float(sigma)
+        for p, sigma in crlb.items()
+        if p in ds and sigma and np.isfinite(float(ds[p].attrs.get("std", np.nan)))
+    }
+    if not ratios:
+        return None
+    values = np.array(list(ratios.values()))
+    return {
+        "parameters": len(ratios),
+        "sigma_ratio_median": jsonable(float(np.median(values))),
+        "sigma_ratio_max": jsonable(float(values.max())),
+        "worst": max(ratios, key=ratios.get),
+    }
+
+
 def _statement(name: str, entry: dict, best: float | None) -> str:
     """What the model can and cannot do, in words, from its held-out numbers."""
     h = entry.get("heldout")
@@ -79,7 +101,21 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     """Assemble the summary of a hexapod campaign from its result files (truth unused: the
     summary's numbers are all measured)."""
     found = route(files, FAMILY.summary_sections, "hexapod family")
-    models = {ds.attrs["model"]: _model(ds) for _, ds in found.get("models", [])}
+    design = next(
+        (
+            json.loads(run.attrs["design"])
+            for _, run in found.get("identification", [])
+            if "design" in run.attrs
+        ),
+        {},
+    )
+    models = {}
+    for _, ds in found.get("models", []):
+        name = ds.attrs["model"]
+        models[name] = _model(ds)
+        bound = _bound(ds, (design.get("crlb_sigma") or {}).get(name))
+        if bound:
+            models[name]["bound"] = bound
     for section in ("heldout", "iso9283"):
         for _, ds in found.get(section, []):
             name = ds.attrs.get("model")
