@@ -60,3 +60,24 @@ def test_pose_metrics_follow_iso9283_for_position_and_orientation():
     assert np.allclose(m["ap_orient"][0], np.abs(mean[3:] - target[3:]))
     assert np.allclose(m["rp_orient"][0], 3 * attained[:, 3:].std(axis=0, ddof=1))
     assert m["n"][0] == 30
+
+
+def test_the_summary_says_in_words_what_a_model_cannot_do():
+    from calflow_hexapod.summary import _statement
+
+    held = {"n_targets": 10, "accuracy_um": 50.0, "repeatability_um": 20.0}
+    words = _statement("nominal", {"heldout": held}, best=10.0)
+    assert "does not model every error" in words and "2.5 × RP" in words and "10.00 µm" in words
+    fits = _statement("geometric", {"heldout": {**held, "accuracy_um": 21.0}}, best=21.0)
+    assert "only what the rig cannot repeat" in fits
+    assert "not validated" in _statement("scale", {}, best=None)
+
+
+def test_the_bound_before_beside_the_result_after():
+    from calflow_hexapod.summary import _bound
+
+    ds = xr.Dataset({"a": ((), 0.0, {"std": 2.0}), "b": ((), 0.0, {"std": 3.0})})
+    b = _bound(ds, {"a": 1.0, "b": 6.0, "absent": 1.0})
+    assert b["parameters"] == 2 and b["worst"] == "a"
+    assert b["sigma_ratio_max"] == 2.0 and b["sigma_ratio_median"] == 1.25
+    assert _bound(ds, None) is None
