@@ -3,6 +3,8 @@ and a gcs-rig run through it that sees the simulated rig's physics."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -183,3 +185,35 @@ def test_gcs_rig_through_the_emulator_sees_the_simulated_physics(allow_sensor):
         rig.close()
     finally:
         emu.stop()
+
+
+def test_lines_as_pipython_formats_them():
+    """pipython writes floats with format '.12g' (exponents for small values), several axes per
+    line, and checks each command with ERR?; queries answer one 'axis=value' line per axis."""
+    import socket
+
+    from calflow.gcs.protocol import ReplyFramer
+
+    with GCSEmulator(controller=HexapodController(time_scale=50.0)) as emu:
+        sock = socket.create_connection(emu.address, timeout=2)
+        framer = ReplyFramer()
+
+        def ask(line: str) -> list[str]:
+            sock.sendall(line.encode() + b"\n")
+            while (reply := framer.pop()) is None:
+                framer.feed(sock.recv(4096))
+            return reply
+
+        sock.sendall(b"SVO X 1 Y 1 Z 1 U 1 V 1 W 1\nFRF X\n")
+        assert ask("ERR?") == ["0"]
+        deadline = time.monotonic() + 10
+        while ask("FRF? X Y Z U V W") != [f"{a}=1" for a in AXIS_IDS]:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        sock.sendall(f"MOV X {format(1e-05, '.12g')} W {format(-0.5, '.12g')}\n".encode())
+        assert ask("ERR?") == ["0"]
+        sock.sendall(b"SPI R 0 S 0 T 12.5\n")
+        assert ask("ERR?") == ["9"]  # W is not 0: the pivot stays
+        assert ask("SPI? R S T") == ["R=0.000000", "S=0.000000", "T=0.000000"]
+        assert [line.split("=")[0] for line in ask("POS? X Y Z U V W")] == list(AXIS_IDS)
+        sock.close()
