@@ -53,8 +53,10 @@ QR_RTOL = 1e-8
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
-#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
+#: ... the first fit, on COARSE_POSES of the poses (spread over the run), stops at this coarser
+#: tolerance: the weights and the start of the full fit only need φ to a fraction of σ.
 COARSE_RTOL = 1e-3
+COARSE_POSES = 200
 #: Gauss–Newton stops when a step changes the whitened residuals by less than this fraction of
 #: their norm (≈ √(6n) σ, so 10⁻⁶ of it moves no parameter by 10⁻⁴ σ). Smaller is not
 #: verifiable: ‖P p_i − b_i‖ of 10⁵ µm legs, whitened by leg-space σ of 10 nm, carries
@@ -65,8 +67,10 @@ RTOL = 1e-6
 #: REWEIGHT times) until they change by less than WEIGHT_RTOL of their largest element.
 REWEIGHT = 3
 WEIGHT_RTOL = 1e-3
-#: ... the first fit stops at this coarser tolerance: the weights only need φ to a fraction of σ.
+#: ... the first fit, on COARSE_POSES of the poses (spread over the run), stops at this coarser
+#: tolerance: the weights and the start of the full fit only need φ to a fraction of σ.
 COARSE_RTOL = 1e-3
+COARSE_POSES = 200
 
 
 @dataclass(frozen=True)
@@ -247,18 +251,19 @@ def identify(
     cols = [NAMES.index(name) for name in free]
     scale = np.linalg.norm(data.J0[..., cols].reshape(-1, p), axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    fun, jac, params = data.problem(cols, scale)
-    sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL)
-    tight = False
+    n = len(M)
+    coarse = data if n <= 2 * COARSE_POSES else data.subset(np.linspace(0, n - 1, COARSE_POSES).astype(int))
+    fun, jac, params = coarse.problem(cols, scale)
+    phi = params(gauss_newton.solve(fun, jac, np.zeros(p), rtol=COARSE_RTOL).x)
+    sol = None
     for _ in range(REWEIGHT):  # weights at the estimate, not at the start: a probe far off moves the levers
-        again = data.reweighted(params(sol.x))
-        if np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
+        again = data.reweighted(phi)
+        if sol is not None and np.max(np.abs(again.C - data.C)) <= WEIGHT_RTOL * np.max(np.abs(data.C)):
             break
         data = again
         fun, jac, params = data.problem(cols, scale)
-        sol, tight = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL), True
-    if not tight:
-        sol = gauss_newton.solve(fun, jac, sol.x, rtol=RTOL)
+        sol = gauss_newton.solve(fun, jac, np.zeros(p), rtol=RTOL)
+        phi = params(sol.x)
     keep = np.ones(len(M), dtype=bool)
     if robust is not None:
         keep, data, sol = _screen(data, cols, scale, sol, robust)
