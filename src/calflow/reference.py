@@ -1,4 +1,4 @@
-"""The thesis's own results, put beside calflow's in summaries and reports (DESIGN.md)."""
+"""The thesis's own results, put beside calflow's in summaries and reports (docs/architecture.md, "Campaign summary")."""
 
 from __future__ import annotations
 

@@ -145,7 +145,7 @@ def results_of(name):
             if "base" in s
         ]
         files.append(f"{base}/metrics/observability.nc")
-        if "design_study" in c:  # opt-in (issue 15)
+        if "design_study" in c:  # opt-in (optimal design study)
             files.append(f"{base}/metrics/design_study.nc")
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
@@ -236,7 +236,7 @@ def plan_section(run):
 
 
 def acquire_inputs(w):
-    """The XY tables a designed identification plan reads for its discrepancy kernel (issue 15)."""
+    """The XY tables a designed identification plan reads for its discrepancy kernel."""
     c = CAMPAIGN[w.campaign]
     if w.run != "identification" or c["robot"] != "xytheta":
         return {}

@@ -1,4 +1,4 @@
-# Monte-Carlo studies (issue 8): many simulated XYΘ campaigns over seeds × sensor noise ×
+# Monte-Carlo studies: many simulated XYΘ campaigns over seeds × sensor noise ×
 # identification poses (config/studies/<name>.yaml), one job per point or per batch of
 # seeds (key seeds_per_job), then the aggregate and the study's page.
 # Needs from common.smk: STUDIES (names) and STUDY (name -> calflow.xytheta.montecarlo.load_study()).

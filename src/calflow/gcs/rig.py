@@ -106,7 +106,7 @@ def _unlock(locks: list) -> None:
 
 
 class GCSRig(RecordedMoves):
-    """Rig protocol (DESIGN.md) over GCS controllers, plus ``stream`` and ``record_move``
+    """Rig protocol (docs/rigs.md) over GCS controllers, plus ``stream`` and ``record_move``
     (:mod:`calflow.gcs.rig_records`) on piezo controllers; build it with :func:`gcs`."""
 
     replayable = False  # a real rig is continued, not replayed, on resume

@@ -1,4 +1,4 @@
-"""Error budget after calibration of the simulated nano rigs, per effect (issue 14).
+"""Error budget after calibration of the simulated nano rigs, per effect.
 
 For the summary step only (like the truth blocks): it reads the simulated rig's truth,
 which analysis never does. Lengths in nm in the result.

@@ -1,4 +1,4 @@
-"""Which calibration came out best on the simulated rig, beside the thesis, and why (issue 14).
+"""Which calibration came out best on the simulated rig, beside the thesis, and why (error budget).
 
 A short paragraph generated from a nano summary's numbers — max AP per test type, the
 robustness indices and the error budget after calibration (:mod:`calflow.nano.error_budget`)

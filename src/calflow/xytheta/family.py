@@ -145,7 +145,7 @@ FAMILY = Family(
                 _observability_arguments, f"{_C}:observability"),
         Command("error-budget", "replay the calibration with each rig effect off: the error budget (simulated rigs)",
                 _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
-        Command("design-study", "Cramér–Rao σ against poses and rig time, random against designed (issue 15)",
+        Command("design-study", "Cramér–Rao σ against poses and rig time, random against designed",
                 _observability_arguments, "calflow.xytheta.design_study:study"),
         Command("export", "a model's controller files and bundle for users' code (docs/export.md)",
                 _export_arguments, "calflow.xytheta.export.command:export"),
