@@ -1,4 +1,5 @@
-"""The thesis's own results, put beside calflow's in summaries and reports (docs/architecture.md, "Campaign summary")."""
+"""The thesis's own results, put beside calflow's in summaries and reports (the ``reference``
+block of ``summary.json``, docs/architecture.md)."""
 
 from __future__ import annotations
 
