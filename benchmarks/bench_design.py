@@ -40,8 +40,13 @@ def _thesis_text(seed: int | None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _campaign_text(space_filling: float, criterion: str, seed: int | None = None, poses: int | None = None,
-                   time_budget: float | None = None) -> str:
+def _campaign_text(
+    space_filling: float,
+    criterion: str,
+    seed: int | None = None,
+    poses: int | None = None,
+    time_budget: float | None = None,
+) -> str:
     extra = "" if poses is None else f", poses: {int(poses)}"
     extra += "" if time_budget is None else f", time_budget: {time_budget}"
     design = f"  plan: optimal\n  design: {{criterion: {criterion}, space_filling: {space_filling}{extra}}}\n"
@@ -51,9 +56,22 @@ def _campaign_text(space_filling: float, criterion: str, seed: int | None = None
 def _run_workflow(work: Path, campaigns: list[str], cores: int) -> None:
     targets = [f"results/{c}/metrics/validation_heldout_{m}.nc" for c in campaigns for m in MODELS]
     targets += [f"results/{c}/runs/identification.nc" for c in campaigns]
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"}
-    cmd = [str(Path(sys.executable).parent / "snakemake"), *targets, "--cores", str(cores), "--quiet", "all",
-           "--config", f"campaigns={json.dumps(campaigns)}", "studies=[]"]
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(ROOT / "src"),
+        "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}",
+    }
+    cmd = [
+        str(Path(sys.executable).parent / "snakemake"),
+        *targets,
+        "--cores",
+        str(cores),
+        "--quiet",
+        "all",
+        "--config",
+        f"campaigns={json.dumps(campaigns)}",
+        "studies=[]",
+    ]
     subprocess.run(cmd, cwd=work, env=env, check=True, stdout=subprocess.DEVNULL)
 
 
@@ -68,8 +86,10 @@ def _results(work: Path, campaign: str) -> dict:
         "rig_time_h": float(run["time"].values[-1]) / 3600.0,
         "design": json.loads(run.attrs["design"]),
         "sigma": {p: float(model[p].attrs["std"]) for p in ("x_R", "y_R", "alpha", "beta")},
-        "heldout_ap_um": {m: float(open_dataset(base / f"metrics/validation_heldout_{m}.nc").attrs["accuracy_um"])
-                          for m in MODELS},
+        "heldout_ap_um": {
+            m: float(open_dataset(base / f"metrics/validation_heldout_{m}.nc").attrs["accuracy_um"])
+            for m in MODELS
+        },
     }
 
 
@@ -78,13 +98,25 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--space-filling", type=float, default=0.0)
-    ap.add_argument("--criterion", default="D", help="D, A, MV, O1-O4, or discrepancy (its kernel from the "
-                                                        "campaign's characterisation tables, as the workflow makes them)")
-    ap.add_argument("--time-budget", type=float, help="design.time_budget: rig time as a fraction of the random plan's")
-    ap.add_argument("--poses", type=int, help="designed poses (design.poses) instead of the fewest reaching the bound")
+    ap.add_argument(
+        "--criterion",
+        default="D",
+        help="D, A, MV, O1-O4, or discrepancy (its kernel from the "
+        "campaign's characterisation tables, as the workflow makes them)",
+    )
+    ap.add_argument(
+        "--time-budget", type=float, help="design.time_budget: rig time as a fraction of the random plan's"
+    )
+    ap.add_argument(
+        "--poses", type=int, help="designed poses (design.poses) instead of the fewest reaching the bound"
+    )
     ap.add_argument("--keep", help="keep the scratch project here")
-    ap.add_argument("--seed", type=int, help="campaign seed (rig noise, random poses, held-out targets) "
-                                              "instead of xytheta-thesis's, for the spread over rigs")
+    ap.add_argument(
+        "--seed",
+        type=int,
+        help="campaign seed (rig noise, random poses, held-out targets) "
+        "instead of xytheta-thesis's, for the spread over rigs",
+    )
     args = ap.parse_args()
     work = Path(args.keep or tempfile.mkdtemp())
     work.mkdir(parents=True, exist_ok=True)
@@ -95,7 +127,8 @@ def main() -> None:
                 (shutil.copytree if src.is_dir() else shutil.copy)(src, work / part)
         (work / "config/campaigns/xytheta-random.yaml").write_text(_thesis_text(args.seed))
         (work / "config/campaigns/xytheta-design.yaml").write_text(
-            _campaign_text(args.space_filling, args.criterion, args.seed, args.poses, args.time_budget))
+            _campaign_text(args.space_filling, args.criterion, args.seed, args.poses, args.time_budget)
+        )
         t0 = time.perf_counter()
         _run_workflow(work, ["xytheta-random", "xytheta-design"], args.cores)
         wall = time.perf_counter() - t0

@@ -53,8 +53,15 @@ CAMPAIGN = "xytheta-thesis"
 
 def _step_args(results: Path, campaign: Path, name: str, spec: dict, out: Path) -> Namespace:
     """The arguments the workflow's identify rule gives ``calflow identify`` (rules/common.smk)."""
-    args = Namespace(campaign=str(campaign), model_name=name, run=str(results / "runs/identification.nc"),
-                     luts=None, base=None, residuals=None, out=str(out / f"{name}.nc"))
+    args = Namespace(
+        campaign=str(campaign),
+        model_name=name,
+        run=str(results / "runs/identification.nc"),
+        luts=None,
+        base=None,
+        residuals=None,
+        out=str(out / f"{name}.nc"),
+    )
     if "base" in spec:
         args.base = str(out / f"{spec['base']}.nc")
         args.residuals = str(results / f"runs/angle_residuals_{spec['base']}.nc")
@@ -78,14 +85,16 @@ def five_models(results: Path, repeats: int) -> dict:
     """ms per model of the identify step without file I/O, and the whole step with it."""
     from calflow.config import load_campaign
     from calflow.data.io import open_dataset
-    from calflow.xytheta import commands
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta import steps as commands
+    from calflow.xytheta.models.ladder import MicroModel
 
     campaign = ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml"
     models = load_campaign(campaign)["models"]
     if not (results / "runs/identification.nc").exists():
-        raise SystemExit(f"{results}: no runs/identification.nc; run the {CAMPAIGN} campaign first "
-                         f"(snakemake --cores 2 results/{CAMPAIGN}/summary.json) or pass --results")
+        raise SystemExit(
+            f"{results}: no runs/identification.nc; run the {CAMPAIGN} campaign first "
+            f"(snakemake --cores 2 results/{CAMPAIGN}/summary.json) or pass --results"
+        )
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         args = {name: _step_args(results, campaign, name, spec, out) for name, spec in models.items()}
@@ -110,23 +119,29 @@ def five_models(results: Path, repeats: int) -> dict:
             if a.base:
                 bases[a.base] = read(a.base)
         compute_ms = {}
-        with mock.patch.object(commands, "open_dataset", cached_open), mock.patch.object(commands, "load", cached_load), \
-                mock.patch.object(MicroModel, "read", classmethod(lambda cls, path: bases[str(path)])), \
-                mock.patch.object(MicroModel, "write", lambda self, path, meta: None):
+        with (
+            mock.patch.object(commands, "open_dataset", cached_open),
+            mock.patch.object(commands, "load", cached_load),
+            mock.patch.object(MicroModel, "read", classmethod(lambda cls, path: bases[str(path)])),
+            mock.patch.object(MicroModel, "write", lambda self, path, meta: None),
+        ):
             for name, a in args.items():
                 commands.identify(a)  # fill the cache
                 compute_ms[name] = [1e3 * v for v in _best(lambda a=a: commands.identify(a), repeats)]
-    return {"compute_ms": {k: v[0] for k, v in compute_ms.items()},
-            "compute_cpu_ms": {k: v[1] for k, v in compute_ms.items()}, "io_ms": io_ms}
+    return {
+        "compute_ms": {k: v[0] for k, v in compute_ms.items()},
+        "compute_cpu_ms": {k: v[1] for k, v in compute_ms.items()},
+        "io_ms": io_ms,
+    }
 
 
 def model_ii(n: int, repeats: int, seed: int = 1) -> dict:
     """Seconds and traced peak MB of a Model II identification from ``n`` poses."""
     from calflow.config import load_campaign
     from calflow.identification.robust import Robust
-    from calflow.xytheta.identification import identify
-    from calflow.xytheta.kinematics import Parameters, forward
-    from calflow.xytheta.rig_physics import XYThetaTruth
+    from calflow.xytheta.models.identification import identify
+    from calflow.xytheta.models.kinematics import Parameters, forward
+    from calflow.xytheta.stage.physics import XYThetaTruth
 
     p = load_campaign(ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml")["identification"]
     rng = np.random.default_rng(seed)
@@ -147,8 +162,14 @@ def model_ii(n: int, repeats: int, seed: int = 1) -> dict:
     run()
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    return {"s": seconds, "cpu_s": cpu, "plain_s": plain, "peak_mb": peak / 2**20, "rejected": len(res.rejected),
-            "expected_rejected": int(np.count_nonzero(gross))}
+    return {
+        "s": seconds,
+        "cpu_s": cpu,
+        "plain_s": plain,
+        "peak_mb": peak / 2**20,
+        "rejected": len(res.rejected),
+        "expected_rejected": int(np.count_nonzero(gross)),
+    }
 
 
 def crlb_ratio(seeds: int, noise_um: float = 0.5, poses: int = 100) -> dict:
@@ -156,13 +177,15 @@ def crlb_ratio(seeds: int, noise_um: float = 0.5, poses: int = 100) -> dict:
     campaigns on the thesis rig with every error Model II does not represent switched off
     (the stage's repeatability and the angle reading's noise stay)."""
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
+    from calflow.xytheta.studies.aggregate import aggregate
+    from calflow.xytheta.studies.montecarlo import run_point
 
     c = load_campaign(ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml")
-    pts = [run_point(c, s, noise_um, poses, "II", validation_cycles=2, rig_options=options_off())
-           for s in range(seeds)]
+    pts = [
+        run_point(c, s, noise_um, poses, "II", validation_cycles=2, rig_options=options_off())
+        for s in range(seeds)
+    ]
     cell = aggregate(pts)["cells"][0]
     return {k: round(v["sigma_ratio_crlb"], 3) for k, v in cell["parameters"].items()}
 
@@ -173,7 +196,9 @@ def main() -> None:
     ap.add_argument("--results", type=Path, default=ROOT / "results" / CAMPAIGN)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--poses", type=int, default=100_000)
-    ap.add_argument("--mc-seeds", type=int, default=200, help="Monte-Carlo seeds of sigma_ratio_crlb (0: skip)")
+    ap.add_argument(
+        "--mc-seeds", type=int, default=200, help="Monte-Carlo seeds of sigma_ratio_crlb (0: skip)"
+    )
     a = ap.parse_args()
     five = five_models(a.results, a.repeats)
     big = model_ii(a.poses, max(1, a.repeats // 2))

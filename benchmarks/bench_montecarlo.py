@@ -41,9 +41,13 @@ def machine() -> str:
                 break
     except OSError:
         model = platform.processor() or model
-    snake = subprocess.run([str(BIN / "snakemake"), "--version"], capture_output=True, text=True).stdout.strip()
-    return (f"nproc={os.cpu_count()} (usable {len(os.sched_getaffinity(0))}), CPU: {model}, "
-            f"Python {platform.python_version()}, Snakemake {snake}, {platform.system()} {platform.release()}")
+    snake = subprocess.run(
+        [str(BIN / "snakemake"), "--version"], capture_output=True, text=True
+    ).stdout.strip()
+    return (
+        f"nproc={os.cpu_count()} (usable {len(os.sched_getaffinity(0))}), CPU: {model}, "
+        f"Python {platform.python_version()}, Snakemake {snake}, {platform.system()} {platform.release()}"
+    )
 
 
 def run(study: str, cores: int, seeds_per_job: int | None, tmp: Path) -> tuple[float, int, float, float]:
@@ -58,8 +62,17 @@ def run(study: str, cores: int, seeds_per_job: int | None, tmp: Path) -> tuple[f
         body["seeds_per_job"] = seeds_per_job
         path.write_text(yaml.safe_dump(body))
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
-    cmd = [str(BIN / "snakemake"), "--cores", str(cores), "--config", f"studies=[{study}]", "--quiet", "all",
-           "--", f"reports/studies/{study}.html"]
+    cmd = [
+        str(BIN / "snakemake"),
+        "--cores",
+        str(cores),
+        "--config",
+        f"studies=[{study}]",
+        "--quiet",
+        "all",
+        "--",
+        f"reports/studies/{study}.html",
+    ]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True)
@@ -82,17 +95,21 @@ def main() -> None:
     print(f"machine: {machine()}")
     body = yaml.safe_load((ROOT / "config/studies" / f"{args.study}.yaml").read_text())
     spj = args.seeds_per_job or body.get("seeds_per_job", 1)
-    print(f"study {args.study}: {body['seeds']} seeds x noise {body['noise_um']} um x poses {body['poses']}, "
-          f"seeds_per_job {spj}")
+    print(
+        f"study {args.study}: {body['seeds']} seeds x noise {body['noise_um']} um x poses {body['poses']}, "
+        f"seeds_per_job {spj}"
+    )
     walls = {}
     for cores in args.cores:
         load = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix="calflow-bench-") as tmp:
             wall, jobs, job_s, cpu = run(args.study, cores, args.seeds_per_job, Path(tmp))
         walls[cores] = wall
-        print(f"--cores {cores}: wall {wall:6.1f} s, CPU {cpu:6.1f} s, {jobs} jobs (sum of their times "
-              f"{job_s:6.1f} s), load average before {load:.2f} (other work on the machine slows the figures)"
-              + (f", speed-up {walls[args.cores[0]] / wall:.2f}x" if cores != args.cores[0] else ""))
+        print(
+            f"--cores {cores}: wall {wall:6.1f} s, CPU {cpu:6.1f} s, {jobs} jobs (sum of their times "
+            f"{job_s:6.1f} s), load average before {load:.2f} (other work on the machine slows the figures)"
+            + (f", speed-up {walls[args.cores[0]] / wall:.2f}x" if cores != args.cores[0] else "")
+        )
 
 
 if __name__ == "__main__":

@@ -47,8 +47,8 @@ import resource, time
 from calflow.acquisition.runner import acquire
 from calflow.config import load_campaign
 from calflow.commands.common import meta
-from calflow.nano import plans as nano
-from calflow.nano.rig import nano1d
+from calflow.nano.plans import sequences as nano
+from calflow.nano.stage.rig import nano1d
 import numpy as np
 c = load_campaign({str(CAMPAIGN)!r})
 t = c["training"]
@@ -61,7 +61,9 @@ wall = time.perf_counter() - start
 samples = int(len(plan) * t["dwell_s"] * {rate_hz})
 print(wall, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, samples, ds.sizes["sample"])
 """
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code], check=True, capture_output=True, text=True
+    ).stdout.split()
     return float(out[0]), float(out[1]), int(out[2])
 
 
@@ -74,21 +76,57 @@ def main() -> None:
         d = Path(tmp)
         c = str(CAMPAIGN)
         t_train = calflow("acquire", "--campaign", c, "--plan", "training", "--out", "training.nc", cwd=d)
-        t_single = calflow("identify", "--campaign", c, "--model-name", "single", "--run", "training.nc",
-                           "--out", "single.nc", cwd=d)
-        t_kmz = calflow("identify", "--campaign", c, "--model-name", "adaptive_kmz", "--run", "training.nc",
-                        "--out", "kmz.nc", cwd=d)
-        t_val = calflow("acquire", "--campaign", c, "--plan", "validation", "--model", "single.nc", "--model",
-                        "kmz.nc", "--out", "validation.nc", cwd=d)
-        t_metrics = calflow("metrics", "--campaign", c, "--run", "validation.nc", "--out", "metrics.nc", cwd=d)
+        t_single = calflow(
+            "identify",
+            "--campaign",
+            c,
+            "--model-name",
+            "single",
+            "--run",
+            "training.nc",
+            "--out",
+            "single.nc",
+            cwd=d,
+        )
+        t_kmz = calflow(
+            "identify",
+            "--campaign",
+            c,
+            "--model-name",
+            "adaptive_kmz",
+            "--run",
+            "training.nc",
+            "--out",
+            "kmz.nc",
+            cwd=d,
+        )
+        t_val = calflow(
+            "acquire",
+            "--campaign",
+            c,
+            "--plan",
+            "validation",
+            "--model",
+            "single.nc",
+            "--model",
+            "kmz.nc",
+            "--out",
+            "validation.nc",
+            cwd=d,
+        )
+        t_metrics = calflow(
+            "metrics", "--campaign", c, "--run", "validation.nc", "--out", "metrics.nc", cwd=d
+        )
     print(f"training run (17.8 h virtual, 10 Hz streams reduced): {t_train:.1f} s")
     print(f"single model trained by stepwise regression on it: {t_single:.1f} s (process incl. imports)")
     print(f"KMZ model: {t_kmz:.1f} s")
     print(f"five-day validation, 96 tests, simulated at 10 Hz and reduced: {t_val:.1f} s")
     print(f"five-day validation metrics: {t_metrics:.1f} s")
     wall, rss, samples = stream_peak_memory(args.rate_hz)
-    print(f"training run streamed at {args.rate_hz:g} Hz ({samples / 1e6:.1f} M samples reduced): "
-          f"{wall:.1f} s, peak RSS {rss:.0f} MiB")
+    print(
+        f"training run streamed at {args.rate_hz:g} Hz ({samples / 1e6:.1f} M samples reduced): "
+        f"{wall:.1f} s, peak RSS {rss:.0f} MiB"
+    )
     print(f"(process baseline: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB)")
 
 

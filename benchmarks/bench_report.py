@@ -32,7 +32,9 @@ THESIS = ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run_dir", type=Path)
-    p.add_argument("--campaign", action="append", help="campaign name (repeatable); default: the thesis campaigns")
+    p.add_argument(
+        "--campaign", action="append", help="campaign name (repeatable); default: the thesis campaigns"
+    )
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--out", type=Path)
     args = p.parse_args(argv)
@@ -49,9 +51,13 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     cwd = os.getcwd()
     os.chdir(run_dir)  # the summaries name their inputs relative to the run directory
-    print(f"machine: {platform.platform()} {platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}; {platform.processor() or 'cpu n/a'}")
-    print(f"imports (calflow.config, calflow.report, matplotlib): {import_s:.2f} s; the figure modules load in the first HTML")
+    print(
+        f"machine: {platform.platform()} {platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}; {platform.processor() or 'cpu n/a'}"
+    )
+    print(
+        f"imports (calflow.config, calflow.report, matplotlib): {import_s:.2f} s; the figure modules load in the first HTML"
+    )
     print(f"{'campaign':<18} {'HTML (s)':>9} {'PDF (s)':>9} {'total (s)':>10} {'HTML kB':>8} {'pages':>6}")
     total = 0.0
     try:
@@ -79,8 +85,10 @@ def main(argv=None) -> int:
             (out / f"{name}.pdf").write_bytes(pdf)
             pages = _pages(pdf)
             total += best_html + best_pdf
-            print(f"{name:<18} {best_html:>9.2f} {best_pdf:>9.2f} {best_html + best_pdf:>10.2f} "
-                  f"{len(html) / 1e3:>8.0f} {pages:>6}")
+            print(
+                f"{name:<18} {best_html:>9.2f} {best_pdf:>9.2f} {best_html + best_pdf:>10.2f} "
+                f"{len(html) / 1e3:>8.0f} {pages:>6}"
+            )
     finally:
         os.chdir(cwd)
     print(f"all campaigns: {total:.2f} s; outputs in {out}")
@@ -94,7 +102,7 @@ def _pages(pdf: bytes) -> int:
     chunks = [pdf]
     for m in re.finditer(rb"stream\r?\n", pdf):
         try:
-            chunks.append(zlib.decompressobj().decompress(pdf[m.end():]))
+            chunks.append(zlib.decompressobj().decompress(pdf[m.end() :]))
         except zlib.error:
             pass
     return sum(len(re.findall(rb"/Type\s*/Page(?![a-zA-Z])", c)) for c in chunks)

@@ -2,7 +2,7 @@
 
 For ``nano1d-thesis`` and ``nano2d-thesis`` (config/campaigns/), the training plan is
 acquired twice: on the ``simulated`` rig and with ``rig: gcs`` through the piezo controller
-emulation (:mod:`calflow.nano.emulate`), whose stage is the same physics with its own noise.
+emulation (:mod:`calflow.nano.stage.emulate`), whose stage is the same physics with its own noise.
 Per pose and approach direction, the stage's error ``meas - cmd`` averaged over the cycles
 is compared: the figure is the fraction of (pose, direction, sensor) cells whose difference
 is within 3 combined standard errors, and the largest difference in those units.
@@ -48,7 +48,10 @@ def _cells(ds, sensors):
         for p, d in sorted(set(zip(ds["pose"].values, ds["direction"].values))):
             m = (ds["pose"].values == p) & (ds["direction"].values == d) & np.isfinite(err)
             if m.sum() > 1:
-                out[(int(p), int(d), s)] = (float(err[m].mean()), float(err[m].std(ddof=1) / math.sqrt(m.sum())))
+                out[(int(p), int(d), s)] = (
+                    float(err[m].mean()),
+                    float(err[m].std(ddof=1) / math.sqrt(m.sum())),
+                )
     return out
 
 
@@ -58,7 +61,7 @@ def compare(campaign: str, time_scale: float) -> dict:
     from calflow.config import load_campaign
     from calflow.family import family_of
     from calflow.gcs.rig import gcs
-    from calflow.nano.emulate import emulated_rig_options
+    from calflow.nano.stage.emulate import emulated_rig_options
     from calflow.rigs import load_rig
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
@@ -67,7 +70,9 @@ def compare(campaign: str, time_scale: float) -> dict:
     plan = job.plan
     from calflow.family import resolve
 
-    sim_opts = resolve(fam.rig_options)(c, "simulated", job.run_id, dict(c["rig"].get("options", {})), plan.start_s)
+    sim_opts = resolve(fam.rig_options)(
+        c, "simulated", job.run_id, dict(c["rig"].get("options", {})), plan.start_s
+    )
     t0 = time.monotonic()
     sim_rig, _ = load_rig("simulated", c["robot"], sim_opts)
     sim = acquire(plan, sim_rig, meta(c, "simulated", "training", None))
@@ -88,12 +93,19 @@ def compare(campaign: str, time_scale: float) -> dict:
     z = np.array([abs(a[k][0] - b[k][0]) / math.hypot(a[k][1], b[k][1]) for k in a if k in b])
     diff_nm = np.array([abs(a[k][0] - b[k][0]) * 1e3 for k in a if k in b])
     ptp_nm = max(np.ptp([a[k][0] for k in a if k[2] == s]) for s in rig.sensors) * 1e3
-    return {"campaign": campaign, "samples": len(plan), "cells": int(z.size),
-            "within_3se": round(float(np.mean(z < 3)), 3), "max_z": round(float(z.max()), 2),
-            "median_abs_diff_nm": round(float(np.median(diff_nm)), 2),
-            "error_curve_ptp_nm": round(float(ptp_nm), 1),
-            "all_samples": bool(run.sizes["sample"] == len(plan)),
-            "wall_s_simulated": round(t_sim, 1), "wall_s_gcs": round(t_gcs, 1), "time_scale": time_scale}
+    return {
+        "campaign": campaign,
+        "samples": len(plan),
+        "cells": int(z.size),
+        "within_3se": round(float(np.mean(z < 3)), 3),
+        "max_z": round(float(z.max()), 2),
+        "median_abs_diff_nm": round(float(np.median(diff_nm)), 2),
+        "error_curve_ptp_nm": round(float(ptp_nm), 1),
+        "all_samples": bool(run.sizes["sample"] == len(plan)),
+        "wall_s_simulated": round(t_sim, 1),
+        "wall_s_gcs": round(t_gcs, 1),
+        "time_scale": time_scale,
+    }
 
 
 def compare_xytheta(campaign: str, time_scale: float) -> dict:
@@ -105,16 +117,18 @@ def compare_xytheta(campaign: str, time_scale: float) -> dict:
     from calflow.family import family_of, resolve
     from calflow.gcs.rig import gcs
     from calflow.rigs import load_rig
-    from calflow.xytheta import cost
-    from calflow.xytheta.emulate import emulated_rig_options
-    from calflow.xytheta.identification import identify
-    from calflow.xytheta.kinematics import Parameters
+    from calflow.xytheta.models import cost
+    from calflow.xytheta.models.identification import identify
+    from calflow.xytheta.models.kinematics import Parameters
+    from calflow.xytheta.stage.emulate import emulated_rig_options
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
     fam = family_of(c["robot"])
     job = fam.plan(c["robot"], "identification")(c, argparse.Namespace(model=None))
     plan, opts = job.plan, dict(c["rig"].get("options", {}))
-    sim_rig, _ = load_rig("simulated", c["robot"], resolve(fam.rig_options)(c, "simulated", job.run_id, opts, 0.0))
+    sim_rig, _ = load_rig(
+        "simulated", c["robot"], resolve(fam.rig_options)(c, "simulated", job.run_id, opts, 0.0)
+    )
     sim = acquire(plan, sim_rig, meta(c, "simulated", "identification", None))
     emu, options = emulated_rig_options(c, time_scale=time_scale, timeout=2.0)
     try:
@@ -131,17 +145,31 @@ def compare_xytheta(campaign: str, time_scale: float) -> dict:
     def fit(ds):
         theta = ds["meas_theta"].values - ds["meas_theta"].values[0]
         pm = cost.measured_points(ds["meas_x"].values, ds["meas_y"].values, theta)
-        return identify(ds["cmd_x"].values, ds["cmd_y"].values, theta, *pm,
-                        free=("x_R", "y_R", "alpha", "beta"),
-                        initial=Parameters(**c["identification"]["initial"]))
+        return identify(
+            ds["cmd_x"].values,
+            ds["cmd_y"].values,
+            theta,
+            *pm,
+            free=("x_R", "y_R", "alpha", "beta"),
+            initial=Parameters(**c["identification"]["initial"]),
+        )
+
     a, b = fit(sim), fit(run)
-    z = {k: round(abs(getattr(a.parameters, k) - getattr(b.parameters, k)) / math.hypot(a.std[k], b.std[k]), 2)
-         for k in ("x_R", "y_R", "alpha", "beta")}
+    z = {
+        k: round(abs(getattr(a.parameters, k) - getattr(b.parameters, k)) / math.hypot(a.std[k], b.std[k]), 2)
+        for k in ("x_R", "y_R", "alpha", "beta")
+    }
     d = np.abs(sim["meas_x"].values - run["meas_x"].values)
-    return {"campaign": campaign, "plan": "identification", "samples": len(plan),
-            "all_samples": bool(run.sizes["sample"] == len(plan)), "model_II_z": z,
-            "median_abs_meas_x_diff_um": round(float(np.nanmedian(d)), 3),
-            "wall_s_gcs": round(wall, 1), "time_scale": time_scale}
+    return {
+        "campaign": campaign,
+        "plan": "identification",
+        "samples": len(plan),
+        "all_samples": bool(run.sizes["sample"] == len(plan)),
+        "model_II_z": z,
+        "median_abs_meas_x_diff_um": round(float(np.nanmedian(d)), 3),
+        "wall_s_gcs": round(wall, 1),
+        "time_scale": time_scale,
+    }
 
 
 def workflow_small_nano1d(workdir: Path) -> dict:
@@ -152,7 +180,8 @@ def workflow_small_nano1d(workdir: Path) -> dict:
 
     sys.path.insert(0, str(ROOT / "tests"))
     from conftest import SMALL_NANO1D, make_workdir, snakemake
-    from calflow.nano.emulate import campaign_rig, emulated_rig_options
+
+    from calflow.nano.stage.emulate import campaign_rig, emulated_rig_options
 
     shutil.rmtree(workdir, ignore_errors=True)
     out = {}
@@ -174,25 +203,66 @@ def workflow_small_nano1d(workdir: Path) -> dict:
             if emu is not None:
                 emu.stop()
         s = json.loads((work / "results" / "small" / "summary.json").read_text())
-        out[rig] = {"wall_s": round(wall, 1),
-                    "intrinsic_ap_nm": round(s["intrinsic"]["accuracy_nm"], 1),
-                    "intrinsic_rp_nm": round(s["intrinsic"]["repeatability_nm"], 1),
-                    **{f"{m}_max_ap_nm": round(t["max_accuracy_nm"], 1) for m, t in s["tests"].items()},
-                    **{f"{m}_max_rp_nm": round(t["max_repeatability_nm"], 1) for m, t in s["tests"].items()}}
+        out[rig] = {
+            "wall_s": round(wall, 1),
+            "intrinsic_ap_nm": round(s["intrinsic"]["accuracy_nm"], 1),
+            "intrinsic_rp_nm": round(s["intrinsic"]["repeatability_nm"], 1),
+            **{f"{m}_max_ap_nm": round(t["max_accuracy_nm"], 1) for m, t in s["tests"].items()},
+            **{f"{m}_max_rp_nm": round(t["max_repeatability_nm"], 1) for m, t in s["tests"].items()},
+        }
     return {"campaign": "tests/conftest.py SMALL_NANO1D, whole workflow", **out}
 
 
 # ---------------------------------------------------------------- whole thesis campaigns
 FAMILY_TIME_SCALE = {"xytheta": 100.0, "nano": 500.0}
-SECTIONS = {"xytheta": ("characterisation", "iso230_2", "models", "xy_tests", "validation"),
-            "nano": ("intrinsic", "training", "iso230_2", "tests", "iso9283", "validation")}
+SECTIONS = {
+    "xytheta": ("characterisation", "iso230_2", "models", "xy_tests", "validation"),
+    "nano": ("intrinsic", "training", "iso230_2", "tests", "iso9283", "validation"),
+}
 # key segments that are settings, counts or plan facts, not measured figures
-SKIP = {"cycles", "cycles_forward", "cycles_backward", "n_tests", "targets", "poses", "cv_folds", "fit_dof",
-        "floor_dof", "dof", "alpha", "reference_targets", "error_budget_nm", "start_h", "end_h", "days",
-        "frames_per_pose", "rig_time_h", "rig_time_h_achieved", "condition_number", "rate_hz", "record_s",
-        "band_nm", "p_value", "floor_um", "test", "first_test", "last_test", "command_distance_um", "period_h",
-        "duration_h", "crlb_sigma", "heldout", "step_deg", "sweep_step_deg", "shortest_period_deg",
-        "undersampled", "command_difference_um", "training_end_h", "validation_start_h", "n_poses"}
+SKIP = {
+    "cycles",
+    "cycles_forward",
+    "cycles_backward",
+    "n_tests",
+    "targets",
+    "poses",
+    "cv_folds",
+    "fit_dof",
+    "floor_dof",
+    "dof",
+    "alpha",
+    "reference_targets",
+    "error_budget_nm",
+    "start_h",
+    "end_h",
+    "days",
+    "frames_per_pose",
+    "rig_time_h",
+    "rig_time_h_achieved",
+    "condition_number",
+    "rate_hz",
+    "record_s",
+    "band_nm",
+    "p_value",
+    "floor_um",
+    "test",
+    "first_test",
+    "last_test",
+    "command_distance_um",
+    "period_h",
+    "duration_h",
+    "crlb_sigma",
+    "heldout",
+    "step_deg",
+    "sweep_step_deg",
+    "shortest_period_deg",
+    "undersampled",
+    "command_difference_um",
+    "training_end_h",
+    "validation_start_h",
+    "n_poses",
+}
 
 
 PERIOD_OPTION = {"nano": ("rise_time_s", 4.0), "xytheta": ("settle_s", 0.5)}  # time a move takes (defaults)
@@ -224,8 +294,11 @@ def matched_runs(name: str, root: Path) -> dict[str, dict]:
     base = float((c["rig"].get("options") or {}).get(option, default))
     runs = lambda label: root / name / label / "project" / "results" / name / "runs"  # noqa: E731
     gcs, sim = _spans(runs("gcs")), _spans(runs("simulated"))
-    return {r: {option: round(base + max(0.0, (gcs[r][1] - sim[r][1]) / (n - 1)), 3)}
-            for r, (n, _) in gcs.items() if r in sim and sim[r][0] == n}
+    return {
+        r: {option: round(base + max(0.0, (gcs[r][1] - sim[r][1]) / (n - 1)), 3)}
+        for r, (n, _) in gcs.items()
+        if r in sim and sim[r][0] == n
+    }
 
 
 def _campaign(name: str, rig: str, noise_seed: int | None, runs: dict | None = None) -> tuple[dict, object]:
@@ -251,20 +324,21 @@ def _campaign(name: str, rig: str, noise_seed: int | None, runs: dict | None = N
         return c, None
     ts = FAMILY_TIME_SCALE["nano" if nano else "xytheta"]
     if nano:
-        from calflow.nano.emulate import campaign_rig, emulated_rig_options
+        from calflow.nano.stage.emulate import campaign_rig, emulated_rig_options
 
         emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
         c["rig"] = campaign_rig(options, c)
     else:
-        from calflow.xytheta.emulate import emulated_rig_options
+        from calflow.xytheta.stage.emulate import emulated_rig_options
 
         emu, options = emulated_rig_options(c, time_scale=ts, timeout=2.0)
         c["rig"] = {"factory": "gcs", "options": {**options, "poll_s": 0.002}}
     return c, emu
 
 
-def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | None = None,
-               runs: dict | None = None) -> dict:
+def thesis_run(
+    name: str, label: str, root: Path, rig: str, noise_seed: int | None = None, runs: dict | None = None
+) -> dict:
     """One whole-workflow run (every plan, then the summary) of thesis campaign ``name``
     with Snakemake in ``root/name/label``; reused when its summary exists."""
     import os
@@ -283,11 +357,25 @@ def thesis_run(name: str, label: str, root: Path, rig: str, noise_seed: int | No
         c, emu = _campaign(name, rig, noise_seed, runs)
         try:
             work = make_workdir(base, {name: c})
-            env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+            env = {
+                **os.environ,
+                "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+            }
             t0 = time.monotonic()
-            proc = subprocess.run([str(Path(sys.executable).parent / "snakemake"), f"results/{name}/summary.json",
-                                   "--cores", "2", "--resources", "rig=1"], cwd=work, env=env,
-                                  capture_output=True, text=True)
+            proc = subprocess.run(
+                [
+                    str(Path(sys.executable).parent / "snakemake"),
+                    f"results/{name}/summary.json",
+                    "--cores",
+                    "2",
+                    "--resources",
+                    "rig=1",
+                ],
+                cwd=work,
+                env=env,
+                capture_output=True,
+                text=True,
+            )
             (base / "wall_s").write_text(f"{time.monotonic() - t0:.1f}\n")
             if proc.returncode:
                 raise RuntimeError(f"{name} {label}: snakemake failed: {proc.stderr[-3000:]}")
@@ -310,6 +398,7 @@ def headline(summary: dict, family: str) -> dict[str, float]:
                 walk(v, key)
             elif isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
                 out[key] = float(v)
+
     walk({k: summary[k] for k in SECTIONS[family] if k in summary}, "")
     return out
 
@@ -317,7 +406,9 @@ def headline(summary: dict, family: str) -> dict[str, float]:
 T2_95 = 4.303  # Student t, 2 degrees of freedom, two-sided 95 %
 
 
-def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 202), matched: bool = False) -> dict:
+def compare_thesis(
+    name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 202), matched: bool = False
+) -> dict:
     """Whole workflow of a thesis campaign with ``rig: gcs`` against its emulator vs three
     simulated runs (the campaign's seed and ``noise_seeds``, same world): per headline
     figure, z = |gcs - mean(sim)| / (s sqrt(1 + 1/3)), s the simulated runs' standard
@@ -328,24 +419,40 @@ def compare_thesis(name: str, root: Path, noise_seeds: tuple[int, ...] = (101, 2
     gcs_run = thesis_run(name, "gcs", root, "gcs")
     runs = matched_runs(name, root) if matched else None
     prefix = "matched" if matched else "simulated"
-    sims = [thesis_run(name, prefix if s is None else f"{prefix}-{s}", root, "simulated", s, runs)
-            for s in (None, *noise_seeds)]
+    sims = [
+        thesis_run(name, prefix if s is None else f"{prefix}-{s}", root, "simulated", s, runs)
+        for s in (None, *noise_seeds)
+    ]
     figs = [headline(r["summary"], fam) for r in sims]
     g = headline(gcs_run["summary"], fam)
     rows = {}
     for k in sorted(set(g).intersection(*figs)):
         v = np.array([f[k] for f in figs])
         sd = float(v.std(ddof=1))
-        z = abs(g[k] - v.mean()) / (sd * math.sqrt(1 + 1 / v.size)) if sd > 0 else (0.0 if g[k] == v.mean() else math.inf)
+        z = (
+            abs(g[k] - v.mean()) / (sd * math.sqrt(1 + 1 / v.size))
+            if sd > 0
+            else (0.0 if g[k] == v.mean() else math.inf)
+        )
         rows[k] = {"gcs": round(g[k], 6), "simulated": [round(x, 6) for x in v], "z": round(z, 2)}
     z = np.array([r["z"] for r in rows.values()])
-    span = {"gcs": (gcs_run["summary"].get("validation") or {}).get("duration_h"),
-            "simulated": (sims[0]["summary"].get("validation") or {}).get("duration_h")}
-    return {"campaign": name, "reference": prefix, "figures": len(rows), "within_noise": int((z < T2_95).sum()),
-            "validation_span_h": span,
-            "median_z": round(float(np.median(z)), 2), "worst": sorted(rows, key=lambda k: -rows[k]["z"])[:5],
-            "wall_s_gcs": gcs_run["wall_s"], "wall_s_simulated": [r["wall_s"] for r in sims],
-            "time_scale": FAMILY_TIME_SCALE[fam], "rows": rows}
+    span = {
+        "gcs": (gcs_run["summary"].get("validation") or {}).get("duration_h"),
+        "simulated": (sims[0]["summary"].get("validation") or {}).get("duration_h"),
+    }
+    return {
+        "campaign": name,
+        "reference": prefix,
+        "figures": len(rows),
+        "within_noise": int((z < T2_95).sum()),
+        "validation_span_h": span,
+        "median_z": round(float(np.median(z)), 2),
+        "worst": sorted(rows, key=lambda k: -rows[k]["z"])[:5],
+        "wall_s_gcs": gcs_run["wall_s"],
+        "wall_s_simulated": [r["wall_s"] for r in sims],
+        "time_scale": FAMILY_TIME_SCALE[fam],
+        "rows": rows,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -353,16 +460,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--campaigns", nargs="+", default=["nano1d-thesis", "nano2d-thesis"])
     p.add_argument("--time-scale", type=float, default=500.0)
     p.add_argument("--json", action="store_true")
-    p.add_argument("--workflow", action="store_true",
-                   help="instead: the small nano1d campaign through Snakemake, gcs vs simulated")
-    p.add_argument("--thesis", nargs="*", metavar="CAMPAIGN",
-                   help="instead: the whole workflow of these thesis campaigns (default: all three), gcs "
-                        "against three simulated runs (long: run one at a time, with nice)")
-    p.add_argument("--root", type=Path, default=Path("/tmp/calflow-gcs-thesis"),
-                   help="work folders of --thesis; a run whose summary exists there is reused")
-    p.add_argument("--only", choices=["simulated", "gcs"], help="with --thesis: run only these runs, compare nothing")
-    p.add_argument("--matched", action="store_true",
-                   help="with --thesis: also compare with simulated runs given the gcs run's sample period")
+    p.add_argument(
+        "--workflow",
+        action="store_true",
+        help="instead: the small nano1d campaign through Snakemake, gcs vs simulated",
+    )
+    p.add_argument(
+        "--thesis",
+        nargs="*",
+        metavar="CAMPAIGN",
+        help="instead: the whole workflow of these thesis campaigns (default: all three), gcs "
+        "against three simulated runs (long: run one at a time, with nice)",
+    )
+    p.add_argument(
+        "--root",
+        type=Path,
+        default=Path("/tmp/calflow-gcs-thesis"),
+        help="work folders of --thesis; a run whose summary exists there is reused",
+    )
+    p.add_argument(
+        "--only", choices=["simulated", "gcs"], help="with --thesis: run only these runs, compare nothing"
+    )
+    p.add_argument(
+        "--matched",
+        action="store_true",
+        help="with --thesis: also compare with simulated runs given the gcs run's sample period",
+    )
     a = p.parse_args(argv)
     if a.thesis is not None:
         names = a.thesis or ["nano2d-thesis", "xytheta-thesis", "nano1d-thesis"]
@@ -372,17 +495,25 @@ def main(argv: list[str] | None = None) -> int:
                     thesis_run(name, "gcs", a.root, "gcs")
                 else:
                     for s in (None, 101, 202):
-                        thesis_run(name, "simulated" if s is None else f"simulated-{s}", a.root, "simulated", s)
+                        thesis_run(
+                            name, "simulated" if s is None else f"simulated-{s}", a.root, "simulated", s
+                        )
             return 0
-        results = [compare_thesis(name, a.root, matched=m) for name in names for m in (False, True)[:1 + a.matched]]
+        results = [
+            compare_thesis(name, a.root, matched=m) for name in names for m in (False, True)[: 1 + a.matched]
+        ]
         print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
         return 0
     if a.workflow:
         r = workflow_small_nano1d(Path("/tmp/calflow-gcs-workflow"))
         print(json.dumps(r, indent=1) if a.json else r)
         return 0
-    results = [compare_xytheta(name, min(a.time_scale, 100.0)) if name.startswith("xytheta")
-               else compare(name, a.time_scale) for name in a.campaigns]
+    results = [
+        compare_xytheta(name, min(a.time_scale, 100.0))
+        if name.startswith("xytheta")
+        else compare(name, a.time_scale)
+        for name in a.campaigns
+    ]
     print(json.dumps(results, indent=1) if a.json else "\n".join(map(str, results)))
     return 0
 

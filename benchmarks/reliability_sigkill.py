@@ -39,8 +39,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from conftest import SMALL_XYTHETA, XY_NOISE_UM  # noqa: E402
 
-VARS = ("time", "cmd_x", "cmd_y", "cmd_theta", "meas_x", "meas_y", "meas_theta", "pose", "cycle",
-        "direction")
+VARS = ("time", "cmd_x", "cmd_y", "cmd_theta", "meas_x", "meas_y", "meas_theta", "pose", "cycle", "direction")
 INDEX = ("cmd_x", "cmd_y", "cmd_theta", "pose", "cycle", "direction")
 
 
@@ -57,10 +56,24 @@ def _campaign(rig: str, workdir: Path, poses: int, emulator_options: dict | None
 
 
 def _start(campaign: Path, out: Path) -> subprocess.Popen:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
-    cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign),
-           "--plan", "identification", "--out", str(out), "--rig-plugins", "toyrigs"]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")])),
+    }
+    cmd = [
+        sys.executable,
+        "-m",
+        "calflow",
+        "acquire",
+        "--campaign",
+        str(campaign),
+        "--plan",
+        "identification",
+        "--out",
+        str(out),
+        "--rig-plugins",
+        "toyrigs",
+    ]
     return subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
 
 
@@ -93,8 +106,9 @@ def _uninterrupted(campaign: Path):
         rig.close()
 
 
-def _run_and_kill(campaign: Path, out: Path, had: int, rng: np.random.Generator,
-                  max_delay_s: float) -> tuple[bool, int]:
+def _run_and_kill(
+    campaign: Path, out: Path, had: int, rng: np.random.Generator, max_delay_s: float
+) -> tuple[bool, int]:
     """Start an acquisition; SIGKILL it at a random time after it journaled a new sample.
 
     Returns (killed, journal length after)."""
@@ -112,8 +126,15 @@ def _run_and_kill(campaign: Path, out: Path, had: int, rng: np.random.Generator,
     return killed, len(_journal(out))
 
 
-def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
-               poses: int = 400, max_delay_s: float = 0.15) -> dict:
+def kill_chain(
+    rig: str,
+    workdir: Path,
+    *,
+    kills: int,
+    rng: np.random.Generator,
+    poses: int = 400,
+    max_delay_s: float = 0.15,
+) -> dict:
     """``kills`` SIGKILLs of one acquisition on ``rig`` ("simulated" | "gcs"), resumed."""
     from calflow.data.io import open_dataset
 
@@ -121,7 +142,7 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
     emu = None
     options = None
     if rig == "gcs":
-        from calflow.xytheta.emulate import emulated_rig_options
+        from calflow.xytheta.stage.emulate import emulated_rig_options
 
         emu, options = emulated_rig_options(SMALL_XYTHETA, time_scale=100.0, timeout=1.0)
         options["poll_s"] = 0.002
@@ -152,8 +173,11 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
     lost = max(0, n_plan - n)
     for rows in seen:
         for i, row in enumerate(rows):
-            if i >= n or any(not np.isclose(row[k], float(b[k].values[i]), rtol=0, atol=0,
-                                            equal_nan=True) for k in VARS if k in row):
+            if i >= n or any(
+                not np.isclose(row[k], float(b[k].values[i]), rtol=0, atol=0, equal_nan=True)
+                for k in VARS
+                if k in row
+            ):
                 lost += 1
     m = min(n, n_plan)
     wrong = np.zeros(m, dtype=bool)
@@ -161,16 +185,26 @@ def kill_chain(rig: str, workdir: Path, *, kills: int, rng: np.random.Generator,
         wrong |= a[k].values[:m] != b[k].values[:m]
     dup = max(0, n - n_plan) + int(wrong.sum())
     if rig == "simulated":
-        equal = n == n_plan and all(np.array_equal(a[k].values, b[k].values, equal_nan=True)
-                                    for k in VARS)
+        equal = n == n_plan and all(np.array_equal(a[k].values, b[k].values, equal_nan=True) for k in VARS)
     else:
-        equal = (n == n_plan and all(np.array_equal(a[k].values, b[k].values) for k in INDEX)
-                 and bool(np.all(np.diff(b["time"].values) > 0))
-                 and all(np.nanmax(np.abs(a[k].values - b[k].values)) < 10 * XY_NOISE_UM
-                         for k in ("meas_x", "meas_y")))
-    return {"rig": rig, "kills": done, "samples": int(n_plan), "lost": int(lost),
-            "duplicated": int(dup), "journal_never_shrank": bool(never_shrank),
-            "equal_to_uninterrupted": bool(equal), "wall_s": round(wall, 1)}
+        equal = (
+            n == n_plan
+            and all(np.array_equal(a[k].values, b[k].values) for k in INDEX)
+            and bool(np.all(np.diff(b["time"].values) > 0))
+            and all(
+                np.nanmax(np.abs(a[k].values - b[k].values)) < 10 * XY_NOISE_UM for k in ("meas_x", "meas_y")
+            )
+        )
+    return {
+        "rig": rig,
+        "kills": done,
+        "samples": int(n_plan),
+        "lost": int(lost),
+        "duplicated": int(dup),
+        "journal_never_shrank": bool(never_shrank),
+        "equal_to_uninterrupted": bool(equal),
+        "wall_s": round(wall, 1),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -186,23 +220,33 @@ def main(argv: list[str] | None = None) -> int:
     while total < a.kills:
         rig = ("simulated", "gcs")[k % 2]
         want = min(a.per_chain, a.kills - total)
-        r = kill_chain(rig, a.workdir / f"chain{k}", kills=want, rng=rng,
-                       poses=1000 if rig == "simulated" else 400)
+        r = kill_chain(
+            rig, a.workdir / f"chain{k}", kills=want, rng=rng, poses=1000 if rig == "simulated" else 400
+        )
         chains.append(r)
         total += r["kills"]
         k += 1
         if not a.json:
             print(r, flush=True)
-    summary = {rig: {key: sum(c[key] for c in chains if c["rig"] == rig)
-                     for key in ("kills", "lost", "duplicated")} for rig in ("simulated", "gcs")}
-    figures = {"kills": total, "lost": sum(c["lost"] for c in chains),
-               "duplicated": sum(c["duplicated"] for c in chains),
-               "all_equal_to_uninterrupted": all(c["equal_to_uninterrupted"] for c in chains),
-               "journal_never_shrank": all(c["journal_never_shrank"] for c in chains),
-               "per_rig": summary, "chains": chains}
-    print(json.dumps(figures, indent=1) if a.json else
-          f"{total} SIGKILLs: lost {figures['lost']}, duplicated {figures['duplicated']}, "
-          f"all equal to the uninterrupted runs: {figures['all_equal_to_uninterrupted']}")
+    summary = {
+        rig: {key: sum(c[key] for c in chains if c["rig"] == rig) for key in ("kills", "lost", "duplicated")}
+        for rig in ("simulated", "gcs")
+    }
+    figures = {
+        "kills": total,
+        "lost": sum(c["lost"] for c in chains),
+        "duplicated": sum(c["duplicated"] for c in chains),
+        "all_equal_to_uninterrupted": all(c["equal_to_uninterrupted"] for c in chains),
+        "journal_never_shrank": all(c["journal_never_shrank"] for c in chains),
+        "per_rig": summary,
+        "chains": chains,
+    }
+    print(
+        json.dumps(figures, indent=1)
+        if a.json
+        else f"{total} SIGKILLs: lost {figures['lost']}, duplicated {figures['duplicated']}, "
+        f"all equal to the uninterrupted runs: {figures['all_equal_to_uninterrupted']}"
+    )
     return 0 if figures["lost"] == figures["duplicated"] == 0 and figures["all_equal_to_uninterrupted"] else 1
 
 

@@ -15,10 +15,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _xy_noise_um() -> float:
-    from calflow.xytheta.rig import XYThetaTruth
+    from calflow.xytheta.stage.rig import XYThetaTruth
 
     t = XYThetaTruth()
-    return float((t.sensor_noise_um ** 2 + t.stage_repeatability_um ** 2) ** 0.5)
+    return float((t.sensor_noise_um**2 + t.stage_repeatability_um**2) ** 0.5)
 
 
 XY_NOISE_UM = _xy_noise_um()  # one reading's noise on the default simulated XYΘ rig (sensor, stage), µm
@@ -30,23 +30,35 @@ SMALL_XYTHETA = {
     "seed": 7,
     "rig": {"factory": "simulated", "options": {}},
     "characterisation": {"x_stop_um": 4400, "y_stop_um": 3200, "step_um": 25, "cycles": 2, "dwell_s": 0.2},
-    "xy_tests": {"compensation": ["none", "linear"], "square": {"side_um": 1000, "points_per_segment": 4, "cycles": 2},
-                 "random_points": {"cycles": 2, "targets": [[500, 300], [1500, 900], [2500, 1200]]}},
+    "xy_tests": {
+        "compensation": ["none", "linear"],
+        "square": {"side_um": 1000, "points_per_segment": 4, "cycles": 2},
+        "random_points": {"cycles": 2, "targets": [[500, 300], [1500, 900], [2500, 1200]]},
+    },
     "identification": {"poses": 60, "dwell_s": 0.5},
     "observability": {"max_poses": 200, "steps": 5, "repeats": 1},
     "angle_residuals": {"cycles": 2, "positions": 2, "step_deg": 0.25},
-    "models": {"I": {"free": ["x_R", "y_R"], "fixed": {"alpha": 180.0, "beta": 0.0}},
-               "II": {"free": ["x_R", "y_R", "alpha", "beta"]},
-               "III": {"free": ["x_R", "y_R", "alpha", "beta"], "position_table": True},
-               "IV": {"base": "II", "angle_table": True}},
-    "validation": {"cycles": 4, "dwell_s": 0.5, "heldout": {"targets": 12, "cycles": 3, "error_budget": False}},
+    "models": {
+        "I": {"free": ["x_R", "y_R"], "fixed": {"alpha": 180.0, "beta": 0.0}},
+        "II": {"free": ["x_R", "y_R", "alpha", "beta"]},
+        "III": {"free": ["x_R", "y_R", "alpha", "beta"], "position_table": True},
+        "IV": {"base": "II", "angle_table": True},
+    },
+    "validation": {
+        "cycles": 4,
+        "dwell_s": 0.5,
+        "heldout": {"targets": 12, "cycles": 3, "error_budget": False},
+    },
 }
 
 SMALL_NANO1D = {
     "robot": "stage1d",
     "seed": 3,
-    "rig": {"factory": "simulated", "options": {"profile": "lab5day"},
-            "runs": {"metrology": {"profile": "metrology"}}},
+    "rig": {
+        "factory": "simulated",
+        "options": {"profile": "lab5day"},
+        "runs": {"metrology": {"profile": "metrology"}},
+    },
     "training": {"step_um": 60, "cycles": 6, "dwell_s": 10.0},
     "metrology": {"cycles": 3, "step_um": 160, "dwell_s": 8.0},
     "validation": {"step_um": 160, "cycles": 3, "tests": 6, "dwell_s": 8.0, "start_h": 2.0},
@@ -84,8 +96,14 @@ def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subproce
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "tests"), env.get("PYTHONPATH")]))
     env.update(env_extra or {})
-    return subprocess.run([str(BIN / "snakemake"), "--cores", "2", *args], cwd=work, env=env,
-                          capture_output=True, text=True, timeout=900)
+    return subprocess.run(
+        [str(BIN / "snakemake"), "--cores", "2", *args],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
 
 
 @pytest.fixture
@@ -127,9 +145,12 @@ def cf_problems(files) -> list[str]:
 # tool, but pytest 9 ignores the node ids it rewrites.)
 
 #: SMALL_XYTHETA with Models I and II only, no XY tests and 120 poses: a run of 10 jobs.
-REDUCED_XYTHETA = {**SMALL_XYTHETA, "models": {k: SMALL_XYTHETA["models"][k] for k in ("I", "II")},
-                   "xy_tests": {"compensation": []},
-                   "identification": {**SMALL_XYTHETA["identification"], "poses": 120}}
+REDUCED_XYTHETA = {
+    **SMALL_XYTHETA,
+    "models": {k: SMALL_XYTHETA["models"][k] for k in ("I", "II")},
+    "xy_tests": {"compensation": []},
+    "identification": {**SMALL_XYTHETA["identification"], "poses": 120},
+}
 SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created` attributes
 
 
@@ -150,7 +171,9 @@ def thesis_run(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def reduced_run(tmp_path_factory) -> Path:
     """REDUCED_XYTHETA (campaign ``c``) run once locally under SOURCE_DATE_EPOCH."""
-    work = make_workdir(tmp_path_factory.mktemp("reduced"), {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))})
+    work = make_workdir(
+        tmp_path_factory.mktemp("reduced"), {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))}
+    )
     proc = snakemake(work, env_extra=SOURCE_DATE_EPOCH)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return work

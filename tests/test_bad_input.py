@@ -11,87 +11,205 @@ import stat
 
 import pytest
 import yaml
+from conftest import SMALL_NANO1D, SMALL_XYTHETA, make_workdir, snakemake
 
 from calflow.cli import main
 from calflow.config import load_campaign
 from calflow.errors import ConfigError
-from conftest import SMALL_NANO1D, SMALL_XYTHETA, make_workdir, snakemake
 
 NAN, INF = float("nan"), float("inf")
 
 
 def _set(path: str, value):
     """An edit of a campaign: set the dotted ``path`` (creating mappings) to ``value``."""
+
     def edit(c):
         *head, last = path.split(".")
         node = c
         for key in head:
             node = node.setdefault(key, {})
         node[last] = value
+
     return edit
 
 
-GCS_XYTHETA = {**SMALL_XYTHETA, "rig": {"factory": "gcs", "options": {
-    "axes": {"x": "1", "y": "2", "theta": "3"}, "host": "127.0.0.1", "port": 50000,
-    "scale": {"x": 1000.0, "y": 1000.0}, "sensor": {"factory": "simulated_vision", "options": {}}}}}
+GCS_XYTHETA = {
+    **SMALL_XYTHETA,
+    "rig": {
+        "factory": "gcs",
+        "options": {
+            "axes": {"x": "1", "y": "2", "theta": "3"},
+            "host": "127.0.0.1",
+            "port": 50000,
+            "scale": {"x": 1000.0, "y": 1000.0},
+            "sensor": {"factory": "simulated_vision", "options": {}},
+        },
+    },
+}
 
 # (campaign, edit, expected substrings of the one line); every line also names the file.
 CAMPAIGN_CASES = {
-    "nan dwell": (SMALL_XYTHETA, _set("identification.dwell_s", NAN),
-                  ["key 'identification.dwell_s'", "finite"]),
-    "inf step": (SMALL_XYTHETA, _set("characterisation.step_um", INF), ["key 'characterisation.step_um'", "finite"]),
-    "nan in a target row": (SMALL_XYTHETA, _set("validation.targets", [[1.0, 2.0, NAN]]),
-                            ["key 'validation.targets.0.2'", "finite"]),
-    "reversed range": (SMALL_XYTHETA, _set("identification.x_um", [4000, 0]),
-                       ["key 'identification.x_um'", "low < high"]),
-    "empty range": (SMALL_XYTHETA, _set("identification.theta_deg", [2, 2]), ["key 'identification.theta_deg'"]),
-    "impossible date": (SMALL_XYTHETA, _set("start", "2026-02-31T08:00:00Z"), ["key 'start'", "real ISO 8601"]),
-    "negative noise": (SMALL_XYTHETA, _set("rig.options.sensor_noise_um", -1.0),
-                       ["key 'rig.options.sensor_noise_um'", ">= 0"]),
-    "noise 'loud'": (SMALL_XYTHETA, _set("rig.options.sensor_noise_um", "loud"),
-                     ["key 'rig.options.sensor_noise_um'", "got 'loud'"]),
-    "nan room temperature": (SMALL_XYTHETA, _set("rig.options.room_temperature_degC", NAN),
-                             ["key 'rig.options.room_temperature_degC'", "finite"]),
+    "nan dwell": (
+        SMALL_XYTHETA,
+        _set("identification.dwell_s", NAN),
+        ["key 'identification.dwell_s'", "finite"],
+    ),
+    "inf step": (
+        SMALL_XYTHETA,
+        _set("characterisation.step_um", INF),
+        ["key 'characterisation.step_um'", "finite"],
+    ),
+    "nan in a target row": (
+        SMALL_XYTHETA,
+        _set("validation.targets", [[1.0, 2.0, NAN]]),
+        ["key 'validation.targets.0.2'", "finite"],
+    ),
+    "reversed range": (
+        SMALL_XYTHETA,
+        _set("identification.x_um", [4000, 0]),
+        ["key 'identification.x_um'", "low < high"],
+    ),
+    "empty range": (
+        SMALL_XYTHETA,
+        _set("identification.theta_deg", [2, 2]),
+        ["key 'identification.theta_deg'"],
+    ),
+    "impossible date": (
+        SMALL_XYTHETA,
+        _set("start", "2026-02-31T08:00:00Z"),
+        ["key 'start'", "real ISO 8601"],
+    ),
+    "negative noise": (
+        SMALL_XYTHETA,
+        _set("rig.options.sensor_noise_um", -1.0),
+        ["key 'rig.options.sensor_noise_um'", ">= 0"],
+    ),
+    "noise 'loud'": (
+        SMALL_XYTHETA,
+        _set("rig.options.sensor_noise_um", "loud"),
+        ["key 'rig.options.sensor_noise_um'", "got 'loud'"],
+    ),
+    "nan room temperature": (
+        SMALL_XYTHETA,
+        _set("rig.options.room_temperature_degC", NAN),
+        ["key 'rig.options.room_temperature_degC'", "finite"],
+    ),
     "nan rig seed": (SMALL_XYTHETA, _set("rig.options.seed", NAN), ["key 'rig.options.seed'"]),
     "float rig seed": (SMALL_XYTHETA, _set("rig.options.seed", 1.5), ["key 'rig.options.seed'", "integer"]),
-    "zero velocity": (SMALL_XYTHETA, _set("rig.options.velocity_um_s", 0), ["key 'rig.options.velocity_um_s'", "> 0"]),
-    "zero pattern range": (SMALL_XYTHETA, _set("rig.options.pattern_range_um", [0, 4200]),
-                           ["key 'rig.options.pattern_range_um'"]),
-    "short tuple": (SMALL_XYTHETA, _set("rig.options.lead_fwd_um", [1.0]), ["key 'rig.options.lead_fwd_um'", "2"]),
-    "negative backlash in one run": (SMALL_XYTHETA, _set("rig.runs.identification", {"backlash_um": -2}),
-                                     ["key 'rig.runs.identification.backlash_um'", ">= 0"]),
-    "zero resolution": (SMALL_XYTHETA, _set("rig.options.sensor_resolution_um", 0.0),
-                        ["key 'rig.options.sensor_resolution_um'"]),
-    "unknown rig option": (SMALL_XYTHETA, _set("rig.options.sensor_nosie_um", 1.0),
-                           ["unknown key 'rig.options.sensor_nosie_um'", "sensor_noise_um"]),
-    "plugin not allowed": (SMALL_XYTHETA, _set("rig", {"factory": "os:system", "options": {"command": "touch x"}}),
-                           ["key 'rig.factory'", "not allowed", "rig_plugins"]),
+    "zero velocity": (
+        SMALL_XYTHETA,
+        _set("rig.options.velocity_um_s", 0),
+        ["key 'rig.options.velocity_um_s'", "> 0"],
+    ),
+    "zero pattern range": (
+        SMALL_XYTHETA,
+        _set("rig.options.pattern_range_um", [0, 4200]),
+        ["key 'rig.options.pattern_range_um'"],
+    ),
+    "short tuple": (
+        SMALL_XYTHETA,
+        _set("rig.options.lead_fwd_um", [1.0]),
+        ["key 'rig.options.lead_fwd_um'", "2"],
+    ),
+    "negative backlash in one run": (
+        SMALL_XYTHETA,
+        _set("rig.runs.identification", {"backlash_um": -2}),
+        ["key 'rig.runs.identification.backlash_um'", ">= 0"],
+    ),
+    "zero resolution": (
+        SMALL_XYTHETA,
+        _set("rig.options.sensor_resolution_um", 0.0),
+        ["key 'rig.options.sensor_resolution_um'"],
+    ),
+    "unknown rig option": (
+        SMALL_XYTHETA,
+        _set("rig.options.sensor_nosie_um", 1.0),
+        ["unknown key 'rig.options.sensor_nosie_um'", "sensor_noise_um"],
+    ),
+    "plugin not allowed": (
+        SMALL_XYTHETA,
+        _set("rig", {"factory": "os:system", "options": {"command": "touch x"}}),
+        ["key 'rig.factory'", "not allowed", "rig_plugins"],
+    ),
     "not a factory name": (SMALL_XYTHETA, _set("rig.factory", "os.system"), ["key 'rig.factory'"]),
-    "no callable": (SMALL_XYTHETA, _set("rig.factory", "toyrigs:nothing_here"), ["key 'rig.factory'", "no callable"]),
-    "no module": (SMALL_XYTHETA, _set("rig.factory", "toyrigs_not_there:make"), ["key 'rig.factory'", "cannot import"]),
-    "reversed stroke": (SMALL_NANO1D, _set("validation.stop_um", -10.0),
-                        ["key 'validation.stop_um'", "validation.start_um"]),
-    "average beyond dwell": (SMALL_NANO1D, _set("training.average_last_s", 20.0),
-                             ["key 'training.average_last_s'", "training.dwell_s"]),
-    "nano inf option": (SMALL_NANO1D, _set("rig.options.rise_time_s", INF), ["key 'rig.options.rise_time_s'"]),
-    "nano negative noise": (SMALL_NANO1D, _set("rig.options.interferometer_noise_nm", -3),
-                            ["key 'rig.options.interferometer_noise_nm'", ">= 0"]),
-    "nano unknown profile in a run": (SMALL_NANO1D, _set("rig.runs.metrology.profile", "sauna"),
-                                      ["key 'rig.runs.metrology.profile'", "sauna"]),
+    "no callable": (
+        SMALL_XYTHETA,
+        _set("rig.factory", "toyrigs:nothing_here"),
+        ["key 'rig.factory'", "no callable"],
+    ),
+    "no module": (
+        SMALL_XYTHETA,
+        _set("rig.factory", "toyrigs_not_there:make"),
+        ["key 'rig.factory'", "cannot import"],
+    ),
+    "reversed stroke": (
+        SMALL_NANO1D,
+        _set("validation.stop_um", -10.0),
+        ["key 'validation.stop_um'", "validation.start_um"],
+    ),
+    "average beyond dwell": (
+        SMALL_NANO1D,
+        _set("training.average_last_s", 20.0),
+        ["key 'training.average_last_s'", "training.dwell_s"],
+    ),
+    "nano inf option": (
+        SMALL_NANO1D,
+        _set("rig.options.rise_time_s", INF),
+        ["key 'rig.options.rise_time_s'"],
+    ),
+    "nano negative noise": (
+        SMALL_NANO1D,
+        _set("rig.options.interferometer_noise_nm", -3),
+        ["key 'rig.options.interferometer_noise_nm'", ">= 0"],
+    ),
+    "nano unknown profile in a run": (
+        SMALL_NANO1D,
+        _set("rig.runs.metrology.profile", "sauna"),
+        ["key 'rig.runs.metrology.profile'", "sauna"],
+    ),
     "nano nan start": (SMALL_NANO1D, _set("validation.start_h", NAN), ["key 'validation.start_h'", "finite"]),
-    "gcs port out of range": (GCS_XYTHETA, _set("rig.options.port", 99999), ["key 'rig.options.port'", "1-65535"]),
-    "gcs axis id with a space": (GCS_XYTHETA, _set("rig.options.axes.x", "1 2"), ["key 'rig.options.axes.x.axis'"]),
+    "gcs port out of range": (
+        GCS_XYTHETA,
+        _set("rig.options.port", 99999),
+        ["key 'rig.options.port'", "1-65535"],
+    ),
+    "gcs axis id with a space": (
+        GCS_XYTHETA,
+        _set("rig.options.axes.x", "1 2"),
+        ["key 'rig.options.axes.x.axis'"],
+    ),
     "gcs zero timeout": (GCS_XYTHETA, _set("rig.options.timeout", 0), ["key 'rig.options.timeout'", "> 0"]),
-    "gcs scale of no joint": (GCS_XYTHETA, _set("rig.options.scale.z", 1000), ["key 'rig.options.scale.z'", "joints"]),
-    "gcs negative tries": (GCS_XYTHETA, _set("rig.options.reconnect.tries", -2), ["key 'rig.options.reconnect.tries'"]),
+    "gcs scale of no joint": (
+        GCS_XYTHETA,
+        _set("rig.options.scale.z", 1000),
+        ["key 'rig.options.scale.z'", "joints"],
+    ),
+    "gcs negative tries": (
+        GCS_XYTHETA,
+        _set("rig.options.reconnect.tries", -2),
+        ["key 'rig.options.reconnect.tries'"],
+    ),
     "gcs no sensor": (GCS_XYTHETA, _set("rig.options.sensor", None), ["key 'rig.options.sensor'"]),
-    "gcs both host and serial": (GCS_XYTHETA, _set("rig.options.serial", "/dev/ttyUSB0"),
-                                 ["key 'rig.options.axes.", "exactly one of 'host'"]),
-    "gcs misspelt option": (GCS_XYTHETA, _set("rig.options.time_scael", 10), ["unknown key 'rig.options.time_scael'"]),
-    "replay recordings not a path": (SMALL_XYTHETA, _set("rig", {"factory": "replay", "options": {"recordings": 3}}),
-                                     ["key 'rig.options.recordings'"]),
-    "replay negative tolerance": (SMALL_XYTHETA, _set("rig", {"factory": "replay", "options": {
-        "recordings": "results/x/runs", "tolerance_um": -1}}), ["key 'rig.options.tolerance_um'", ">= 0"]),
+    "gcs both host and serial": (
+        GCS_XYTHETA,
+        _set("rig.options.serial", "/dev/ttyUSB0"),
+        ["key 'rig.options.axes.", "exactly one of 'host'"],
+    ),
+    "gcs misspelt option": (
+        GCS_XYTHETA,
+        _set("rig.options.time_scael", 10),
+        ["unknown key 'rig.options.time_scael'"],
+    ),
+    "replay recordings not a path": (
+        SMALL_XYTHETA,
+        _set("rig", {"factory": "replay", "options": {"recordings": 3}}),
+        ["key 'rig.options.recordings'"],
+    ),
+    "replay negative tolerance": (
+        SMALL_XYTHETA,
+        _set("rig", {"factory": "replay", "options": {"recordings": "results/x/runs", "tolerance_um": -1}}),
+        ["key 'rig.options.tolerance_um'", ">= 0"],
+    ),
 }
 ALLOWED = ["toyrigs", "toyrigs_not_there"]  # allowed, so what is checked is import and callable
 
@@ -141,23 +259,36 @@ def test_acquire_refuses_before_anything_is_written(tmp_path, capsys, monkeypatc
     status, err = _cli(capsys, "acquire", "--campaign", path, "--plan", "identification", "--out", out)
     assert status == 2 and len(err) == 1 and err[0].startswith(f"calflow: error: {path}: ")
     assert all(part in err[0] for part in expected)
-    assert not (tmp_path / "results").exists() and not (tmp_path / "x").exists()  # no output, no journal, no command
+    assert (
+        not (tmp_path / "results").exists() and not (tmp_path / "x").exists()
+    )  # no output, no journal, no command
 
 
 def test_acquire_out_under_a_file_is_one_line(tmp_path, capsys):
     (tmp_path / "afile").write_text("")
     path = _write(tmp_path, SMALL_XYTHETA, lambda c: None, "ok")
-    status, err = _cli(capsys, "acquire", "--campaign", path, "--plan", "identification",
-                       "--out", tmp_path / "afile" / "run.nc")
+    status, err = _cli(
+        capsys,
+        "acquire",
+        "--campaign",
+        path,
+        "--plan",
+        "identification",
+        "--out",
+        tmp_path / "afile" / "run.nc",
+    )
     assert status == 2 and len(err) == 1 and "afile is a file" in err[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "ok.yaml"]
 
 
-@pytest.mark.parametrize("argv,expected", [
-    (["--port", "99999"], "--port: expected a TCP port 0-65535"),
-    (["--port", "-1"], "--port: expected a TCP port 0-65535"),
-    (["--time-scale", "nan"], "--time-scale: expected a value > 0"),
-])
+@pytest.mark.parametrize(
+    "argv,expected",
+    [
+        (["--port", "99999"], "--port: expected a TCP port 0-65535"),
+        (["--port", "-1"], "--port: expected a TCP port 0-65535"),
+        (["--time-scale", "nan"], "--time-scale: expected a value > 0"),
+    ],
+)
 def test_emulator_arguments_are_one_line(tmp_path, capsys, argv, expected):
     path = _write(tmp_path, SMALL_XYTHETA, lambda c: None, "ok")
     status, err = _cli(capsys, "emulate", "gcs", "--campaign", path, *argv)
@@ -167,7 +298,9 @@ def test_emulator_arguments_are_one_line(tmp_path, capsys, argv, expected):
 def test_error_line_also_goes_to_the_descriptor_the_workflow_passes(tmp_path, capsys, monkeypatch):
     read, write = os.pipe()
     monkeypatch.setenv("CALFLOW_ERROR_FD", str(write))
-    status, err = _cli(capsys, "acquire", "--campaign", tmp_path / "missing.yaml", "--plan", "x", "--out", "o.nc")
+    status, err = _cli(
+        capsys, "acquire", "--campaign", tmp_path / "missing.yaml", "--plan", "x", "--out", "o.nc"
+    )
     os.close(write)
     with os.fdopen(read) as f:
         assert status == 2 and f.read().strip() == err[0] and "missing.yaml" in err[0]
@@ -211,11 +344,12 @@ def test_journal_appears_with_the_first_sample_only(tmp_path):
 def run():
     from calflow.acquisition.runner import acquire
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta import plans
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans import poses as plans
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
-    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification",
-                       config_sha256="0" * 64)
+    meta = RunMetadata(
+        campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64
+    )
     return acquire(plans.identification(6, seed=3), simulated_xytheta(seed=1, stream="id"), meta)
 
 
@@ -336,10 +470,21 @@ GCS_REPLY_CASES = {  # (call, replies, expected part of the one line)
     "ERR? not an integer": (lambda c: c.servo_on("1"), [b"x\n"], "expected one integer in reply to 'ERR?'"),
     "#7 not B0/B1": (lambda c: c.ready(), [b"7\n"], "unexpected reply to #7"),
     "ONT? not 0/1": (lambda c: c.on_target(["1"]), _sai(b"1=2\n"), "expected 0 or 1"),
-    "SPA? another parameter": (lambda c: c.parameter("1", 0x36), [b"1 0x3F=2\n"], "unexpected reply to 'SPA? 1 0x36'"),
-    "DRR? rows of the wrong width": (lambda c: c.read_recorder([1], 1, 2),
-                                     [b"# DIM = 1 \n# END_HEADER \n1 2 \n3\n"], "rows must have DIM = 1 columns"),
-    "DRR? without END_HEADER": (lambda c: c.read_recorder([1], 1, 2), [b"# DIM = 1 \n# NDATA = 1\n"], "no '# END_HEADER'"),
+    "SPA? another parameter": (
+        lambda c: c.parameter("1", 0x36),
+        [b"1 0x3F=2\n"],
+        "unexpected reply to 'SPA? 1 0x36'",
+    ),
+    "DRR? rows of the wrong width": (
+        lambda c: c.read_recorder([1], 1, 2),
+        [b"# DIM = 1 \n# END_HEADER \n1 2 \n3\n"],
+        "rows must have DIM = 1 columns",
+    ),
+    "DRR? without END_HEADER": (
+        lambda c: c.read_recorder([1], 1, 2),
+        [b"# DIM = 1 \n# NDATA = 1\n"],
+        "no '# END_HEADER'",
+    ),
     "no reply at all": (lambda c: c.idn(), [], "no reply to '*IDN?' within"),
 }
 
@@ -359,15 +504,36 @@ def test_a_bad_gcs_reply_is_one_line_naming_the_command(case):
 # ------------------------------------------------------------------ CSV recordings and CLI arguments
 CSV_HEADER = "t_s,X,Y,T,xv,yv,tv"
 CSV_ROWS = ["0.0,0,0,0,1.0,2.0,0.0", "1.0,1,1,1,2.0,3.0,1.0"]
-CSV_MAPPING = {"robot": "xytheta", "plan": "identification", "columns": {
-    "time": {"column": "t_s"}, "cmd_x": {"column": "X"}, "cmd_y": {"column": "Y"},
-    "cmd_theta": {"column": "T"}, "meas_x": {"column": "xv"}, "meas_y": {"column": "yv"},
-    "meas_theta": {"column": "tv"}}}
+CSV_MAPPING = {
+    "robot": "xytheta",
+    "plan": "identification",
+    "columns": {
+        "time": {"column": "t_s"},
+        "cmd_x": {"column": "X"},
+        "cmd_y": {"column": "Y"},
+        "cmd_theta": {"column": "T"},
+        "meas_x": {"column": "xv"},
+        "meas_y": {"column": "yv"},
+        "meas_theta": {"column": "tv"},
+    },
+}
 CSV_CASES = {  # (csv lines, mapping edit, expected part of the one line)
-    "csv: a column missing": ([CSV_HEADER.replace("yv", "yy"), *CSV_ROWS], None, "column 'yv' (for meas_y) missing"),
-    "csv: text in a command": ([CSV_HEADER, CSV_ROWS[0], "1.0,one,1,1,2.0,3.0,1.0"], None, "expected a number, got 'one'"),
+    "csv: a column missing": (
+        [CSV_HEADER.replace("yv", "yy"), *CSV_ROWS],
+        None,
+        "column 'yv' (for meas_y) missing",
+    ),
+    "csv: text in a command": (
+        [CSV_HEADER, CSV_ROWS[0], "1.0,one,1,1,2.0,3.0,1.0"],
+        None,
+        "expected a number, got 'one'",
+    ),
     "csv: empty file": ([], None, "the file is empty"),
-    "csv: time going backwards": ([CSV_HEADER, CSV_ROWS[1], CSV_ROWS[0]], None, "expected non-decreasing time"),
+    "csv: time going backwards": (
+        [CSV_HEADER, CSV_ROWS[1], CSV_ROWS[0]],
+        None,
+        "expected non-decreasing time",
+    ),
     "csv: wrong delimiter": ([line.replace(",", ";") for line in (CSV_HEADER, *CSV_ROWS)], None, "row 1"),
     "mapping: unknown key": ([CSV_HEADER, *CSV_ROWS], {"colums": {}}, "colums"),
 }
@@ -382,19 +548,27 @@ def test_import_csv_refuses_a_bad_recording_in_one_line_and_writes_nothing(tmp_p
     mapping.write_text(yaml.safe_dump({**CSV_MAPPING, **(extra or {})}))
     campaign = _write(tmp_path, SMALL_XYTHETA, lambda c: None, "ok")
     out = tmp_path / "runs" / "identification.nc"
-    status, err = _cli(capsys, "import-csv", csv_path, "--mapping", mapping, "--campaign", campaign, "--out", out)
+    status, err = _cli(
+        capsys, "import-csv", csv_path, "--mapping", mapping, "--campaign", campaign, "--out", out
+    )
     assert status == 2 and len(err) == 1 and expected in err[0], err
     assert not (tmp_path / "runs").exists()
 
 
 CLI_CASES = {  # argv (after ``calflow``), expected part of the one line
-    "acquire: unknown plan": (["acquire", "--campaign", "{ok}", "--plan", "nosuch", "--out", "{tmp}/r.nc"],
-                              "--plan 'nosuch' is not a plan"),
-    "acquire: missing campaign": (["acquire", "--campaign", "{tmp}/gone.yaml", "--plan", "identification",
-                                   "--out", "{tmp}/r.nc"], "gone.yaml"),
+    "acquire: unknown plan": (
+        ["acquire", "--campaign", "{ok}", "--plan", "nosuch", "--out", "{tmp}/r.nc"],
+        "--plan 'nosuch' is not a plan",
+    ),
+    "acquire: missing campaign": (
+        ["acquire", "--campaign", "{tmp}/gone.yaml", "--plan", "identification", "--out", "{tmp}/r.nc"],
+        "gone.yaml",
+    ),
     "validate: missing file": (["validate", "{tmp}/gone.nc"], "gone.nc"),
-    "emulate: zero time scale": (["emulate", "gcs", "--campaign", "{ok}", "--time-scale", "0"],
-                                 "--time-scale: expected a value > 0"),
+    "emulate: zero time scale": (
+        ["emulate", "gcs", "--campaign", "{ok}", "--time-scale", "0"],
+        "--time-scale: expected a value > 0",
+    ),
 }
 
 
@@ -415,8 +589,10 @@ def test_the_catalogue_holds_at_least_40_bad_inputs():
 
 
 def catalogue_counts() -> dict[str, int]:
-    return {"campaign files": len(CAMPAIGN_CASES) + 2,  # + the NaN written as YAML text, --out under a file
-            "CLI arguments": len(CLI_CASES) + 3,  # + the emulator's --port/--time-scale cases above
-            "netCDF recordings": len(RECORDING_CASES),
-            "CSV recordings and mappings": len(CSV_CASES),
-            "GCS replies": len(GCS_REPLY_CASES)}
+    return {
+        "campaign files": len(CAMPAIGN_CASES) + 2,  # + the NaN written as YAML text, --out under a file
+        "CLI arguments": len(CLI_CASES) + 3,  # + the emulator's --port/--time-scale cases above
+        "netCDF recordings": len(RECORDING_CASES),
+        "CSV recordings and mappings": len(CSV_CASES),
+        "GCS replies": len(GCS_REPLY_CASES),
+    }

@@ -4,12 +4,17 @@ import numpy as np
 import pytest
 
 from calflow.acquisition.runner import acquire
-from calflow.xytheta.characterisation import characterise, characterise_axis, dominant_period, stage_positions
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import DataError
-from calflow.xytheta import sweeps
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.tables.characterisation import (
+    characterise,
+    characterise_axis,
+    dominant_period,
+    stage_positions,
+)
 
 STOP, CYCLES = 2000.0, 2
 
@@ -20,8 +25,11 @@ def meta(plan):
 
 def sweep(axis, stop=STOP, cycles=CYCLES, step=5.0, seed=11, **physics):
     rig = simulated_xytheta(seed=seed, stream=f"char-{axis}", **physics)
-    run = acquire(sweeps.characterisation(axis, stop_um=stop, step_um=step, cycles=cycles), rig,
-                  meta(f"characterisation_{axis}"))
+    run = acquire(
+        sweeps.characterisation(axis, stop_um=stop, step_um=step, cycles=cycles),
+        rig,
+        meta(f"characterisation_{axis}"),
+    )
     return run, rig.truth_model
 
 
@@ -95,7 +103,9 @@ def test_forward_backward_differ_by_backlash_and_amplitude(runs):
     _, _, truth, ds = runs
     for axis, k in (("x", 0), ("y", 1)):
         q = ds[f"{axis}_position"].values
-        diff = ds[f"err_{axis}{axis}"].sel(direction=-1).values - ds[f"err_{axis}{axis}"].sel(direction=1).values
+        diff = (
+            ds[f"err_{axis}{axis}"].sel(direction=-1).values - ds[f"err_{axis}{axis}"].sel(direction=1).values
+        )
         assert diff.mean() == pytest.approx(truth.backlash_um, abs=0.15)
         phase = 2 * np.pi * q / truth.thread_pitch_um
         basis = np.column_stack([np.ones_like(q), np.sin(phase), np.cos(phase)])
@@ -108,7 +118,9 @@ def test_perpendicularity_and_alignment(runs):
     assert float(ds["perpendicularity"]) == pytest.approx(truth.beta_deg, abs=0.02)
     assert float(ds["x_stage_angle"]) == pytest.approx(truth.alpha_deg - 180.0, abs=0.02)
     # δx(y) of Eq. (4.14): x error while Y moves grows like −sin(α+β)·y
-    assert float(ds["delta_x_slope"]) == pytest.approx(-np.sin(np.radians(truth.alpha_deg + truth.beta_deg)), abs=1e-3)
+    assert float(ds["delta_x_slope"]) == pytest.approx(
+        -np.sin(np.radians(truth.alpha_deg + truth.beta_deg)), abs=1e-3
+    )
 
 
 def test_repeatability_is_range_over_cycles(runs):
@@ -117,8 +129,15 @@ def test_repeatability_is_range_over_cycles(runs):
     assert np.all(rep[np.isfinite(rep)] >= 0) and np.all(ds["cycles_x"].values == CYCLES)
     sigma = np.hypot(truth.sensor_noise_um, truth.stage_repeatability_um)
     assert 0.3 * sigma < np.median(rep) < 2 * sigma  # range of 2 readings: median ≈ 0.95 σ
-    quiet, _ = sweep("x", stop=400, sensor_noise_um=0.0, stage_repeatability_um=0.0, room_swing_degC=0.0,
-                     decode_error_um=0.0, gross_error_rate=0.0)
+    quiet, _ = sweep(
+        "x",
+        stop=400,
+        sensor_noise_um=0.0,
+        stage_repeatability_um=0.0,
+        room_swing_degC=0.0,
+        decode_error_um=0.0,
+        gross_error_rate=0.0,
+    )
     assert np.nanmax(characterise_axis(quiet)["rep_xx"].values) <= 0.011  # sensor resolution only
     assert np.all(np.isnan(characterise_axis(sweep("x", stop=100, cycles=1)[0])["rep_xx"].values))
 

@@ -12,26 +12,48 @@ from calflow.data.io import atomic_path, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset, validate_file
 from calflow.errors import DataError
-from calflow.xytheta import plans
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 
 @pytest.fixture
 def run():
     plan = plans.identification(20, seed=3)
-    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64)
+    meta = RunMetadata(
+        campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64
+    )
     return acquire(plan, simulated_xytheta(seed=1, stream="id"), meta)
 
 
 def test_run_dataset_follows_the_contract(run, tmp_path):
     assert validate_dataset(run) == []
-    for name in ("time", "cmd_x", "cmd_y", "cmd_theta", "meas_x", "meas_y", "meas_theta", "pose", "cycle", "direction"):
+    for name in (
+        "time",
+        "cmd_x",
+        "cmd_y",
+        "cmd_theta",
+        "meas_x",
+        "meas_y",
+        "meas_theta",
+        "pose",
+        "cycle",
+        "direction",
+    ):
         assert name in run and run[name].dims == ("sample",)
         assert "units" in run[name].attrs and "long_name" in run[name].attrs
     assert run["temperature"].dims == ("sample", "sensor")
     assert run["time"].attrs["units"].startswith("seconds since ")
     assert run["cmd_theta"].attrs["units"] == "degree" and run["meas_x"].attrs["units"] == "um"
-    for attr in ("calflow_kind", "calflow_version", "campaign", "robot", "source", "created", "config_sha256", "history"):
+    for attr in (
+        "calflow_kind",
+        "calflow_version",
+        "campaign",
+        "robot",
+        "source",
+        "created",
+        "config_sha256",
+        "history",
+    ):
         assert attr in run.attrs
     path = write_dataset(run, tmp_path / "run.nc")
     assert validate_file(path) == []
@@ -63,7 +85,9 @@ def test_validate_cli_on_corrupt_and_truncated_files(run, tmp_path, capsys):
         assert main(["validate", str(path)]) != 0
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(str(path))
-    proc = subprocess.run([sys.executable, "-m", "calflow", "validate", str(corrupt)], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "calflow", "validate", str(corrupt)], capture_output=True, text=True
+    )
     assert proc.returncode != 0 and str(corrupt) in proc.stderr
 
 
@@ -91,7 +115,6 @@ def test_same_seed_gives_identical_bytes(tmp_path, name, plan):
     import os
 
     import yaml
-
     from conftest import SMALL_NANO1D, SMALL_XYTHETA
 
     campaign = SMALL_XYTHETA if name == "xy" else SMALL_NANO1D
@@ -101,8 +124,23 @@ def test_same_seed_gives_identical_bytes(tmp_path, name, plan):
         d.mkdir()
         (d / "c.yaml").write_text(yaml.safe_dump({**campaign, "seed": seed}))
         env = {**os.environ, "SOURCE_DATE_EPOCH": "1767225600"}
-        subprocess.run([sys.executable, "-m", "calflow", "acquire", "--campaign", "c.yaml", "--plan", plan,
-                        "--out", "run.nc"], cwd=d, env=env, check=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "calflow",
+                "acquire",
+                "--campaign",
+                "c.yaml",
+                "--plan",
+                plan,
+                "--out",
+                "run.nc",
+            ],
+            cwd=d,
+            env=env,
+            check=True,
+        )
         digests.append(hashlib.sha256((d / "run.nc").read_bytes()).hexdigest())
     assert digests[0] == digests[1]
     a, c = open_dataset(tmp_path / "0" / "run.nc"), open_dataset(tmp_path / "2" / "run.nc")

@@ -10,7 +10,6 @@ import re
 
 import numpy as np
 import pytest
-
 from conftest import ROOT, snakemake
 
 CAMPAIGN = "xytheta-thesis"
@@ -20,8 +19,10 @@ THESIS_4_8 = {"I": 95.980, "II": 34.338, "III": 26.461, "IV": 2.838, "V": 2.568}
 
 @pytest.fixture(scope="module")
 def thesis(thesis_run):
-    summaries = {name: json.loads((thesis_run / f"results/{name}/summary.json").read_text())
-                 for name in ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")}
+    summaries = {
+        name: json.loads((thesis_run / f"results/{name}/summary.json").read_text())
+        for name in ("xytheta-thesis", "nano1d-thesis", "nano2d-thesis")
+    }
     summaries["work"] = thesis_run
     return summaries
 
@@ -35,7 +36,7 @@ def test_exported_files_reproduce_the_models_in_closed_loop(thesis):
     file's groups in the same process (calflow.data.io.group_names)."""
     from calflow.xytheta.export import Compensator
     from calflow.xytheta.export.controllers import read_linuxcnc, read_twincat
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.models.ladder import MicroModel
 
     s, work = thesis[CAMPAIGN], thesis["work"]
     for name, m in s["models"].items():
@@ -56,7 +57,7 @@ def test_exported_files_reproduce_the_models_in_closed_loop(thesis):
     for name in ("III", "IV", "V"):
         assert s["models"][name]["export"]["verified"] is True, name
     html = (work / f"reports/{CAMPAIGN}/report.html").read_text()
-    table = html[html.index('id="export-verification"'):]
+    table = html[html.index('id="export-verification"') :]
     assert "through the exported compensation" in table and "in-process model" in table
     for name in ("III", "V"):
         assert f"{s['models'][name]['export']['accuracy_um']:.3f}" in table
@@ -107,7 +108,9 @@ def test_xytheta_error_budget_accounts_for_every_models_heldout_error(thesis, th
         b = m["error_budget_um"]
         assert set(b) == {"baseline", "interaction", *eb["effects"]}
         total = sum(np.sign(v) * v**2 for v in b.values())
-        with xr.open_dataset(thesis_run / f"results/xytheta-thesis/metrics/validation_heldout_{name}.nc") as ds:
+        with xr.open_dataset(
+            thesis_run / f"results/xytheta-thesis/metrics/validation_heldout_{name}.nc"
+        ) as ds:
             ms = float(np.mean(ds["ap"].values ** 2))
         assert np.isclose(total, ms, rtol=1e-6) and np.isclose(m["error_budget_rms_um"] ** 2, ms, rtol=1e-9)
         assert m["error_budget_rms_um"] <= m["accuracy_um"]  # an RMS over targets, the max is AP
@@ -130,9 +133,13 @@ def test_heldout_targets_are_disjoint_from_every_training_pose(thesis):
     def joints(path):
         with xr.open_dataset(path) as ds:
             sel = ds["pose"].values > 0
-            return ds.attrs["plan"], np.column_stack([ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")])
+            return ds.attrs["plan"], np.column_stack(
+                [ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")]
+            )
 
-    training = [joints(p) for p in sorted(runs.glob("identification.nc")) + sorted(runs.glob("angle_residuals_*.nc"))]
+    training = [
+        joints(p) for p in sorted(runs.glob("identification.nc")) + sorted(runs.glob("angle_residuals_*.nc"))
+    ]
     assert {plan for plan, _ in training} == {"identification", "angle_residuals"}
     train = np.vstack([q for _, q in training])
     for path in sorted(runs.glob("validation_heldout_*.nc")):
@@ -140,8 +147,12 @@ def test_heldout_targets_are_disjoint_from_every_training_pose(thesis):
         assert plan == "validation_heldout"
         targets = np.unique(q[:, 2])
         assert targets.size >= 50
-        d = np.min(np.abs(q[:, None, 0] - train[None, :, 0]) + np.abs(q[:, None, 1] - train[None, :, 1])
-                   + 1e3 * np.abs(q[:, None, 2] - train[None, :, 2]), axis=1)
+        d = np.min(
+            np.abs(q[:, None, 0] - train[None, :, 0])
+            + np.abs(q[:, None, 1] - train[None, :, 1])
+            + 1e3 * np.abs(q[:, None, 2] - train[None, :, 2]),
+            axis=1,
+        )
         assert d.min() > 1.0, path.name
     h = thesis["xytheta-thesis"]["validation"]["heldout"]
     assert h["n_targets"] >= 50 and h["coincident_samples"] == 0 and isinstance(h["seed"], int)
@@ -164,7 +175,9 @@ def test_adequacy_flags_every_model_whose_parameters_are_biased(thesis):
     html = (thesis["work"] / "reports/xytheta-thesis/report.html").read_text()
     biased_models = 0
     for name, m in s["models"].items():
-        biased = any(abs(p["value"] - truth[k]) > 3 * p["std"] for k, p in m["parameters"].items() if p["std"])
+        biased = any(
+            abs(p["value"] - truth[k]) > 3 * p["std"] for k, p in m["parameters"].items() if p["std"]
+        )
         if biased:
             biased_models += 1
             assert m["adequacy"]["adequate"] is False, name
@@ -182,7 +195,9 @@ def test_angle_table_is_indexed_by_theta_with_a_step_from_the_spectrum(thesis):
         assert info["step_deg"] <= info["shortest_period_deg"] / 10 + 1e-9 or info["undersampled"]
         assert np.array(info["f_ax_um"]).shape == (2, theta.size)  # forward, backward
         assert len(info["sweep_theta_deg"]) >= theta.size
-        assert info["step_deg"] / info["sweep_step_deg"] == pytest.approx(round(info["step_deg"] / info["sweep_step_deg"]))
+        assert info["step_deg"] / info["sweep_step_deg"] == pytest.approx(
+            round(info["step_deg"] / info["sweep_step_deg"])
+        )
 
 
 def test_xytheta_identified_geometry_is_close_to_truth(thesis):
@@ -201,10 +216,10 @@ def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis)
     from calflow.config import load_campaign
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.evaluation import xytheta_validation_metrics
-    from calflow.xytheta.kinematics import inverse as nominal_inverse
-    from calflow.xytheta.lookup import infer_directions
-    from calflow.xytheta.plans import validation
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.models.kinematics import inverse as nominal_inverse
+    from calflow.xytheta.plans.poses import validation
+    from calflow.xytheta.stage.rig import simulated_xytheta
+    from calflow.xytheta.tables.lookup import infer_directions
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     rig = simulated_xytheta(seed=c["seed"], stream="validation_oracle", **c["rig"]["options"])
@@ -216,8 +231,9 @@ def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis)
         X0, Y0 = nominal_inverse(x, y, theta, truth.parameters)
         return truth.exact_inverse(x + x0, y + y0, theta, infer_directions(X0), infer_directions(Y0))
 
-    meta = RunMetadata(campaign="oracle", robot="xytheta", source="simulated", plan="validation",
-                       config_sha256="0" * 64)
+    meta = RunMetadata(
+        campaign="oracle", robot="xytheta", source="simulated", plan="validation", config_sha256="0" * 64
+    )
     run = acquire(validation(oracle, c["validation"].get("targets"), c["validation"]["cycles"]), rig, meta)
     m = xytheta_validation_metrics(run, meta)
     rp_oracle = m.attrs["repeatability_um"]
@@ -281,12 +297,22 @@ def test_nano_summaries_and_reports_carry_iso9283_beyond_ap_rp(thesis):
         for mode, b in block["modes"].items():
             assert set(b) == keys, (name, mode)
             for key, e in b.items():
-                assert e["unit"] == ("s" if key == "stabilisation_time_s" else "nm") and e["clause"].startswith("7.")
-                assert e["value"] is not None or e["reason"].startswith("not supported by this data"), (name, mode, key)
+                assert e["unit"] == ("s" if key == "stabilisation_time_s" else "nm") and e[
+                    "clause"
+                ].startswith("7.")
+                assert e["value"] is not None or e["reason"].startswith("not supported by this data"), (
+                    name,
+                    mode,
+                    key,
+                )
             assert b["RD"]["value"] > 0 and b["dAP"]["value"] >= 0 and b["dAP"]["period_h"] > 0
             stab, over = b["stabilisation_time_s"], b["overshoot"]  # the step-response run (clauses 7.5, 7.6)
-            assert (stab["clause"], over["clause"]) == ("7.5", "7.6") and stab["source"] == "step_response run"
-            assert np.isfinite(stab["value"]) and 0 < stab["value"] < dwell_s  # settled long before the reading
+            assert (stab["clause"], over["clause"]) == ("7.5", "7.6") and stab[
+                "source"
+            ] == "step_response run"
+            assert (
+                np.isfinite(stab["value"]) and 0 < stab["value"] < dwell_s
+            )  # settled long before the reading
             assert np.isfinite(over["value"]) and over["value"] > 0 and stab["band_nm"] > 0
         html = (thesis["work"] / f"reports/{name}/report.html").read_text()
         assert 'id="iso9283-table"' in html and "clause 7.5" in html and 'id="iso9283-stabilisation"' in html
@@ -317,7 +343,10 @@ def test_nano_error_budget_and_ordering_follow_the_numbers(thesis):
         for mode, t in s["tests"].items():
             b = t["error_budget_nm"]
             parts = {k: v for k, v in b.items() if k not in ("total", "interaction")}
-            assert {"geometry", "stage_drift", "hysteresis", "noise_and_estimation"} <= set(parts), (name, mode)
+            assert {"geometry", "stage_drift", "hysteresis", "noise_and_estimation"} <= set(parts), (
+                name,
+                mode,
+            )
             ss = sum(v * v for v in parts.values()) + np.sign(b["interaction"]) * b["interaction"] ** 2
             assert np.sqrt(ss) == pytest.approx(b["total"], rel=1e-6), (name, mode)
         none, cal = s["tests"]["no_calibration"]["error_budget_nm"], s["tests"]["single"]["error_budget_nm"]
@@ -437,4 +466,3 @@ def test_every_netcdf_output_passes_the_cf_checker(thesis_run):
     files = sorted((thesis_run / "results" / CAMPAIGN).rglob("*.nc"))  # nano: above
     assert len(files) > 30
     assert cf_problems(files) == []
-

@@ -7,13 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
 from calflow.config import load_campaign
 from calflow.identification.diagnostics import observability
-from calflow.xytheta import cost, design, design_plan as dp
-from calflow.xytheta.kinematics import PARAMETER_NAMES, Parameters, forward
+from calflow.xytheta.design import criteria as design
+from calflow.xytheta.design import plan as dp
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.kinematics import PARAMETER_NAMES, Parameters, forward
 
 NOMINAL = Parameters(10000.0, 8000.0, 180.0, 0.0)
 TRUE = Parameters(9572.9, 7795.8, 177.689, -0.132)
@@ -78,6 +81,7 @@ def test_other_criteria_improve_on_random_poses_by_their_own_measure(name):
 
 def _mle(q, P_mx, P_my):
     """Independent maximum-likelihood fit with the initial reading as a nuisance parameter."""
+
     def fun(v):
         x, y = forward(q[:, 0], q[:, 1], q[:, 2], Parameters.from_array(v[:4]))
         return np.concatenate([x - v[4] - P_mx, y - v[5] - P_my])
@@ -119,8 +123,8 @@ def test_order_travels_less_than_the_random_order():
 def test_time_model_is_the_simulated_rigs_clock():
     from calflow.acquisition.runner import acquire
     from calflow.commands.common import meta
-    from calflow.xytheta.plans import identification
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans.poses import identification
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     plan = identification(20, *BOX, seed=1)
@@ -145,10 +149,17 @@ def test_approach_rows_make_every_pose_approached_from_below():
 
 
 def test_optimal_plan_option_builds_a_plan_with_its_bound(tmp_path):
-    from calflow.xytheta.campaign_plans import identification
+    from calflow.xytheta.plans.campaign import identification
 
-    text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
-        "identification:\n", "identification:\n  plan: optimal\n  design: {poses: 60, candidates: 512}\n", 1)
+    text = (
+        (ROOT / "config/campaigns/xytheta-thesis.yaml")
+        .read_text()
+        .replace(
+            "identification:\n",
+            "identification:\n  plan: optimal\n  design: {poses: 60, candidates: 512}\n",
+            1,
+        )
+    )
     (tmp_path / "xytheta-small.yaml").write_text(text)
     c = load_campaign(tmp_path / "xytheta-small.yaml")
     acq = identification(c, argparse.Namespace())
@@ -168,15 +179,18 @@ def test_optimal_plan_option_builds_a_plan_with_its_bound(tmp_path):
 def test_optimal_plan_without_a_noise_model_is_refused(tmp_path):
     from calflow.errors import ConfigError
 
-    text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
-        "identification:\n", "identification:\n  plan: optimal\n  design: {model: IV}\n", 1)
+    text = (
+        (ROOT / "config/campaigns/xytheta-thesis.yaml")
+        .read_text()
+        .replace("identification:\n", "identification:\n  plan: optimal\n  design: {model: IV}\n", 1)
+    )
     (tmp_path / "xytheta-bad.yaml").write_text(text)
     with pytest.raises(ConfigError, match="identification.design.model"):
         load_campaign(tmp_path / "xytheta-bad.yaml")
 
 
 def test_design_study_answers_poses_and_hours_where_the_curve_crosses_the_target():
-    from calflow.xytheta.design_study import needed
+    from calflow.xytheta.design.study import needed
 
     counts = np.array([10, 100, 1000])
     sigma = np.zeros((2, 3, 2))
@@ -194,10 +208,13 @@ def test_design_study_answers_poses_and_hours_where_the_curve_crosses_the_target
 
 def test_design_study_command_writes_curves_the_summary_and_report_read(tmp_path):
     from calflow.data.io import open_dataset
-    from calflow.xytheta.design_study import figure, study, summary_block
+    from calflow.xytheta.design.study import figure, study, summary_block
 
-    text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
-        "identification:\n", "identification:\n  design: {candidates: 256}\n", 1)
+    text = (
+        (ROOT / "config/campaigns/xytheta-thesis.yaml")
+        .read_text()
+        .replace("identification:\n", "identification:\n  design: {candidates: 256}\n", 1)
+    )
     text += "design_study: {min_poses: 10, max_poses: 100, steps: 3, sigma_target: {x_R_um: 1.0}}\n"
     (tmp_path / "xytheta-study.yaml").write_text(text)
     out = tmp_path / "design_study.nc"
@@ -212,6 +229,6 @@ def test_design_study_command_writes_curves_the_summary_and_report_read(tmp_path
 
 
 def test_parameter_keys_are_the_summarys():
-    from calflow.xytheta.summary import parameter_key
+    from calflow.xytheta.report.summary import parameter_key
 
     assert [design.parameter_key(k) for k in PARAMETER_NAMES] == [parameter_key(k) for k in PARAMETER_NAMES]

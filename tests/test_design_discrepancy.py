@@ -7,12 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from calflow.config import load_campaign
 from calflow.identification import discrepancy as dc
-from calflow.xytheta import design_discrepancy as dd, design_plan as dp
-from calflow.xytheta.lookup import PositionLUT
+from calflow.xytheta.design import discrepancy as dd
+from calflow.xytheta.design import plan as dp
+from calflow.xytheta.tables.lookup import PositionLUT
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,8 +77,12 @@ def test_exchange_spreads_the_design_as_the_discrepancy_grows():
         kern = dc.Discrepancy((s, 0.0), (0.05, 1.0))
         idx = dc.exchange(_line(pool), _poses(pool), ends, _line(xt), _poses(xt), kern, np.zeros(2), 0.1)
         inside.append(int(np.sum((pool[idx] > 0.1) & (pool[idx] < 0.9))))
-        before = dc.expected_error(_line(pool[ends]), _poses(pool[ends]), _line(xt), _poses(xt), kern, np.zeros(2), 0.1)
-        after = dc.expected_error(_line(pool[idx]), _poses(pool[idx]), _line(xt), _poses(xt), kern, np.zeros(2), 0.1)
+        before = dc.expected_error(
+            _line(pool[ends]), _poses(pool[ends]), _line(xt), _poses(xt), kern, np.zeros(2), 0.1
+        )
+        after = dc.expected_error(
+            _line(pool[idx]), _poses(pool[idx]), _line(xt), _poses(xt), kern, np.zeros(2), 0.1
+        )
         assert after["imse"] <= before["imse"] + 1e-12
         assert len(idx) == len(ends)
     assert inside[0] == 0 and inside[2] > inside[0], inside
@@ -93,10 +99,22 @@ def test_exchange_keeps_every_sigma_within_its_bound(seed):
     Jh = dc.augmented(J[start])
     bound = 0.1 * np.sqrt(np.diag(np.linalg.inv(np.einsum("iap,iaq->pq", Jh, Jh)))[:2]) * 1.02
     kern = dc.Discrepancy((1.0, 0.0), (0.03, 1.0))
-    idx = dc.exchange(J, _poses(pool), start, _line(pool[:30]), _poses(pool[:30]), kern, np.zeros(2), 0.1,
-                      sigma_max=bound, keep=start[:3])
+    idx = dc.exchange(
+        J,
+        _poses(pool),
+        start,
+        _line(pool[:30]),
+        _poses(pool[:30]),
+        kern,
+        np.zeros(2),
+        0.1,
+        sigma_max=bound,
+        keep=start[:3],
+    )
     Jh = dc.augmented(J[idx])
-    assert np.all(0.1 * np.sqrt(np.diag(np.linalg.inv(np.einsum("iap,iaq->pq", Jh, Jh)))[:2]) <= bound * (1 + 1e-9))
+    assert np.all(
+        0.1 * np.sqrt(np.diag(np.linalg.inv(np.einsum("iap,iaq->pq", Jh, Jh)))[:2]) <= bound * (1 + 1e-9)
+    )
     assert set(start[:3]) <= set(idx)
 
 
@@ -104,7 +122,9 @@ def test_exchange_keeps_every_sigma_within_its_bound(seed):
 def test_kernel_from_tables_recovers_a_lead_screw_errors_moments(amp_x, amp_y, pitch):
     X, Y = np.arange(0.0, 9450.0, 5.0), np.arange(0.0, 3780.0, 5.0)
     rng = np.random.default_rng(1)
-    xx = np.column_stack([amp_x * np.sin(2 * np.pi * X / pitch) + 20e-6 * X + 0.02 * rng.standard_normal(len(X))] * 2)
+    xx = np.column_stack(
+        [amp_x * np.sin(2 * np.pi * X / pitch) + 20e-6 * X + 0.02 * rng.standard_normal(len(X))] * 2
+    )
     yy = np.column_stack([amp_y * np.sin(2 * np.pi * Y / pitch + 1.0)] * 2)
     lut = PositionLUT(X, Y, xx, np.zeros((len(X), 2)), np.zeros((len(Y), 2)), yy)
     k = dd.kernel_from_tables(lut)
@@ -115,9 +135,12 @@ def test_kernel_from_tables_recovers_a_lead_screw_errors_moments(amp_x, amp_y, p
 
 
 def _campaign(tmp_path, design: str, random_poses: int = 150):
-    text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text().replace(
-        "identification:\n", f"identification:\n  plan: optimal\n  design: {design}\n", 1).replace(
-        "poses: 1200", f"poses: {random_poses}")
+    text = (
+        (ROOT / "config/campaigns/xytheta-thesis.yaml")
+        .read_text()
+        .replace("identification:\n", f"identification:\n  plan: optimal\n  design: {design}\n", 1)
+        .replace("poses: 1200", f"poses: {random_poses}")
+    )
     (tmp_path / "xytheta-small.yaml").write_text(text)
     return load_campaign(tmp_path / "xytheta-small.yaml")
 
@@ -145,21 +168,26 @@ def test_the_plan_takes_its_kernel_from_the_xy_tables_when_the_config_gives_none
 
     from calflow.data.io import write_dataset
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta.campaign_plans import identification
+    from calflow.xytheta.plans.campaign import identification
 
     X, Y = np.arange(0.0, 9450.0, 5.0), np.arange(0.0, 3780.0, 5.0)
     xx = np.column_stack([4.0 * np.sin(2 * np.pi * X / 400.0)] * 2)
     yy = np.column_stack([3.0 * np.sin(2 * np.pi * Y / 400.0)] * 2)
-    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="characterisation_x",
-                       config_sha256="0" * 64)
-    write_dataset(PositionLUT(X, Y, xx, np.zeros((len(X), 2)), np.zeros((len(Y), 2)), yy).to_dataset(meta),
-                  tmp_path / "position.nc")
+    meta = RunMetadata(
+        campaign="t", robot="xytheta", source="simulated", plan="characterisation_x", config_sha256="0" * 64
+    )
+    write_dataset(
+        PositionLUT(X, Y, xx, np.zeros((len(X), 2)), np.zeros((len(Y), 2)), yy).to_dataset(meta),
+        tmp_path / "position.nc",
+    )
     c = _campaign(tmp_path, "{criterion: discrepancy, candidates: 256, poses: 30}")
     acq = identification(c, argparse.Namespace(luts=str(tmp_path / "position.nc")))
     record = json.loads(acq.attrs["design"])["discrepancy"]
     assert record["from"] == "tables"
     assert record["amplitude_um"][:2] == pytest.approx([2.0, 1.5], rel=0.03)
-    assert c["identification"]["design"]["discrepancy"].get("amplitude_um") is None  # the campaign is not changed
+    assert (
+        c["identification"]["design"]["discrepancy"].get("amplitude_um") is None
+    )  # the campaign is not changed
 
 
 @settings(max_examples=8, deadline=None)
@@ -187,6 +215,8 @@ def test_time_budget_takes_the_most_poses_within_it(tmp_path, criterion):
     tm = dp.time_model(c)
     budget = 0.5 * tm.plan_s(dp._random_poses(c, 80))
     assert len(q) > len(q0) and tm.plan_s(q, frames) <= budget
-    assert r["sigma_ratio_max_vs_random"] <= max(1.0, r0["sigma_ratio_max_vs_random"]) + 1e-9  # the bound holds
+    assert (
+        r["sigma_ratio_max_vs_random"] <= max(1.0, r0["sigma_ratio_max_vs_random"]) + 1e-9
+    )  # the bound holds
     per = tm.plan_s(q, frames) / len(q)
     assert tm.plan_s(q, frames) + 3 * per > budget  # no room left for a few more poses

@@ -6,12 +6,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from calflow.config import load_campaign
 from calflow.identification.design import criterion, information
-from calflow.nano import campaign_plans, design, design_plan, plans
-from calflow.nano.thermal_model import SingleModel
+from calflow.nano.models.thermal import SingleModel
+from calflow.nano.plans import campaign as campaign_plans
+from calflow.nano.plans import design
+from calflow.nano.plans import designed as design_plan
+from calflow.nano.plans import sequences as plans
 
 ROOT = Path(__file__).resolve().parents[1]
 STROKE = np.array([480.0])
@@ -105,7 +109,9 @@ def test_designed_1d_plan_stays_in_the_stroke_and_keeps_both_approach_directions
     x = plan.commands["x"]
     assert x.min() >= 0.0 and x.max() <= 480.0
     assert record["cycles"] >= 2 and len(plan) == record["readings"]
-    assert record["crlb_shape_sigma_nm"] <= record["grid"]["crlb_shape_sigma_nm"] * (1 + 1e-9)  # sized to match it
+    assert record["crlb_shape_sigma_nm"] <= record["grid"]["crlb_shape_sigma_nm"] * (
+        1 + 1e-9
+    )  # sized to match it
     one = plan.cycle == 0
     fwd, back = x[one & (plan.direction == 1)], x[one & (plan.direction == -1)]
     assert np.all(np.diff(fwd) > 0) and np.all(np.diff(back) < 0)  # forward up, backward down
@@ -115,7 +121,11 @@ def test_designed_1d_plan_stays_in_the_stroke_and_keeps_both_approach_directions
 
 
 def test_designed_2d_plan_is_a_raster_inside_the_square():
-    c = _campaign("nano2d", plan="optimal", design={**_campaign("nano2d")["training"]["design"], "candidate_step_um": 4.0})
+    c = _campaign(
+        "nano2d",
+        plan="optimal",
+        design={**_campaign("nano2d")["training"]["design"], "candidate_step_um": 4.0},
+    )
     a = campaign_plans.training_2d(c, None)
     plan, record = a.plan, json.loads(a.attrs["design"])
     xy = np.column_stack([plan.commands["x"], plan.commands["y"]])
@@ -151,13 +161,22 @@ def test_summary_block_sets_the_achieved_sigma_beside_the_bound():
     x = a.plan.commands["x"][:400]
     t = 20.5 + 0.05 * rng.standard_normal((x.size, 4))
     meas = x + 0.012 * rng.standard_normal(x.size)
-    run = xr.Dataset({"meas_x": ("sample", meas), "cmd_x": ("sample", x), "temperature": (("sample", "sensor"), t),
-                      "time": ("sample", np.arange(x.size) * 29.0)}, attrs={"design": a.attrs["design"]})
+    run = xr.Dataset(
+        {
+            "meas_x": ("sample", meas),
+            "cmd_x": ("sample", x),
+            "temperature": (("sample", "sensor"), t),
+            "time": ("sample", np.arange(x.size) * 29.0),
+        },
+        attrs={"design": a.attrs["design"]},
+    )
     m = SingleModel.fit(x, meas, t, order=3, select="all")
     block = design_plan.training_design_block(c, run, {"single": m.coefficients.to_dict(orient="records")})
     assert set(block["crlb_sigma_recorded"]) == {"a_1", "a_2", "a_3", "b_1", "b_2", "b_3", "b_4"}
     assert all(0.5 < block["sigma_ratio_achieved_to_recorded_bound"][k] < 2.0 for k in ("a_1", "a_2", "a_3"))
-    assert "not white" in block["statement"] and block["rig_time_h_achieved"] == pytest.approx(399 * 29.0 / 3600.0)
+    assert "not white" in block["statement"] and block["rig_time_h_achieved"] == pytest.approx(
+        399 * 29.0 / 3600.0
+    )
     assert design_plan.training_design_block(c, run.drop_attrs(), {}) is None
 
 
@@ -168,7 +187,9 @@ def test_design_study_answers_how_many_positions_and_how_long():
     # hours for the target follow σ ∝ 1/√hours; the grid's own count needs the grid's own time
     h = np.array(study["grid_sigma_nm_1h"]) ** 2 / study["target_nm"] ** 2
     assert np.allclose(study["grid_hours"], h)
-    assert study["grid_hours"][2] == pytest.approx(len(_rows(np.arange(0.0, 481.0, 30.0))) * 67 * 29.0 / 3600.0)
+    assert study["grid_hours"][2] == pytest.approx(
+        len(_rows(np.arange(0.0, 481.0, 30.0))) * 67 * 29.0 / 3600.0
+    )
     assert study["designed_hours"][2] < study["grid_hours"][2]
 
 
@@ -183,7 +204,7 @@ def test_noise_model_is_the_rigs_declared_one_and_averaging_reduces_only_the_sen
 
 
 def test_2d_summary_block_bounds_each_equations_kept_terms():
-    from calflow.nano.thermal_model import TwoDoFModel
+    from calflow.nano.models.thermal import TwoDoFModel
 
     c = _campaign("nano2d")
     a = campaign_plans.training_2d(c, None)
@@ -191,12 +212,20 @@ def test_2d_summary_block_bounds_each_equations_kept_terms():
     xy = np.column_stack([a.plan.commands["x"], a.plan.commands["y"]])[:300]
     t = 20.5 + 0.05 * rng.standard_normal((len(xy), 2))
     meas = xy + 0.012 * rng.standard_normal(xy.shape)
-    run = xr.Dataset({"meas_x": ("sample", meas[:, 0]), "meas_y": ("sample", meas[:, 1]),
-                      "temperature": (("sample", "sensor"), t), "time": ("sample", np.arange(len(xy)) * 14.0)},
-                     attrs={"design": a.attrs["design"]})
+    run = xr.Dataset(
+        {
+            "meas_x": ("sample", meas[:, 0]),
+            "meas_y": ("sample", meas[:, 1]),
+            "temperature": (("sample", "sensor"), t),
+            "time": ("sample", np.arange(len(xy)) * 14.0),
+        },
+        attrs={"design": a.attrs["design"]},
+    )
     m = TwoDoFModel.fit(xy, meas, t, order=(3, 3), select="all")
     block = design_plan.training_design_block(c, run, {"two_dof": m.coefficients.to_dict(orient="records")})
-    names = {f"{p}_{i}{ax}" for ax in "xy" for p, n in (("a", 3), ("b", 3), ("c", 2)) for i in range(1, n + 1)}
+    names = {
+        f"{p}_{i}{ax}" for ax in "xy" for p, n in (("a", 3), ("b", 3), ("c", 2)) for i in range(1, n + 1)
+    }
     assert set(block["crlb_sigma_recorded"]) == names
     # every term kept: the regression's standard error is its bound scaled by rmse / σ of the noise model
     ratios = np.array([block["sigma_ratio_achieved_to_recorded_bound"][k] for k in sorted(names)])
@@ -208,6 +237,9 @@ def test_a_designed_plans_summary_carries_the_design_study_for_its_target():
     a = campaign_plans.training_1d(c, None)
     assert json.loads(a.attrs["design"])["crlb_shape_sigma_nm"] <= 3.0
     x = a.plan.commands["x"]
-    run = xr.Dataset({"meas_x": ("sample", x), "time": ("sample", np.arange(x.size) * 29.0)}, attrs={"design": a.attrs["design"]})
+    run = xr.Dataset(
+        {"meas_x": ("sample", x), "time": ("sample", np.arange(x.size) * 29.0)},
+        attrs={"design": a.attrs["design"]},
+    )
     block = design_plan.training_design_block(c, run, {})
     assert block["study"]["target_nm"] == 3.0 and len(block["study"]["designed_hours"]) == 7

@@ -1,4 +1,4 @@
-"""The error budget's arithmetic (calflow.xytheta.error_budget): its entries add up, in
+"""The error budget's arithmetic (calflow.xytheta.stage.error_budget): its entries add up, in
 signed quadrature, to the held-out RMS they split; each effect is what its removal takes
 away; a rig without an effect has no entry for it."""
 
@@ -6,8 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.xytheta.error_budget import REPLAYS, active_effects, combine, groups, replay_options
-from calflow.xytheta.rig_physics import EFFECTS, UNMODELLED, XYThetaTruth
+from calflow.xytheta.stage.error_budget import REPLAYS, active_effects, combine, groups, replay_options
+from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth
 
 aps = st.lists(st.floats(0.0, 50.0), min_size=3, max_size=3)
 
@@ -30,14 +30,18 @@ def test_entries_add_up_in_signed_quadrature_to_the_heldout_rms(full, noise, wit
 
 
 def test_inactive_replays_are_left_out_and_unmodelled_effects_are_marked():
-    records = [{"replay": "baseline", "active": True, "ap_um": {"II": [1.0, 1.0]}},
-               {"replay": "yaw", "active": True, "ap_um": {"II": [1.0, 2.0]}},
-               {"replay": "lead_screw", "active": True, "ap_um": {"II": [3.0, 3.0]}},
-               {"replay": "decode", "active": False}]
+    records = [
+        {"replay": "baseline", "active": True, "ap_um": {"II": [1.0, 1.0]}},
+        {"replay": "yaw", "active": True, "ap_um": {"II": [1.0, 2.0]}},
+        {"replay": "lead_screw", "active": True, "ap_um": {"II": [3.0, 3.0]}},
+        {"replay": "decode", "active": False},
+    ]
     b = combine({"II": [2.0, 2.0]}, records)
     assert b["effects"] == ["yaw", "lead_screw"]
     assert b["unmodelled"] == ["yaw"]
-    assert b["models"]["II"]["error_budget_um"]["lead_screw"] < 0 < b["models"]["II"]["error_budget_um"]["yaw"]
+    assert (
+        b["models"]["II"]["error_budget_um"]["lead_screw"] < 0 < b["models"]["II"]["error_budget_um"]["yaw"]
+    )
 
 
 def test_active_effects_follow_the_rig_options():

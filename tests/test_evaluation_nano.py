@@ -11,6 +11,7 @@ import xarray as xr
 
 from calflow import reference
 from calflow.errors import DataError
+from calflow.metrics import iso230_2
 from calflow.nano.evaluation import (
     accuracy_vs_temperature,
     iso230_2_of_run,
@@ -19,8 +20,7 @@ from calflow.nano.evaluation import (
     robustness_by_mode,
     temperature_range,
 )
-from calflow.metrics import iso230_2
-from calflow.nano.summary import stage1d_summary, stage2d_summary
+from calflow.nano.report.summary import stage1d_summary, stage2d_summary
 
 MODES_1D = "no_calibration adaptive_kmz single"
 FWD = np.arange(0.0, 481.0, 80.0)
@@ -49,14 +49,19 @@ def run_1d(dev_um, plan="validation", modes=None, t0_s=0.0, temps=None, position
         "meas_x": ("sample", target + dev_um.ravel(), {"units": "um"}),
         "meas_y": ("sample", np.zeros(n), {"units": "um"}),
         "temperature": (("sample", "sensor"), temps, {"units": "degC"}),
-        "pose": ("sample", pose), "cycle": ("sample", cycle), "direction": ("sample", np.asarray(dirs)[pose]),
+        "pose": ("sample", pose),
+        "cycle": ("sample", cycle),
+        "direction": ("sample", np.asarray(dirs)[pose]),
     }
     if plan == "validation":
         data["test"] = ("sample", test)
         m = test % 3 if modes is None else np.asarray(modes)[test]
         data["test_mode"] = ("sample", m, {"flag_values": [0, 1, 2], "flag_meanings": MODES_1D})
-    return xr.Dataset(data, coords={"sensor": ["T1", "T2", "T3", "T4"]},
-                      attrs={"robot": "stage1d", "plan": plan, "campaign": "t"})
+    return xr.Dataset(
+        data,
+        coords={"sensor": ["T1", "T2", "T3", "T4"]},
+        attrs={"robot": "stage1d", "plan": plan, "campaign": "t"},
+    )
 
 
 def hand_rp(x):
@@ -188,7 +193,11 @@ def test_iso230_2_helper_matches_direct_call():
     pos = np.arange(0.0, 481.0, 30.0)
     sweep = np.concatenate([pos, pos[-2::-1]])
     dirs = np.r_[np.ones(pos.size, int), -np.ones(pos.size - 1, int)]
-    dev = 0.2 * np.sin(sweep / 100)[None, None, :] + 0.01 * dirs + 0.03 * rng.standard_normal((1, 5, sweep.size))
+    dev = (
+        0.2 * np.sin(sweep / 100)[None, None, :]
+        + 0.01 * dirs
+        + 0.03 * rng.standard_normal((1, 5, sweep.size))
+    )
     run = run_1d(dev, plan="training", positions=sweep, dirs=dirs)
     out = iso230_2_of_run(run)
     used = pos[:-1]  # 480 is the turning point, forward only
@@ -213,16 +222,29 @@ def run_2d(dev_xy, modes):
     tgt = pts[pose]
     meas = tgt + dev_xy.reshape(-1, 2)
     n = pose.size
-    return xr.Dataset({
-        "time": ("sample", 30.0 * np.arange(n)),
-        "cmd_x": ("sample", tgt[:, 0]), "cmd_y": ("sample", tgt[:, 1]),
-        "target_x": ("sample", tgt[:, 0]), "target_y": ("sample", tgt[:, 1]),
-        "meas_x": ("sample", meas[:, 0]), "meas_y": ("sample", meas[:, 1]),
-        "temperature": (("sample", "sensor"), np.full((n, 4), 21.0)),
-        "pose": ("sample", pose), "cycle": ("sample", cycle), "direction": ("sample", np.zeros(n, int)),
-        "test": ("sample", test),
-        "test_mode": ("sample", np.asarray(modes)[test], {"flag_values": [0, 1], "flag_meanings": "no_calibration single"}),
-    }, coords={"sensor": ["T1", "T2", "T3", "T4"]}, attrs={"robot": "stage2d", "plan": "validation", "campaign": "t2"})
+    return xr.Dataset(
+        {
+            "time": ("sample", 30.0 * np.arange(n)),
+            "cmd_x": ("sample", tgt[:, 0]),
+            "cmd_y": ("sample", tgt[:, 1]),
+            "target_x": ("sample", tgt[:, 0]),
+            "target_y": ("sample", tgt[:, 1]),
+            "meas_x": ("sample", meas[:, 0]),
+            "meas_y": ("sample", meas[:, 1]),
+            "temperature": (("sample", "sensor"), np.full((n, 4), 21.0)),
+            "pose": ("sample", pose),
+            "cycle": ("sample", cycle),
+            "direction": ("sample", np.zeros(n, int)),
+            "test": ("sample", test),
+            "test_mode": (
+                "sample",
+                np.asarray(modes)[test],
+                {"flag_values": [0, 1], "flag_meanings": "no_calibration single"},
+            ),
+        },
+        coords={"sensor": ["T1", "T2", "T3", "T4"]},
+        attrs={"robot": "stage2d", "plan": "validation", "campaign": "t2"},
+    )
 
 
 def test_pose_metrics_2d_and_summary(tmp_path):
@@ -242,8 +264,9 @@ def test_pose_metrics_2d_and_summary(tmp_path):
             assert m["rp"].values[t, p] == pytest.approx(1000 * (l.mean() + 3 * l.std(ddof=1)))
     ok = np.isfinite(m["rp"].values)
     assert np.all(m["rp"].values[ok] <= m["rp_bound"].values[ok] + 1e-9)
-    s = stage2d_summary({"name": "t2"}, m, {"single": {"a_1x": np.float64(1.0)}}, None, [],
-                        training_metrics=m.isel(test=[0]))
+    s = stage2d_summary(
+        {"name": "t2"}, m, {"single": {"a_1x": np.float64(1.0)}}, None, [], training_metrics=m.isel(test=[0])
+    )
     json.dumps(s, allow_nan=False)
     assert s["reference"] == reference.STAGE2D and s["robot"] == "stage2d"
     assert s["tests"]["no_calibration"]["max_accuracy_nm"] == pytest.approx(float(m["ap_max"][[0, 2]].max()))
@@ -260,11 +283,21 @@ def test_stage1d_summary_keys_by_day_and_json(validation, tmp_path):
     pos = np.arange(0.0, 481.0, 30.0)
     sweep = np.concatenate([pos, pos[-2::-1]])
     dirs = np.r_[np.ones(17, int), -np.ones(16, int)]
-    train = run_1d(0.01 * np.cos(np.arange(99)).reshape(1, 3, 33), plan="training", positions=sweep, dirs=dirs)
+    train = run_1d(
+        0.01 * np.cos(np.arange(99)).reshape(1, 3, 33), plan="training", positions=sweep, dirs=dirs
+    )
     from calflow.uncertainty import interferometer_budget
-    s = stage1d_summary({"name": "t", "seed": 1}, metro, m, {"single": {"a_1": np.float32(2.454e-8), "lam": np.nan}},
-                        interferometer_budget(), [str(f)], training_range_c=temperature_range(train),
-                        iso230_2=iso230_2_of_run(train))
+
+    s = stage1d_summary(
+        {"name": "t", "seed": 1},
+        metro,
+        m,
+        {"single": {"a_1": np.float32(2.454e-8), "lam": np.nan}},
+        interferometer_budget(),
+        [str(f)],
+        training_range_c=temperature_range(train),
+        iso230_2=iso230_2_of_run(train),
+    )
     text = json.dumps(s, allow_nan=False)
     assert json.loads(text) == s
     assert s["intrinsic"]["accuracy_nm"] == pytest.approx(float(np.nanmax(metro["ap"])))
@@ -304,14 +337,19 @@ def test_bad_runs_are_reported():
 
 def test_metrics_write_netcdf_with_kmz_and_decoded_time(tmp_path):
     run = run_1d(0.2 + np.zeros((3, 2, 13)))
-    run = run.assign(kmz_time=("kmz_visit", [0.0, 3600.0]), kmz_command=("kmz_visit", [0.0, 0.0]),
-                     kmz_measured=("kmz_visit", [0.001, 0.004]))
+    run = run.assign(
+        kmz_time=("kmz_visit", [0.0, 3600.0]),
+        kmz_command=("kmz_visit", [0.0, 0.0]),
+        kmz_measured=("kmz_visit", [0.001, 0.004]),
+    )
     m = pose_metrics_1d(run)
     np.testing.assert_allclose(m["kmz_offset"], [1.0, 4.0])
     np.testing.assert_allclose(m["kmz_time_h"], [0.0, 1.0])
     m.to_netcdf(tmp_path / "m.nc")
     back = xr.open_dataset(tmp_path / "m.nc")
-    assert robustness_by_mode(back)["single"]["time"] == pytest.approx(robustness_by_mode(m)["single"]["time"])
+    assert robustness_by_mode(back)["single"]["time"] == pytest.approx(
+        robustness_by_mode(m)["single"]["time"]
+    )
     run.to_netcdf(tmp_path / "r.nc")
     decoded = xr.open_dataset(tmp_path / "r.nc")  # CF-decoded datetime64 time
     np.testing.assert_allclose(pose_metrics_1d(decoded)["time_h"], m["time_h"])

@@ -7,21 +7,22 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from calflow.errors import DataError
-from calflow.xytheta.angle_table import AngleTable
 from calflow.xytheta.export import Compensator
 from calflow.xytheta.export import controllers as ctl
 from calflow.xytheta.export.bundle import load, write_bundle
 from calflow.xytheta.export.tables import rebuild, write_tables
 from calflow.xytheta.export.verification import export_plan
 from calflow.xytheta.export.writer import export_model
-from calflow.xytheta.kinematics import Parameters
-from calflow.xytheta.lookup import AngleLUT, PositionLUT
-from calflow.xytheta.models import MicroModel
-from calflow.xytheta.pose_lookup import PoseAngleLUT
+from calflow.xytheta.models.kinematics import Parameters
+from calflow.xytheta.models.ladder import MicroModel
+from calflow.xytheta.tables.angle import AngleTable
+from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+from calflow.xytheta.tables.pose import PoseAngleLUT
 
 PROV = {"campaign": "test", "config_sha256": "0" * 64, "export_calflow_version": "test"}
 small = st.floats(-20.0, 20.0, allow_nan=False)
@@ -34,21 +35,37 @@ def _lut(seed: int, n: int = 41, cross: float = 1.0) -> PositionLUT:
 
     def tab(scale):
         a, p = rng.uniform(-scale, scale, 2), rng.uniform(0, 2 * np.pi, 2)
-        return np.column_stack([a[0] * np.sin(q / 300 + p[0]) + 0.5 * scale, a[1] * np.sin(q / 300 + p[1]) - 0.5 * scale])
+        return np.column_stack(
+            [a[0] * np.sin(q / 300 + p[0]) + 0.5 * scale, a[1] * np.sin(q / 300 + p[1]) - 0.5 * scale]
+        )
 
     return PositionLUT(q, q, tab(3.0), cross * tab(1.0), cross * tab(1.0), tab(2.0))
 
 
 def _model(position=None, angle=None) -> MicroModel:
     p = Parameters(9500.0, 7700.0, 177.7, -0.09)
-    return MicroModel("V", p, ("x_R", "y_R", "alpha", "beta"), {"x_R": 1.0, "y_R": 1.1, "alpha": 0.01, "beta": 0.02},
-                      np.eye(4), {}, position, angle, "linear")
+    return MicroModel(
+        "V",
+        p,
+        ("x_R", "y_R", "alpha", "beta"),
+        {"x_R": 1.0, "y_R": 1.1, "alpha": 0.01, "beta": 0.02},
+        np.eye(4),
+        {},
+        position,
+        angle,
+        "linear",
+    )
 
 
 # --- controller files ---------------------------------------------------------------
 
-comp_strategy = st.integers(2, 40).flatmap(lambda n: st.tuples(
-    arrays(float, n, elements=st.floats(0.1, 500.0)), arrays(float, n, elements=small), arrays(float, n, elements=small)))
+comp_strategy = st.integers(2, 40).flatmap(
+    lambda n: st.tuples(
+        arrays(float, n, elements=st.floats(0.1, 500.0)),
+        arrays(float, n, elements=small),
+        arrays(float, n, elements=small),
+    )
+)
 
 
 @settings(max_examples=30, deadline=None)
@@ -91,19 +108,36 @@ def test_linuxcnc_type_1_example_of_its_documentation(tmp_path):
 def test_twincat_values_are_errors_the_controller_subtracts(tmp_path):
     """P-COMP-00023's example: setpoint 19866.7 µm reached at 19856.5 µm, value -102 (0.1 µm)."""
     path = tmp_path / "y.lis"
-    lines = ["kopf.achs_nr 2", "kw.ssfk.unit 1", "kw.ssfk.bilateral 1", "kw.ssfk.kw_nr_max 2",
-             "kw.ssfk.table[0].setpoint 198000", "kw.ssfk.table[1].setpoint 198667",
-             "kw.ssfk.table[0].pos 0", "kw.ssfk.table[1].pos -102", "kw.ssfk.table[0].neg 0", "kw.ssfk.table[1].neg 80"]
+    lines = [
+        "kopf.achs_nr 2",
+        "kw.ssfk.unit 1",
+        "kw.ssfk.bilateral 1",
+        "kw.ssfk.kw_nr_max 2",
+        "kw.ssfk.table[0].setpoint 198000",
+        "kw.ssfk.table[1].setpoint 198667",
+        "kw.ssfk.table[0].pos 0",
+        "kw.ssfk.table[1].pos -102",
+        "kw.ssfk.table[0].neg 0",
+        "kw.ssfk.table[1].neg 80",
+    ]
     path.write_text("\n".join(lines) + "\n")
     comp, number = ctl.read_twincat(path, "y")
     assert number == 2
-    assert comp.correction(19866.7, 1) == pytest.approx(10.2)  # the stage falls 10.2 µm short: command 10.2 more
+    assert comp.correction(19866.7, 1) == pytest.approx(
+        10.2
+    )  # the stage falls 10.2 µm short: command 10.2 more
     assert comp.correction(19866.7, -1) == pytest.approx(-8.0)
 
 
-@pytest.mark.parametrize("text, field", [("0 0 0\n# comment\n1 0 0\n", "line 2"), ("1 0 0\n0 0 0\n", "ascending"),
-                                         ("0 0\n1 0 0\n", "line 1"),
-                                         ("0 0 0\n\n1 0 0\n", "line 2")])
+@pytest.mark.parametrize(
+    "text, field",
+    [
+        ("0 0 0\n# comment\n1 0 0\n", "line 2"),
+        ("1 0 0\n0 0 0\n", "ascending"),
+        ("0 0\n1 0 0\n", "line 1"),
+        ("0 0 0\n\n1 0 0\n", "line 2"),
+    ],
+)
 def test_bad_linuxcnc_files_are_refused_naming_the_problem(tmp_path, text, field):
     path = tmp_path / "bad.comp"
     path.write_text(text)
@@ -145,13 +179,22 @@ def test_resampled_table_keeps_its_size_and_reports_its_error():
 
 # --- bundle and Compensator -----------------------------------------------------------
 
+
 @settings(max_examples=25, deadline=None)
 @given(arrays(float, (3, 2), elements=small), arrays(float, 4, elements=small), small)
 def test_tables_round_trip_exactly(tmp_path_factory, a, b, scalar):
-    ds = xr.Dataset({"f": (("p", "direction"), a, {"units": "um"}), "g": (("theta",), b, {"units": "um"}),
-                     "alpha": ((), scalar, {"units": "degree"})},
-                    coords={"direction": ("direction", np.array([1, -1], dtype=np.int8)),
-                            "theta": ("theta", np.linspace(0, 5, 4), {"units": "degree"})}, attrs={"table": "t"})
+    ds = xr.Dataset(
+        {
+            "f": (("p", "direction"), a, {"units": "um"}),
+            "g": (("theta",), b, {"units": "um"}),
+            "alpha": ((), scalar, {"units": "degree"}),
+        },
+        coords={
+            "direction": ("direction", np.array([1, -1], dtype=np.int8)),
+            "theta": ("theta", np.linspace(0, 5, 4), {"units": "degree"}),
+        },
+        attrs={"table": "t"},
+    )
     folder = tmp_path_factory.mktemp("tables")
     back = rebuild(folder, json.loads(json.dumps(write_tables(ds, folder, "angle_table"))))
     assert back.attrs == {"table": "t"}
@@ -169,8 +212,15 @@ def _angles(kind: str, seed: int):
         return AngleTable(theta, rng.normal(0, 3, (2, 6)), rng.normal(0, 3, (2, 6)), 177.7, -0.09)
     if kind == "lut":
         return AngleLUT(theta, rng.normal(0, 3, 6), rng.normal(0, 3, 6), 177.7, -0.09)
-    return PoseAngleLUT(np.array([-2000.0, -1200.0]), np.array([-400.0, -200.0]), theta,
-                        rng.normal(0, 3, (2, 6)), rng.normal(0, 3, (2, 6)), 177.7, -0.09)
+    return PoseAngleLUT(
+        np.array([-2000.0, -1200.0]),
+        np.array([-400.0, -200.0]),
+        theta,
+        rng.normal(0, 3, (2, 6)),
+        rng.normal(0, 3, (2, 6)),
+        177.7,
+        -0.09,
+    )
 
 
 @settings(max_examples=12, deadline=None)
@@ -204,13 +254,32 @@ def test_export_writes_every_file_and_the_plan_commands_through_them(tmp_path):
 
     model = _model(_lut(5, n=401), _angles("angle", 5))
     path = tmp_path / "V.nc"
-    model.write(path, RunMetadata(campaign="test", robot="xytheta", source="simulated", plan="identification",
-                                  config_sha256="1" * 64, start="2026-01-01T00:00:00+00:00", model="V"))
+    model.write(
+        path,
+        RunMetadata(
+            campaign="test",
+            robot="xytheta",
+            source="simulated",
+            plan="identification",
+            config_sha256="1" * 64,
+            start="2026-01-01T00:00:00+00:00",
+            model="V",
+        ),
+    )
     info = export_model(path, tmp_path / "V")
     names = {p.name for p in (tmp_path / "V").iterdir()}
-    assert {"bundle.json", "README.md", "linuxcnc_x.comp", "linuxcnc_y.comp", "twincat_x_ssfk.lis",
-            "twincat_y_ssfk.lis"} <= names
-    assert info["files"]["linuxcnc_x.comp"]["entries"] == 256 and info["files"]["twincat_x_ssfk.lis"]["entries"] == 401
+    assert {
+        "bundle.json",
+        "README.md",
+        "linuxcnc_x.comp",
+        "linuxcnc_y.comp",
+        "twincat_x_ssfk.lis",
+        "twincat_y_ssfk.lis",
+    } <= names
+    assert (
+        info["files"]["linuxcnc_x.comp"]["entries"] == 256
+        and info["files"]["twincat_x_ssfk.lis"]["entries"] == 401
+    )
     assert "cross-axis" in (tmp_path / "V" / "README.md").read_text()
     rng = np.random.default_rng(1)
     X, Y, t = rng.uniform(300, 1700, 4), rng.uniform(300, 1700, 4), rng.uniform(0, 5, 4)
@@ -233,8 +302,15 @@ def test_export_writes_every_file_and_the_plan_commands_through_them(tmp_path):
 def _meta():
     from calflow.data.runs import RunMetadata
 
-    return RunMetadata(campaign="test", robot="xytheta", source="simulated", plan="validation_export",
-                       config_sha256="1" * 64, start="2026-01-01T00:00:00+00:00", model="V")
+    return RunMetadata(
+        campaign="test",
+        robot="xytheta",
+        source="simulated",
+        plan="validation_export",
+        config_sha256="1" * 64,
+        start="2026-01-01T00:00:00+00:00",
+        model="V",
+    )
 
 
 def _visits(targets, offset, cycles, rng):
@@ -244,9 +320,15 @@ def _visits(targets, offset, cycles, rng):
     p = t[:, :2] + offset + rng.normal(0, 0.2, (len(t), 2))
     pose = np.concatenate([[0], np.tile(np.arange(1, len(targets) + 1), cycles)])
     nan = [np.nan]
-    return {"pose": pose, "meas_x": np.concatenate([[0.0], -p[:, 0]]), "meas_y": np.concatenate([[0.0], -p[:, 1]]),
-            "meas_theta": np.zeros(len(pose)), "target_x": np.concatenate([nan, t[:, 0]]),
-            "target_y": np.concatenate([nan, t[:, 1]]), "target_theta": np.zeros(len(pose))}
+    return {
+        "pose": pose,
+        "meas_x": np.concatenate([[0.0], -p[:, 0]]),
+        "meas_y": np.concatenate([[0.0], -p[:, 1]]),
+        "meas_theta": np.zeros(len(pose)),
+        "target_x": np.concatenate([nan, t[:, 0]]),
+        "target_y": np.concatenate([nan, t[:, 1]]),
+        "target_theta": np.zeros(len(pose)),
+    }
 
 
 def test_verification_compares_accuracies_and_barycentres_with_the_repeatability():
@@ -259,14 +341,22 @@ def test_verification_compares_accuracies_and_barycentres_with_the_repeatability
     rng = np.random.default_rng(0)
     targets = np.array([[-1000.0, -200.0, 0.0], [-1500.0, -300.0, 0.0], [-2000.0, -100.0, 0.0]])
     model = _visits(targets, (3.0, 0.0), 5, rng)
-    held = xytheta_validation_metrics(xr.Dataset({k: ("sample", v) for k, v in model.items()},
-                                                 attrs={"plan": "validation_heldout"}), _meta())
+    held = xytheta_validation_metrics(
+        xr.Dataset({k: ("sample", v) for k, v in model.items()}, attrs={"plan": "validation_heldout"}),
+        _meta(),
+    )
     segments = [_visits(targets, off, 3, rng) for off in ((3.0, 0.0), (5.0, 0.0))]
     rows = {k: np.concatenate([s[k] for s in segments]) for k in segments[0]}
     rows["test_mode"] = np.repeat([0, 1], len(segments[0]["pose"]))
-    run = xr.Dataset({k: ("sample", v) for k, v in rows.items()},
-                     attrs={"plan": "validation_export", "export_paths": "bundle linuxcnc", "export_cycles": 3,
-                            "bundle_command_difference_um": 0.0})
+    run = xr.Dataset(
+        {k: ("sample", v) for k, v in rows.items()},
+        attrs={
+            "plan": "validation_export",
+            "export_paths": "bundle linuxcnc",
+            "export_cycles": 3,
+            "bundle_command_difference_um": 0.0,
+        },
+    )
     ds = compare(run, held, _meta())
     rp = held.attrs["repeatability_um"]
     assert 0.2 < rp < 1.5
@@ -276,8 +366,9 @@ def test_verification_compares_accuracies_and_barycentres_with_the_repeatability
     e = summary_entry(ds)
     assert e["verified"] is True and e["barycentres_within_tolerance"] is True
     assert e["controllers"]["linuxcnc"]["barycentres_within_tolerance"] is False
-    assert e["accuracy_um"] == pytest.approx(3.0, abs=0.4) and e["controllers"]["linuxcnc"]["accuracy_um"] == \
-        pytest.approx(5.0, abs=0.4)
+    assert e["accuracy_um"] == pytest.approx(3.0, abs=0.4) and e["controllers"]["linuxcnc"][
+        "accuracy_um"
+    ] == pytest.approx(5.0, abs=0.4)
     assert e["in_process_accuracy_um"] == held.attrs["accuracy_um"] and e["tolerance_um"] == rp
 
 
@@ -285,28 +376,48 @@ def test_cli_exports_every_model_and_writes_the_manifest_last(tmp_path, capsys):
     """``calflow export`` over two models: each folder, then manifest.json; a missing model
     file is one line naming it, and nothing is exported."""
     import yaml
+    from conftest import SMALL_XYTHETA
 
     from calflow.cli import main
     from calflow.data.runs import RunMetadata
-    from conftest import SMALL_XYTHETA
 
     campaign = tmp_path / "c.yaml"
     campaign.write_text(yaml.safe_dump(SMALL_XYTHETA))
-    meta = RunMetadata(campaign="c", robot="xytheta", source="simulated", plan="identification",
-                       config_sha256="1" * 64, start="2026-01-01T00:00:00+00:00")
+    meta = RunMetadata(
+        campaign="c",
+        robot="xytheta",
+        source="simulated",
+        plan="identification",
+        config_sha256="1" * 64,
+        start="2026-01-01T00:00:00+00:00",
+    )
     paths = []
     for name, position in (("II", None), ("III", _lut(2))):
         model = _model(position)
         model.name = name
         model.write(tmp_path / f"{name}.nc", meta)
         paths.append(tmp_path / f"{name}.nc")
-    assert main(["export", "--campaign", str(campaign), "--model", *map(str, paths), "--out", str(tmp_path / "x")]) == 0
+    assert (
+        main(
+            ["export", "--campaign", str(campaign), "--model", *map(str, paths), "--out", str(tmp_path / "x")]
+        )
+        == 0
+    )
     manifest = json.loads((tmp_path / "x/manifest.json").read_text())
     assert set(manifest) == {"II", "III"} and "linuxcnc_x.comp" in manifest["III"]
     assert "linuxcnc_x.comp" not in manifest["II"] and "bundle.json" in manifest["II"]
     assert load(tmp_path / "x/III")["model"] == "III"
-    status = main(["export", "--campaign", str(campaign), "--model", str(tmp_path / "nope.nc"), "--out",
-                   str(tmp_path / "y")])
+    status = main(
+        [
+            "export",
+            "--campaign",
+            str(campaign),
+            "--model",
+            str(tmp_path / "nope.nc"),
+            "--out",
+            str(tmp_path / "y"),
+        ]
+    )
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert status != 0 and len(err) == 1 and "nope.nc" in err[0]
     assert not (tmp_path / "y/manifest.json").exists()

@@ -9,14 +9,27 @@ import time
 
 import pytest
 
-from calflow.gcs import (GCSConnectionLost, GCSController, GCSControllerError, GCSError,
-                         GCSInvalidAxisError, GCSMotionNotAllowedError, GCSMotionTimeout,
-                         GCSPositionOutOfLimitsError, GCSProtocolError, GCSStoppedError,
-                         GCSTimeout, GCSUnknownCommandError, GCSVelocityOutOfLimitsError)
+from calflow.gcs import (
+    GCSConnectionLost,
+    GCSController,
+    GCSControllerError,
+    GCSError,
+    GCSInvalidAxisError,
+    GCSMotionNotAllowedError,
+    GCSMotionTimeout,
+    GCSPositionOutOfLimitsError,
+    GCSProtocolError,
+    GCSStoppedError,
+    GCSTimeout,
+    GCSUnknownCommandError,
+    GCSVelocityOutOfLimitsError,
+)
 from calflow.gcs.emulator import GCSEmulator
 
-AXES = {"1": {"tmn": -7.5, "tmx": 7.5, "start_position": 1.0},
-        "2": {"tmn": 0.0, "tmx": 25.0, "ref_position": 12.5, "start_position": 12.0}}
+AXES = {
+    "1": {"tmn": -7.5, "tmx": 7.5, "start_position": 1.0},
+    "2": {"tmn": 0.0, "tmx": 25.0, "ref_position": 12.5, "start_position": 12.0},
+}
 
 
 @pytest.fixture
@@ -246,8 +259,10 @@ def test_garbage_reply_raises_protocol_error(ctl, emu):
 
 
 def test_address_prefixed_replies_are_understood():
-    with GCSEmulator(axes="1,2", address_prefix=1) as e, \
-            GCSController.connect_tcp(*e.address, timeout=1) as c:
+    with (
+        GCSEmulator(axes="1,2", address_prefix=1) as e,
+        GCSController.connect_tcp(*e.address, timeout=1) as c,
+    ):
         assert c.on_target() == {"1": True, "2": True}
         assert c.error_code() == 0 and c.ready() and "C-863" in c.idn()
 

@@ -32,7 +32,7 @@ class Raw:
             self.sock.settimeout(left)
             try:
                 data = self.sock.recv(4096)
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 return None
             if not data:
                 raise ConnectionError("closed")
@@ -292,8 +292,10 @@ def test_sim_axis_stop_and_reference_abort():
     assert not ax.referencing(10.0) and ax.referenced and ax.position(10.0) == 0.0
 
 
-@pytest.mark.parametrize("kwargs", [{"tmn": 1, "tmx": 0}, {"velocity": 0},
-                                    {"velocity": 3, "max_velocity": 2}, {"ref_position": 99}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"tmn": 1, "tmx": 0}, {"velocity": 0}, {"velocity": 3, "max_velocity": 2}, {"ref_position": 99}],
+)
 def test_axis_config_validation(kwargs):
     with pytest.raises(ValueError):
         AxisConfig(**kwargs)
@@ -302,8 +304,13 @@ def test_axis_config_validation(kwargs):
 
 
 def test_piezo_axis_needs_no_reference_and_faults_default():
-    c = EmulatedController({"A": AxisConfig(tmn=0, tmx=100, velocity=1000, max_velocity=1e4,
-                                            accel=1e6, needs_reference=False, servo=True)})
+    c = EmulatedController(
+        {
+            "A": AxisConfig(
+                tmn=0, tmx=100, velocity=1000, max_velocity=1e4, accel=1e6, needs_reference=False, servo=True
+            )
+        }
+    )
     assert c.handle("FRF? A") == ["A=1"]
     assert c.handle("MOV A 50") is None and c.handle("ERR?") == ["0"]
     assert Faults() == Faults(drop_after=None, delay=0.0, garbage=0, refuse=0)
@@ -313,9 +320,9 @@ def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
     """Asked for 2.0 mm, ``POS?`` answers 2.0 within the encoder's 50 nm (Table 4.1), as a
     real controller's encoder would; the external sensor still sees the lead screw."""
     from calflow.gcs.client import GCSController
-    from calflow.xytheta.emulate import ENCODER_UM, campaign_emulator
-    from calflow.xytheta.kinematics import forward, world_from_pattern
-    from calflow.xytheta.vision_sensor import simulated_vision
+    from calflow.xytheta.models.kinematics import forward, world_from_pattern
+    from calflow.xytheta.stage.emulate import ENCODER_UM, campaign_emulator
+    from calflow.xytheta.stage.vision_sensor import simulated_vision
 
     campaign = {"robot": "xytheta", "rig": {"factory": "simulated", "options": {}}}
     with campaign_emulator(campaign, time_scale=500.0) as e:
@@ -328,8 +335,14 @@ def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
         finally:
             ctl.close()
     assert abs(pos["1"] - 2.0) <= ENCODER_UM["x"] / 1000 and abs(pos["2"] - 1.0) <= ENCODER_UM["y"] / 1000
-    quiet = dict(sensor_noise_um=0.0, stage_repeatability_um=0.0, decode_error_um=0.0, gross_error_rate=0.0,
-                 room_swing_degC=0.0, sensor_resolution_um=1e-6)
+    quiet = dict(
+        sensor_noise_um=0.0,
+        stage_repeatability_um=0.0,
+        decode_error_um=0.0,
+        gross_error_rate=0.0,
+        room_swing_degC=0.0,
+        sensor_resolution_um=1e-6,
+    )
     vision = simulated_vision(**quiet)
     home = vision.read({"x": 0.0, "y": 0.0, "theta": 0.0}, 0.0)
     r = vision.read({"x": pos["1"] * 1000, "y": pos["2"] * 1000, "theta": 0.0}, 0.0)
@@ -339,12 +352,12 @@ def test_campaign_emulator_pos_is_the_encoder_and_the_vision_sees_the_stage():
 
 
 # --------------------------------------------------------------------------- settling (ONT?)
-from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st
 
 
 @settings(max_examples=60, deadline=None)
-@given(distance=st.floats(-14.0, 14.0).filter(lambda d: abs(d) > 1e-3),
-       window=st.floats(1e-5, 0.5))
+@given(distance=st.floats(-14.0, 14.0).filter(lambda d: abs(d) > 1e-3), window=st.floats(1e-5, 0.5))
 def test_window_entry_is_where_the_trajectory_enters_the_settle_window(distance, window):
     ax = SimAxis("1", AxisConfig(tmn=-7.5, tmx=7.5, start_position=0.0, settle_window=window))
     ax.move(distance, 0.0)
@@ -358,8 +371,9 @@ def test_window_entry_is_where_the_trajectory_enters_the_settle_window(distance,
 def test_ont_turns_true_after_the_settling_time_in_the_window():
     """Settling time 0x3F = 2 s: the axis is on target 2 s after it entered the window,
     not when the trajectory ends (C-863 parameters, MS249E)."""
-    c = EmulatedController({"1": AxisConfig(settle_window=0.001, settle_time=2.0,
-                                            needs_reference=False, servo=True)})
+    c = EmulatedController(
+        {"1": AxisConfig(settle_window=0.001, settle_time=2.0, needs_reference=False, servo=True)}
+    )
     t = {"now": 0.0}
     c.now = lambda: t["now"]
     assert c.handle("ONT? 1") == ["1=1"]  # at rest since power-up
@@ -379,8 +393,14 @@ def test_spa_sets_and_reports_the_settle_window_and_time_per_axis():
     assert c.axes["1"].settle_window == pytest.approx(0.002)  # 40 counts of 50 nm
     assert c.axes["2"].settle_time == 0.5 and c.axes["2"].settle_window == 0.0005
     assert c.handle("SPA? 1 54") == ["1 54=40"]  # decimal IDs too
-    for line, code in (("SPA 1 0xE 5", "60"), ("SPA 1 0x99 5", "54"), ("SPA 1 0x36 -1", "17"),
-                       ("SPA 9 0x36 1", "15"), ("SPA 1 0x36", "1"), ("SPA 1 0x3F nan", "17")):
+    for line, code in (
+        ("SPA 1 0xE 5", "60"),
+        ("SPA 1 0x99 5", "54"),
+        ("SPA 1 0x36 -1", "17"),
+        ("SPA 9 0x36 1", "15"),
+        ("SPA 1 0x36", "1"),
+        ("SPA 1 0x3F nan", "17"),
+    ):
         assert c.handle(line) is None and c.handle("ERR?") == [code], line
     assert c.handle("SPA? 1 0x99") is None and c.handle("ERR?") == ["54"]  # no reply, error set
     assert c.axes["1"].settle_window == pytest.approx(0.002)  # failed lines changed nothing
@@ -398,16 +418,22 @@ def test_client_reads_and_writes_parameters(emu):
 
 
 def test_the_gcs_rig_sets_settling_parameters_per_joint_at_open(monkeypatch):
+    from calflow.errors import OptionError
     from calflow.gcs.rig import gcs
     from calflow.gcs.rig_options import check_options
-    from calflow.errors import OptionError
 
     monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_rigs_gcs")
-    with GCSEmulator(axes={"1": {"needs_reference": False}, "2": {"needs_reference": False}},
-                     time_scale=10.0) as e:
-        options = dict(axes={"x": "1", "y": "2"}, host="127.0.0.1", port=e.address[1], timeout=1.0,
-                       parameters={"x": {"0x3F": 0.2}, "y": {54: 40}},
-                       sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {}})
+    with GCSEmulator(
+        axes={"1": {"needs_reference": False}, "2": {"needs_reference": False}}, time_scale=10.0
+    ) as e:
+        options = dict(
+            axes={"x": "1", "y": "2"},
+            host="127.0.0.1",
+            port=e.address[1],
+            timeout=1.0,
+            parameters={"x": {"0x3F": 0.2}, "y": {54: 40}},
+            sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {}},
+        )
         check_options(**options)
         rig = gcs(**options)
         rig.close()

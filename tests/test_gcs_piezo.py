@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import SMALL_NANO1D, SMALL_NANO2D
 
 from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
@@ -18,10 +19,9 @@ from calflow.gcs.datarecorder import parse_array
 from calflow.gcs.piezo import PiezoAxisConfig, PiezoController, piezo_emulator
 from calflow.gcs.protocol import ReplyFramer
 from calflow.gcs.rig import gcs
-from calflow.nano import plans
-from calflow.nano.emulate import emulated_rig_options
-from calflow.nano.rig import nano1d
-from conftest import SMALL_NANO1D, SMALL_NANO2D
+from calflow.nano.plans import sequences as plans
+from calflow.nano.stage.emulate import emulated_rig_options
+from calflow.nano.stage.rig import nano1d
 
 
 def _controller(**axis):
@@ -36,8 +36,9 @@ def _ok(c, line):
 
 
 def test_piezo_axes_are_closed_loop_um_with_a_first_order_step_and_no_referencing():
-    c, clock = _controller(servo_tau=0.01, settle_window=0.02, settle_time=0.05,
-                           sensor_noise=0.0, sensor_resolution=0.0)
+    c, clock = _controller(
+        servo_tau=0.01, settle_window=0.02, settle_time=0.05, sensor_noise=0.0, sensor_resolution=0.0
+    )
     assert c.handle("FRF?") == ["1=1", "2=1"] and c.handle("TMX? 2") == ["2=80.000000"]
     assert "E-727" in c.handle("*IDN?")[0]
     _ok(c, "SVO 1 1")
@@ -84,8 +85,14 @@ def test_data_recorder_records_target_and_position_from_the_trigger():
     assert np.all(data[:, 1] == 40.0)
     _, part = parse_array(c.handle("DRR? 4 3 1"))
     assert np.allclose(part[:, 0], data[3:6, 0])
-    for line, code in (("DRC 9 1 2", "57"), ("DRC 1 1 7", "58"), ("DRC 1 Z 2", "59"),
-                       ("DRT 0 9 0", "17"), ("RTR 0", "17"), ("DRC 1 1", "1")):
+    for line, code in (
+        ("DRC 9 1 2", "57"),
+        ("DRC 1 1 7", "58"),
+        ("DRC 1 Z 2", "59"),
+        ("DRT 0 9 0", "17"),
+        ("RTR 0", "17"),
+        ("DRC 1 1", "1"),
+    ):
         assert c.handle(line) is None and c.handle("ERR?") == [code], line
     assert c.handle("DRR? 5 99 1") is None and c.handle("ERR?") == ["17"]  # not recorded yet
     assert c.handle("DRC? 1") == ["1=1 2"]  # failed lines changed nothing
@@ -122,8 +129,9 @@ def test_drr_reply_is_a_gcs_array_as_pipython_frames_it():
     assert parse_array(framer.pop())[1].shape == (3, 1)
 
 
-META = RunMetadata(campaign="gcs-nano", robot="stage1d", source="gcs", plan="training",
-                   config_sha256="0" * 64)
+META = RunMetadata(
+    campaign="gcs-nano", robot="stage1d", source="gcs", plan="training", config_sha256="0" * 64
+)
 
 
 def _by_pose(ds):
@@ -131,8 +139,10 @@ def _by_pose(ds):
     err = ds["meas_x"].values - ds["cmd_x"].values
     keys = sorted(set(zip(ds["pose"].values, ds["direction"].values)))
     sel = [(ds["pose"].values == p) & (ds["direction"].values == d) for p, d in keys]
-    return (np.array([err[m].mean() for m in sel]),
-            np.array([err[m].std(ddof=1) / math.sqrt(m.sum()) for m in sel]))
+    return (
+        np.array([err[m].mean() for m in sel]),
+        np.array([err[m].std(ddof=1) / math.sqrt(m.sum()) for m in sel]),
+    )
 
 
 def _through_emulator_and_simulated(plan, runner, seed):
@@ -157,7 +167,7 @@ def test_a_small_nano1d_training_through_the_emulator_agrees_with_the_simulated_
     m_sim, se_sim = _by_pose(sim)
     # the stage's error curve (~380 nm over the stroke) is the same within the noise
     assert np.ptp(m_sim) > 0.1
-    assert np.all(np.abs(m_gcs - m_sim) < 4 * np.hypot(se_gcs, se_sim) + 0.005), (m_gcs - m_sim)
+    assert np.all(np.abs(m_gcs - m_sim) < 4 * np.hypot(se_gcs, se_sim) + 0.005), m_gcs - m_sim
     assert np.allclose(ds["temperature"].values, sim["temperature"].values, atol=0.05)
 
 
@@ -180,7 +190,7 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
     import yaml
 
     from calflow.config import load_campaign
-    from calflow.nano.emulate import main
+    from calflow.nano.stage.emulate import main
 
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_NANO1D))
@@ -194,10 +204,16 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
 
 
 def test_a_second_order_axis_follows_the_closed_loop_step_and_ont_waits_for_its_envelope():
-    from calflow.nano.piezo import closed_loop_step
+    from calflow.nano.stage.piezo import closed_loop_step
 
-    c, clock = _controller(natural_hz=100.0, damping=0.7, settle_window=0.01, settle_time=0.0,
-                           sensor_noise=0.0, sensor_resolution=0.0)
+    c, clock = _controller(
+        natural_hz=100.0,
+        damping=0.7,
+        settle_window=0.01,
+        settle_time=0.0,
+        sensor_noise=0.0,
+        sensor_resolution=0.0,
+    )
     _ok(c, "SVO 1 1")
     _ok(c, "MOV 1 20")
     t = np.linspace(0.0, 0.03, 61)
@@ -262,7 +278,7 @@ def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settlin
     """ISO 9283 7.5/7.6 from the recorded moves of a step-response run, gcs rig through the
     E-727-class emulator vs the simulated rig (same world, other noise), in one band."""
     from calflow.acquisition.recorded_moves import acquire_recorded_moves
-    from calflow.nano.stabilisation_summary import stabilisation_entries
+    from calflow.nano.report.stabilisation import stabilisation_entries
 
     plan = plans.step_response([1.0, 10.0, 50.0], 3, [100.0], 0.05, 1000.0, 0.01)
     ds, sim = _through_emulator_and_simulated(plan, acquire_recorded_moves, 21)
@@ -275,7 +291,10 @@ def test_step_response_run_through_the_emulator_gives_the_simulated_rigs_settlin
     noise_nm = 3.0  # interferometer noise (1 sigma per point), the option's default
     for a, b in zip(entries[0][0], entries[1][0]):
         assert a["step_um"] == b["step_um"] and a["stabilised"] == b["stabilised"] == 3
-        assert abs(a["stabilisation_time_s"] - b["stabilisation_time_s"]) <= 2e-3, (a, b)  # two record periods
+        assert abs(a["stabilisation_time_s"] - b["stabilisation_time_s"]) <= 2e-3, (
+            a,
+            b,
+        )  # two record periods
         assert abs(a["overshoot_nm"] - b["overshoot_nm"]) < 5 * noise_nm * math.sqrt(2), (a, b)
         if abs(a["step_um"]) >= 10:  # the loop's ~4.6 % overshoot (a 1 um step's stays in the band)
             assert a["overshoot_nm"] > 0.04 * abs(a["step_um"]) * 1e3
@@ -307,7 +326,9 @@ def test_calflow_emulate_gcs_refuses_a_family_without_an_emulator_in_one_line(ca
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_NANO1D))
     real = calflow.family.family_of
-    monkeypatch.setattr(calflow.family, "family_of", lambda robot: dataclasses.replace(real(robot), emulator=None))
+    monkeypatch.setattr(
+        calflow.family, "family_of", lambda robot: dataclasses.replace(real(robot), emulator=None)
+    )
     assert main(["emulate", "gcs", "--campaign", str(path), "--port", "0", "--duration", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "small.yaml: robot 'stage1d' (family nano) has no controller emulator" in err[0]

@@ -7,13 +7,27 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from calflow.errors import RigError
-from calflow.gcs.protocol import (CommandFramer, GCSControllerError, GCSInvalidAxisError,
-                                  GCSMotionNotAllowedError, GCSParameterSyntaxError,
-                                  GCSPositionOutOfLimitsError, GCSProtocolError,
-                                  GCSStoppedError, GCSUnknownCommandError, ReplyFramer,
-                                  error_from_code, format_command, format_pairs,
-                                  parse_axis_values, parse_bool, parse_int, parse_ready,
-                                  split_command, strip_address)
+from calflow.gcs.protocol import (
+    CommandFramer,
+    GCSControllerError,
+    GCSInvalidAxisError,
+    GCSMotionNotAllowedError,
+    GCSParameterSyntaxError,
+    GCSPositionOutOfLimitsError,
+    GCSProtocolError,
+    GCSStoppedError,
+    GCSUnknownCommandError,
+    ReplyFramer,
+    error_from_code,
+    format_command,
+    format_pairs,
+    parse_axis_values,
+    parse_bool,
+    parse_int,
+    parse_ready,
+    split_command,
+    strip_address,
+)
 
 
 def replies(framer: ReplyFramer) -> list[list[str]]:
@@ -47,15 +61,20 @@ def test_several_replies_in_one_chunk_and_crlf_tolerated():
     assert replies(f) == [["0"], ["1=2.5"], ["A", "B"]]
 
 
-@given(st.lists(st.lists(st.from_regex(r"[A-Za-z0-9_=.+-]{1,12}", fullmatch=True),
-                         min_size=1, max_size=4), min_size=1, max_size=5),
-       st.lists(st.integers(min_value=1, max_value=7), min_size=1, max_size=40))
+@given(
+    st.lists(
+        st.lists(st.from_regex(r"[A-Za-z0-9_=.+-]{1,12}", fullmatch=True), min_size=1, max_size=4),
+        min_size=1,
+        max_size=5,
+    ),
+    st.lists(st.integers(min_value=1, max_value=7), min_size=1, max_size=40),
+)
 def test_any_chunking_reassembles_the_same_replies(expected, cuts):
     wire = b"".join((" \n".join(r) + "\n").encode() for r in expected)
     f, pos, i = ReplyFramer(), 0, 0
     while pos < len(wire):
         step = cuts[i % len(cuts)]
-        f.feed(wire[pos:pos + step])
+        f.feed(wire[pos : pos + step])
         pos, i = pos + step, i + 1
     assert replies(f) == expected
 
@@ -67,8 +86,7 @@ def test_axis_values_parsed_in_order():
     assert parse_axis_values(["X=1 ", "Y_2=0"], parse_bool) == {"X": True, "Y_2": False}
 
 
-@pytest.mark.parametrize("lines", [["1:5"], ["=5"], ["1=abc"], ["1=1\x00"], ["a b=1"],
-                                   ["\x1b[2J"], ["1="]])
+@pytest.mark.parametrize("lines", [["1:5"], ["=5"], ["1=abc"], ["1=1\x00"], ["a b=1"], ["\x1b[2J"], ["1="]])
 def test_garbage_axis_values_raise_protocol_error(lines):
     with pytest.raises(GCSProtocolError) as info:
         parse_axis_values(lines, command="POS?")
@@ -104,10 +122,17 @@ def test_address_prefix_is_stripped_only_when_present():
 
 
 # ------------------------------------------------------------------ errors
-@pytest.mark.parametrize("code,cls", [(1, GCSParameterSyntaxError), (2, GCSUnknownCommandError),
-                                      (5, GCSMotionNotAllowedError),
-                                      (7, GCSPositionOutOfLimitsError), (10, GCSStoppedError),
-                                      (15, GCSInvalidAxisError)])
+@pytest.mark.parametrize(
+    "code,cls",
+    [
+        (1, GCSParameterSyntaxError),
+        (2, GCSUnknownCommandError),
+        (5, GCSMotionNotAllowedError),
+        (7, GCSPositionOutOfLimitsError),
+        (10, GCSStoppedError),
+        (15, GCSInvalidAxisError),
+    ],
+)
 def test_error_codes_map_to_classes(code, cls):
     exc = error_from_code(code, command="MOV 1 3", axis="1")
     assert type(exc) is cls and exc.code == code and exc.axis == "1"
@@ -129,8 +154,9 @@ def test_format_command_and_pairs():
     assert format_pairs("SVO", {"1": True, "2": 0}) == b"SVO 1 1 2 0\n"
 
 
-@pytest.mark.parametrize("bad", [{"1": float("nan")}, {"1": float("inf")}, {"a b": 1.0},
-                                 {"1\nSTP": 1.0}, {"": 1.0}])
+@pytest.mark.parametrize(
+    "bad", [{"1": float("nan")}, {"1": float("inf")}, {"a b": 1.0}, {"1\nSTP": 1.0}, {"": 1.0}]
+)
 def test_format_rejects_unsafe_arguments(bad):
     with pytest.raises(ValueError):
         format_pairs("MOV", bad)

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from calflow.identification import diagnostics
-from calflow.xytheta import cost
-from calflow.xytheta.identification import identify
-from calflow.xytheta.kinematics import Parameters, forward
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.identification import identify
+from calflow.xytheta.models.kinematics import Parameters, forward
 
 TRUE = Parameters(9572.9, 7795.9, 177.69, -0.11)
 
@@ -93,8 +93,10 @@ def test_residuals_vanish_at_truth_and_jacobian_matches_differences():
         up, dn = phi.copy(), phi.copy()
         up[k] += h
         dn[k] -= h
-        fd = (cost.residuals(Parameters.from_array(up), X, Y, theta, P_mx, P_my)
-              - cost.residuals(Parameters.from_array(dn), X, Y, theta, P_mx, P_my)) / (2 * h)
+        fd = (
+            cost.residuals(Parameters.from_array(up), X, Y, theta, P_mx, P_my)
+            - cost.residuals(Parameters.from_array(dn), X, Y, theta, P_mx, P_my)
+        ) / (2 * h)
         assert np.allclose(J[:, k], fd, rtol=1e-5, atol=1e-6)
 
 
@@ -105,7 +107,9 @@ def test_identifiability_names_a_parameter_that_cannot_be_identified():
     J = cost.jacobian(TRUE, X, Y, theta)
     r, bad = diagnostics.identifiability(J, ("x_R", "y_R", "alpha", "beta"))
     assert set(bad) >= {"x_R", "y_R"}
-    _, none_bad = diagnostics.identifiability(cost.jacobian(TRUE, *_poses(50)), ("x_R", "y_R", "alpha", "beta"))
+    _, none_bad = diagnostics.identifiability(
+        cost.jacobian(TRUE, *_poses(50)), ("x_R", "y_R", "alpha", "beta")
+    )
     assert none_bad == []
 
 
@@ -124,7 +128,7 @@ def test_observability_indices_follow_their_definitions():
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from calflow.xytheta.identification import crlb  # noqa: E402
+from calflow.xytheta.models.identification import crlb  # noqa: E402
 
 START = Parameters(10000.0, 8000.0, 180.0, 0.0)
 
@@ -201,19 +205,20 @@ def _rig_run(gross_rate: float, poses: int = 800, seed: int = 5):
     The random draws do not depend on the rate: the same seed gives the same run bar the
     gross errors."""
     import yaml
+    from conftest import SMALL_XYTHETA
 
     from calflow.config import validate
-    from calflow.xytheta.montecarlo import simulate_run
-    from calflow.xytheta.plans import identification
-    from calflow.xytheta.rig_physics import options_off
-    from conftest import SMALL_XYTHETA
+    from calflow.xytheta.plans.poses import identification
+    from calflow.xytheta.stage.physics import options_off
+    from calflow.xytheta.studies.montecarlo import simulate_run
 
     c = validate(yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA)), "campaign-xytheta", "small.yaml")
     c["name"] = "small"
     c["rig"]["options"] = {**options_off(), "gross_error_rate": gross_rate}
     p = c["identification"]
-    run, _ = simulate_run(c, identification(poses, p["x_um"], p["y_um"], p["theta_deg"], seed=seed), "identification",
-                          seed, 0.3)
+    run, _ = simulate_run(
+        c, identification(poses, p["x_um"], p["y_um"], p["theta_deg"], seed=seed), "identification", seed, 0.3
+    )
     theta = run["meas_theta"].values - run["meas_theta"].values[0]
     P_mx, P_my = cost.measured_points(run["meas_x"].values, run["meas_y"].values, theta)
     return run, (run["cmd_x"].values, run["cmd_y"].values, theta, P_mx, P_my)
@@ -225,8 +230,10 @@ def test_gross_errors_in_one_percent_of_readings_are_rejected_and_the_fit_is_the
 
     clean_run, clean = _rig_run(0.0)
     dirty_run, dirty = _rig_run(0.01)
-    injected = np.flatnonzero((dirty_run["meas_x"].values != clean_run["meas_x"].values)
-                              | (dirty_run["meas_y"].values != clean_run["meas_y"].values))
+    injected = np.flatnonzero(
+        (dirty_run["meas_x"].values != clean_run["meas_x"].values)
+        | (dirty_run["meas_y"].values != clean_run["meas_y"].values)
+    )
     assert 3 <= injected.size <= 20  # ~1 % of 801 readings, each a whole 8 µm period
     reference = identify(*clean, initial=START)
     robust = identify(*dirty, initial=START, robust=Robust(loss=loss))
@@ -247,7 +254,9 @@ def test_robust_screening_rejects_nothing_on_clean_data():
     _, clean = _rig_run(0.0, poses=300, seed=9)
     res = identify(*clean, initial=START, robust=Robust())
     assert res.rejected == ()
-    assert np.allclose(res.parameters.as_array(), identify(*clean, initial=START).parameters.as_array(), rtol=1e-10)
+    assert np.allclose(
+        res.parameters.as_array(), identify(*clean, initial=START).parameters.as_array(), rtol=1e-10
+    )
 
 
 @settings(max_examples=12, deadline=None)
@@ -294,7 +303,9 @@ def test_gauss_newton_minimises_the_same_objective_as_scipy(loss):
     fun = lambda v: v[0] * np.exp(-v[1] * t) + v[2] - y  # noqa: E731
     jac = lambda v: np.column_stack([np.exp(-v[1] * t), -v[0] * t * np.exp(-v[1] * t), np.ones_like(t)])  # noqa: E731
     ours = solve(fun, jac, [1.0, 1.0, 0.0], loss, 0.05)
-    ref = least_squares(fun, [1.0, 1.0, 0.0], jac=jac, loss=loss, f_scale=0.05, xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    ref = least_squares(
+        fun, [1.0, 1.0, 0.0], jac=jac, loss=loss, f_scale=0.05, xtol=1e-14, ftol=1e-14, gtol=1e-14
+    )
     assert ours.success and "Gauss-Newton" in ours.message
     assert np.allclose(ours.x, ref.x, rtol=1e-6, atol=1e-8), (ours.x, ref.x)
 
@@ -333,14 +344,18 @@ def test_readings_are_the_reading_residuals_as_a_linear_map(n, seed, weighted):
     assert np.allclose(g, J.T @ (w * r), rtol=1e-10, atol=1e-10 * scale * np.abs(r).max())
     assert np.allclose(plain, J.T @ J, rtol=1e-10, atol=1e-12 * scale**2)
     sub = rng.random(n) < 0.5
-    assert np.allclose(readings.subset(sub).residuals(phi), readings.residuals(phi).reshape(-1, 2)[sub].ravel(),
-                       rtol=0, atol=1e-12 * scale)
+    assert np.allclose(
+        readings.subset(sub).residuals(phi),
+        readings.residuals(phi).reshape(-1, 2)[sub].ravel(),
+        rtol=0,
+        atol=1e-12 * scale,
+    )
 
 
 def test_cross_validation_refits_each_fold_as_identify_does():
     """The bare fold fits of cross_validate (shared trigonometry, row subsets) are the
     identification of each fold's training poses."""
-    from calflow.xytheta.identification import cross_validate
+    from calflow.xytheta.models.identification import cross_validate
 
     X, Y, theta = _poses(200, 11)
     P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=12)
@@ -355,7 +370,9 @@ def test_cross_validation_refits_each_fold_as_identify_does():
         test = np.sort(fold)
         eps = cost.residuals(fit.parameters, X[test], Y[test], theta[test], P_mx[test], P_my[test])
         sq, count = sq + eps @ eps, count + eps.size
-    assert cross_validate(X, Y, theta, P_mx, P_my, free, start, 5, 4) == pytest.approx(np.sqrt(sq / count), rel=1e-9)
+    assert cross_validate(X, Y, theta, P_mx, P_my, free, start, 5, 4) == pytest.approx(
+        np.sqrt(sq / count), rel=1e-9
+    )
 
 
 def test_gauss_newton_with_normal_equations_reaches_the_jacobian_path_optimum():
@@ -395,7 +412,10 @@ def test_lock_step_gauss_newton_equals_one_problem_at_a_time(seed, k):
 
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 3, 60)
-    ys = [rng.uniform(0.5, 3) * np.exp(-rng.uniform(0.2, 1.5) * t) + rng.normal(0, 0.02, t.size) for _ in range(k)]
+    ys = [
+        rng.uniform(0.5, 3) * np.exp(-rng.uniform(0.2, 1.5) * t) + rng.normal(0, 0.02, t.size)
+        for _ in range(k)
+    ]
     x0 = np.tile([1.0, 1.0], (k, 1))
 
     def residuals(x, y):
@@ -425,8 +445,10 @@ def test_lock_step_gauss_newton_leaves_a_singular_problem_to_the_caller():
 
     t = np.linspace(0, 1, 50)
     J = np.column_stack([t, t])  # only v0 + v1 is determined
-    x, converged = solve_batch(lambda X: np.array([np.sum(((x[0] + x[1]) * t - 2 * t) ** 2) for x in X]),
-                               lambda X: (np.stack([J.T @ J] * len(X)),
-                                          np.stack([J.T @ ((x[0] + x[1]) * t - 2 * t) for x in X])),
-                               np.zeros((2, 2)), [50, 50])
+    x, converged = solve_batch(
+        lambda X: np.array([np.sum(((x[0] + x[1]) * t - 2 * t) ** 2) for x in X]),
+        lambda X: (np.stack([J.T @ J] * len(X)), np.stack([J.T @ ((x[0] + x[1]) * t - 2 * t) for x in X])),
+        np.zeros((2, 2)),
+        [50, 50],
+    )
     assert not converged.any() and np.array_equal(x, np.zeros((2, 2)))

@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.xytheta.kinematics import (
+from calflow.xytheta.models.kinematics import (
     Parameters,
     forward,
     forward_jacobian,
@@ -39,7 +39,9 @@ def test_forward_of_inverse_is_identity(p, x_P, y_P, theta):
     assert np.allclose(forward(X, Y, theta, p), [x_P, y_P], atol=1e-7, rtol=1e-10)
 
 
-@given(st.floats(-5000, 5000), st.floats(-5000, 5000), st.floats(-30, 30), st.floats(0, 9000), st.floats(0, 4000))
+@given(
+    st.floats(-5000, 5000), st.floats(-5000, 5000), st.floats(-30, 30), st.floats(0, 9000), st.floats(0, 4000)
+)
 def test_vision_transform_round_trip(x_P, y_P, theta, x_M, y_M):
     """Eq. (4.27) recovers the tool point from the Eq. (4.26) reading of camera point M."""
     x_m, y_m = pattern_from_world(x_P, y_P, theta, x_M, y_M)

@@ -5,16 +5,20 @@ import functools
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import XY_NOISE_UM
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.acquisition.runner import acquire
-from calflow.xytheta.characterisation import characterise, xy_positioning_metrics
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.xytheta.evaluation import xytheta_validation_metrics
-from calflow.xytheta.kinematics import Parameters, forward, inverse
-from calflow.xytheta.lookup import (
+from calflow.xytheta.models.kinematics import Parameters, forward, inverse
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.plans.poses import validation
+from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.tables.characterisation import characterise, xy_positioning_metrics
+from calflow.xytheta.tables.lookup import (
     AngleLUT,
     PositionLUT,
     angle_residuals_from_run,
@@ -22,13 +26,6 @@ from calflow.xytheta.lookup import (
     joint_increments,
     sequential_commands,
 )
-from calflow.xytheta import sweeps
-from calflow.xytheta.plans import validation
-from calflow.xytheta.rig import simulated_xytheta
-
-from conftest import XY_NOISE_UM
-
-
 
 
 def meta(plan):
@@ -37,8 +34,14 @@ def meta(plan):
 
 @pytest.fixture(scope="module")
 def lut_ds():
-    runs = [acquire(sweeps.characterisation(a, stop_um=2000, step_um=5, cycles=2),
-                    simulated_xytheta(seed=21, stream=f"char-{a}"), meta(f"characterisation_{a}")) for a in "xy"]
+    runs = [
+        acquire(
+            sweeps.characterisation(a, stop_um=2000, step_um=5, cycles=2),
+            simulated_xytheta(seed=21, stream=f"char-{a}"),
+            meta(f"characterisation_{a}"),
+        )
+        for a in "xy"
+    ]
     return characterise(*runs, meta=meta("characterisation_x"))
 
 
@@ -46,8 +49,9 @@ def synthetic(n=41, step=50.0, **kw):
     q = np.arange(n) * step
     s = np.sin(2 * np.pi * q / 400)
     tab = lambda a, b: np.column_stack([a + s, b + 2 * s])  # noqa: E731
-    return PositionLUT(q, q, tab(1.0, 3.0), tab(0.1, 0.2), tab(-0.1, -0.3), tab(0.5, 1.5),
-                       (0.2, -0.01), (0.0, 0.03), **kw)
+    return PositionLUT(
+        q, q, tab(1.0, 3.0), tab(0.1, 0.2), tab(-0.1, -0.3), tab(0.5, 1.5), (0.2, -0.01), (0.0, 0.03), **kw
+    )
 
 
 def test_errors_follow_eq_4_14_4_15_and_direction():
@@ -70,12 +74,17 @@ def test_tables_inside_a_model_hold_only_the_stages_own_errors():
     and perpendicularity, which α and β represent — the tables a kinematic model uses
     (trends=False) are zero within noise: no cosine error of the misalignment (7.7 µm at
     9.45 mm in the raw along-travel table), no offset from the home reading, zero at home."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     quiet = {**options_off(), "stage_repeatability_um": 0.01, "sensor_noise_um": 0.01}
-    runs = [acquire(sweeps.characterisation(a, stop_um=s, step_um=100, cycles=1),
-                    simulated_xytheta(seed=3, stream=f"char-{a}", **quiet), meta(f"characterisation_{a}"))
-            for a, s in (("x", 9000.0), ("y", 3600.0))]
+    runs = [
+        acquire(
+            sweeps.characterisation(a, stop_um=s, step_um=100, cycles=1),
+            simulated_xytheta(seed=3, stream=f"char-{a}", **quiet),
+            meta(f"characterisation_{a}"),
+        )
+        for a, s in (("x", 9000.0), ("y", 3600.0))
+    ]
     lut = PositionLUT.from_dataset(characterise(*runs, meta=meta("characterisation_x")))
     X, Y = np.meshgrid(np.linspace(0, 9000, 7), np.linspace(0, 3600, 5))
     raw_x, raw_y = lut.errors(X, Y, 1, 1, trends=True)
@@ -91,7 +100,9 @@ def test_linear_and_cubic_interpolation():
     truth = 1 + np.sin(2 * np.pi * q / 400)  # f_xx forward of synthetic(), other terms zero at y=0, dy=+1
     lut = synthetic()
     other = lut.errors(np.zeros_like(q), 0.0, 1, 1)[0] - 1.0  # constant part from Y tables, δx
-    err = {m: np.max(np.abs(lut.errors(q, 0.0, 1, 1, method=m)[0] - other - truth)) for m in ("linear", "cubic")}
+    err = {
+        m: np.max(np.abs(lut.errors(q, 0.0, 1, 1, method=m)[0] - other - truth)) for m in ("linear", "cubic")
+    }
     assert err["cubic"] < 0.01 < 0.03 < err["linear"] < 0.08  # 50 µm grid: h²/8·|f''| ≈ 0.077 for linear
     with pytest.raises(ValueError, match="interpolation method"):
         lut.errors(1.0, 1.0, 1, 1, method="quintic")
@@ -150,7 +161,9 @@ def test_sequential_commands_agree_with_the_stage():
 
 def run_xy(plan_fn, compensate, seed, directions="command", **kw):
     plan = plan_fn(compensate=compensate, directions=directions, **kw)
-    return xy_positioning_metrics(acquire(plan, simulated_xytheta(seed=seed, stream=plan.name), meta(plan.name)))
+    return xy_positioning_metrics(
+        acquire(plan, simulated_xytheta(seed=seed, stream=plan.name), meta(plan.name))
+    )
 
 
 def test_compensation_on_the_rig_random_points(lut_ds):
@@ -161,10 +174,16 @@ def test_compensation_on_the_rig_random_points(lut_ds):
     res = {"none": run_xy(plan_fn, None, 31)}
     for m in ("linear", "cubic"):
         res[m] = run_xy(plan_fn, functools.partial(lut.compensate, method=m), 31)
-    res["one-shot"] = run_xy(plan_fn, functools.partial(lut.compensate, iterations=1), 31, directions="target")
+    res["one-shot"] = run_xy(
+        plan_fn, functools.partial(lut.compensate, iterations=1), 31, directions="target"
+    )
     ap = {k: v.attrs["accuracy_um"] for k, v in res.items()}
-    print("random points AP (um):", {k: round(v, 3) for k, v in ap.items()},
-          "RP:", {k: round(v.attrs["repeatability_um"], 3) for k, v in res.items()})
+    print(
+        "random points AP (um):",
+        {k: round(v, 3) for k, v in ap.items()},
+        "RP:",
+        {k: round(v.attrs["repeatability_um"], 3) for k, v in res.items()},
+    )
     assert ap["none"] > 20
     for m in ("linear", "cubic"):
         assert ap[m] < 0.05 * ap["none"] and ap[m] < 8 * XY_NOISE_UM
@@ -178,15 +197,22 @@ def test_compensation_on_the_rig_square(lut_ds):
     none = run_xy(plan_fn, None, 41).attrs["accuracy_um"]
     cmd = run_xy(plan_fn, lut.compensate, 41).attrs["accuracy_um"]
     tgt = run_xy(plan_fn, lut.compensate, 41, directions="target").attrs["accuracy_um"]
-    print(f"square AP (um): none {none:.3f}, LUT command-directions {cmd:.3f}, LUT target-directions {tgt:.3f}")
+    print(
+        f"square AP (um): none {none:.3f}, LUT command-directions {cmd:.3f}, LUT target-directions {tgt:.3f}"
+    )
     assert none > 20 and cmd < 0.03 * none and cmd < 8 * XY_NOISE_UM
     assert tgt < 0.1 * none and cmd < tgt  # Fig. 4.10 guesses X's direction wrong on BC/DA
 
 
 # --- AngleLUT ----------------------------------------------------------------------------
 
-params = st.builds(Parameters, x_R=st.floats(-20000, 20000), y_R=st.floats(-20000, 20000),
-                   alpha=st.floats(0, 360), beta=st.floats(-5, 5))
+params = st.builds(
+    Parameters,
+    x_R=st.floats(-20000, 20000),
+    y_R=st.floats(-20000, 20000),
+    alpha=st.floats(0, 360),
+    beta=st.floats(-5, 5),
+)
 small = st.floats(-50, 50)
 
 
@@ -224,13 +250,16 @@ def test_angle_lut_averages_per_angle_and_interpolates():
 def test_angle_lut_on_the_rig_model_ii_to_iv(tmp_path):
     """Fig. 4.26: residuals of Model II at 5 angles → g_ax, g_ay → Model IV, on a rig whose
     dominant error is the Θ stage's (a 1 % scale error: ≈ 11 µm at 5°), the rest off."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     physics = {**options_off(), "theta_scale_ppm": 10000.0}
     p = simulated_xytheta().truth_model.parameters  # stands in for identified Model II parameters
     model_ii = lambda x, y, th: inverse(x, y, th, p)  # noqa: E731
-    run = acquire(sweeps.angle_residual_plan(model_ii, cycles=2), simulated_xytheta(seed=3, stream="ar", **physics),
-                  meta("angle_residuals"))
+    run = acquire(
+        sweeps.angle_residual_plan(model_ii, cycles=2),
+        simulated_xytheta(seed=3, stream="ar", **physics),
+        meta("angle_residuals"),
+    )
     res = angle_residuals_from_run(run)
     assert res.nan_readings == 0 and res.theta.size == 90
     lut = AngleLUT.from_residuals(res.theta, res.f_ax, res.f_ay, p.alpha, p.beta)
@@ -245,7 +274,9 @@ def test_angle_lut_on_the_rig_model_ii_to_iv(tmp_path):
 
     acc = {}
     for name, inv in (("II", model_ii), ("IV", model_iv)):
-        v = acquire(validation(inv, cycles=3), simulated_xytheta(seed=4, stream="val", **physics), meta("validation"))
+        v = acquire(
+            validation(inv, cycles=3), simulated_xytheta(seed=4, stream="val", **physics), meta("validation")
+        )
         acc[name] = xytheta_validation_metrics(v, meta("validation")).attrs["accuracy_um"]
     print("validation AP (um):", {k: round(v, 3) for k, v in acc.items()})
     assert acc["II"] > 10 and acc["IV"] < 0.25 * acc["II"]

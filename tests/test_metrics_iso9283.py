@@ -45,9 +45,7 @@ def test_2d_by_hand():
 
 def test_3d_by_hand():
     # offsets from G = (10, 20, 30), summing to zero, with lengths 3, 3, 4, 4, 7, 7
-    offsets = np.array(
-        [[1, 2, 2], [-1, -2, -2], [0, 0, 4], [0, 0, -4], [2, 3, 6], [-2, -3, -6]], dtype=float
-    )
+    offsets = np.array([[1, 2, 2], [-1, -2, -2], [0, 0, 4], [0, 0, -4], [2, 3, 6], [-2, -3, -6]], dtype=float)
     attained = np.array([10.0, 20.0, 30.0]) + offsets
     r = iso9283([8.0, 18.0, 29.0], attained)
     # G - O_c = (2, 2, 1) -> AP = sqrt(4 + 4 + 1) = 3

@@ -25,8 +25,11 @@ angles = st.floats(min_value=-math.pi, max_value=math.pi)
 def rigid(d: int, angle: float, shift: np.ndarray):
     """A rigid motion of R^d: rotation by ``angle`` (about z for d = 3; none for d = 1) then ``shift``."""
     c, s = math.cos(angle), math.sin(angle)
-    rot = {1: np.eye(1), 2: np.array([[c, -s], [s, c]]),
-           3: np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])}[d]
+    rot = {
+        1: np.eye(1),
+        2: np.array([[c, -s], [s, c]]),
+        3: np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+    }[d]
     return lambda p: np.asarray(p, dtype=float) @ rot.T + shift
 
 
@@ -48,12 +51,15 @@ def test_vap_of_a_1d_stage_is_the_iso230_2_reversal_at_that_target():
     assert iso230_2([0.0], [fwd], [bwd]).B == pytest.approx(4.0)
 
 
-@pytest.mark.parametrize("groups, match", [
-    ([[[0.0, 0.0]]], "at least 2 approach directions"),
-    ([[[0.0, 0.0]], [[0.0]]], "same number of coordinates"),
-    ([[[0.0, np.nan]], [[0.0, 0.0]]], "NaN"),
-    ([np.zeros((0, 2)), [[0.0, 0.0]]], "n >= 1"),
-])
+@pytest.mark.parametrize(
+    "groups, match",
+    [
+        ([[[0.0, 0.0]]], "at least 2 approach directions"),
+        ([[[0.0, 0.0]], [[0.0]]], "same number of coordinates"),
+        ([[[0.0, np.nan]], [[0.0, 0.0]]], "NaN"),
+        ([np.zeros((0, 2)), [[0.0, 0.0]]], "n >= 1"),
+    ],
+)
 def test_vap_bad_input(groups, match):
     with pytest.raises(ValueError, match=match):
         iso9283_vap(groups)
@@ -129,7 +135,7 @@ def pose_pair(draw):
 @given(pose_pair(), angles, arrays(float, (3,), elements=finite))
 def test_distance_is_invariant_under_rigid_motion(data, angle, shift):
     c1, c2, a1, a2 = data
-    move = rigid(c1.size, angle, shift[:c1.size])
+    move = rigid(c1.size, angle, shift[: c1.size])
     a = iso9283_distance(c1, c2, a1, a2)
     b = iso9283_distance(move(c1), move(c2), move(a1), move(a2))
     tol = 1e-8 * (1 + np.abs(np.concatenate([c1, c2, a1.ravel(), a2.ravel(), shift])).max())
@@ -219,13 +225,16 @@ def test_records_that_never_settle_say_so():
     assert leaves.overshoot == pytest.approx(3.0)
 
 
-@pytest.mark.parametrize("t, x, p, band, match", [
-    ([0.0, 0.0], [1.0, 1.0], 0.0, 1.0, "strictly increasing"),
-    ([0.0, 1.0], [1.0, 1.0, 1.0], 0.0, 1.0, "trajectory must have shape"),
-    ([0.0, 1.0], [1.0, 1.0], [0.0, 0.0], 1.0, "attained must have shape"),
-    ([0.0, 1.0], [1.0, 1.0], 0.0, 0.0, "band"),
-    ([0.0, 1.0], [1.0, np.inf], 0.0, 1.0, "NaN"),
-])
+@pytest.mark.parametrize(
+    "t, x, p, band, match",
+    [
+        ([0.0, 0.0], [1.0, 1.0], 0.0, 1.0, "strictly increasing"),
+        ([0.0, 1.0], [1.0, 1.0, 1.0], 0.0, 1.0, "trajectory must have shape"),
+        ([0.0, 1.0], [1.0, 1.0], [0.0, 0.0], 1.0, "attained must have shape"),
+        ([0.0, 1.0], [1.0, 1.0], 0.0, 0.0, "band"),
+        ([0.0, 1.0], [1.0, np.inf], 0.0, 1.0, "NaN"),
+    ],
+)
 def test_stabilisation_bad_input(t, x, p, band, match):
     with pytest.raises(ValueError, match=match):
         iso9283_stabilisation(t, x, p, band)
@@ -246,7 +255,7 @@ def approach(draw):
 def test_stabilisation_invariances_and_orderings(data, angle, shift, t0):
     t, x, p, band = data
     a = iso9283_stabilisation(t, x, p, band)
-    move = rigid(p.size, angle, shift[:p.size])
+    move = rigid(p.size, angle, shift[: p.size])
     b = iso9283_stabilisation(t + t0, move(x), move(p), band)
     if a.stabilised and b.stabilised:  # a sample exactly on the band edge may flip after rounding
         assert b.stabilisation_time_s == pytest.approx(a.stabilisation_time_s, abs=1e-6)

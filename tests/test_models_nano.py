@@ -1,4 +1,4 @@
-"""Tests of the nanopositioning models (thesis Sec. 5.2, 5.4.1; calflow.nano.model/kmz).
+"""Tests of the nanopositioning models (thesis Sec. 5.2, 5.4.1; calflow.nano.models.geometric/kmz).
 
 Synthetic physics generated here, richer than the models on purpose:
 * geometry: the stage lands at x_clean with G(x_clean) = q, G a known cubic
@@ -13,11 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import xarray as xr
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from calflow.nano.kmz import AdaptiveKMZModel, KMZReading
-from calflow.nano.models import GeometricModel, ModelInputError, model_from_dataset
-from calflow.nano.thermal_model import SingleModel, ThermalDriftModel, TwoDoFModel
+from calflow.nano.models.kmz import AdaptiveKMZModel, KMZReading
+from calflow.nano.models.registry import GeometricModel, ModelInputError, model_from_dataset
+from calflow.nano.models.thermal import SingleModel, ThermalDriftModel, TwoDoFModel
 
 P = np.polynomial.Polynomial
 NOISE = 0.010  # um
@@ -107,8 +108,13 @@ def test_geometric_recovers_polynomial_at_constant_temperature():
 
 
 @settings(max_examples=40, deadline=None)
-@given(gain=st.floats(0.98, 1.02), amp=st.floats(-0.6, 0.6), quad=st.floats(-0.3, 0.3),
-       off=st.floats(-5, 5), probe=st.lists(st.floats(0, 500), min_size=1, max_size=20))
+@given(
+    gain=st.floats(0.98, 1.02),
+    amp=st.floats(-0.6, 0.6),
+    quad=st.floats(-0.3, 0.3),
+    off=st.floats(-5, 5),
+    probe=st.lists(st.floats(0, 500), min_size=1, max_size=20),
+)
 def test_geometric_inverse_of_forward_is_identity(gain, amp, quad, off, probe):
     u = P([-1.0, 1.0 / 250.0])
     forward = P([off, gain]) + amp * (u**3 - u) + quad * u**2  # x = f(q)
@@ -258,9 +264,15 @@ def all_models(training, single):
     geo = GeometricModel.fit(q[:500], x[:500])
     therm = ThermalDriftModel.fit(tc, x - land(q))
     xy = np.column_stack([x, 0.5 * x])
-    return [geo, therm, single, AdaptiveKMZModel.from_single(single),
-            AdaptiveKMZModel.from_single(single, "5.7"), AdaptiveKMZModel.from_geometric(geo),
-            TwoDoFModel.fit(np.column_stack([q, 0.5 * q]), xy, tc, order=(3, 1))]
+    return [
+        geo,
+        therm,
+        single,
+        AdaptiveKMZModel.from_single(single),
+        AdaptiveKMZModel.from_single(single, "5.7"),
+        AdaptiveKMZModel.from_geometric(geo),
+        TwoDoFModel.fit(np.column_stack([q, 0.5 * q]), xy, tc, order=(3, 1)),
+    ]
 
 
 def test_dataset_round_trip(training, single, tmp_path):

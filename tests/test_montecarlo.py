@@ -9,14 +9,23 @@ import re
 import numpy as np
 import pytest
 import yaml
+from conftest import SMALL_XYTHETA, make_workdir, snakemake
 
 from calflow.config import validate
 from calflow.errors import ConfigError
-from calflow.xytheta.montecarlo import (grid, identify_run, jobs, load_study, parse_seeds, render_page, run_point,
-                                seed_batches, simulate_run)
-from calflow.xytheta.montecarlo_aggregate import aggregate, cell
-from calflow.xytheta.rig import XYThetaTruth
-from conftest import SMALL_XYTHETA, make_workdir, snakemake
+from calflow.xytheta.stage.rig import XYThetaTruth
+from calflow.xytheta.studies.aggregate import aggregate, cell
+from calflow.xytheta.studies.montecarlo import (
+    grid,
+    identify_run,
+    jobs,
+    load_study,
+    parse_seeds,
+    render_page,
+    run_point,
+    seed_batches,
+    simulate_run,
+)
 
 PARAMS = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
 
@@ -30,7 +39,7 @@ def small_campaign() -> dict:
 def clean_rig() -> dict:
     """Rig options with every error the models do not describe switched off: sensor noise
     is then the only source of identification error."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
     return {**options_off(), "stage_repeatability_um": 0.0}
 
@@ -59,12 +68,13 @@ def test_run_point_on_tiny_settings():
 def test_identification_uses_the_run_dataset_only(tmp_path):
     """The analysis path gets a run dataset read back from disk: no simulator, no truth."""
     from calflow.data.io import open_dataset, write_dataset
-    from calflow.xytheta.plans import identification
+    from calflow.xytheta.plans.poses import identification
 
     c = small_campaign()
     p = c["identification"]
-    run, truth = simulate_run(c, identification(30, p["x_um"], p["y_um"], p["theta_deg"], seed=5), "identification",
-                              5, 0.1)
+    run, truth = simulate_run(
+        c, identification(30, p["x_um"], p["y_um"], p["theta_deg"], seed=5), "identification", 5, 0.1
+    )
     write_dataset(run, tmp_path / "run.nc")
     model, diag = identify_run(open_dataset(tmp_path / "run.nc", kind="run"), c, "II")
     assert model is not None and diag["n_poses"] == 31
@@ -75,11 +85,19 @@ def test_error_shrinks_with_poses_and_grows_with_noise():
     """On a rig whose only error is sensor noise, the median identification error over 6 seeds
     falls with the number of poses (~1/sqrt(n)) and rises with the noise (~linearly)."""
     c, rig = small_campaign(), clean_rig()
-    pts = [run_point(c, s, n, p, validation_cycles=2, rig_options=rig)
-           for s in range(6) for n in (0.1, 2.0) for p in (10, 200)]
+    pts = [
+        run_point(c, s, n, p, validation_cycles=2, rig_options=rig)
+        for s in range(6)
+        for n in (0.1, 2.0)
+        for p in (10, 200)
+    ]
     agg = aggregate(pts)
     for key in PARAMS:
-        med = {(n, p): cell(agg, n, p)["parameters"][key]["abs_error"]["median"] for n in (0.1, 2.0) for p in (10, 200)}
+        med = {
+            (n, p): cell(agg, n, p)["parameters"][key]["abs_error"]["median"]
+            for n in (0.1, 2.0)
+            for p in (10, 200)
+        }
         for n in (0.1, 2.0):
             assert med[(n, 200)] < med[(n, 10)], (key, n, med)
         for p in (10, 200):
@@ -102,7 +120,9 @@ def test_points_carry_the_cramer_rao_bound_and_the_estimator_reaches_it():
     c = aggregate(pts)["cells"][0]
     for key in PARAMS:
         p = c["parameters"][key]
-        assert p["crlb_rms"] == pytest.approx(np.sqrt(np.mean([pt["parameters"][key]["crlb"] ** 2 for pt in pts])))
+        assert p["crlb_rms"] == pytest.approx(
+            np.sqrt(np.mean([pt["parameters"][key]["crlb"] ** 2 for pt in pts]))
+        )
         assert p["sigma_ratio_crlb"] == pytest.approx(p["spread"] / p["crlb_rms"])
         assert 0.7 < p["sigma_ratio_crlb"] < 1.3, (key, p["sigma_ratio_crlb"])
 
@@ -112,12 +132,35 @@ def test_points_carry_the_cramer_rao_bound_and_the_estimator_reaches_it():
 
 def _point(seed, noise, poses, errors, std=1.0, accuracy=10.0, failed=None):
     return {
-        "campaign": "c", "model": "II", "seed": seed, "noise_um": noise, "poses": poses, "failed": failed,
-        "accuracy_um": None if failed else accuracy, "repeatability_um": None if failed else 1.0,
-        "diagnostics": {"O1": 0.1, "O2": 0.01 * poses, "O3": 1.0, "O4": 0.001 * poses, "residual_rms_um": 0.5,
-                        "n_poses": poses + 1},
-        "parameters": {k: {"units": "um", "free": True, "estimate": 1.0 + errors, "std": std, "truth": 1.0,
-                           "error": errors, "abs_error": abs(errors), "z": errors / std} for k in PARAMS},
+        "campaign": "c",
+        "model": "II",
+        "seed": seed,
+        "noise_um": noise,
+        "poses": poses,
+        "failed": failed,
+        "accuracy_um": None if failed else accuracy,
+        "repeatability_um": None if failed else 1.0,
+        "diagnostics": {
+            "O1": 0.1,
+            "O2": 0.01 * poses,
+            "O3": 1.0,
+            "O4": 0.001 * poses,
+            "residual_rms_um": 0.5,
+            "n_poses": poses + 1,
+        },
+        "parameters": {
+            k: {
+                "units": "um",
+                "free": True,
+                "estimate": 1.0 + errors,
+                "std": std,
+                "truth": 1.0,
+                "error": errors,
+                "abs_error": abs(errors),
+                "z": errors / std,
+            }
+            for k in PARAMS
+        },
     }
 
 
@@ -180,18 +223,25 @@ def test_load_study_defaults_and_errors(tmp_path):
     s = load_study(_study_files(tmp_path, STUDY), tmp_path / "campaigns")
     assert (s["name"], s["model"], s["seeds_per_job"], s["rig_options"]) == ("mini", "II", 1, {})
     assert s["base"]["name"] == "small"
-    for body, message in (({**STUDY, "model": "III"}, "position table"),
-                          ({**STUDY, "model": "IV"}, "identified model"),
-                          ({**STUDY, "noise_um": []}, "noise_um"),
-                          ({**STUDY, "poses": [2]}, "poses"),
-                          ({**STUDY, "rig_options": {"sensor_noise_um": 1}}, "rig_options.sensor_noise_um"),
-                          ({**STUDY, "colour": "red"}, "colour")):
+    for body, message in (
+        ({**STUDY, "model": "III"}, "position table"),
+        ({**STUDY, "model": "IV"}, "identified model"),
+        ({**STUDY, "noise_um": []}, "noise_um"),
+        ({**STUDY, "poses": [2]}, "poses"),
+        ({**STUDY, "rig_options": {"sensor_noise_um": 1}}, "rig_options.sensor_noise_um"),
+        ({**STUDY, "colour": "red"}, "colour"),
+    ):
         with pytest.raises(ConfigError, match=message):
             load_study(_study_files(tmp_path, body), tmp_path / "campaigns")
     with pytest.raises(ConfigError, match="simulated"):
-        load_study(_study_files(tmp_path, STUDY, {**SMALL_XYTHETA, "rig": {"factory": "replay",
-                                                                           "options": {"recordings": "runs"}}}),
-                   tmp_path / "campaigns")
+        load_study(
+            _study_files(
+                tmp_path,
+                STUDY,
+                {**SMALL_XYTHETA, "rig": {"factory": "replay", "options": {"recordings": "runs"}}},
+            ),
+            tmp_path / "campaigns",
+        )
 
 
 def test_default_study_is_valid():
@@ -207,7 +257,7 @@ def test_default_study_smallest_pose_count_identifies_at_every_noise_level():
     with the campaign's robust screening at every noise level: `make run` runs these points."""
     from pathlib import Path
 
-    from calflow.xytheta.montecarlo import run_point
+    from calflow.xytheta.studies.montecarlo import run_point
 
     root = Path(__file__).resolve().parents[1]
     s = load_study(root / "config/studies/montecarlo-xytheta.yaml", root / "config/campaigns")
@@ -238,7 +288,9 @@ def test_commands_batch_of_seeds_and_errors(tmp_path):
     p = parser()
 
     def call(*argv):
-        args = p.parse_args([argv[0], "--study", str(study), "--campaign-dir", str(tmp_path / "campaigns"), *argv[1:]])
+        args = p.parse_args(
+            [argv[0], "--study", str(study), "--campaign-dir", str(tmp_path / "campaigns"), *argv[1:]]
+        )
         args.func(args)
 
     call("mc-point", "--seed", "0-1", "--noise", "0.1", "--poses", "5", "--out", str(tmp_path / "a.json"))
@@ -246,13 +298,25 @@ def test_commands_batch_of_seeds_and_errors(tmp_path):
     assert [pt["seed"] for pt in points] == [0, 1] and points[1]["noise_um"] == 0.1
     with pytest.raises(CalflowError, match="missing"):
         call("mc-aggregate", "--points", str(tmp_path / "a.json"), "--out", str(tmp_path / "agg.json"))
-    call("mc-aggregate", "--points", str(tmp_path / "a.json"), "--partial", "--out", str(tmp_path / "agg.json"))
+    call(
+        "mc-aggregate", "--points", str(tmp_path / "a.json"), "--partial", "--out", str(tmp_path / "agg.json")
+    )
     assert json.loads((tmp_path / "agg.json").read_text())["missing"] == 2
     with pytest.raises(CalflowError, match="twice"):
-        call("mc-aggregate", "--points", str(tmp_path / "a.json"), str(tmp_path / "a.json"), "--partial",
-             "--out", str(tmp_path / "agg.json"))
-    for argv, message in ((("--seed", "2"), "expected seeds 0 .. 1"), (("--noise", "0.3"), "noise_um"),
-                          (("--poses", "6"), "poses")):
+        call(
+            "mc-aggregate",
+            "--points",
+            str(tmp_path / "a.json"),
+            str(tmp_path / "a.json"),
+            "--partial",
+            "--out",
+            str(tmp_path / "agg.json"),
+        )
+    for argv, message in (
+        (("--seed", "2"), "expected seeds 0 .. 1"),
+        (("--noise", "0.3"), "noise_um"),
+        (("--poses", "6"), "poses"),
+    ):
         base = {"--seed": "0", "--noise": "0.1", "--poses": "5", **dict([argv])}
         with pytest.raises(CalflowError, match=message):
             call("mc-point", *[x for kv in base.items() for x in kv], "--out", str(tmp_path / "b.json"))
@@ -272,10 +336,14 @@ def test_study_through_snakemake(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     agg = json.loads((work / "results/studies/mini/aggregate.json").read_text())
     assert agg["n_points"] == 8 and agg["missing"] == 0
-    assert {(c["noise_um"], c["poses"]) for c in agg["cells"]} == {(n, p) for n in (0.1, 1.0) for p in (5, 30)}
+    assert {(c["noise_um"], c["poses"]) for c in agg["cells"]} == {
+        (n, p) for n in (0.1, 1.0) for p in (5, 30)
+    }
     assert all(c["n"] == 2 and c["failed"] == 0 and c["accuracy_um"]["median"] > 0 for c in agg["cells"])
-    assert sorted(p.name for p in (work / "results/studies/mini/points").iterdir())[:2] == ["0_0.1_30.json",
-                                                                                           "0_0.1_5.json"]
+    assert sorted(p.name for p in (work / "results/studies/mini/points").iterdir())[:2] == [
+        "0_0.1_30.json",
+        "0_0.1_5.json",
+    ]
     assert (work / "results/studies/mini/benchmarks/point_1_1_30.tsv").exists()
     assert (work / "results/studies/mini/logs/aggregate.log").exists()
     html = (work / target).read_text()
@@ -287,5 +355,7 @@ def test_study_through_snakemake(tmp_path):
     proc = snakemake(work, "--config", "studies=[mini]", "-n", "--quiet", "rules", "--", target)
     assert proc.returncode == 0, proc.stderr[-2000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)\s*$", proc.stdout + proc.stderr, re.M))
-    assert counts.get("mc_point") == "4" and counts.get("mc_aggregate") == "1" and counts.get("mc_report") == "1"
+    assert (
+        counts.get("mc_point") == "4" and counts.get("mc_aggregate") == "1" and counts.get("mc_report") == "1"
+    )
     assert math.isclose(agg["cells"][0]["noise_um"], 0.1)

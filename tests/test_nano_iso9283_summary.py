@@ -7,19 +7,21 @@ import math
 
 import numpy as np
 import pytest
+from test_evaluation_nano import DT_S, run_1d
 
 from calflow.nano.evaluation import pose_metrics_1d
-from calflow.nano.iso9283_summary import iso9283_block
-from calflow.nano.summary import stage1d_summary
-from test_evaluation_nano import DT_S, run_1d
+from calflow.nano.report.iso9283 import iso9283_block
+from calflow.nano.report.summary import stage1d_summary
 
 POSITIONS = np.array([0.0, 10.0, 20.0, 10.0])  # 0, 10, 20 forward, then 10 backward
 DIRS = np.array([1, 1, 1, -1])
 # deviations (µm), tests x cycles x poses; both tests of mode 0
-DEV = np.array([
-    [[0.0, 0.1, 0.05, -0.1], [0.0, 0.3, 0.05, -0.1]],
-    [[0.2, 0.2, 0.2, 0.2], [0.2, 0.2, 0.2, 0.2]],
-])
+DEV = np.array(
+    [
+        [[0.0, 0.1, 0.05, -0.1], [0.0, 0.3, 0.05, -0.1]],
+        [[0.2, 0.2, 0.2, 0.2], [0.2, 0.2, 0.2, 0.2]],
+    ]
+)
 KEYS = {"vAP", "AD", "RD", "dAP", "dRP", "stabilisation_time_s", "overshoot"}
 
 
@@ -33,7 +35,11 @@ def test_block_by_hand(block):
     b = block["modes"]["no_calibration"]
     assert set(b) == KEYS and list(block["modes"]) == ["no_calibration"] and block["axes"] == ["x"]
     # vAP at 10 µm, test 0: forward mean 0.2, backward mean -0.1 -> 0.3 µm; test 1: 0
-    assert b["vAP"]["value"] == pytest.approx(300.0) and b["vAP"]["target_um"] == [10.0] and b["vAP"]["test"] == 0
+    assert (
+        b["vAP"]["value"] == pytest.approx(300.0)
+        and b["vAP"]["target_um"] == [10.0]
+        and b["vAP"]["test"] == 0
+    )
     # AD, test 0: (0, 10) D = 10.1, 10.3 -> +0.2; (1, 2) D = 9.95, 9.75 -> -0.15; (2, 3) +0.15;
     # (0, 2) +0.05; (0, 3) -0.1; test 1 all 0 -> AD = +0.2 µm between 0 and 10 µm
     assert b["AD"]["value"] == pytest.approx(200.0)

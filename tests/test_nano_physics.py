@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.nano import interferometer as ifm
-from calflow.nano.piezo import PlayHysteresis, residual_creep_um, sensor_nonlinearity_um
-from calflow.nano.rig import nano1d, nano2d
-from calflow.nano.rig_options import EFFECTS, NOISE, UNMODELLED, without
-from calflow.nano.thermal_network import ThermalNetwork, network_bank, network_matrices
+from calflow.nano.stage import interferometer as ifm
+from calflow.nano.stage.options import EFFECTS, NOISE, UNMODELLED, without
+from calflow.nano.stage.piezo import PlayHysteresis, residual_creep_um, sensor_nonlinearity_um
+from calflow.nano.stage.rig import nano1d, nano2d
+from calflow.nano.stage.thermal_network import ThermalNetwork, network_bank, network_matrices
 from calflow.rigs.thermal import room_profile
 
 X = np.linspace(0.0, 480.0, 25)
@@ -22,11 +22,14 @@ DETERMINISTIC = [e for e in EFFECTS if e not in NOISE]
 
 def _terms(rig, direction=1):
     """Every deterministic term on a grid of positions x times, after a long approach."""
-    cmds, z = rig._long_approach({j: np.meshgrid(X, T)[0] if j == "x" else np.meshgrid(X, T)[0][::-1] * 80 / 480
-                                  for j in rig.joints}, direction)
+    cmds, z = rig._long_approach(
+        {j: np.meshgrid(X, T)[0] if j == "x" else np.meshgrid(X, T)[0][::-1] * 80 / 480 for j in rig.joints},
+        direction,
+    )
     t = np.meshgrid(X, T)[1]
-    return rig.effect_terms(cmds, t, z, steps=tuple(np.full(t.shape, 80.0) for _ in rig.joints),
-                            since_s=np.full(t.shape, 26.5))
+    return rig.effect_terms(
+        cmds, t, z, steps=tuple(np.full(t.shape, 80.0) for _ in rig.joints), since_s=np.full(t.shape, 26.5)
+    )
 
 
 def _size(terms, name):
@@ -39,8 +42,12 @@ def _size(terms, name):
 def test_each_effect_is_present_and_switching_it_off_removes_it(factory, effect):
     on = _terms(factory(profile="lab5day"))
     assert _size(on, effect) > 1e-5, effect  # > 0.01 nm somewhere on the grid
-    off = _terms(factory(profile="lab5day", **{k: v for k, v in without(factory().options, effect).items()
-                                                if k in EFFECTS[effect]}))
+    off = _terms(
+        factory(
+            profile="lab5day",
+            **{k: v for k, v in without(factory().options, effect).items() if k in EFFECTS[effect]},
+        )
+    )
     assert _size(off, effect) == 0.0
     others = [e for e in DETERMINISTIC if e != effect and e not in ("deadpath", "compensation")]
     for name in others:  # the other effects do not change (refraction terms share the air)
@@ -63,8 +70,9 @@ def test_unmodelled_false_switches_off_exactly_the_unmodelled_effects():
             assert _size(off, name) == pytest.approx(_size(on, name), rel=1e-12), name
 
 
-@pytest.mark.parametrize("effect,key", [("interferometer_noise", "interferometer_noise_nm"),
-                                        ("repeatability", "repeatability_nm")])
+@pytest.mark.parametrize(
+    "effect,key", [("interferometer_noise", "interferometer_noise_nm"), ("repeatability", "repeatability_nm")]
+)
 def test_noise_effects_switch_off(effect, key):
     def spread(**o):
         rig = nano1d(profile="constant", **o)
@@ -97,8 +105,16 @@ def test_network_discretisation_agrees_with_solve_ivp():
     room = room_profile("lab5day", base_c=20.5, seed=1)
     bank = network_bank(net, room)
     t0, t1 = 10 * 3600.0, 30 * 3600.0
-    sol = solve_ivp(lambda t, x: A @ x + b * room(t), (t0, t1), bank.at(t0), method="Radau", jac=lambda t, x: A,
-                    rtol=1e-9, atol=1e-9, t_eval=[t1])
+    sol = solve_ivp(
+        lambda t, x: A @ x + b * room(t),
+        (t0, t1),
+        bank.at(t0),
+        method="Radau",
+        jac=lambda t, x: A,
+        rtol=1e-9,
+        atol=1e-9,
+        t_eval=[t1],
+    )
     np.testing.assert_allclose(bank.at(t1), sol.y[:, -1], atol=2e-5)
 
 
@@ -172,10 +188,17 @@ def test_effect_samples_replay_the_rig_exactly():
     """The budget's replay of a run (same commands, times, move history) gives the rig's readings."""
     import xarray as xr
 
-    from calflow.nano.error_budget import effect_samples
+    from calflow.nano.stage.error_budget import effect_samples
 
-    quiet = dict(interferometer_noise_nm=0.0, repeatability_nm=0.0, settle_fraction=0.0, wavelength_stability_ppm=0.0,
-                 thermocouple_noise_mk=0.0, profile="lab5day", start_offset_s=3600.0)
+    quiet = dict(
+        interferometer_noise_nm=0.0,
+        repeatability_nm=0.0,
+        settle_fraction=0.0,
+        wavelength_stability_ppm=0.0,
+        thermocouple_noise_mk=0.0,
+        profile="lab5day",
+        start_offset_s=3600.0,
+    )
     rig = nano1d(**quiet)
     cmds = [0.0, 80.0, 160.0, 40.0, 200.0, 190.0, 480.0, 0.0, 240.0]
     times, meas = [], []
@@ -186,14 +209,16 @@ def test_effect_samples_replay_the_rig_exactly():
         times.append(r["time"] + 3600.0)
         meas.append(r["meas_x"])
     run = xr.Dataset({"cmd_x": ("sample", cmds), "time": ("sample", times)})
-    terms = effect_samples(nano1d(**{**quiet, "start_offset_s": 0.0}), run, since_s=23.0)["samples"]  # campaign time
+    terms = effect_samples(nano1d(**{**quiet, "start_offset_s": 0.0}), run, since_s=23.0)[
+        "samples"
+    ]  # campaign time
     rebuilt = np.array(cmds) + sum(v[:, 0] for v in terms.values())
     np.testing.assert_allclose(rebuilt, meas, atol=0.3e-3)
     assert np.ptp(terms["hysteresis"][:, 0]) > 5e-3 and np.ptp(terms["creep"][:, 0]) > 0
 
 
 def test_budget_combination_adds_in_quadrature_when_uncorrelated():
-    from calflow.nano.error_budget import _combine
+    from calflow.nano.stage.error_budget import _combine
 
     rng = np.random.default_rng(1)
     a, b = rng.standard_normal((4000, 1)) * 0.02, rng.standard_normal((4000, 1)) * 0.01
@@ -207,13 +232,22 @@ def test_budget_combination_adds_in_quadrature_when_uncorrelated():
 
 
 def test_ordering_paragraph_follows_the_numbers_not_the_thesis():
-    from calflow.nano.ordering import ordering_block
+    from calflow.nano.report.ordering import ordering_block
 
-    ref = {"tests": {"no_calibration": {"max_accuracy_nm": 1000.0}, "single": {"max_accuracy_nm": 400.0},
-                     "adaptive_kmz": {"max_accuracy_nm": 200.0}}}
+    ref = {
+        "tests": {
+            "no_calibration": {"max_accuracy_nm": 1000.0},
+            "single": {"max_accuracy_nm": 400.0},
+            "adaptive_kmz": {"max_accuracy_nm": 200.0},
+        }
+    }
+
     def tests(single, kmz):
-        return {"no_calibration": {"max_accuracy_nm": 1500.0}, "single": {"max_accuracy_nm": single},
-                "adaptive_kmz": {"max_accuracy_nm": kmz}}
+        return {
+            "no_calibration": {"max_accuracy_nm": 1500.0},
+            "single": {"max_accuracy_nm": single},
+            "adaptive_kmz": {"max_accuracy_nm": kmz},
+        }
 
     a = ordering_block(tests(30.0, 80.0), {}, ref)
     assert a["order"] == ["single", "adaptive_kmz", "no_calibration"] and a["agrees"] is False

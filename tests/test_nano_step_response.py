@@ -13,14 +13,21 @@ from hypothesis import strategies as st
 from calflow.acquisition.recorded_moves import acquire_recorded_moves
 from calflow.data.runs import RunMetadata
 from calflow.errors import OptionError, RigError
-from calflow.nano import plans
-from calflow.nano.piezo import closed_loop_step
-from calflow.nano.rig import nano1d, nano2d
-from calflow.nano.rig_options import without
-from calflow.nano.stabilisation_summary import stabilisation_entries
+from calflow.nano.plans import sequences as plans
+from calflow.nano.report.stabilisation import stabilisation_entries
+from calflow.nano.stage.options import without
+from calflow.nano.stage.piezo import closed_loop_step
+from calflow.nano.stage.rig import nano1d, nano2d
 
-QUIET = dict(interferometer_noise_nm=0.0, repeatability_nm=0.0, wavelength_stability_ppm=0.0, settle_fraction=0.0,
-             creep_pct_per_decade=0.0, interferometer_resolution_nm=1e-6, profile="constant")
+QUIET = dict(
+    interferometer_noise_nm=0.0,
+    repeatability_nm=0.0,
+    wavelength_stability_ppm=0.0,
+    settle_fraction=0.0,
+    creep_pct_per_decade=0.0,
+    interferometer_resolution_nm=1e-6,
+    profile="constant",
+)
 META = RunMetadata(campaign="t", robot="stage1d", source="simulated", plan="step_response", config_sha256="0")
 
 
@@ -40,11 +47,15 @@ def test_closed_loop_step_has_the_second_order_overshoot_and_envelope(fn, zeta):
     y = closed_loop_step(t, fn, zeta)
     assert y[0] == 0.0 and closed_loop_step(-1e-3, fn, zeta) == 0.0
     # peak overshoot exp(-pi zeta / sqrt(1 - zeta^2)) at t = pi / w_d
-    assert y.max() - 1 == pytest.approx(math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta)), rel=1e-4, abs=1e-9)
+    assert y.max() - 1 == pytest.approx(
+        math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta)), rel=1e-4, abs=1e-9
+    )
     assert t[np.argmax(y)] == pytest.approx(math.pi / wd, abs=2 * (t[1] - t[0]))
     # never outside the envelope exp(-zeta w t) / sqrt(1 - zeta^2)
     assert np.all(np.abs(y - 1) <= np.exp(-zeta * w * t) / math.sqrt(1 - zeta * zeta) + 1e-12)
-    assert closed_loop_step(float(t[-1]), fn, zeta) == pytest.approx(float(y[-1]), abs=1e-12)  # scalar path agrees
+    assert closed_loop_step(float(t[-1]), fn, zeta) == pytest.approx(
+        float(y[-1]), abs=1e-12
+    )  # scalar path agrees
 
 
 def test_rig_records_the_configured_step_response_from_the_start_of_the_move():
@@ -101,7 +112,9 @@ def test_recorded_run_and_its_iso9283_entries():
     assert 0 < stab["value"] < 0.05 and stab["band_nm"] > 0
     # the worst overshoot is the largest step's: ~4.6 % of 40 um for zeta = 0.7
     zeta = 0.7
-    assert over["value"] == pytest.approx(40e3 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta)), rel=0.05)
+    assert over["value"] == pytest.approx(
+        40e3 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta)), rel=0.05
+    )
     small = [e for e in stab["per_step"] if abs(e["step_um"]) == 1.0]
     big = [e for e in stab["per_step"] if abs(e["step_um"]) == 40.0]
     assert max(e["stabilisation_time_s"] for e in small) < min(e["stabilisation_time_s"] for e in big)
@@ -139,18 +152,23 @@ def _synthetic_run(band_nm=None):
     out = np.array([0.0, 0.5, 1.5, 1.1, 1.05, 1.01, 1.0, 1.0, 1.0, 1.0])
     rec = np.stack([out, 1.0 - out, out, 1.0 - out])
     meas = np.array([1.0, 0.0, 1.0, 0.0])
-    data = {"record_time": (("sample", "record"), np.tile(t, (4, 1))), "record_meas_x": (("sample", "record"), rec),
-            "meas_x": ("sample", meas), "cmd_x": ("sample", meas), "step_x": ("sample", [1.0, -1.0, 1.0, -1.0]),
-            "pose": ("sample", [0, 1, 0, 1])}
+    data = {
+        "record_time": (("sample", "record"), np.tile(t, (4, 1))),
+        "record_meas_x": (("sample", "record"), rec),
+        "meas_x": ("sample", meas),
+        "cmd_x": ("sample", meas),
+        "step_x": ("sample", [1.0, -1.0, 1.0, -1.0]),
+        "pose": ("sample", [0, 1, 0, 1]),
+    }
     attrs = {"record_s": 0.01, "record_rate_hz": 1000.0, **({"band_nm": band_nm} if band_nm else {})}
     return xr.Dataset(data, attrs=attrs)
 
 
 def test_summary_block_from_a_small_synthetic_run():
-    from test_nano_iso9283_summary import DEV, DIRS, POSITIONS
     from test_evaluation_nano import run_1d
+    from test_nano_iso9283_summary import DEV, DIRS, POSITIONS
 
-    from calflow.nano.iso9283_summary import iso9283_block
+    from calflow.nano.report.iso9283 import iso9283_block
 
     step = _synthetic_run(band_nm=20.0)
     validation = run_1d(DEV, modes=[0, 0], positions=POSITIONS, dirs=DIRS)

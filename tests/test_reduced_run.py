@@ -7,7 +7,6 @@ import shutil
 
 import numpy as np
 import pytest
-
 from conftest import REDUCED_XYTHETA, ROOT, SOURCE_DATE_EPOCH, make_workdir, snakemake
 
 
@@ -15,11 +14,18 @@ def test_cluster_generic_run_gives_the_local_summary(reduced_run, tmp_path):
     """Each job its own process through a submit script: the same summary.json, byte for byte."""
     cluster = make_workdir(tmp_path, {"c": REDUCED_XYTHETA})
     shutil.copytree(ROOT / "workflow" / "profiles", cluster / "workflow" / "profiles", dirs_exist_ok=True)
-    b = snakemake(cluster, "results/c/summary.json", "--workflow-profile", "workflow/profiles/local-cluster",
-                  env_extra=SOURCE_DATE_EPOCH)
+    b = snakemake(
+        cluster,
+        "results/c/summary.json",
+        "--workflow-profile",
+        "workflow/profiles/local-cluster",
+        env_extra=SOURCE_DATE_EPOCH,
+    )
     assert b.returncode == 0, b.stderr[-3000:]
     assert "cluster-generic" in b.stdout + b.stderr or (cluster / ".snakemake/local-cluster").exists()
-    assert (reduced_run / "results/c/summary.json").read_bytes() == (cluster / "results/c/summary.json").read_bytes()
+    assert (reduced_run / "results/c/summary.json").read_bytes() == (
+        cluster / "results/c/summary.json"
+    ).read_bytes()
 
 
 def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
@@ -27,7 +33,6 @@ def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
     import shutil
 
     import yaml
-
     from conftest import REDUCED_XYTHETA
 
     recorded = reduced_run / "results/c/runs"
@@ -61,7 +66,7 @@ def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
 def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tmp_path):
     """The session's reduced XYΘ campaign on the simulated rig, and the same campaign through
     the GCS emulator of that rig."""
-    from calflow.xytheta.emulate import emulated_rig_options
+    from calflow.xytheta.stage.emulate import emulated_rig_options
 
     sim = json.loads(json.dumps(REDUCED_XYTHETA))
     emu, options = emulated_rig_options(sim, time_scale=2000.0, timeout=2.0)
@@ -87,7 +92,7 @@ def test_error_budget_replay_reproduces_the_campaign(reduced_run):
     same held-out AP at every target, to the bit (same seeds, streams and command functions)."""
     import xarray as xr
 
-    from calflow.xytheta.error_budget import replay
+    from calflow.xytheta.stage.error_budget import replay
 
     r = replay(reduced_run / "config/campaigns/c.yaml", "none")
     for name, ap in r["ap_um"].items():

@@ -14,18 +14,17 @@ import threading
 
 import numpy as np
 import pytest
+from conftest import ROOT, SMALL_NANO1D
 
 from calflow.acquisition.checkpoint import Journal, plan_digest
 from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
 from calflow.gcs.rig import gcs
-from calflow.nano import plans
-from calflow.nano.emulate import emulated_rig_options
-from conftest import ROOT, SMALL_NANO1D
+from calflow.nano.plans import sequences as plans
+from calflow.nano.stage.emulate import emulated_rig_options
 
-META = RunMetadata(campaign="faults", robot="stage1d", source="gcs", plan="training",
-                   config_sha256="0" * 64)
+META = RunMetadata(campaign="faults", robot="stage1d", source="gcs", plan="training", config_sha256="0" * 64)
 PLAN = plans.training_1d(np.arange(0.0, 481.0, 80.0), 2, 4.0, 2.0, 0.0)  # 28 samples
 
 
@@ -69,6 +68,7 @@ def _run(tmp_path, inject, *, options=None, sensor=None):
         def progress(done, total):
             if done == 10:
                 inject(emu, rig)
+
         try:
             return acquire(PLAN, rig, META, journal, progress), journal
         except RigError as exc:
@@ -96,8 +96,7 @@ SURVIVED = {
     "all connections dropped": lambda emu, rig: emu.drop_connections(),
     "delay past the timeout": lambda emu, rig: _slow_for(emu, 0.3, 0.5),
     "garbled reply": lambda emu, rig: setattr(emu.faults, "garbage", 1),
-    "refused reconnection": lambda emu, rig: (setattr(emu.faults, "refuse", 2),
-                                              emu.drop_connections()),
+    "refused reconnection": lambda emu, rig: (setattr(emu.faults, "refuse", 2), emu.drop_connections()),
 }
 
 
@@ -110,8 +109,7 @@ def test_link_faults_mid_campaign_are_survived(tmp_path, fault):
 
 
 def test_sensor_dropout_is_recorded_as_missing_and_the_run_survives(tmp_path):
-    ds, _ = _run(tmp_path, lambda emu, rig: None,
-                 sensor=lambda s: Dropout(s, nan_at=(12, 13)))
+    ds, _ = _run(tmp_path, lambda emu, rig: None, sensor=lambda s: Dropout(s, nan_at=(12, 13)))
     _intact(ds)
     bad = ~np.isfinite(ds["meas_x"].values)
     assert list(np.flatnonzero(bad)) == [12, 13]
@@ -119,12 +117,16 @@ def test_sensor_dropout_is_recorded_as_missing_and_the_run_survives(tmp_path):
 
 FAILED = {
     "garbled replies that persist": (
-        lambda emu, rig: setattr(emu.faults, "garbage", 10**6), None, "garbage in reply"),
-    "controller error code": (
-        lambda emu, rig: setattr(emu.faults, "error", 1), None, "GCS error 5"),
+        lambda emu, rig: setattr(emu.faults, "garbage", 10**6),
+        None,
+        "garbage in reply",
+    ),
+    "controller error code": (lambda emu, rig: setattr(emu.faults, "error", 1), None, "GCS error 5"),
     "controller gone": (
-        lambda emu, rig: (setattr(emu.faults, "refuse", 10**6), emu.drop_connections()), None,
-        "reconnecting failed"),
+        lambda emu, rig: (setattr(emu.faults, "refuse", 10**6), emu.drop_connections()),
+        None,
+        "reconnecting failed",
+    ),
     "sensor failure": (lambda emu, rig: None, lambda s: Dropout(s, fail_at=12), "laser signal lost"),
 }
 
@@ -139,12 +141,13 @@ def test_fatal_faults_fail_with_a_resume_message_and_keep_every_sample(tmp_path,
     assert "run the same command again to continue" in message
     kept = journal.load()
     assert len(kept) >= 10  # every sample acquired before the fault
-    assert [r["cmd_x"] for r in kept] == list(PLAN.commands["x"][:len(kept)])
+    assert [r["cmd_x"] for r in kept] == list(PLAN.commands["x"][: len(kept)])
 
 
 def _sigkill_module():
     spec = importlib.util.spec_from_file_location(
-        "reliability_sigkill", ROOT / "benchmarks" / "reliability_sigkill.py")
+        "reliability_sigkill", ROOT / "benchmarks" / "reliability_sigkill.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -154,8 +157,9 @@ def test_a_chain_of_sigkills_resumes_to_the_uninterrupted_dataset(tmp_path):
     """Small version of the benchmark: 3 kills of one acquisition on the (slowed) simulated
     rig, each resumed (a kill through the GCS emulator: tests/test_rigs_gcs.py)."""
     bench = _sigkill_module()
-    result = bench.kill_chain("simulated", tmp_path, kills=3, rng=np.random.default_rng(5),
-                              poses=300, max_delay_s=0.1)
+    result = bench.kill_chain(
+        "simulated", tmp_path, kills=3, rng=np.random.default_rng(5), poses=300, max_delay_s=0.1
+    )
     assert result["kills"] == 3
     assert result["lost"] == 0 and result["duplicated"] == 0
     assert result["journal_never_shrank"] and result["equal_to_uninterrupted"]
@@ -164,17 +168,26 @@ def test_a_chain_of_sigkills_resumes_to_the_uninterrupted_dataset(tmp_path):
 # --------------------------------------------------------------------------- fuzzing the readers
 # Property: whatever the bytes, a reader gives a result or one calflow error line — never a
 # traceback — and a refused input leaves no output and no partial file.
-from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+from conftest import SMALL_XYTHETA  # noqa: E402
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st
 
 from calflow.cli import main  # noqa: E402
-from conftest import SMALL_XYTHETA  # noqa: E402
 
-FUZZ = settings(max_examples=25, deadline=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
-                   st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12),
-                   st.lists(st.floats(allow_nan=True), max_size=4),
-                   st.dictionaries(st.text(max_size=6), st.integers(), max_size=2))
+FUZZ = settings(
+    max_examples=25,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=12),
+    st.lists(st.floats(allow_nan=True), max_size=4),
+    st.dictionaries(st.text(max_size=6), st.integers(), max_size=2),
+)
 
 
 def _paths(node, prefix=()):
@@ -237,16 +250,19 @@ def test_fuzzed_yaml_text_loads_or_gives_one_line(tmp_path_factory, text):
 
 
 CSV_HEADER = "t_s,X,Y,T,xv,yv,tv"
-CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr),
-                  st.text(alphabet=st.sampled_from(list("0123456789.-eE naN,;\"")), max_size=6))
+CELLS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.text(alphabet=st.sampled_from(list('0123456789.-eE naN,;"')), max_size=6),
+)
 
 
 @FUZZ
-@given(rows=st.lists(st.lists(CELLS, min_size=5, max_size=8), max_size=5),
-       header=st.sampled_from([CSV_HEADER, CSV_HEADER.replace("yv", "yy"), "", CSV_HEADER + ",t_s"]))
+@given(
+    rows=st.lists(st.lists(CELLS, min_size=5, max_size=8), max_size=5),
+    header=st.sampled_from([CSV_HEADER, CSV_HEADER.replace("yv", "yy"), "", CSV_HEADER + ",t_s"]),
+)
 def test_fuzzed_csv_imports_or_gives_one_line_and_no_file(tmp_path_factory, capsys, rows, header):
     import yaml
-
     from test_bad_input import CSV_MAPPING
 
     d = tmp_path_factory.mktemp("csv")
@@ -254,8 +270,19 @@ def test_fuzzed_csv_imports_or_gives_one_line_and_no_file(tmp_path_factory, caps
     (d / "mapping.yaml").write_text(yaml.safe_dump(CSV_MAPPING))
     (d / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
     out = d / "runs" / "run.nc"
-    status, err = _cli(["import-csv", d / "bench.csv", "--mapping", d / "mapping.yaml",
-                        "--campaign", d / "c.yaml", "--out", out], capsys)
+    status, err = _cli(
+        [
+            "import-csv",
+            d / "bench.csv",
+            "--mapping",
+            d / "mapping.yaml",
+            "--campaign",
+            d / "c.yaml",
+            "--out",
+            out,
+        ],
+        capsys,
+    )
     if status == 0:
         assert out.exists()
     else:
@@ -268,11 +295,12 @@ def test_fuzzed_csv_imports_or_gives_one_line_and_no_file(tmp_path_factory, caps
 @pytest.fixture(scope="module")
 def good_run(tmp_path_factory):
     from calflow.data.io import write_dataset
-    from calflow.xytheta import plans as xy_plans
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.plans import poses as xy_plans
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
-    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification",
-                       config_sha256="0" * 64)
+    meta = RunMetadata(
+        campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64
+    )
     ds = acquire(xy_plans.identification(6, seed=3), simulated_xytheta(seed=1, stream="id"), meta)
     return write_dataset(ds, tmp_path_factory.mktemp("nc") / "identification.nc").read_bytes()
 
@@ -282,8 +310,9 @@ def good_run(tmp_path_factory):
 def test_fuzzed_netcdf_validates_or_gives_one_line(tmp_path_factory, capsys, good_run, data):
     raw = bytearray(good_run)
     cut = data.draw(st.integers(0, len(raw)), label="truncate at")
-    flips = data.draw(st.lists(st.tuples(st.integers(0, len(raw) - 1), st.integers(0, 255)),
-                               max_size=8), label="byte flips")
+    flips = data.draw(
+        st.lists(st.tuples(st.integers(0, len(raw) - 1), st.integers(0, 255)), max_size=8), label="byte flips"
+    )
     for i, b in flips:
         raw[i] = b
     f = tmp_path_factory.mktemp("nc") / "identification.nc"
@@ -294,8 +323,10 @@ def test_fuzzed_netcdf_validates_or_gives_one_line(tmp_path_factory, capsys, goo
 
 
 # --------------------------------------------------------------------------- user text, names
-EVIL_TEXT = ("<img src=x onerror=alert(1)> </td></table><script>x()</script> "
-             r"$\input{/etc/passwd}$ \def\x{1} {{ 7*7 }} & \\")
+EVIL_TEXT = (
+    "<img src=x onerror=alert(1)> </td></table><script>x()</script> "
+    r"$\input{/etc/passwd}$ \def\x{1} {{ 7*7 }} & \\"
+)
 
 
 def test_user_text_with_html_or_latex_reaches_the_index_escaped():
@@ -305,8 +336,15 @@ def test_user_text_with_html_or_latex_reaches_the_index_escaped():
 
     from calflow.report import render_index
 
-    summary = {"campaign": "c1", "robot": "stage1d", "description": EVIL_TEXT, "rig": "gcs",
-               "seed": 1, "reference": {}, "tests": {}}
+    summary = {
+        "campaign": "c1",
+        "robot": "stage1d",
+        "description": EVIL_TEXT,
+        "rig": "gcs",
+        "seed": 1,
+        "reference": {},
+        "tests": {},
+    }
     html = render_index([summary])
     assert "<script>x()" not in html and "<img src=x" not in html and "</td></table><script>" not in html
     assert str(escape(EVIL_TEXT)) in html
@@ -314,8 +352,9 @@ def test_user_text_with_html_or_latex_reaches_the_index_escaped():
     assert "mathjax" not in html.lower() and "katex" not in html.lower()
 
 
-@pytest.mark.parametrize("name", ["..", "../evil", "a/b", "/abs", "x\n", ".hidden", "", "a" * 65,
-                                  "c:evil", "evil name"])
+@pytest.mark.parametrize(
+    "name", ["..", "../evil", "a/b", "/abs", "x\n", ".hidden", "", "a" * 65, "c:evil", "evil name"]
+)
 def test_campaign_names_cannot_leave_results_or_reports(tmp_path, name):
     """A name names folders under results/ and reports/: only letters, digits, '-', '_'."""
     from calflow.config import check_campaign_name, load_workflow_config

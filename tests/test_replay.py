@@ -11,17 +11,19 @@ from calflow.data.io import open_dataset, write_dataset, write_json
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
 from calflow.errors import RigError
-from calflow.xytheta.kinematics import Parameters, inverse
-from calflow.xytheta import plans
 from calflow.rigs.protocol import Rig
 from calflow.rigs.replay import replay
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.models.kinematics import Parameters, inverse
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 SEED = 3
 
 
 def meta(source, plan, model=None):
-    return RunMetadata(campaign="rec", robot="xytheta", source=source, plan=plan, config_sha256="0" * 64, model=model)
+    return RunMetadata(
+        campaign="rec", robot="xytheta", source=source, plan=plan, config_sha256="0" * 64, model=model
+    )
 
 
 def id_plan(seed=0):
@@ -68,8 +70,10 @@ def test_replay_reproduces_identification_and_validation_runs(recorded):
     runs = recorded["runs"]
     assert np.isnan(recorded["validation_I"]["meas_x"].values).any()  # NaN positions are tested
     assert np.isfinite(recorded["validation_I"]["meas_x"].values).any()
-    for run_id, plan, m in (("identification", id_plan(), meta("replay", "identification")),
-                            ("validation_I", val_plan(), meta("replay", "validation", "I"))):
+    for run_id, plan, m in (
+        ("identification", id_plan(), meta("replay", "identification")),
+        ("validation_I", val_plan(), meta("replay", "validation", "I")),
+    ):
         rig = replay(str(runs), stream=run_id, seed=123)
         assert isinstance(rig, Rig)
         assert rig.joints == ("x", "y", "theta")
@@ -82,8 +86,10 @@ def test_replay_reproduces_identification_and_validation_runs(recorded):
         assert ds.attrs["source"] == "replay"
         # compare with the file as recorded (what analysis reads) and as acquired in memory
         assert_same_run(ds, open_dataset(runs / f"{run_id}.nc", kind="run"))
-        assert_same_run(open_dataset(write_dataset(ds, runs.parent / f"{run_id}.replayed.nc")),
-                        open_dataset(runs / f"{run_id}.nc"))
+        assert_same_run(
+            open_dataset(write_dataset(ds, runs.parent / f"{run_id}.replayed.nc")),
+            open_dataset(runs / f"{run_id}.nc"),
+        )
         for name in ("meas_x", "meas_y", "temperature", "time"):
             assert np.array_equal(ds[name].values, recorded[run_id][name].values, equal_nan=True)
 
@@ -121,8 +127,13 @@ def test_tolerance_bounds_accepted_commands(recorded):
     rig.move({**row, "x": x1 + 0.005})
     assert rig.read()["meas_x"] == float(ds["meas_x"].values[1])
     with pytest.raises(RigError, match=r"sample 2: joint 'y'"):
-        rig.move({"x": float(ds["cmd_x"].values[2]), "y": float(ds["cmd_y"].values[2]) + 1.0,
-                  "theta": float(ds["cmd_theta"].values[2])})
+        rig.move(
+            {
+                "x": float(ds["cmd_x"].values[2]),
+                "y": float(ds["cmd_y"].values[2]) + 1.0,
+                "theta": float(ds["cmd_theta"].values[2]),
+            }
+        )
 
 
 def test_past_the_end_read_before_move_and_bad_commands(recorded):
@@ -150,8 +161,11 @@ def test_past_the_end_read_before_move_and_bad_commands(recorded):
 
 
 def test_missing_recordings_are_named(recorded, tmp_path):
-    with pytest.raises(RigError, match=r"replay stream 'validation_IV': no recording; recorded run ids are "
-                                        r"\['identification', 'validation_I'\]"):
+    with pytest.raises(
+        RigError,
+        match=r"replay stream 'validation_IV': no recording; recorded run ids are "
+        r"\['identification', 'validation_I'\]",
+    ):
         replay(str(recorded["runs"]), stream="validation_IV")
     with pytest.raises(RigError, match="expected a run id"):
         replay(str(recorded["runs"]))
@@ -166,18 +180,21 @@ def test_missing_recordings_are_named(recorded, tmp_path):
 def test_replay_through_load_rig(recorded):
     from calflow.rigs import load_rig
 
-    rig, source = load_rig("calflow.rigs.replay:replay", "xytheta",
-                           {"recordings": str(recorded["runs"]), "stream": "identification", "seed": 7})
+    rig, source = load_rig(
+        "calflow.rigs.replay:replay",
+        "xytheta",
+        {"recordings": str(recorded["runs"]), "stream": "identification", "seed": 7},
+    )
     assert rig.joints == ("x", "y", "theta") and source == "plugin"  # the lead maps "replay" -> "replay"
 
 
 # ------------------------------------------------- instruments' recordings (ISO 230-2 .dat, tracker CSV)
 
 import yaml  # noqa: E402
+from conftest import ROOT, make_workdir, snakemake  # noqa: E402
 
 from calflow.cli import main  # noqa: E402
 from calflow.data import ecmc_iso230  # noqa: E402
-from conftest import ROOT, make_workdir, snakemake  # noqa: E402
 
 RECORDINGS = ROOT / "tests" / "data" / "recordings"
 ISO_ENTRY = {"file": str(RECORDINGS / "axis1_ISO230.dat"), "format": "ecmc_iso230"}
@@ -196,10 +213,17 @@ def test_acquire_replays_an_iso230_file_with_the_plan_it_recorded(tmp_path):
     assert main(["acquire", "--campaign", c, "--plan", "metrology", "--out", str(out)]) == 0
     ds = open_dataset(out, kind="run")
     assert validate_dataset(ds) == []
-    assert ds.attrs["source"] == "replay" and ds.attrs["plan"] == "metrology" and ds.attrs["campaign"] == "rec"
+    assert (
+        ds.attrs["source"] == "replay" and ds.attrs["plan"] == "metrology" and ds.attrs["campaign"] == "rec"
+    )
     assert ds.attrs["imported_from"] == "axis1_ISO230.dat"
     rows = ecmc_iso230.standard_cycle(ecmc_iso230.read(ISO_ENTRY["file"]))
-    for var, key in (("cmd_x", "target"), ("meas_x", "reading"), ("direction", "direction"), ("cycle", "cycle")):
+    for var, key in (
+        ("cmd_x", "target"),
+        ("meas_x", "reading"),
+        ("direction", "direction"),
+        ("cycle", "cycle"),
+    ):
         assert np.array_equal(ds[var].values, rows[key]), var
     assert not list(out.parent.glob("*.journal"))
 
@@ -219,8 +243,11 @@ def test_an_instrument_recording_is_refused_where_it_cannot_stand(tmp_path, caps
 
     rig = replay({"validation": ISO_ENTRY}, stream="validation")
     job = Acquisition(rig.recorded_plan, "validation", controller=object())
-    with pytest.raises(RigError, match=r"recordings\.validation: is an instrument's recording, which cannot replay "
-                                       r"a run commanded through the models"):
+    with pytest.raises(
+        RigError,
+        match=r"recordings\.validation: is an instrument's recording, which cannot replay "
+        r"a run commanded through the models",
+    ):
         _recorded(job, rig, {"robot": "stage1d"})
 
 
@@ -228,11 +255,17 @@ def test_the_config_check_names_a_bad_recording_entry(tmp_path):
     from calflow.config import load_campaign
     from calflow.errors import ConfigError
 
-    for recordings, key in (({"metrology": {"file": str(tmp_path / "gone_ISO230.dat"), "format": "ecmc_iso230"}},
-                             "rig.options.recordings.metrology.file': expected an existing file"),
-                            ({"metrology": {"file": ISO_ENTRY["file"], "format": "dat"}},
-                             "rig.options.recordings.metrology.format': expected one of"),
-                            ({"metrology": "notes.txt"}, "rig.options.recordings.metrology': expected a .nc run file")):
+    for recordings, key in (
+        (
+            {"metrology": {"file": str(tmp_path / "gone_ISO230.dat"), "format": "ecmc_iso230"}},
+            "rig.options.recordings.metrology.file': expected an existing file",
+        ),
+        (
+            {"metrology": {"file": ISO_ENTRY["file"], "format": "dat"}},
+            "rig.options.recordings.metrology.format': expected one of",
+        ),
+        ({"metrology": "notes.txt"}, "rig.options.recordings.metrology': expected a .nc run file"),
+    ):
         with pytest.raises(ConfigError) as err:
             load_campaign(campaign(tmp_path, "stage1d", recordings))
         assert key in str(err.value) and "rec.yaml" in str(err.value)
@@ -241,7 +274,9 @@ def test_the_config_check_names_a_bad_recording_entry(tmp_path):
 def test_both_recorded_campaigns_run_end_to_end(tmp_path):
     """The shipped recorded campaigns, one Snakemake run: reports, and what the data do not support."""
     names = ("recorded-iso230", "recorded-tracker", "recorded-csv")
-    work = make_workdir(tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names})
+    work = make_workdir(
+        tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names}
+    )
     shutil.copytree(RECORDINGS, work / "tests" / "data" / "recordings")
     # the CSV campaign (training with temperatures + ISO 230-2 metrology): planned, not run (its models cost time)
     dry = snakemake(work, "-n", "--config", 'campaigns=["recorded-csv"]')
@@ -258,7 +293,14 @@ def test_both_recorded_campaigns_run_end_to_end(tmp_path):
     assert iso["iso230_2"]["run"] == "metrology"
     assert iso["iso230_2"]["B_nm"] == pytest.approx(float(want.B) * 1000)
     assert iso["intrinsic"]["accuracy_nm"] > 0 and iso["models"] == {} and iso["validation"] is None
-    assert set(iso["unsupported"]) == {"models", "training", "validation", "robustness", "temperature", "budget"}
+    assert set(iso["unsupported"]) == {
+        "models",
+        "training",
+        "validation",
+        "robustness",
+        "temperature",
+        "budget",
+    }
     tracker = json.loads((work / "results" / "recorded-tracker" / "summary.json").read_text())
     assert list(tracker["models"]) == ["two_dof"] and tracker["training"]["accuracy_nm"] > 0
     assert set(tracker["unsupported"]) == {"validation", "robustness", "temperature", "budget"}
@@ -285,11 +327,15 @@ def test_a_tracker_clock_is_served_in_campaign_time():
 
 
 def test_unsupported_sections_say_what_each_missing_run_costs():
-    from calflow.nano.summary import unsupported_sections
+    from calflow.nano.report.summary import unsupported_sections
 
     assert unsupported_sections("stage1d", {"training", "metrology", "validation"}, True) == {}
     assert set(unsupported_sections("stage2d", {"training"}, False, budget=False)) == {
-        "validation", "robustness", "temperature", "budget"}
+        "validation",
+        "robustness",
+        "temperature",
+        "budget",
+    }
     only_metrology = unsupported_sections("stage1d", {"metrology"}, True)
     assert set(only_metrology) == {"models", "training", "validation", "robustness"}
     assert "Eq. 5.3-5.6" in only_metrology["models"]

@@ -14,8 +14,7 @@ from markupsafe import escape
 
 from calflow import reference
 from calflow.report import render_campaign, render_index, write_pdf
-from calflow.report.render import render_campaign_pages
-from calflow.report.render import num, sig
+from calflow.report.render import num, render_campaign_pages, sig
 
 EVIL = "Stage <script>alert('x')</script> & friends"
 ISO230_KEYS = ("A", "A_fwd", "A_bwd", "E", "E_fwd", "E_bwd", "R", "R_fwd", "R_bwd", "M", "B", "B_mean")
@@ -24,8 +23,17 @@ CAMPAIGN_CMD = "snakemake --cores 2 --config 'campaigns=[\"t\"]'"
 
 # ---------------------------------------------------------------- helpers
 def _attrs(kind, robot, plan, **extra):
-    return {"Conventions": "CF-1.11", "calflow_kind": kind, "calflow_version": "0", "campaign": "t", "robot": robot,
-            "source": "simulated", "plan": plan, "config_sha256": "0" * 64, **extra}
+    return {
+        "Conventions": "CF-1.11",
+        "calflow_kind": kind,
+        "calflow_version": "0",
+        "campaign": "t",
+        "robot": robot,
+        "source": "simulated",
+        "plan": plan,
+        "config_sha256": "0" * 64,
+        **extra,
+    }
 
 
 def _write(ds, path):
@@ -74,7 +82,7 @@ def pdf_pages(data: bytes) -> int:
     chunks = [data]
     for m in re.finditer(rb"stream\r?\n", data):
         try:
-            chunks.append(zlib.decompressobj().decompress(data[m.end():]))
+            chunks.append(zlib.decompressobj().decompress(data[m.end() :]))
         except zlib.error:
             pass
     return sum(len(re.findall(rb"/Type\s*/Page(?![a-zA-Z])", c)) for c in chunks)
@@ -85,36 +93,84 @@ def _inputs(files):
 
 
 # ---------------------------------------------------------------- XYΘ fixture
-MODELS = {"I": (["x_R", "y_R"], False, False), "II": (["x_R", "y_R", "alpha", "beta"], False, False),
-          "III": (["x_R", "y_R", "alpha", "beta"], True, False), "IV": (["x_R", "y_R", "alpha", "beta"], False, True),
-          "V": (["x_R", "y_R", "alpha", "beta"], True, True)}
+MODELS = {
+    "I": (["x_R", "y_R"], False, False),
+    "II": (["x_R", "y_R", "alpha", "beta"], False, False),
+    "III": (["x_R", "y_R", "alpha", "beta"], True, False),
+    "IV": (["x_R", "y_R", "alpha", "beta"], False, True),
+    "V": (["x_R", "y_R", "alpha", "beta"], True, True),
+}
 
 
 def _xy_model_entry(k, free):
     n = len(free)
     targets = [(i + 1, -1200.0 - 400 * (i % 3), -200.0 - 100 * (i // 3), float(1 + i % 5)) for i in range(9)]
     return {
-        "accuracy_um": 90.0 / (k + 1) + 0.123456, "repeatability_um": 2.0 / (k + 1) + 0.0004,
-        "free": free, "position_table": False, "angle_table": False,
-        "parameters": {"x_R_um": {"value": 9572.9 + k, "std": 3.1}, "y_R_um": {"value": 7795.8 - k, "std": 3.0},
-                       "alpha_deg": {"value": 177.69, "std": 0.004 if n > 2 else None},
-                       "beta_deg": {"value": -0.11, "std": 0.009 if n > 2 else None}},
+        "accuracy_um": 90.0 / (k + 1) + 0.123456,
+        "repeatability_um": 2.0 / (k + 1) + 0.0004,
+        "free": free,
+        "position_table": False,
+        "angle_table": False,
+        "parameters": {
+            "x_R_um": {"value": 9572.9 + k, "std": 3.1},
+            "y_R_um": {"value": 7795.8 - k, "std": 3.0},
+            "alpha_deg": {"value": 177.69, "std": 0.004 if n > 2 else None},
+            "beta_deg": {"value": -0.11, "std": 0.009 if n > 2 else None},
+        },
         "correlation": np.eye(n).round(3).tolist(),
         "identifiability": {"r_diag": [1.25] * n if k < 3 else [], "not_identifiable": ""},
-        "identification": {"O1": 7.3, "O2": 0.0011, "O3": 1.25, "O4": 0.0014, "condition_number": 876.0,
-                           "dof": 2396, "n_poses": 60, "residual_rms_um": 4.2, "cv_rms_um": 4.4, "cv_folds": 5,
-                           "sigma_fit_um": 3.0},
+        "identification": {
+            "O1": 7.3,
+            "O2": 0.0011,
+            "O3": 1.25,
+            "O4": 0.0014,
+            "condition_number": 876.0,
+            "dof": 2396,
+            "n_poses": 60,
+            "residual_rms_um": 4.2,
+            "cv_rms_um": 4.4,
+            "cv_folds": 5,
+            "sigma_fit_um": 3.0,
+        },
         "protocol": "heldout",
-        "per_target": [{"target": t, "x_um": 10.0 * t, "y_um": -5.0 * t, "theta_deg": 0.07 * t, "ap_um": 1.5 + k + t / 9,
-                        "rp_um": 0.4 + t / 90} for t in range(1, 51)],
+        "per_target": [
+            {
+                "target": t,
+                "x_um": 10.0 * t,
+                "y_um": -5.0 * t,
+                "theta_deg": 0.07 * t,
+                "ap_um": 1.5 + k + t / 9,
+                "rp_um": 0.4 + t / 90,
+            }
+            for t in range(1, 51)
+        ],
         "reference_targets": {
-            "accuracy_um": 80.0 / (k + 1) + 0.654321, "repeatability_um": 1.5 / (k + 1), "thesis_accuracy_um": 95.98,
-            "per_target": [{"target": t, "x_um": x, "y_um": y, "theta_deg": th, "ap_um": 1.0 + k + t / 10,
-                            "rp_um": 0.3 + t / 100} for t, x, y, th in targets]},
-        "adequacy": ({"chi2_dof": 1.02, "p_value": 0.4, "adequate": True, "floor_um": 0.5, "statement": "fits"}
-                     if k == 1 else
-                     {"chi2_dof": 36.0, "p_value": 0.0, "adequate": False, "floor_um": 0.5,
-                      "statement": "The model does not fit: <b>not bold</b>"}),
+            "accuracy_um": 80.0 / (k + 1) + 0.654321,
+            "repeatability_um": 1.5 / (k + 1),
+            "thesis_accuracy_um": 95.98,
+            "per_target": [
+                {
+                    "target": t,
+                    "x_um": x,
+                    "y_um": y,
+                    "theta_deg": th,
+                    "ap_um": 1.0 + k + t / 10,
+                    "rp_um": 0.3 + t / 100,
+                }
+                for t, x, y, th in targets
+            ],
+        },
+        "adequacy": (
+            {"chi2_dof": 1.02, "p_value": 0.4, "adequate": True, "floor_um": 0.5, "statement": "fits"}
+            if k == 1
+            else {
+                "chi2_dof": 36.0,
+                "p_value": 0.0,
+                "adequate": False,
+                "floor_um": 0.5,
+                "statement": "The model does not fit: <b>not bold</b>",
+            }
+        ),
     }
 
 
@@ -136,76 +192,150 @@ def xytheta(xytheta_pages):
 def xytheta_pages(tmp_path_factory, strict):
     """summary, files, the HTML report and its print page (PNG figures, for the PDF)."""
     from calflow.data.runs import RunMetadata
-    from calflow.xytheta.kinematics import Parameters
-    from calflow.xytheta.lookup import AngleLUT
-    from calflow.xytheta.pose_lookup import PoseAngleLUT
-    from calflow.xytheta.models import MicroModel
+    from calflow.xytheta.models.kinematics import Parameters
+    from calflow.xytheta.models.ladder import MicroModel
+    from calflow.xytheta.tables.lookup import AngleLUT
+    from calflow.xytheta.tables.pose import PoseAngleLUT
 
     root = tmp_path_factory.mktemp("xytheta")
     files = []
     x, y = np.arange(0.0, 2000.0, 10.0), np.arange(0.0, 800.0, 10.0)
     d = np.array([1, -1], dtype="int8")
     luts = xr.Dataset(
-        {**{f"err_{k}": ((f"{p}_position", "direction"), np.stack([np.sin(c / 64.0), np.sin(c / 64.0) + 1], axis=1),
-                         {"units": "um"}) for k, p, c in (("xx", "x", x), ("xy", "x", x), ("yy", "y", y), ("yx", "y", y))},
-         **{f"rep_{k}": ((f"{p}_position", "direction"), np.abs(np.cos(np.stack([c, c], 1))) / 3, {"units": "um"})
-            for k, p, c in (("xx", "x", x), ("xy", "x", x), ("yy", "y", y), ("yx", "y", y))},
-         **{f"period_{k}": ((), 400.0) for k in ("xx", "xy", "yy", "yx")}},
+        {
+            **{
+                f"err_{k}": (
+                    (f"{p}_position", "direction"),
+                    np.stack([np.sin(c / 64.0), np.sin(c / 64.0) + 1], axis=1),
+                    {"units": "um"},
+                )
+                for k, p, c in (("xx", "x", x), ("xy", "x", x), ("yy", "y", y), ("yx", "y", y))
+            },
+            **{
+                f"rep_{k}": (
+                    (f"{p}_position", "direction"),
+                    np.abs(np.cos(np.stack([c, c], 1))) / 3,
+                    {"units": "um"},
+                )
+                for k, p, c in (("xx", "x", x), ("xy", "x", x), ("yy", "y", y), ("yx", "y", y))
+            },
+            **{f"period_{k}": ((), 400.0) for k in ("xx", "xy", "yy", "yx")},
+        },
         coords={"x_position": x, "y_position": y, "direction": d},
-        attrs=_attrs("luts", "xytheta", "characterisation", repeatability_definition="range over cycles"))
+        attrs=_attrs("luts", "xytheta", "characterisation", repeatability_definition="range over cycles"),
+    )
     files.append(_write(luts, root / "luts/position.nc"))
     xy_tests = {}
     for plan, n in (("square", 40), ("random_points", 8)):
         for c, scale in (("none", 20.0), ("linear", 1.0), ("cubic", 0.8)):
             t = np.arange(1, n + 1)
             ap = scale * (1 + np.sin(t))
-            ds = xr.Dataset({"target_x": ("target", t * 10.0), "target_y": ("target", t * 5.0), "ap": ("target", ap),
-                             "rp": ("target", ap / 10)}, coords={"target": t},
-                            attrs=_attrs("metrics", "xytheta", plan, compensation=c, accuracy_um=ap.max(),
-                                         repeatability_um=ap.max() / 10))
+            ds = xr.Dataset(
+                {
+                    "target_x": ("target", t * 10.0),
+                    "target_y": ("target", t * 5.0),
+                    "ap": ("target", ap),
+                    "rp": ("target", ap / 10),
+                },
+                coords={"target": t},
+                attrs=_attrs(
+                    "metrics",
+                    "xytheta",
+                    plan,
+                    compensation=c,
+                    accuracy_um=ap.max(),
+                    repeatability_um=ap.max() / 10,
+                ),
+            )
             files.append(_write(ds, root / f"metrics/{plan}_{c}.nc"))
-            xy_tests.setdefault(plan, {})[c] = {"accuracy_um": float(ap.max()), "repeatability_um": float(ap.max() / 10),
-                                                "per_target": [{"target": int(i), "ap_um": float(a)} for i, a in zip(t, ap)]}
+            xy_tests.setdefault(plan, {})[c] = {
+                "accuracy_um": float(ap.max()),
+                "repeatability_um": float(ap.max() / 10),
+                "per_target": [{"target": int(i), "ap_um": float(a)} for i, a in zip(t, ap)],
+            }
     rng = np.random.default_rng(1)
-    run = xr.Dataset({"cmd_x": ("sample", rng.uniform(0, 4000, 60)), "cmd_y": ("sample", rng.uniform(800, 2800, 60)),
-                      "cmd_theta": ("sample", rng.uniform(0, 5, 60))}, attrs=_attrs("run", "xytheta", "identification"))
+    run = xr.Dataset(
+        {
+            "cmd_x": ("sample", rng.uniform(0, 4000, 60)),
+            "cmd_y": ("sample", rng.uniform(800, 2800, 60)),
+            "cmd_theta": ("sample", rng.uniform(0, 5, 60)),
+        },
+        attrs=_attrs("run", "xytheta", "identification"),
+    )
     files.append(_write(run, root / "runs/identification.nc"))
     meta = RunMetadata("t", "xytheta", "simulated", "identify", "0" * 64)
     f = np.array([0, 1, -5, -3, 3, 4.0])
-    tables = {"IV": AngleLUT(np.arange(6.0), f, f[::-1], 177.7, -0.1),  # one row, and per target (position x angle)
-              "V": PoseAngleLUT(np.array([0.0, 100, 200]), np.array([0.0, 0, 50]), np.arange(6.0),
-                                np.stack([f, f + 1, f - 1]), np.stack([f, f * 2, f / 2]), 177.7, -0.1)}
+    tables = {
+        "IV": AngleLUT(np.arange(6.0), f, f[::-1], 177.7, -0.1),  # one row, and per target (position x angle)
+        "V": PoseAngleLUT(
+            np.array([0.0, 100, 200]),
+            np.array([0.0, 0, 50]),
+            np.arange(6.0),
+            np.stack([f, f + 1, f - 1]),
+            np.stack([f, f * 2, f / 2]),
+            177.7,
+            -0.1,
+        ),
+    }
     for name, angle in tables.items():
-        model = MicroModel(name, Parameters(9572.9, 7795.9, 177.7, -0.1), ("x_R", "y_R", "alpha", "beta"), {}, np.eye(4),
-                           {}, None, angle)
+        model = MicroModel(
+            name,
+            Parameters(9572.9, 7795.9, 177.7, -0.1),
+            ("x_R", "y_R", "alpha", "beta"),
+            {},
+            np.eye(4),
+            {},
+            None,
+            angle,
+        )
         path = root / f"models/{name}.nc"
         path.parent.mkdir(parents=True, exist_ok=True)
         model.write(path, meta)
         files.append(str(path))
     poses = [3, 10, 30, 100, 300]
     summary = {
-        "campaign": "t", "robot": "xytheta", "description": EVIL, "calflow_version": "0.1.0", "seed": 7,
+        "campaign": "t",
+        "robot": "xytheta",
+        "description": EVIL,
+        "calflow_version": "0.1.0",
+        "seed": 7,
         "rig": "simulated",
         "models": {name: _xy_model_entry(k, free) for k, (name, (free, _, _)) in enumerate(MODELS.items())},
         "reference": copy.deepcopy(reference.XYTHETA),
         "inputs": _inputs(files),
-        "characterisation": {"x_stage_angle": -2.31, "perpendicularity": -0.11,
-                             "periods_um": {k: 400.0 for k in ("xx", "xy", "yy", "yx")},
-                             "repeatability_um": {k: {"median": 0.2, "max": 0.5} for k in ("xx", "xy", "yy", "yx")},
-                             "peak_to_valley_um": {k: 2.0 for k in ("xx", "xy", "yy", "yx")}},
+        "characterisation": {
+            "x_stage_angle": -2.31,
+            "perpendicularity": -0.11,
+            "periods_um": {k: 400.0 for k in ("xx", "xy", "yy", "yx")},
+            "repeatability_um": {k: {"median": 0.2, "max": 0.5} for k in ("xx", "xy", "yy", "yx")},
+            "peak_to_valley_um": {k: 2.0 for k in ("xx", "xy", "yy", "yx")},
+        },
         "xy_tests": xy_tests,
-        "observability": {"poses": poses, **{k: [float(p) ** e for p in poses] for k, e in
-                                             (("O1", 0.5), ("O2", -0.1), ("O3", 0.3), ("O4", 0.2))},
-                          "O2_plateau_poses": 30},
+        "observability": {
+            "poses": poses,
+            **{
+                k: [float(p) ** e for p in poses]
+                for k, e in (("O1", 0.5), ("O2", -0.1), ("O3", 0.3), ("O4", 0.2))
+            },
+            "O2_plateau_poses": 30,
+        },
         "truth": {"parameters": {"x_R_um": 9572.9, "y_R_um": 7795.9, "alpha_deg": 177.69, "beta_deg": -0.11}},
-        "iso230_2": {a: {"units": "um", "targets": 41, "cycles_forward": 5, "cycles_backward": 5,
-                         **{f"{k}_um": 1.0 + 0.1 * j + (0.05 if a == "y" else 0.0) for j, k in enumerate(ISO230_KEYS)}}
-                     for a in "xy"},
+        "iso230_2": {
+            a: {
+                "units": "um",
+                "targets": 41,
+                "cycles_forward": 5,
+                "cycles_backward": 5,
+                **{f"{k}_um": 1.0 + 0.1 * j + (0.05 if a == "y" else 0.0) for j, k in enumerate(ISO230_KEYS)},
+            }
+            for a in "xy"
+        },
     }
     for name, (_, pos, ang) in MODELS.items():
         summary["models"][name].update(position_table=pos, angle_table=ang)
-    html, printed = render_campaign_pages(summary, {"name": "t", "robot": "xytheta", "description": EVIL},
-                                          CAMPAIGN_CMD, files)
+    html, printed = render_campaign_pages(
+        summary, {"name": "t", "robot": "xytheta", "description": EVIL}, CAMPAIGN_CMD, files
+    )
     return summary, files, html, printed
 
 
@@ -213,7 +343,11 @@ def test_xytheta_headline_equals_summary(xytheta):
     summary, _, html = xytheta
     must = [f"models.{m}.accuracy_um" for m in MODELS] + [f"models.{m}.repeatability_um" for m in MODELS]
     must += [f"models.{m}.reference_targets.accuracy_um" for m in MODELS]
-    must += [f"xy_tests.{p}.{c}.accuracy_um" for p in ("square", "random_points") for c in ("none", "linear", "cubic")]
+    must += [
+        f"xy_tests.{p}.{c}.accuracy_um"
+        for p in ("square", "random_points")
+        for c in ("none", "linear", "cubic")
+    ]
     assert_headline_equals_summary(html, summary, must + ["observability.O2_plateau_poses"])
 
 
@@ -235,8 +369,20 @@ def test_xytheta_report_shows_both_protocols_and_says_when_a_model_does_not_fit(
 
 def test_xytheta_figures_have_captions_svg_and_units(xytheta):
     _, _, html = xytheta
-    assert_figures(html, ["fig-errors", "fig-coupling", "fig-repeatability", "fig-square", "fig-random", "fig-poses",
-                          "fig-observability", "fig-validation", "fig-angle"])
+    assert_figures(
+        html,
+        [
+            "fig-errors",
+            "fig-coupling",
+            "fig-repeatability",
+            "fig-square",
+            "fig-random",
+            "fig-poses",
+            "fig-observability",
+            "fig-validation",
+            "fig-angle",
+        ],
+    )
     assert "(µm)" in html and "number of poses" in html and "rotation Θ (°)" in html
     assert "Table 4.8" in html and "95.980" in html  # thesis column beside ours
     assert "simulated truth" in html
@@ -253,7 +399,9 @@ def test_xytheta_escapes_and_records_provenance(xytheta):
 
 def test_xytheta_without_identification_run_says_so(xytheta):
     summary, files, _ = xytheta
-    html = render_campaign(summary, {"name": "t"}, CAMPAIGN_CMD, [f for f in files if "identification" not in f])
+    html = render_campaign(
+        summary, {"name": "t"}, CAMPAIGN_CMD, [f for f in files if "identification" not in f]
+    )
     assert 'id="fig-poses"' not in html and "runs/identification.nc" in html and "Note:" in html
 
 
@@ -265,8 +413,9 @@ def test_xytheta_pdf_has_pages(xytheta_pages, tmp_path):
     pdf = write_pdf(printed, tmp_path)
     assert pdf[:4] == b"%PDF"
     try:
-        import pypdf
         import io
+
+        import pypdf
 
         pages = len(pypdf.PdfReader(io.BytesIO(pdf)).pages)
     except ImportError:
@@ -277,84 +426,217 @@ def test_xytheta_pdf_has_pages(xytheta_pages, tmp_path):
 # ---------------------------------------------------------------- nano fixtures
 def _series(n, t0, temp0, in_range=True):
     t = np.arange(n) * 3.0 + t0
-    return {"test": list(range(n)), "time_h": t.tolist(), "campaign_time_h": (t + 18).tolist(), "day": [0] * n,
-            "max_ap_nm": (100 + 10 * np.sin(t)).tolist(), "max_rp_nm": (40 + np.cos(t)).tolist(),
-            "max_rp_intrinsic_nm": [35.0] * n, "temperature_c": (temp0 + 0.1 * np.sin(t)).tolist(),
-            "temperature_range_c": [0.02] * n, "in_training_range": [in_range, not in_range] * (n // 2) + [in_range] * (n % 2)}
+    return {
+        "test": list(range(n)),
+        "time_h": t.tolist(),
+        "campaign_time_h": (t + 18).tolist(),
+        "day": [0] * n,
+        "max_ap_nm": (100 + 10 * np.sin(t)).tolist(),
+        "max_rp_nm": (40 + np.cos(t)).tolist(),
+        "max_rp_intrinsic_nm": [35.0] * n,
+        "temperature_c": (temp0 + 0.1 * np.sin(t)).tolist(),
+        "temperature_range_c": [0.02] * n,
+        "in_training_range": [in_range, not in_range] * (n // 2) + [in_range] * (n % 2),
+    }
 
 
 def _nano(tmp_path_factory, robot):
     root = tmp_path_factory.mktemp(robot)
     axes = ["x"] if robot == "stage1d" else ["x", "y"]
-    modes = ["no_calibration", "adaptive_kmz", "single"] if robot == "stage1d" else ["no_calibration", "single"]
+    modes = (
+        ["no_calibration", "adaptive_kmz", "single"] if robot == "stage1d" else ["no_calibration", "single"]
+    )
     rng = np.random.default_rng(3)
     cmd = np.tile(np.r_[np.arange(0, 100, 20.0), np.arange(80, -1, -20.0)], 4)
     n = cmd.size
     direction = np.tile(np.r_[np.ones(5), -np.ones(5)], 4).astype("int8")
-    data = {"time": ("sample", np.arange(n) * 60.0, {"units": "seconds since 2026-01-05T08:00:00+00:00"}),
-            "temperature": (("sample", "sensor"), 20.4 + 0.01 * rng.standard_normal((n, 4)) + np.linspace(0, 0.1, n)[:, None]),
-            "pose": ("sample", np.tile(np.arange(10), 4)), "cycle": ("sample", np.repeat(np.arange(4), 10)),
-            "direction": ("sample", direction)}
+    data = {
+        "time": ("sample", np.arange(n) * 60.0, {"units": "seconds since 2026-01-05T08:00:00+00:00"}),
+        "temperature": (
+            ("sample", "sensor"),
+            20.4 + 0.01 * rng.standard_normal((n, 4)) + np.linspace(0, 0.1, n)[:, None],
+        ),
+        "pose": ("sample", np.tile(np.arange(10), 4)),
+        "cycle": ("sample", np.repeat(np.arange(4), 10)),
+        "direction": ("sample", direction),
+    }
     for a in axes:
         data[f"cmd_{a}"] = ("sample", cmd)
         data[f"meas_{a}"] = ("sample", cmd + 1e-4 * cmd * (100 - cmd) / 10 + 0.05 * rng.standard_normal(n))
     if robot == "stage1d":
         data["meas_y"] = ("sample", 0.01 * rng.standard_normal(n))
-    files = [_write(xr.Dataset(data, coords={"sensor": ["T1", "T2", "T3", "T4"]},
-                               attrs=_attrs("run", robot, "training")), root / "runs/training.nc")]
+    files = [
+        _write(
+            xr.Dataset(
+                data, coords={"sensor": ["T1", "T2", "T3", "T4"]}, attrs=_attrs("run", robot, "training")
+            ),
+            root / "runs/training.nc",
+        )
+    ]
     ntest, npose = 3 * len(modes), 4
-    val = {"ap": (("test", "pose"), rng.uniform(10, 400, (ntest, npose))),
-           "mode": ("test", np.tile(np.arange(len(modes)), 3), {"flag_meanings": " ".join(modes)}),
-           "time_h": ("test", 20.0 + 1.3 * np.arange(ntest)), "direction": ("pose", np.array([1, 1, -1, -1])),
-           "target_x": ("pose", np.array([0.0, 50, 50, 0]))}
+    val = {
+        "ap": (("test", "pose"), rng.uniform(10, 400, (ntest, npose))),
+        "mode": ("test", np.tile(np.arange(len(modes)), 3), {"flag_meanings": " ".join(modes)}),
+        "time_h": ("test", 20.0 + 1.3 * np.arange(ntest)),
+        "direction": ("pose", np.array([1, 1, -1, -1])),
+        "target_x": ("pose", np.array([0.0, 50, 50, 0])),
+    }
     if robot == "stage2d":
         val["target_y"] = ("pose", np.array([0.0, 10, 20, 30]))
-    files.append(_write(xr.Dataset(val, coords={"test": np.arange(ntest), "pose": np.arange(npose)},
-                                   attrs=_attrs("metrics", robot, "validation", start_time_h=18.0)),
-                        root / "metrics/validation.nc"))
-    tests = {m: {"max_accuracy_nm": 300.0 / (k + 1) + 0.0123, "max_accuracy_nm_by_day": [100.0, 200.0],
-                 "max_repeatability_nm": 50.0 + k, "max_repeatability_nm_by_day": [40.0, 50.0],
-                 "max_intrinsic_repeatability_nm": 40.0, "n_tests": 5,
-                 "series": _series(5, 0.5 + k, 20.4 + 0.05 * k)} for k, m in enumerate(modes)}
-    coef = [{"in_model": True, "long_name": "coefficient of x^1", "name": "a_1", "p_value": 0.0, "std_error": 1.9e-5,
-             "unit": "1", "value": 1.0056},
-            {"in_model": False, "long_name": "thermal coefficient of t_1", "name": "b_1", "p_value": 0.24,
-             "std_error": 0.2, "unit": "um degC-1", "value": 0.0},
-            {"in_model": True, "long_name": "offset", "name": "lambda", "p_value": None, "std_error": 0.07,
-             "unit": "um", "value": -23.3}]
+    files.append(
+        _write(
+            xr.Dataset(
+                val,
+                coords={"test": np.arange(ntest), "pose": np.arange(npose)},
+                attrs=_attrs("metrics", robot, "validation", start_time_h=18.0),
+            ),
+            root / "metrics/validation.nc",
+        )
+    )
+    tests = {
+        m: {
+            "max_accuracy_nm": 300.0 / (k + 1) + 0.0123,
+            "max_accuracy_nm_by_day": [100.0, 200.0],
+            "max_repeatability_nm": 50.0 + k,
+            "max_repeatability_nm_by_day": [40.0, 50.0],
+            "max_intrinsic_repeatability_nm": 40.0,
+            "n_tests": 5,
+            "series": _series(5, 0.5 + k, 20.4 + 0.05 * k),
+        }
+        for k, m in enumerate(modes)
+    }
+    coef = [
+        {
+            "in_model": True,
+            "long_name": "coefficient of x^1",
+            "name": "a_1",
+            "p_value": 0.0,
+            "std_error": 1.9e-5,
+            "unit": "1",
+            "value": 1.0056,
+        },
+        {
+            "in_model": False,
+            "long_name": "thermal coefficient of t_1",
+            "name": "b_1",
+            "p_value": 0.24,
+            "std_error": 0.2,
+            "unit": "um degC-1",
+            "value": 0.0,
+        },
+        {
+            "in_model": True,
+            "long_name": "offset",
+            "name": "lambda",
+            "p_value": None,
+            "std_error": 0.07,
+            "unit": "um",
+            "value": -23.3,
+        },
+    ]
     summary = {
-        "campaign": "t", "robot": robot, "description": EVIL, "calflow_version": "0.1.0", "seed": 5, "rig": "simulated",
+        "campaign": "t",
+        "robot": robot,
+        "description": EVIL,
+        "calflow_version": "0.1.0",
+        "seed": 5,
+        "rig": "simulated",
         "models": {m: coef for m in modes if m != "no_calibration"},
-        "budget": {"combined_nm": 40.509, "rows": [
-            {"category": "intrinsic", "formula": "L x stability / sqrt(3)", "name": "U_1 laser wavelength", "value_nm": 0.0866},
-            {"category": "combined", "formula": "sqrt(sum)", "name": "combined standard uncertainty", "value_nm": 40.509}]},
+        "budget": {
+            "combined_nm": 40.509,
+            "rows": [
+                {
+                    "category": "intrinsic",
+                    "formula": "L x stability / sqrt(3)",
+                    "name": "U_1 laser wavelength",
+                    "value_nm": 0.0866,
+                },
+                {
+                    "category": "combined",
+                    "formula": "sqrt(sum)",
+                    "name": "combined standard uncertainty",
+                    "value_nm": 40.509,
+                },
+            ],
+        },
         "reference": copy.deepcopy(reference.BY_ROBOT[robot]),
         "inputs": _inputs(files),
         "tests": tests,
-        "robustness": {m: {"space": 0.3543 / (k + 1), "time": 0.0064 / (k + 1), "duration_h": 117.3, "n_tests": 32,
-                           "units": {"space": "um", "time": "um/h", "ap": "um", "duration": "h"}}
-                       for k, m in enumerate(modes)},
-        "training": {"accuracy_nm": 370.1, "repeatability_nm": 238.5, "temperature_c": 20.45,
-                     "temperature_range_c": 0.1, "per_pose": []},
-        "validation": {"start_h": 18.0, "end_h": 40.0, "duration_h": 22.0, "days": 2, "n_tests": ntest,
-                       "training_temperature_range_c": [20.38, 20.5], "drift_estimator": "per-cycle mean"},
+        "robustness": {
+            m: {
+                "space": 0.3543 / (k + 1),
+                "time": 0.0064 / (k + 1),
+                "duration_h": 117.3,
+                "n_tests": 32,
+                "units": {"space": "um", "time": "um/h", "ap": "um", "duration": "h"},
+            }
+            for k, m in enumerate(modes)
+        },
+        "training": {
+            "accuracy_nm": 370.1,
+            "repeatability_nm": 238.5,
+            "temperature_c": 20.45,
+            "temperature_range_c": 0.1,
+            "per_pose": [],
+        },
+        "validation": {
+            "start_h": 18.0,
+            "end_h": 40.0,
+            "duration_h": 22.0,
+            "days": 2,
+            "n_tests": ntest,
+            "training_temperature_range_c": [20.38, 20.5],
+            "drift_estimator": "per-cycle mean",
+        },
     }
     no_stream = "not supported by this data: no stream <recorded>"
-    summary["iso9283"] = {"standard": "ISO 9283:1998", "source": "validation run", "axes": ["x"], "modes": {
-        m: {**{k: {"value": 10.0 * (j + 1) + k_m, "unit": "nm", "clause": c} for j, (k, c) in
-               enumerate((("AD", "7.4.1"), ("RD", "7.4.2"), ("dRP", "7.7")))},
-            "vAP": ({"value": 3.25, "unit": "nm", "clause": "7.3"} if robot == "stage1d" else
-                    {"value": None, "unit": "nm", "clause": "7.3", "reason": "not supported by this data: one direction"}),
-            "dAP": {"value": 55.5, "unit": "nm", "clause": "7.7", "first_test": 0, "last_test": 4, "period_h": 20.0},
-            "stabilisation_time_s": {"value": None, "unit": "s", "clause": "7.5", "reason": no_stream},
-            "overshoot": {"value": None, "unit": "nm", "clause": "7.6", "reason": no_stream}}
-        for k_m, m in enumerate(modes)}}
+    summary["iso9283"] = {
+        "standard": "ISO 9283:1998",
+        "source": "validation run",
+        "axes": ["x"],
+        "modes": {
+            m: {
+                **{
+                    k: {"value": 10.0 * (j + 1) + k_m, "unit": "nm", "clause": c}
+                    for j, (k, c) in enumerate((("AD", "7.4.1"), ("RD", "7.4.2"), ("dRP", "7.7")))
+                },
+                "vAP": (
+                    {"value": 3.25, "unit": "nm", "clause": "7.3"}
+                    if robot == "stage1d"
+                    else {
+                        "value": None,
+                        "unit": "nm",
+                        "clause": "7.3",
+                        "reason": "not supported by this data: one direction",
+                    }
+                ),
+                "dAP": {
+                    "value": 55.5,
+                    "unit": "nm",
+                    "clause": "7.7",
+                    "first_test": 0,
+                    "last_test": 4,
+                    "period_h": 20.0,
+                },
+                "stabilisation_time_s": {"value": None, "unit": "s", "clause": "7.5", "reason": no_stream},
+                "overshoot": {"value": None, "unit": "nm", "clause": "7.6", "reason": no_stream},
+            }
+            for k_m, m in enumerate(modes)
+        },
+    }
     if robot == "stage1d":
-        summary["intrinsic"] = {"accuracy_nm": 401.4468, "repeatability_nm": 41.2433, "temperature_c": 20.5,
-                                "temperature_range_c": 0.009,
-                                "per_pose": [{"pose": i, "direction": d, "target_x_um": tx, "ap_nm": 100.0 + i,
-                                              "rp_nm": 30.0 + i} for i, (d, tx) in
-                                             enumerate([(1, 0.0), (1, 80.0), (1, 160.0), (-1, 160.0), (-1, 80.0), (-1, 0.0)])]}
+        summary["intrinsic"] = {
+            "accuracy_nm": 401.4468,
+            "repeatability_nm": 41.2433,
+            "temperature_c": 20.5,
+            "temperature_range_c": 0.009,
+            "per_pose": [
+                {"pose": i, "direction": d, "target_x_um": tx, "ap_nm": 100.0 + i, "rp_nm": 30.0 + i}
+                for i, (d, tx) in enumerate(
+                    [(1, 0.0), (1, 80.0), (1, 160.0), (-1, 160.0), (-1, 80.0), (-1, 0.0)]
+                )
+            ],
+        }
         summary["iso230_2"] = {f"{k}_nm": 100.0 + j for j, k in enumerate(ISO230_KEYS)}
         summary["iso230_2"].update(cycles_forward=4, cycles_backward=4, excluded_targets_um=[])
     html = render_campaign(summary, {"name": "t", "robot": robot}, CAMPAIGN_CMD, files)
@@ -378,8 +660,18 @@ def test_stage1d_report(stage1d):
     must += [f"robustness.{m}.{k}" for m in summary["robustness"] for k in ("space", "time")]
     must += [f"iso230_2.{k}_nm" for k in ISO230_KEYS]
     assert_headline_equals_summary(html, summary, must)
-    assert_figures(html, ["fig-geometric", "fig-drift", "fig-metrology", "fig-poses-time", "fig-max",
-                          "fig-temperature", "fig-acc-temp"])
+    assert_figures(
+        html,
+        [
+            "fig-geometric",
+            "fig-drift",
+            "fig-metrology",
+            "fig-poses-time",
+            "fig-max",
+            "fig-temperature",
+            "fig-acc-temp",
+        ],
+    )
     assert_escaped(html)
     assert "Fig. 5.18" in html and "Fig. 5.19" in html and "40.600" in html and "ISO 230-2" in html
     assert "µm/°C" in html and "(nm)" in html and "(°C)" in html
@@ -390,10 +682,15 @@ def test_stage2d_report(stage2d):
     summary, _, html = stage2d
     must = [f"tests.{m}.max_accuracy_nm" for m in summary["tests"]] + ["budget.combined_nm"]
     assert_headline_equals_summary(html, summary, must)
-    assert_figures(html, ["fig-geometric", "fig-drift", "fig-poses-time", "fig-max", "fig-temperature", "fig-acc-temp"])
+    assert_figures(
+        html, ["fig-geometric", "fig-drift", "fig-poses-time", "fig-max", "fig-temperature", "fig-acc-temp"]
+    )
     assert "Fig. 5.23" in html and "Fig. 5.24" in html
     assert_escaped(html)
-    assert "multi-directional pose accuracy variation vAP (clause 7.3) — not supported by this data: one direction" in html
+    assert (
+        "multi-directional pose accuracy variation vAP (clause 7.3) — not supported by this data: one direction"
+        in html
+    )
 
 
 def test_nano_reports_show_iso9283_with_clauses_and_say_what_is_missing(stage1d, stage2d):
@@ -401,12 +698,14 @@ def test_nano_reports_show_iso9283_with_clauses_and_say_what_is_missing(stage1d,
         modes = summary["iso9283"]["modes"]
         keys = [f"iso9283.modes.{m}.{k}.value" for m in modes for k in ("AD", "RD", "dAP", "dRP")]
         assert_headline_equals_summary(html, summary, keys)
-        section = html[html.index('<section id="iso9283">'):]
-        section = section[:section.index("</section>")]
+        section = html[html.index('<section id="iso9283">') :]
+        section = section[: section.index("</section>")]
         for clause in ("7.3", "7.4.1", "7.4.2", "7.5", "7.6", "7.7"):
-            assert f"<td class=\"text\">{clause}</td>" in section, clause
-        assert ("Not computed: position stabilisation time (clause 7.5); position overshoot OV (clause 7.6) — "
-                "not supported by this data: no stream &lt;recorded&gt;.") in section
+            assert f'<td class="text">{clause}</td>' in section, clause
+        assert (
+            "Not computed: position stabilisation time (clause 7.5); position overshoot OV (clause 7.6) — "
+            "not supported by this data: no stream &lt;recorded&gt;."
+        ) in section
         assert "Drift compares test 0 with test 4, 20.0 h apart" in section
 
 

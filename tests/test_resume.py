@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT, SMALL_XYTHETA
 
 from calflow.data.io import open_dataset
-from conftest import ROOT, SMALL_XYTHETA
 
 VARS = ("time", "cmd_x", "cmd_y", "cmd_theta", "meas_x", "meas_y", "meas_theta", "pose", "cycle", "direction")
 
@@ -29,10 +29,24 @@ def _campaign(tmp_path: Path, factory: str) -> Path:
 
 def _acquire(campaign: Path, out: Path, kill_after: float | None = None) -> int:
     # toyrigs from tests/, before whatever calflow PYTHONPATH already names (a worktree's src)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
-    cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign), "--plan", "identification",
-           "--out", str(out), "--rig-plugins", "toyrigs"]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")])),
+    }
+    cmd = [
+        sys.executable,
+        "-m",
+        "calflow",
+        "acquire",
+        "--campaign",
+        str(campaign),
+        "--plan",
+        "identification",
+        "--out",
+        str(out),
+        "--rig-plugins",
+        "toyrigs",
+    ]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     if kill_after is None:
         proc.wait(timeout=300)

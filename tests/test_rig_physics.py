@@ -3,14 +3,25 @@
 import numpy as np
 import pytest
 
-from calflow.xytheta.kinematics import forward
-from calflow.xytheta.rig import simulated_xytheta
-from calflow.xytheta.rig_physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+from calflow.xytheta.models.kinematics import forward
+from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+from calflow.xytheta.stage.rig import simulated_xytheta
 
 RNG = np.random.default_rng(5)
 X, Y, T = RNG.uniform(0, 4000, 300), RNG.uniform(800, 2800, 300), RNG.uniform(0, 5, 300)
-GEOMETRIC = ("lead_screw", "backlash", "coupling", "scale", "straightness", "yaw", "expansion", "theta_scale",
-             "theta_periodic", "theta_backlash", "axis_runout")
+GEOMETRIC = (
+    "lead_screw",
+    "backlash",
+    "coupling",
+    "scale",
+    "straightness",
+    "yaw",
+    "expansion",
+    "theta_scale",
+    "theta_periodic",
+    "theta_backlash",
+    "axis_runout",
+)
 
 
 def _tool(truth, temperature=None):
@@ -47,8 +58,14 @@ def test_sensor_effects_are_present_and_switch_off():
 
 
 def test_gross_errors_come_at_their_rate():
-    rig = simulated_xytheta(seed=3, gross_error_rate=0.02, sensor_noise_um=0.0, stage_repeatability_um=0.0,
-                            decode_error_um=0.0, room_swing_degC=0.0)
+    rig = simulated_xytheta(
+        seed=3,
+        gross_error_rate=0.02,
+        sensor_noise_um=0.0,
+        stage_repeatability_um=0.0,
+        decode_error_um=0.0,
+        room_swing_degC=0.0,
+    )
     rig.move({"x": 2000.0, "y": 1500.0, "theta": 2.0})
     readings = np.array([[r["meas_x"], r["meas_y"]] for r in (rig.read() for _ in range(3000))])
     jumps = np.hypot(*(readings - np.median(readings, axis=0)).T)
@@ -60,10 +77,20 @@ def test_gross_errors_come_at_their_rate():
 def test_lost_motion_depends_on_the_approach_distance():
     """After a reversal, the first backlash of travel leaves the carriage behind: a short
     return move ends between the two long-approach positions."""
+
     def reading(moves, **physics):
-        rig = simulated_xytheta(seed=0, sensor_noise_um=0.0, stage_repeatability_um=0.0, sensor_resolution_um=1e-9,
-                                decode_error_um=0.0, gross_error_rate=0.0, room_swing_degC=0.0,
-                                lead_fwd_um=[0, 0], lead_bwd_um=[0, 0], **physics)
+        rig = simulated_xytheta(
+            seed=0,
+            sensor_noise_um=0.0,
+            stage_repeatability_um=0.0,
+            sensor_resolution_um=1e-9,
+            decode_error_um=0.0,
+            gross_error_rate=0.0,
+            room_swing_degC=0.0,
+            lead_fwd_um=[0, 0],
+            lead_bwd_um=[0, 0],
+            **physics,
+        )
         for x in moves:
             rig.move({"x": x, "y": 1000.0, "theta": 0.0})
         return rig.read()["meas_x"]

@@ -8,11 +8,13 @@ from hypothesis import strategies as st
 from calflow.acquisition.runner import acquire
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
-from calflow.xytheta import plans
 from calflow.rigs import load_rig
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.stage.rig import simulated_xytheta
 
-META = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64)
+META = RunMetadata(
+    campaign="t", robot="xytheta", source="simulated", plan="identification", config_sha256="0" * 64
+)
 
 
 def test_builtin_and_plugin_factories_load():
@@ -22,18 +24,23 @@ def test_builtin_and_plugin_factories_load():
     assert source == "plugin" and rig.p[0] == 100.0
 
 
-@pytest.mark.parametrize("factory,match", [
-    ("no_such_module_xyz:make", "cannot import"),
-    ("toyrigs:nothing_here", "no callable"),
-    ("os.system", "expected 'simulated'"),
-])
+@pytest.mark.parametrize(
+    "factory,match",
+    [
+        ("no_such_module_xyz:make", "cannot import"),
+        ("toyrigs:nothing_here", "no callable"),
+        ("os.system", "expected 'simulated'"),
+    ],
+)
 def test_bad_factories_give_clear_errors(factory, match):
     with pytest.raises(RigError, match=match):
         load_rig(factory, "xytheta", {}, allowed=["toyrigs", "no_such_module_xyz"])
 
 
-@pytest.mark.parametrize("factory,allowed", [("os:system", []), ("toyrigs:open_toy", ["toy"]),
-                                             ("toyrigs:open_toy", ["toyrigs.sub"])])
+@pytest.mark.parametrize(
+    "factory,allowed",
+    [("os:system", []), ("toyrigs:open_toy", ["toy"]), ("toyrigs:open_toy", ["toyrigs.sub"])],
+)
 def test_plugin_factories_run_only_when_their_module_is_allowed(factory, allowed, monkeypatch):
     monkeypatch.delenv("CALFLOW_RIG_PLUGINS", raising=False)
     with pytest.raises(RigError, match="not allowed to run.*rig_plugins"):
@@ -54,7 +61,9 @@ def test_unknown_option_is_named():
 
 
 def _run(seed, stream="id", **physics):
-    return acquire(plans.identification(30, seed=0), simulated_xytheta(seed=seed, stream=stream, **physics), META)
+    return acquire(
+        plans.identification(30, seed=0), simulated_xytheta(seed=seed, stream=stream, **physics), META
+    )
 
 
 def test_same_seed_same_readings_different_seed_different_noise():
@@ -67,11 +76,19 @@ def test_same_seed_same_readings_different_seed_different_noise():
 
 def test_reading_is_the_pattern_frame_view_of_the_tool_point():
     """Eq. (4.26): with noise and physics errors off, the reading is the exact transform."""
-    from calflow.xytheta.rig_physics import options_off
+    from calflow.xytheta.stage.physics import options_off
 
-    rig = simulated_xytheta(seed=0, sensor_noise_um=0.0, stage_repeatability_um=0.0, sensor_resolution_um=1e-9,
-                            room_swing_degC=0.0, sensor_theta_noise_deg=0.0, **options_off())
-    from calflow.xytheta.kinematics import forward, world_from_pattern
+    rig = simulated_xytheta(
+        seed=0,
+        sensor_noise_um=0.0,
+        stage_repeatability_um=0.0,
+        sensor_resolution_um=1e-9,
+        room_swing_degC=0.0,
+        sensor_theta_noise_deg=0.0,
+        **options_off(),
+    )
+    from calflow.xytheta.models.kinematics import forward, world_from_pattern
+
     home = rig.read()
     rig.move({"x": 1500.0, "y": 700.0, "theta": 3.0})
     r = rig.read()
@@ -89,17 +106,27 @@ def test_virtual_time_advances_with_moves_and_dwell():
 
 
 @settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2**31), n=st.integers(0, 60), split=st.floats(0, 1), dwell=st.floats(0, 5),
-       lost_motion=st.booleans(), gross=st.sampled_from([0.0, 0.001, 0.3]),
-       repeat=st.integers(0, 5))
+@given(
+    seed=st.integers(0, 2**31),
+    n=st.integers(0, 60),
+    split=st.floats(0, 1),
+    dwell=st.floats(0, 5),
+    lost_motion=st.booleans(),
+    gross=st.sampled_from([0.0, 0.001, 0.3]),
+    repeat=st.integers(0, 5),
+)
 def test_visit_in_bulk_is_the_same_as_move_wait_read(seed, n, split, dwell, lost_motion, gross, repeat):
     """The runner's fast path: the simulated XYΘ rig's ``visit`` gives, bit for bit, the
     readings and the final state (time, random stream) of move/wait/read row by row —
     short moves inside the backlash, repeated commands and gross errors included."""
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     rng = np.random.default_rng(seed)
-    cmd = {"x": rng.uniform(0, 15000, n), "y": rng.uniform(0, 15000, n), "theta": rng.choice([-20.0, 0.0, 7.5], n)}
+    cmd = {
+        "x": rng.uniform(0, 15000, n),
+        "y": rng.uniform(0, 15000, n),
+        "theta": rng.choice([-20.0, 0.0, 7.5], n),
+    }
     cmd["x"][: n // 2] = np.cumsum(rng.normal(0, 1.5, n // 2)) + 5000  # lost-motion moves, sub-backlash
     cmd["y"][:repeat] = cmd["y"][0] if n else 0.0  # repeated commands
     opts = dict(seed=seed, stream="t", lost_motion=lost_motion, gross_error_rate=gross)

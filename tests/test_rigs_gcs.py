@@ -17,27 +17,28 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
 
-from calflow.acquisition.runner import acquire
 from calflow.acquisition.checkpoint import Journal, plan_digest
+from calflow.acquisition.runner import acquire
 from calflow.config import load_campaign
 from calflow.data.io import open_dataset
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError
 from calflow.gcs import GCSController
 from calflow.gcs.emulator import GCSEmulator
-from calflow.xytheta.emulate import emulate_main, emulated_rig_options
-from calflow.xytheta import cost
-from calflow.xytheta.identification import identify
-from calflow.xytheta.kinematics import Parameters
-from calflow.plan import Plan
-from calflow.xytheta import plans
 from calflow.gcs.rig import gcs
-from calflow.xytheta.rig import simulated_xytheta
-from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
+from calflow.plan import Plan
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.identification import identify
+from calflow.xytheta.models.kinematics import Parameters
+from calflow.xytheta.plans import poses as plans
+from calflow.xytheta.stage.emulate import emulate_main, emulated_rig_options
+from calflow.xytheta.stage.rig import simulated_xytheta
 
-META = RunMetadata(campaign="gcs-test", robot="xytheta", source="gcs", plan="identification",
-                   config_sha256="0" * 64)
+META = RunMetadata(
+    campaign="gcs-test", robot="xytheta", source="gcs", plan="identification", config_sha256="0" * 64
+)
 PLAN = plans.identification(40, seed=7, dwell_s=0.5)
 
 
@@ -76,9 +77,15 @@ def _check_intact(ds, plan=PLAN):
 def _identify(ds):
     theta = ds["meas_theta"].values - ds["meas_theta"].values[0]
     P_mx, P_my = cost.measured_points(ds["meas_x"].values, ds["meas_y"].values, theta)
-    return identify(ds["cmd_x"].values, ds["cmd_y"].values, theta, P_mx, P_my,
-                    free=("x_R", "y_R", "alpha", "beta"),
-                    initial=Parameters(x_R=10000.0, y_R=8000.0, alpha=180.0, beta=0.0))
+    return identify(
+        ds["cmd_x"].values,
+        ds["cmd_y"].values,
+        theta,
+        P_mx,
+        P_my,
+        free=("x_R", "y_R", "alpha", "beta"),
+        initial=Parameters(x_R=10000.0, y_R=8000.0, alpha=180.0, beta=0.0),
+    )
 
 
 # --------------------------------------------------------------------------- science
@@ -115,8 +122,7 @@ def test_dropped_connections_mid_run_lose_and_duplicate_nothing(emulated):
         return lambda: setattr(emu.faults, "drop_after", n)
 
     # drops land on different commands of a sample: MOV, its ERR?, ONT? polls, POS?
-    at = {3: drop_after(0), 9: drop_after(1), 15: drop_after(3), 22: drop_after(6),
-          30: emu.drop_connections}
+    at = {3: drop_after(0), 9: drop_after(1), 15: drop_after(3), 22: drop_after(6), 30: emu.drop_connections}
     ds = _acquire(rig, at=at)
     _check_intact(ds)
     assert rig.recoveries >= len(at)
@@ -140,8 +146,9 @@ def test_delayed_replies_time_out_and_are_recovered_by_reconnecting(emulated):
 def test_garbage_replies_are_recovered_by_reconnecting(emulated):
     emu, options = emulated
     rig = gcs(**options)
-    ds = _acquire(rig, at={4: lambda: setattr(emu.faults, "garbage", 2),
-                           20: lambda: setattr(emu.faults, "garbage", 1)})
+    ds = _acquire(
+        rig, at={4: lambda: setattr(emu.faults, "garbage", 2), 20: lambda: setattr(emu.faults, "garbage", 1)}
+    )
     _check_intact(ds)
     assert rig.recoveries >= 2
 
@@ -173,7 +180,7 @@ def test_move_out_of_limits_stops_all_axes_and_names_axis_command_and_code(emula
     assert "joint 'theta'" in message and "axis '3'" in message
     assert "MOV 1 " in message and " 3 45'" in message and "GCS error 7" in message
     assert "all axes stopped (#24)" in message
-    assert "#24" in seen[seen.index(next(s for s in seen if s.endswith(" 3 45"))):]
+    assert "#24" in seen[seen.index(next(s for s in seen if s.endswith(" 3 45"))) :]
     assert len(journal.load()) == 6  # the samples already taken are kept
 
 
@@ -224,11 +231,18 @@ def test_one_controller_per_joint_over_tcp_and_serial_and_a_plugin_sensor(monkey
     a = GCSEmulator(axes={"1": {"tmn": 0, "tmx": 25}}, time_scale=100.0).start()
     b = GCSEmulator(axes={"A": {"needs_reference": False}}, time_scale=100.0).start()
     try:
-        rig = gcs(axes={"x": {"axis": "1", "host": "127.0.0.1", "port": a.address[1]},
-                        "y": {"axis": "A", "serial": b.serve_pty()}},
-                  scale={"x": 1000.0}, timeout=0.5, time_scale=100.0, poll_s=0.005,
-                  sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {"offset": 0.5}},
-                  reconnect={"tries": 3, "backoff_s": 0.01})
+        rig = gcs(
+            axes={
+                "x": {"axis": "1", "host": "127.0.0.1", "port": a.address[1]},
+                "y": {"axis": "A", "serial": b.serve_pty()},
+            },
+            scale={"x": 1000.0},
+            timeout=0.5,
+            time_scale=100.0,
+            poll_s=0.005,
+            sensor={"factory": "test_rigs_gcs:EchoSensor", "options": {"offset": 0.5}},
+            reconnect={"tries": 3, "backoff_s": 0.01},
+        )
         assert rig.joints == ("x", "y") and len(rig.controllers) == 2
         rig.move({"x": 1500.0, "y": 2.0})
         assert rig.read()["meas_x"] == pytest.approx(1500.5)
@@ -260,8 +274,9 @@ def test_bad_options_are_rig_errors(emulated):
 def test_emulate_main_serves_and_prints_the_rig_section(capsys, tmp_path):
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_XYTHETA))
-    assert emulate_main(["--campaign", str(path), "--port", "0", "--duration", "0.2",
-                         "--time-scale", "50"]) == 0
+    assert (
+        emulate_main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "50"]) == 0
+    )
     out = capsys.readouterr().out
     assert "127.0.0.1" in out
     rig = yaml.safe_load(out.split("campaign rig section for it:\n", 1)[1])["rig"]
@@ -272,10 +287,22 @@ def test_emulate_main_serves_and_prints_the_rig_section(capsys, tmp_path):
 # --------------------------------------------------------------------------- resume
 def _run_cli(campaign: Path, out: Path, kill_after: float | None = None) -> int:
     # toyrigs from tests/, before whatever calflow PYTHONPATH already names (a worktree's src)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))}
-    cmd = [sys.executable, "-m", "calflow", "acquire", "--campaign", str(campaign),
-           "--plan", "identification", "--out", str(out)]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")])),
+    }
+    cmd = [
+        sys.executable,
+        "-m",
+        "calflow",
+        "acquire",
+        "--campaign",
+        str(campaign),
+        "--plan",
+        "identification",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     if kill_after is None:
         proc.wait(timeout=120)
@@ -308,8 +335,14 @@ def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     assert not Path(f"{out}.journal").exists()
     ds = open_dataset(out)
     ident = load_campaign(campaign)["identification"]  # with the schema's defaults
-    plan = plans.identification(ident["poses"], ident["x_um"], ident["y_um"], ident["theta_deg"],
-                                seed=c["seed"], dwell_s=ident["dwell_s"])
+    plan = plans.identification(
+        ident["poses"],
+        ident["x_um"],
+        ident["y_um"],
+        ident["theta_deg"],
+        seed=c["seed"],
+        dwell_s=ident["dwell_s"],
+    )
     _check_intact(ds, plan)
     assert ds.attrs["source"] in ("plugin", "gcs")
     # the continued run sees the same physics as an uninterrupted simulated one

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calflow.errors import RigError
-from calflow.nano.rig import Nano1DRig, Nano2DRig, nano1d, nano2d
+from calflow.nano.stage.rig import Nano1DRig, Nano2DRig, nano1d, nano2d
 from calflow.rigs.thermal import LagBank, room_profile
 
 QUIET: dict = {}  # the random walk is off by default; creep is a transient true_position excludes
@@ -187,8 +187,7 @@ def test_drift_tracks_temperature_about_1um_per_degc_with_lag():
     assert 0.5 <= best * 300 / 3600 <= 4.0
     # thermocouples see the room with different lags (their hosts and sensor time constants)
     tcs = _tc_at(rig, t)
-    delays = [max(lags, key=lambda k: np.corrcoef(tcs[pre][k:, j], r[: r.size - k])[0, 1])
-              for j in range(4)]
+    delays = [max(lags, key=lambda k: np.corrcoef(tcs[pre][k:, j], r[: r.size - k])[0, 1]) for j in range(4)]
     # the more of the base plate a junction touches, the later it follows the room
     assert delays == sorted(delays) and delays[-1] - delays[0] >= 3  # >= 15 min apart
     # over the 5 days no thermocouple combination explains the drift exactly (Eq. 5.2 is
@@ -218,8 +217,10 @@ def test_unexplained_walk_is_tens_of_nm_over_days():
     spans = []
     for world in range(6):
         rig = nano1d(profile="constant", world_seed=world, drift_walk_nm_per_sqrt_day=15.0)
-        spans.append(abs(rig.true_position(240.0, 5 * 86400.0)["meas_x"]
-                         - rig.true_position(240.0, 0.0)["meas_x"]) * 1e3)
+        spans.append(
+            abs(rig.true_position(240.0, 5 * 86400.0)["meas_x"] - rig.true_position(240.0, 0.0)["meas_x"])
+            * 1e3
+        )
     assert 5.0 < np.mean(spans) < 80.0
 
 

@@ -17,7 +17,8 @@ import dataclasses
 import numpy as np
 import pytest
 import statsmodels.api as sm
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from calflow.stepwise import StepwiseResult, stepwisefit
 
@@ -26,13 +27,25 @@ from calflow.stepwise import StepwiseResult, stepwisefit
 # x4 dicalcium silicate. Woods, Steinour & Starke (1932), Ind. Eng. Chem. 24(11):1207-1214;
 # reproduced in Hald (1952) and Draper & Smith, Applied Regression Analysis (1998);
 # MATLAB ships it as hald.mat (``ingredients``, ``heat``).
-HALD_X = np.array([
-    [7, 26, 6, 60], [1, 29, 15, 52], [11, 56, 8, 20], [11, 31, 8, 47], [7, 52, 6, 33],
-    [11, 55, 9, 22], [3, 71, 17, 6], [1, 31, 22, 44], [2, 54, 18, 22], [21, 47, 4, 26],
-    [1, 40, 23, 34], [11, 66, 9, 12], [10, 68, 8, 12],
-], dtype=float)
-HALD_Y = np.array([78.5, 74.3, 104.3, 87.6, 95.9, 109.2, 102.7, 72.5, 93.1, 115.9, 83.8,
-                   113.3, 109.4])
+HALD_X = np.array(
+    [
+        [7, 26, 6, 60],
+        [1, 29, 15, 52],
+        [11, 56, 8, 20],
+        [11, 31, 8, 47],
+        [7, 52, 6, 33],
+        [11, 55, 9, 22],
+        [3, 71, 17, 6],
+        [1, 31, 22, 44],
+        [2, 54, 18, 22],
+        [21, 47, 4, 26],
+        [1, 40, 23, 34],
+        [11, 66, 9, 12],
+        [10, 68, 8, 12],
+    ],
+    dtype=float,
+)
+HALD_Y = np.array([78.5, 74.3, 104.3, 87.6, 95.9, 109.2, 102.7, 72.5, 93.1, 115.9, 83.8, 113.3, 109.4])
 
 
 def printed(value: float, text: str) -> bool:
@@ -48,6 +61,7 @@ def ols(X, y, cols):
 
 
 # ----------------------------------------------------------------------------- MATLAB docs
+
 
 def test_hald_reproduces_matlab_stepwisefit_example():
     """[SWF]: Initial columns included: none / Step 1, added column 4, p=0.000576232 /
@@ -81,7 +95,9 @@ def test_hald_reproduces_matlab_stepwisefit_example():
     assert r.sse == pytest.approx(ref.ssr) and r.fstat == pytest.approx(ref.fvalue)
     assert r.nextstep is None
     assert [rec.inmodel.tolist() for rec in r.history] == [
-        [False, False, False, True], [True, False, False, True]]
+        [False, False, False, True],
+        [True, False, False, True],
+    ]
     assert r.history[-1].rmse == pytest.approx(r.rmse)
 
 
@@ -107,8 +123,9 @@ def test_full_initial_model_matches_fitlm_and_backward_eliminates():
     r0 = stepwisefit(HALD_X, HALD_Y, inmodel=[0, 1, 2, 3], maxiter=0)
     assert r0.history == () and r0.nextstep == 2
     assert printed(r0.intercept, "62.405")
-    for j, (b, p) in enumerate([("1.5511", "0.070822"), ("0.51017", "0.5009"),
-                                ("0.10191", "0.89592"), ("-0.14406", "0.84407")]):
+    for j, (b, p) in enumerate(
+        [("1.5511", "0.070822"), ("0.51017", "0.5009"), ("0.10191", "0.89592"), ("-0.14406", "0.84407")]
+    ):
         assert printed(r0.b[j], b) and printed(r0.pval[j], p)
     r = stepwisefit(HALD_X, HALD_Y, inmodel=np.ones(4, dtype=bool))
     assert [(rec.action, rec.column) for rec in r.history] == [("removed", 2), ("removed", 3)]
@@ -116,6 +133,7 @@ def test_full_initial_model_matches_fitlm_and_backward_eliminates():
 
 
 # ----------------------------------------------------------------------- semantics
+
 
 def test_excluded_term_b_se_pval_equal_refit_with_that_term_added():
     r = stepwisefit(HALD_X, HALD_Y)
@@ -140,10 +158,20 @@ def test_nan_rows_are_dropped():
     np.testing.assert_allclose(r.pval, ref.pval, rtol=1e-10)
 
 
-@pytest.mark.parametrize("penter, premove", [
-    (0.0, 0.1), (-0.05, 0.1), (1.0, 1.0), (0.05, 1.0), (0.2, 0.1), (np.nan, 0.1),
-    (0.05, np.nan), ("0.05", 0.1), (True, 0.1),
-])
+@pytest.mark.parametrize(
+    "penter, premove",
+    [
+        (0.0, 0.1),
+        (-0.05, 0.1),
+        (1.0, 1.0),
+        (0.05, 1.0),
+        (0.2, 0.1),
+        (np.nan, 0.1),
+        (0.05, np.nan),
+        ("0.05", 0.1),
+        (True, 0.1),
+    ],
+)
 def test_bad_penter_premove_rejected(penter, premove):
     with pytest.raises(ValueError, match="penter|premove"):
         stepwisefit(HALD_X, HALD_Y, penter=penter, premove=premove)
@@ -153,10 +181,16 @@ def test_penter_equal_premove_allowed():
     assert stepwisefit(HALD_X, HALD_Y, penter=0.1, premove=0.1).columns == (0, 1)
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(inmodel=[4]), dict(inmodel=[True, False]), dict(keep=[-1]), dict(maxiter=-1),
-    dict(maxiter=1.5),
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(inmodel=[4]),
+        dict(inmodel=[True, False]),
+        dict(keep=[-1]),
+        dict(maxiter=-1),
+        dict(maxiter=1.5),
+    ],
+)
 def test_bad_options_rejected(kwargs):
     with pytest.raises(ValueError):
         stepwisefit(HALD_X, HALD_Y, **kwargs)
@@ -228,6 +262,7 @@ def test_result_is_frozen_and_predicts():
 
 # --------------------------------------------------------------------- property tests
 
+
 @st.composite
 def problems(draw, degenerate: bool = False):
     seed = draw(st.integers(0, 2**32 - 1))
@@ -261,8 +296,9 @@ def _check_one_move_per_step(r, penter, premove, keep):
     assert np.array_equal(before, r.inmodel)
 
 
-_SETTINGS = settings(max_examples=60, deadline=None, database=None,
-                     suppress_health_check=[HealthCheck.too_slow])
+_SETTINGS = settings(
+    max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @_SETTINGS

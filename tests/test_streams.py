@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.nano.rig import nano1d
 from calflow.acquisition.streams import DwellReducer, reduce_dwell
+from calflow.nano.stage.rig import nano1d
 
 
 def _naive(chunks, window_s):
@@ -33,13 +33,17 @@ def test_reduce_dwell_equals_naive_mean_of_last_5s_on_a_rig_stream():
     for key, value in expected.items():
         assert row[key] == pytest.approx(value, rel=0, abs=1e-12)
     # and it is not the mean of the whole dwell (noise differs sample to sample)
-    assert row["meas_x"] != pytest.approx(np.concatenate([c["meas_x"] for c in chunks]).mean(),
-                                          rel=0, abs=1e-9)
+    assert row["meas_x"] != pytest.approx(
+        np.concatenate([c["meas_x"] for c in chunks]).mean(), rel=0, abs=1e-9
+    )
 
 
 @settings(max_examples=60, deadline=None)
-@given(sizes=st.lists(st.integers(0, 40), min_size=1, max_size=30),
-       window=st.floats(0.05, 3.0), rate=st.sampled_from([10.0, 50.0, 1000.0]))
+@given(
+    sizes=st.lists(st.integers(0, 40), min_size=1, max_size=30),
+    window=st.floats(0.05, 3.0),
+    rate=st.sampled_from([10.0, 50.0, 1000.0]),
+)
 def test_any_chunking_gives_the_naive_result(sizes, window, rate):
     n = sum(sizes)
     if n == 0:
@@ -49,7 +53,7 @@ def test_any_chunking_gives_the_naive_result(sizes, window, rate):
     a = np.sin(i * 0.37) + 0.01 * i
     chunks, start = [], 0
     for s in sizes:
-        chunks.append({"time": t[start:start + s], "a": a[start:start + s], "b": -a[start:start + s]})
+        chunks.append({"time": t[start : start + s], "a": a[start : start + s], "b": -a[start : start + s]})
         start += s
     row = reduce_dwell(chunks, window_s=window)
     expected, t_last, k = _naive(chunks, window)
@@ -64,11 +68,13 @@ def test_short_stream_averages_everything_and_errors_are_reported():
     with pytest.raises(ValueError, match="empty"):
         reduce_dwell([], window_s=5.0)
     with pytest.raises(ValueError, match="non-decreasing"):
-        reduce_dwell([{"time": np.array([2.0]), "v": np.array([1.0])},
-                      {"time": np.array([1.0]), "v": np.array([1.0])}])
+        reduce_dwell(
+            [{"time": np.array([2.0]), "v": np.array([1.0])}, {"time": np.array([1.0]), "v": np.array([1.0])}]
+        )
     with pytest.raises(ValueError, match="channels"):
-        reduce_dwell([{"time": np.array([1.0]), "v": np.array([1.0])},
-                      {"time": np.array([2.0]), "w": np.array([1.0])}])
+        reduce_dwell(
+            [{"time": np.array([1.0]), "v": np.array([1.0])}, {"time": np.array([2.0]), "w": np.array([1.0])}]
+        )
     with pytest.raises(ValueError, match="window_s"):
         reduce_dwell(chunks, window_s=0.0)
 

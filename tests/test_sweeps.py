@@ -7,10 +7,10 @@ from calflow.acquisition.runner import acquire
 from calflow.data.conventions import PLANS
 from calflow.data.runs import RunMetadata
 from calflow.data.validate import validate_dataset
-from calflow.xytheta.kinematics import Parameters, inverse
-from calflow.xytheta.lookup import infer_directions
-from calflow.xytheta import sweeps
-from calflow.xytheta.rig import simulated_xytheta
+from calflow.xytheta.models.kinematics import Parameters, inverse
+from calflow.xytheta.plans import sweeps
+from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.tables.lookup import infer_directions
 
 
 def test_characterisation_rows_passes_and_approach_directions():
@@ -89,8 +89,13 @@ def test_angle_residual_targets_and_plan():
 
 
 def test_plans_acquire_into_valid_runs():
-    meta = RunMetadata(campaign="t", robot="xytheta", source="simulated", plan="square", config_sha256="0" * 64)
-    run = acquire(sweeps.square(side_um=500, origin_um=100, points_per_segment=3, cycles=2),
-                  simulated_xytheta(seed=0, stream="sq"), meta)
+    meta = RunMetadata(
+        campaign="t", robot="xytheta", source="simulated", plan="square", config_sha256="0" * 64
+    )
+    run = acquire(
+        sweeps.square(side_um=500, origin_um=100, points_per_segment=3, cycles=2),
+        simulated_xytheta(seed=0, stream="sq"),
+        meta,
+    )
     assert validate_dataset(run) == []
     assert "target_x" in run and run.attrs["plan"] == "square"

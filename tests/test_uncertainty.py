@@ -7,7 +7,16 @@ import pytest
 from calflow.uncertainty import DEFAULT_INPUTS, atmospheric_ppm, combine, interferometer_budget
 
 # Table 3.4 as printed (nm).
-PRINTED = {"U_1": 0.087, "U_2": 0.08, "U_3": 3.0, "U_4": 0.262, "U_5": 29.0, "U_6": 26.2, "U_7": 10.0, "U_8": 0.76}
+PRINTED = {
+    "U_1": 0.087,
+    "U_2": 0.08,
+    "U_3": 3.0,
+    "U_4": 0.262,
+    "U_5": 29.0,
+    "U_6": 26.2,
+    "U_7": 10.0,
+    "U_8": 0.76,
+}
 
 
 def test_each_component_matches_table_3_4_to_printed_precision():

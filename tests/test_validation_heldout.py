@@ -6,16 +6,17 @@ held-out figures are checked in test_default_run.py.
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from calflow.xytheta import cost
-from calflow.xytheta.angle_table import AngleTable, _curves, angle_spectrum
-from calflow.xytheta.commands import o2_plateau
-from calflow.xytheta.identification import cross_validate, identify
-from calflow.xytheta.kinematics import Parameters, forward
-from calflow.xytheta.plans import heldout_targets, identification
-from calflow.xytheta.rig_physics import options_off
-from calflow.xytheta.summary import adequacy, disjointness, repeatability_floor
+from calflow.xytheta.models import cost
+from calflow.xytheta.models.identification import cross_validate, identify
+from calflow.xytheta.models.kinematics import Parameters, forward
+from calflow.xytheta.plans.poses import heldout_targets, identification
+from calflow.xytheta.report.summary import adequacy, disjointness, repeatability_floor
+from calflow.xytheta.stage.physics import options_off
+from calflow.xytheta.steps import o2_plateau
+from calflow.xytheta.tables.angle import AngleTable, _curves, angle_spectrum
 
 NOMINAL = Parameters(10000.0, 8000.0, 180.0, 0.0)
 #: a simulated rig whose only errors are geometric (and the noise of stage and sensor)
@@ -24,6 +25,7 @@ GEOMETRIC_RIG = {**options_off(), "room_swing_degC": 0.0}
 
 
 # ---------------------------------------------------------------------------- held-out targets
+
 
 def test_heldout_targets_are_drawn_over_the_workspace_with_their_own_seed():
     t = heldout_targets(50, (0, 4000), (800, 2800), (0, 5), NOMINAL, seed=3)
@@ -48,12 +50,23 @@ def test_disjointness_finds_a_repeated_pose_and_only_it():
     rng = np.random.default_rng(0)
     train = np.column_stack([rng.uniform(0, 4000, 200), rng.uniform(800, 2800, 200), rng.uniform(0, 5, 200)])
     held = np.column_stack([rng.uniform(0, 4000, 30), rng.uniform(800, 2800, 30), rng.uniform(0, 5, 30)])
-    assert disjointness([_run(held, "validation_heldout")], [_run(train, "identification")])["coincident_samples"] == 0
+    assert (
+        disjointness([_run(held, "validation_heldout")], [_run(train, "identification")])[
+            "coincident_samples"
+        ]
+        == 0
+    )
     held[7] = train[11] + [0.3, -0.2, 0.0]
-    assert disjointness([_run(held, "validation_heldout")], [_run(train, "identification")])["coincident_samples"] == 1
+    assert (
+        disjointness([_run(held, "validation_heldout")], [_run(train, "identification")])[
+            "coincident_samples"
+        ]
+        == 1
+    )
 
 
 # ---------------------------------------------------------------------------- angle table
+
 
 def _sweep(period_deg, amplitude_um, step_deg, noise_um=0.05, cycles=2, positions=3, seed=0):
     """Synthetic swept residuals: a cubic plus one periodic component, forward and backward."""
@@ -73,8 +86,9 @@ def _sweep(period_deg, amplitude_um, step_deg, noise_um=0.05, cycles=2, position
 @given(period=st.floats(1.0, 3.0), amplitude=st.floats(2.0, 15.0))
 def test_table_step_follows_the_shortest_significant_period(period, amplitude):
     r, grid = _sweep(period, amplitude, 0.05)
-    spectrum, _ = angle_spectrum(r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4].astype(int), grid,
-                                 samples_per_period=8)
+    spectrum, _ = angle_spectrum(
+        r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4].astype(int), grid, samples_per_period=8
+    )
     assert spectrum.shortest_period_deg == pytest.approx(period, rel=0.2)
     assert spectrum.step_deg <= spectrum.shortest_period_deg / 8 + 1e-9
     assert spectrum.step_deg > spectrum.shortest_period_deg / 16  # not finer than it needs
@@ -83,8 +97,9 @@ def test_table_step_follows_the_shortest_significant_period(period, amplitude):
 
 def test_a_coarse_sweep_is_said_to_undersample():
     r, grid = _sweep(1.0, 10.0, 0.25)
-    spectrum, _ = angle_spectrum(r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4].astype(int), grid,
-                                 samples_per_period=8)
+    spectrum, _ = angle_spectrum(
+        r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4].astype(int), grid, samples_per_period=8
+    )
     assert spectrum.undersampled
     assert "undersamples" in spectrum.warning and "step_deg" in spectrum.warning
 
@@ -111,8 +126,12 @@ def _curves_by_loop(theta, f, direction, cycle, grid):
 
 
 @settings(max_examples=60, deadline=None)
-@given(n=st.integers(1, 300), bins=st.integers(2, 40), seed=st.integers(0, 2**31 - 1),
-       nan_fraction=st.floats(0.0, 0.5))
+@given(
+    n=st.integers(1, 300),
+    bins=st.integers(2, 40),
+    seed=st.integers(0, 2**31 - 1),
+    nan_fraction=st.floats(0.0, 0.5),
+)
 def test_vectorised_binning_equals_the_per_bin_loop(n, bins, seed, nan_fraction):
     rng = np.random.default_rng(seed)
     grid = np.linspace(-1.0, 4.0, bins)
@@ -128,8 +147,9 @@ def test_vectorised_binning_equals_the_per_bin_loop(n, bins, seed, nan_fraction)
 
 
 def test_angle_table_is_indexed_by_theta_alone_and_interpolates_per_direction():
-    table = AngleTable(np.array([0.0, 1.0, 2.0]), np.array([[0.0, 2.0, 4.0], [1.0, 3.0, 5.0]]),
-                       np.zeros((2, 3)), 180.0, 0.0)
+    table = AngleTable(
+        np.array([0.0, 1.0, 2.0]), np.array([[0.0, 2.0, 4.0], [1.0, 3.0, 5.0]]), np.zeros((2, 3)), 180.0, 0.0
+    )
     fx, _ = table.f(np.array([0.5, 1.5]), np.array([1, -1]))
     assert fx == pytest.approx([1.0, 4.0])
     assert table.f(0.5)[0] == pytest.approx(1.5)  # no direction: the mean
@@ -140,6 +160,7 @@ def test_angle_table_is_indexed_by_theta_alone_and_interpolates_per_direction():
 
 
 # ---------------------------------------------------------------------------- cross-validation, adequacy
+
 
 def _poses(n, seed, noise_um, p: Parameters, extra=None):
     rng = np.random.default_rng(seed)
@@ -163,7 +184,7 @@ def test_cross_validation_matches_the_fit_when_the_model_is_right():
 def test_adequacy_accepts_a_right_model_and_flags_a_wrong_one():
     truth = Parameters(9572.9, 7795.9, 177.69, -0.11)
     floor = {"floor_um": 0.5, "dof": 2000}
-    from calflow.xytheta.identification import noise_sigma
+    from calflow.xytheta.models.identification import noise_sigma
 
     X, Y, T, Px, Py = _poses(600, 2, 0.5, truth)
     fit = identify(X, Y, T, Px, Py, initial=NOMINAL)
@@ -188,6 +209,7 @@ def test_repeatability_floor_pools_by_degrees_of_freedom():
 
 # ---------------------------------------------------------------------------- observability plateau
 
+
 def test_o2_plateau_is_where_the_mean_stays_within_tolerance():
     counts = np.array([3, 5, 10, 20, 50, 100, 200, 400, 800, 1600])
     o2 = np.array([0.1, 0.3, 0.6, 0.8, 0.9, 0.97, 1.02, 0.99, 1.0, 1.01])
@@ -200,25 +222,32 @@ def test_o2_plateau_is_where_the_mean_stays_within_tolerance():
 
 # ---------------------------------------------------------------------------- Monte-Carlo coverage
 
-@pytest.mark.parametrize("model,rig", [("II", GEOMETRIC_RIG),
-                                       ("I", {**GEOMETRIC_RIG, "alpha_deg": 180.0, "beta_deg": 0.0})])
+
+@pytest.mark.parametrize(
+    "model,rig", [("II", GEOMETRIC_RIG), ("I", {**GEOMETRIC_RIG, "alpha_deg": 180.0, "beta_deg": 0.0})]
+)
 def test_intervals_cover_the_truth_on_a_rig_the_model_describes(tmp_path, model, rig):
     """On a rig whose only errors are the model's, 95 % intervals hold the truth 90–99 % of the time."""
     import yaml
+    from conftest import SMALL_XYTHETA
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
-    from conftest import SMALL_XYTHETA
+    from calflow.xytheta.studies.aggregate import aggregate
+    from calflow.xytheta.studies.montecarlo import run_point
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
     c = load_campaign(tmp_path / "c.yaml")
-    points = [run_point(c, seed, 0.05, 60, model, validation_cycles=2, rig_options=rig) for seed in range(100)]
+    points = [
+        run_point(c, seed, 0.05, 60, model, validation_cycles=2, rig_options=rig) for seed in range(100)
+    ]
     cell = aggregate(points)["cells"][0]
     free = [k for k, v in cell["parameters"].items() if v["free"]]
     assert len(free) == (4 if model == "II" else 2)
     for key in free:
-        assert 0.90 <= cell["parameters"][key]["coverage_95"] <= 0.99, (key, cell["parameters"][key]["coverage_95"])
+        assert 0.90 <= cell["parameters"][key]["coverage_95"] <= 0.99, (
+            key,
+            cell["parameters"][key]["coverage_95"],
+        )
     for key in set(cell["parameters"]) - set(free):
         assert cell["parameters"][key]["coverage_95"] is None
 
@@ -227,11 +256,11 @@ def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
     """Model II on the default rig (lead screw, backlash, yaw… it does not model): with many
     poses its σ shrink, the bias does not, and its intervals miss."""
     import yaml
+    from conftest import SMALL_XYTHETA
 
     from calflow.config import load_campaign
-    from calflow.xytheta.montecarlo import run_point
-    from calflow.xytheta.montecarlo_aggregate import aggregate
-    from conftest import SMALL_XYTHETA
+    from calflow.xytheta.studies.aggregate import aggregate
+    from calflow.xytheta.studies.montecarlo import run_point
 
     (tmp_path / "c.yaml").write_text(yaml.safe_dump(SMALL_XYTHETA))
     c = load_campaign(tmp_path / "c.yaml")

@@ -7,9 +7,7 @@ The read-only tests share the session's one run of the default configuration
 import json
 
 import pytest
-
 from conftest import make_workdir, snakemake
-
 
 CAMPAIGN = "xytheta-thesis"
 
@@ -19,8 +17,10 @@ def test_plugin_rig_campaign_runs_end_to_end(tmp_path):
     from conftest import SMALL_XYTHETA
 
     campaign = json.loads(json.dumps(SMALL_XYTHETA))
-    campaign["rig"] = {"factory": "toyrigs:open_toy",
-                       "options": {"x_R": 5000.0, "y_R": 3000.0, "alpha": 178.0, "beta": 0.2}}
+    campaign["rig"] = {
+        "factory": "toyrigs:open_toy",
+        "options": {"x_R": 5000.0, "y_R": 3000.0, "alpha": 178.0, "beta": 0.2},
+    }
     campaign["identification"]["initial"] = {"x_R": 5500.0, "y_R": 2500.0}
     campaign["models"] = {k: v for k, v in campaign["models"].items() if k in ("I", "II")}
     campaign["xy_tests"] = {"compensation": []}
@@ -35,10 +35,13 @@ def test_plugin_rig_campaign_runs_end_to_end(tmp_path):
     assert "truth" not in summary
 
 
-@pytest.mark.parametrize("edit,key", [
-    (lambda c: c["validation"].update(cyclez=3), "validation.cyclez"),
-    (lambda c: c["identification"].update(poses="many"), "identification.poses"),
-])
+@pytest.mark.parametrize(
+    "edit,key",
+    [
+        (lambda c: c["validation"].update(cyclez=3), "validation.cyclez"),
+        (lambda c: c["identification"].update(poses="many"), "identification.poses"),
+    ],
+)
 def test_bad_campaign_stops_before_any_job(tmp_path, edit, key):
     from conftest import SMALL_XYTHETA
 
@@ -51,5 +54,3 @@ def test_bad_campaign_stops_before_any_job(tmp_path, edit, key):
     assert len(lines) == 1
     assert "config/campaigns/broken.yaml" in lines[0] and key in lines[0]
     assert not (work / "results").exists()
-
-

@@ -77,7 +77,7 @@ class Slow:
 
 def slow_simulated(seconds=0.004, **options):
     """The simulated XYΘ rig, slowed down (replayable: resumed by replaying its rows)."""
-    from calflow.xytheta.rig import simulated_xytheta
+    from calflow.xytheta.stage.rig import simulated_xytheta
 
     options.setdefault("seed", 11)
     options.setdefault("stream", "identification")

@@ -51,9 +51,8 @@ def cmd_summarise(args) -> None:
 
 def cmd_report(args) -> None:
     from calflow.config import load_campaign
-    from calflow.data.io import write_bytes, write_text
+    from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import render_campaign_pages, write_pdf
-    from calflow.data.io import load_summary
 
     campaign = load_campaign(args.campaign)
     summary = load_summary(args.summary)
@@ -65,21 +64,22 @@ def cmd_report(args) -> None:
 
 
 def cmd_index(args) -> None:
-    from calflow.data.io import write_text
+    from calflow.data.io import load_summary, write_text
     from calflow.report import render_index
-    from calflow.data.io import load_summary
 
     write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
 
 
 def cmd_import_csv(args) -> None:
     from calflow.commands.common import campaign, meta
-    from calflow.data.io import write_dataset
     from calflow.data.importing import import_csv, load_mapping
+    from calflow.data.io import write_dataset
 
     c = campaign(args.campaign)
     mapping = load_mapping(args.mapping)
-    write_dataset(import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out)
+    write_dataset(
+        import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out
+    )
 
 
 def cmd_import_recording(args) -> None:
@@ -92,7 +92,9 @@ def cmd_import_recording(args) -> None:
     path, ds, _ = load(spec, args.plan, "calflow import-recording")
     ds = in_campaign_time(ds, c["start"])
     if ds.attrs["robot"] != c["robot"]:
-        raise CalflowError(f"{path}: holds a {ds.attrs['robot']} recording; campaign {args.campaign} is {c['robot']!r}")
+        raise CalflowError(
+            f"{path}: holds a {ds.attrs['robot']} recording; campaign {args.campaign} is {c['robot']!r}"
+        )
     kept = {k: ds.attrs[k] for k in ("imported_from", "z_range_um", "recording_start") if k in ds.attrs}
     ds.attrs = {**meta(c, "replay", args.plan).attrs("run"), **kept}
     write_dataset(ds, args.out)
@@ -151,9 +153,12 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
-    a.add_argument("--rig-plugins", metavar="MODULES",
-                   help="comma-separated modules whose 'module:callable' rig factories may run "
-                        "(default: $CALFLOW_RIG_PLUGINS; the workflow passes config rig_plugins)")
+    a.add_argument(
+        "--rig-plugins",
+        metavar="MODULES",
+        help="comma-separated modules whose 'module:callable' rig factories may run "
+        "(default: $CALFLOW_RIG_PLUGINS; the workflow passes config rig_plugins)",
+    )
 
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
@@ -187,17 +192,29 @@ def parser() -> argparse.ArgumentParser:
     x.add_argument("--summaries", nargs="+", required=True)
     x.add_argument("--out", required=True)
 
-    ic = _sub(sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping")
+    ic = _sub(
+        sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"
+    )
     ic.add_argument("csv")
-    ic.add_argument("--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)")
+    ic.add_argument(
+        "--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)"
+    )
     ic.add_argument("--campaign", required=True)
     ic.add_argument("--out", required=True)
 
-    ir = _sub(sub, "import-recording", cmd_import_recording,
-              "turn an instrument's file (ISO 230-2 .dat, laser-tracker CSV) into a run dataset")
+    ir = _sub(
+        sub,
+        "import-recording",
+        cmd_import_recording,
+        "turn an instrument's file (ISO 230-2 .dat, laser-tracker CSV) into a run dataset",
+    )
     ir.add_argument("file")
-    ir.add_argument("--format", required=True, choices=["ecmc_iso230", "laser_tracker", "csv"],
-                    help="docs/data.md, 'Recorded campaigns'")
+    ir.add_argument(
+        "--format",
+        required=True,
+        choices=["ecmc_iso230", "laser_tracker", "csv"],
+        help="docs/data.md, 'Recorded campaigns'",
+    )
     ir.add_argument("--mapping", help="column mapping of a csv recording")
     ir.add_argument("--plan", required=True, help="the run's plan (e.g. metrology, training)")
     ir.add_argument("--campaign", required=True)
@@ -210,12 +227,19 @@ def parser() -> argparse.ArgumentParser:
     k.add_argument("config", nargs="?", default="config/config.yaml")
     k.add_argument("--campaign-dir")
 
-    e = _sub(sub, "emulate", _run("calflow.gcs.campaign_server:emulate_command"),
-             "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
-             "its robot family registers (C-863 for xytheta, E-727 class for nano)")
+    e = _sub(
+        sub,
+        "emulate",
+        _run("calflow.gcs.campaign_server:emulate_command"),
+        "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
+        "its robot family registers (C-863 for xytheta, E-727 class for nano)",
+    )
     e.add_argument("kind", choices=["gcs"])
-    e.add_argument("rest", nargs=argparse.REMAINDER, help="--campaign FILE [--port 50000] [--time-scale 1] "
-                                                          "[--duration S]")
+    e.add_argument(
+        "rest",
+        nargs=argparse.REMAINDER,
+        help="--campaign FILE [--port 50000] [--time-scale 1] [--duration S]",
+    )
 
     from calflow.family import families
 

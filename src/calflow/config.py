@@ -12,7 +12,7 @@ import hashlib
 import json
 import math
 import re
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -24,8 +24,14 @@ from calflow.family import family_of, resolve, robots
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
-_TYPE_NAMES = {"integer": "an integer", "number": "a number", "string": "a string", "array": "a list",
-               "object": "a mapping", "boolean": "true or false"}
+_TYPE_NAMES = {
+    "integer": "an integer",
+    "number": "a number",
+    "string": "a string",
+    "array": "a list",
+    "object": "a mapping",
+    "boolean": "true or false",
+}
 
 
 # libyaml's safe loader when PyYAML was built with it: the same safe constructors (plain
@@ -39,7 +45,7 @@ def safe_yaml(text: str) -> Any:
     return yaml.load(text, Loader=_SAFE_LOADER)
 
 
-@lru_cache(maxsize=None)
+@cache
 def schema(name: str) -> dict:
     """The JSON Schema ``workflow/schemas/<name>.schema.yaml``.
 
@@ -65,14 +71,18 @@ def _describe(error: jsonschema.ValidationError, file: str) -> str:
         allowed = sorted(s.get("properties", {}))
         extra = sorted(set(error.instance) - set(allowed))
         where = f"{key}." if error.absolute_path else ""
-        expected = f"expected one of: {', '.join(allowed)}" if allowed else "no keys other than the model names"
+        expected = (
+            f"expected one of: {', '.join(allowed)}" if allowed else "no keys other than the model names"
+        )
         return f"{file}: unknown key '{where}{extra[0]}' ({expected})"
     if v == "required":
         missing = error.message.split("'")[1]
         where = f"{key}." if error.absolute_path else ""
         return f"{file}: key '{where}{missing}': missing, it is required"
     if v == "type":
-        return f"{file}: key '{key}': expected {_TYPE_NAMES.get(s['type'], s['type'])}, got {error.instance!r}"
+        return (
+            f"{file}: key '{key}': expected {_TYPE_NAMES.get(s['type'], s['type'])}, got {error.instance!r}"
+        )
     if v == "enum":
         return f"{file}: key '{key}': expected one of {s['enum']}, got {error.instance!r}"
     if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
@@ -137,8 +147,9 @@ def _check_ranges(node: Any, sch: dict, root: dict, file, path: tuple = ()) -> N
     if "$ref" in sch:
         ref = sch["$ref"].split("/")[-1]
         if ref == "range" and isinstance(node, list) and len(node) == 2 and not node[0] < node[1]:
-            raise ConfigError(f"{file}: key '{_key(path)}': expected a range [low, high] with low < high, "
-                              f"got {node!r}")
+            raise ConfigError(
+                f"{file}: key '{_key(path)}': expected a range [low, high] with low < high, got {node!r}"
+            )
         sch = root["$defs"].get(ref, {})
     if isinstance(node, dict):
         for key, value in node.items():
@@ -156,8 +167,9 @@ def _check_dwells(node: Any, file, path: tuple = ()) -> None:
     avg, dwell = node.get("average_last_s"), node.get("dwell_s")
     if isinstance(avg, (int, float)) and isinstance(dwell, (int, float)) and avg > dwell:
         key = _key(path + ("average_last_s",))
-        raise ConfigError(f"{file}: key '{key}': expected a value <= {_key(path + ('dwell_s',))} "
-                          f"({dwell!r}), got {avg!r}")
+        raise ConfigError(
+            f"{file}: key '{key}': expected a value <= {_key(path + ('dwell_s',))} ({dwell!r}), got {avg!r}"
+        )
     for key, value in node.items():
         _check_dwells(value, file, path + (key,))
 
@@ -168,8 +180,10 @@ def _check_strokes(node: Any, file, path: tuple = ()) -> None:
         return
     start, stop = node.get("start_um"), node.get("stop_um")
     if isinstance(start, (int, float)) and isinstance(stop, (int, float)) and not start < stop:
-        raise ConfigError(f"{file}: key '{_key(path + ('stop_um',))}': expected a value > "
-                          f"{_key(path + ('start_um',))} ({start!r}), got {stop!r}")
+        raise ConfigError(
+            f"{file}: key '{_key(path + ('stop_um',))}': expected a value > "
+            f"{_key(path + ('start_um',))} ({start!r}), got {stop!r}"
+        )
     for key, value in node.items():
         _check_strokes(value, file, path + (key,))
 
@@ -180,8 +194,9 @@ def _check_start(campaign: dict, file) -> None:
     try:
         dt.datetime.fromisoformat(str(start).replace("Z", "+00:00"))
     except ValueError as exc:
-        raise ConfigError(f"{file}: key 'start': expected a real ISO 8601 date and time, got {start!r} "
-                          f"({exc})") from None
+        raise ConfigError(
+            f"{file}: key 'start': expected a real ISO 8601 date and time, got {start!r} ({exc})"
+        ) from None
 
 
 def validate(data: Any, name: str, file: str | Path) -> dict:
@@ -205,8 +220,6 @@ def check_campaign_name(name: str) -> str:
             f"campaign name {name!r}: expected letters, digits, '-' or '_' (at most 64), starting with a letter or digit"
         )
     return name
-
-
 
 
 def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) -> dict:

@@ -26,8 +26,11 @@ class OptionError(RigError, ValueError):
 
     def __init__(self, option: str, expected: str, value=None, unknown: bool = False):
         self.option, self.expected, self.value, self.unknown = option, expected, value, unknown
-        super().__init__(f"unknown option {option!r} ({expected})" if unknown
-                         else f"option {option!r}: expected {expected}, got {value!r}")
+        super().__init__(
+            f"unknown option {option!r} ({expected})"
+            if unknown
+            else f"option {option!r}: expected {expected}, got {value!r}"
+        )
 
     def at(self, file, where: str) -> str:
         """The one-line message naming ``file`` and the key ``<where>.<option>``."""

@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib.metadata import entry_points
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from calflow.errors import CalflowError
 
@@ -85,8 +86,10 @@ class Family:
     def plan(self, robot: str, name: str) -> Callable[..., Any]:
         plans = self.plans.get(robot, {})
         if name not in plans:
-            raise CalflowError(f"calflow acquire: --plan {name!r} is not a plan of a {robot} campaign; "
-                               f"expected one of {', '.join(plans)}")
+            raise CalflowError(
+                f"calflow acquire: --plan {name!r} is not a plan of a {robot} campaign; "
+                f"expected one of {', '.join(plans)}"
+            )
         return resolve(plans[name])
 
 

@@ -8,7 +8,7 @@ new calflow version) reruns exactly the jobs that use them.
 from __future__ import annotations
 
 import hashlib
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 from calflow import __version__
@@ -16,7 +16,7 @@ from calflow import __version__
 
 def _files(module: str) -> list[Path]:
     """The source files of ``module``: a module, a package with its submodules and data, or
-    a folder of templates inside the package (``calflow.xytheta.templates``)."""
+    a folder of templates inside the package (``calflow.xytheta.report.templates``)."""
     root = Path(__file__).resolve().parent
     parts = module.split(".")
     if parts[0] != "calflow":
@@ -25,11 +25,13 @@ def _files(module: str) -> list[Path]:
     if base.with_suffix(".py").is_file():
         return [base.with_suffix(".py")]
     if base.is_dir():
-        return sorted(p for p in base.rglob("*") if p.suffix in (".py", ".j2", ".css", ".yaml") and p.is_file())
+        return sorted(
+            p for p in base.rglob("*") if p.suffix in (".py", ".j2", ".css", ".yaml") and p.is_file()
+        )
     raise ValueError(f"provenance: no module {module!r}")
 
 
-@lru_cache(maxsize=None)
+@cache
 def code_digest(step: str, robot: str) -> str:
     """SHA-256 over calflow's version and the source of the modules of ``step`` for
     campaigns of ``robot`` (the modules its family lists, :class:`calflow.family.Family`)."""

@@ -147,9 +147,7 @@ class StepwiseResult:
         lines.append(f"{'Coeff':>10} {'Std.Err.':>10} {'Status':>6} {'P':>12}")
         for j in range(self.inmodel.size):
             status = "In" if self.inmodel[j] else "Out"
-            lines.append(
-                f"{self.b[j]:>10.4f} {self.se[j]:>10.4f} {status:>6} {self.pval[j]:>12.5g}"
-            )
+            lines.append(f"{self.b[j]:>10.4f} {self.se[j]:>10.4f} {status:>6} {self.pval[j]:>12.5g}")
         return "\n".join(lines)
 
 
@@ -204,8 +202,19 @@ def _fit(X: np.ndarray, y: np.ndarray, inmodel: np.ndarray) -> dict:
         rmse = float(np.sqrt(sse / dfe)) if dfe > 0 else np.nan
         fstat = ((sstotal - sse) / df0) / (sse / dfe) if df0 > 0 and dfe > 0 else np.nan
     fpval = float(_st.f.sf(fstat, df0, dfe)) if np.isfinite(fstat) else np.nan
-    return dict(b=b, se=se, pval=pval, intercept=float(coef[0]), rmse=rmse, sse=sse,
-                dfe=int(dfe), df0=int(df0), sstotal=sstotal, fstat=float(fstat), fpval=fpval)
+    return dict(
+        b=b,
+        se=se,
+        pval=pval,
+        intercept=float(coef[0]),
+        rmse=rmse,
+        sse=sse,
+        dfe=int(dfe),
+        df0=int(df0),
+        sstotal=sstotal,
+        fstat=float(fstat),
+        fpval=fpval,
+    )
 
 
 def _next_move(inmodel, pval, movable, penter, premove) -> int | None:
@@ -294,13 +303,11 @@ def stepwisefit(
     if y.ndim == 2 and y.shape[1] == 1:
         y = y[:, 0]
     if X.ndim != 2 or y.ndim != 1 or X.shape[0] != y.shape[0] or X.shape[1] == 0:
-        raise ValueError(
-            f"need X of shape (n, p>=1) and y of shape (n,); got {X.shape} and {y.shape}")
+        raise ValueError(f"need X of shape (n, p>=1) and y of shape (n,); got {X.shape} and {y.shape}")
     if np.isinf(X).any() or np.isinf(y).any():
         raise ValueError("X and y must not contain infinite values")
     p = X.shape[1]
-    if maxiter is not None and (
-            isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
+    if maxiter is not None and (isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
         raise ValueError(f"maxiter must be a non-negative integer or None; got {maxiter!r}")
     limit = np.inf if maxiter is None else int(maxiter)
     start = _column_mask(inmodel, p, "inmodel")
@@ -323,23 +330,46 @@ def stepwisefit(
         trial[move] = not trial[move]
         if trial.tobytes() in visited:
             warnings.warn(
-                f"stepwisefit: moving column {move} would revisit an earlier model "
-                "(a cycle); stopping", RuntimeWarning, stacklevel=2)
+                f"stepwisefit: moving column {move} would revisit an earlier model (a cycle); stopping",
+                RuntimeWarning,
+                stacklevel=2,
+            )
             break
         action = "removed" if current[move] else "added"
         pmove = float(fit["pval"][move])
         current = trial
         visited.add(current.tobytes())
         fit = _fit(X, y, current)
-        history.append(StepRecord(step=len(history) + 1, action=action, column=move,
-                                  pval=pmove, rmse=fit["rmse"], df0=fit["df0"],
-                                  inmodel=_frozen(current)))
+        history.append(
+            StepRecord(
+                step=len(history) + 1,
+                action=action,
+                column=move,
+                pval=pmove,
+                rmse=fit["rmse"],
+                df0=fit["df0"],
+                inmodel=_frozen(current),
+            )
+        )
 
     return StepwiseResult(
-        inmodel=_frozen(current), b=_frozen(fit["b"]), se=_frozen(fit["se"]),
-        pval=_frozen(fit["pval"]), intercept=fit["intercept"], rmse=fit["rmse"],
-        history=tuple(history), initial_inmodel=_frozen(start), nextstep=move,
-        nobs=int(y.size), dfe=fit["dfe"], df0=fit["df0"], sse=fit["sse"],
-        sstotal=fit["sstotal"], fstat=fit["fstat"], fpval=fit["fpval"],
-        wasnan=_frozen(wasnan), penter=penter, premove=premove,
+        inmodel=_frozen(current),
+        b=_frozen(fit["b"]),
+        se=_frozen(fit["se"]),
+        pval=_frozen(fit["pval"]),
+        intercept=fit["intercept"],
+        rmse=fit["rmse"],
+        history=tuple(history),
+        initial_inmodel=_frozen(start),
+        nextstep=move,
+        nobs=int(y.size),
+        dfe=fit["dfe"],
+        df0=fit["df0"],
+        sse=fit["sse"],
+        sstotal=fit["sstotal"],
+        fstat=fit["fstat"],
+        fpval=fit["fpval"],
+        wasnan=_frozen(wasnan),
+        penter=penter,
+        premove=premove,
     )

@@ -31,9 +31,9 @@ Notes on Table 3.4 (what we found while reproducing it):
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
 
 __all__ = [
     "DEFAULT_INPUTS",
@@ -186,7 +186,9 @@ def interferometer_budget(**inputs: float) -> InterferometerBudget:
     u1 = length_nm * p["wavelength_stability_ppm"] * 1e-6 / _SQRT3
     u2 = (p["resolution_nm"] / 2.0) / _SQRT3
     u3 = p["nonlinearity_nm"] / math.sqrt(2.0)
-    u_w_ppm = math.sqrt(sum((p[k] / _SQRT3) ** 2 for k in ("temperature_ppm", "pressure_ppm", "humidity_ppm")))
+    u_w_ppm = math.sqrt(
+        sum((p[k] / _SQRT3) ** 2 for k in ("temperature_ppm", "pressure_ppm", "humidity_ppm"))
+    )
     u4 = u_w_ppm * 1e-6 * length_nm
     u5 = p["optics_temperature_uncertainty_degC"] * p["optics_drift_um_per_degC"] * 1e3 / _SQRT3
     u6 = u_w_ppm * 1e-6 * p["deadpath_mm"] * 1e6

@@ -13,7 +13,7 @@ from calflow.config import (
 )
 from calflow.provenance import code_digest
 from calflow.errors import ConfigError
-from calflow.xytheta.montecarlo import load_study
+from calflow.xytheta.studies.montecarlo import load_study
 
 
 def selected_studies(config):

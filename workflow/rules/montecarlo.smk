@@ -1,8 +1,8 @@
 # Monte-Carlo studies: many simulated XYΘ campaigns over seeds × sensor noise ×
 # identification poses (config/studies/<name>.yaml), one job per point or per batch of
 # seeds (key seeds_per_job), then the aggregate and the study's page.
-# Needs from common.smk: STUDIES (names) and STUDY (name -> calflow.xytheta.montecarlo.load_study()).
-from calflow.xytheta import montecarlo as mc
+# Needs from common.smk: STUDIES (names) and STUDY (name -> calflow.xytheta.studies.montecarlo.load_study()).
+from calflow.xytheta.studies import montecarlo as mc
 
 
 wildcard_constraints:

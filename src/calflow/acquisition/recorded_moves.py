@@ -18,7 +18,7 @@ interrupted one starts over.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import xarray as xr
@@ -41,14 +41,22 @@ def _record(rig, plan: Plan, command: dict, rate_hz: float, seconds: float) -> d
     return {k: np.concatenate([np.asarray(c[k], dtype=float) for c in chunks]) for k in names}
 
 
-def acquire_recorded_moves(plan: Plan, rig, meta: RunMetadata, journal=None,
-                           progress: Callable[[int, int], None] | None = None, controller=None) -> xr.Dataset:
+def acquire_recorded_moves(
+    plan: Plan,
+    rig,
+    meta: RunMetadata,
+    journal=None,
+    progress: Callable[[int, int], None] | None = None,
+    controller=None,
+) -> xr.Dataset:
     """Run ``plan`` (with ``extra["record_s"]`` and ``extra["record_rate_hz"]`` per row, one
     value) on ``rig``, recording every move (module docstring); ``journal`` and ``controller``
     are accepted for the runner's signature: the plan is open loop and not journaled."""
     if not hasattr(rig, "record_move"):
-        raise RigError(f"rig {type(rig).__name__}: plan {plan.name!r} records the approach of each move and this rig "
-                       "has no record_move (a data recorder triggered by the move command)")
+        raise RigError(
+            f"rig {type(rig).__name__}: plan {plan.name!r} records the approach of each move and this rig "
+            "has no record_move (a data recorder triggered by the move command)"
+        )
     if controller is not None:
         raise RigError(f"plan {plan.name!r}: recorded moves are open loop; got a run-time controller")
     seconds, rate = float(plan.extra["record_s"][0]), float(plan.extra["record_rate_hz"][0])
@@ -73,16 +81,28 @@ def acquire_recorded_moves(plan: Plan, rig, meta: RunMetadata, journal=None,
     ds = run_dataset(readings, plan, rig.sensors, rig.thermometers, meta)
     n = min(r["time"].size for r in records)
     rel = np.array([r["time"][:n] for r in records]) - np.array(starts)[:, None]
-    ds["record_time"] = xr.Variable(("sample", "record"), rel,
-                                    attrs={"units": "s", "long_name": "time of the record point since the start of the move"})
+    ds["record_time"] = xr.Variable(
+        ("sample", "record"),
+        rel,
+        attrs={"units": "s", "long_name": "time of the record point since the start of the move"},
+    )
     for name in rig.sensors:
         units, long_name = RUN_VARIABLES[name]
-        ds[f"record_{name}"] = xr.Variable(("sample", "record"), np.array([r[name][:n] for r in records]),
-                                           attrs={"units": units, "long_name": f"{long_name}, recorded during the move"})
-    ds["move_start"] = xr.Variable(("sample",), np.array(starts) + plan.start_s,
-                                   attrs={"units": time_units(meta.start), "long_name": "time the move started"})
+        ds[f"record_{name}"] = xr.Variable(
+            ("sample", "record"),
+            np.array([r[name][:n] for r in records]),
+            attrs={"units": units, "long_name": f"{long_name}, recorded during the move"},
+        )
+    ds["move_start"] = xr.Variable(
+        ("sample",),
+        np.array(starts) + plan.start_s,
+        attrs={"units": time_units(meta.start), "long_name": "time the move started"},
+    )
     for j in plan.commands:
-        ds[f"step_{j}"] = xr.Variable(("sample",), np.array([s[j] for s in steps]),
-                                      attrs={"units": "um", "long_name": f"commanded step of joint {j}"})
+        ds[f"step_{j}"] = xr.Variable(
+            ("sample",),
+            np.array([s[j] for s in steps]),
+            attrs={"units": "um", "long_name": f"commanded step of joint {j}"},
+        )
     ds.attrs.update(record_s=seconds, record_rate_hz=rate)
     return ds

@@ -15,17 +15,16 @@ the recorded rows, and must reproduce them exactly; a real rig simply continues.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import xarray as xr
 
 from calflow.acquisition.checkpoint import Journal
+from calflow.acquisition.streams import reduce_dwell
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import RigError
 from calflow.plan import Plan
-from calflow.acquisition.streams import reduce_dwell
-
 
 BATCH = 256  # rows per bulk visit: an interruption recomputes at most this many unjournaled rows
 
@@ -98,12 +97,20 @@ class _Runner:
         return [dict(zip(columns, row)) for row in zip(*columns.values())]
 
 
-def acquire(plan: Plan, rig, meta: RunMetadata, journal: Journal | None = None,
-            progress: Callable[[int, int], None] | None = None, controller=None) -> xr.Dataset:
+def acquire(
+    plan: Plan,
+    rig,
+    meta: RunMetadata,
+    journal: Journal | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    controller=None,
+) -> xr.Dataset:
     """Visit every row of ``plan`` on ``rig`` and return the run dataset."""
     missing = [j for j in plan.commands if j not in rig.joints]
     if missing:
-        raise RigError(f"rig: plan {plan.name!r} commands joints {missing} the rig does not have {list(rig.joints)}")
+        raise RigError(
+            f"rig: plan {plan.name!r} commands joints {missing} the rig does not have {list(rig.joints)}"
+        )
     controller = controller or OpenLoop(plan)
     runner = _Runner(plan, rig)
     recorded = journal.load() if journal is not None else []
@@ -116,8 +123,10 @@ def acquire(plan: Plan, rig, meta: RunMetadata, journal: Journal | None = None,
     if recorded and getattr(rig, "replayable", False):
         for i, row in enumerate(recorded):
             if not _same(runner.sample(i, controller), row):
-                raise RigError(f"rig: the simulated rig does not reproduce sample {i} of {journal.path}; "
-                               "delete the journal to start over")
+                raise RigError(
+                    f"rig: the simulated rig does not reproduce sample {i} of {journal.path}; "
+                    "delete the journal to start over"
+                )
     elif recorded:
         for i, row in enumerate(recorded):
             controller.observe(i, row)
@@ -134,7 +143,9 @@ def acquire(plan: Plan, rig, meta: RunMetadata, journal: Journal | None = None,
     try:
         i = len(readings)
         while i < len(plan):
-            for reading in runner.visits(i, min(i + BATCH, len(plan))) if bulk else [runner.sample(i, controller)]:
+            for reading in (
+                runner.visits(i, min(i + BATCH, len(plan))) if bulk else [runner.sample(i, controller)]
+            ):
                 reading["time"] += offset
                 readings.append(reading)
                 if journal is not None:

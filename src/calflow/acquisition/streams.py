@@ -15,7 +15,7 @@ newer than ``t_last - window_s``) plus the chunk being processed, so a 14 h dwel
 from __future__ import annotations
 
 from collections import deque
-from typing import Iterable, Mapping
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 
@@ -52,8 +52,10 @@ class DwellReducer:
         if self._channels is None:
             self._channels = names
         elif set(names) != set(self._channels):
-            raise ValueError(f"stream chunk channels {sorted(names)} differ from the first "
-                             f"chunk's {sorted(self._channels)}")
+            raise ValueError(
+                f"stream chunk channels {sorted(names)} differ from the first "
+                f"chunk's {sorted(self._channels)}"
+            )
         if t.size == 0:
             return
         if t[0] < self._t_last or np.any(np.diff(t) < 0):
@@ -66,8 +68,7 @@ class DwellReducer:
             for c, name in enumerate(self._channels):
                 v = np.asarray(chunk[name], dtype=float)
                 if v.shape != t.shape:
-                    raise ValueError(f"stream channel {name!r} has {v.shape} samples, "
-                                     f"time has {t.shape}")
+                    raise ValueError(f"stream channel {name!r} has {v.shape} samples, time has {t.shape}")
                 values[c] = v[keep:]
             self._pieces.append((t[keep:].copy(), values))
         # drop what the new last time pushed out of the window

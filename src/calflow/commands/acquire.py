@@ -7,7 +7,8 @@ run-time compensation, the controller.
 
 from __future__ import annotations
 
-from calflow.commands.common import campaign as load, meta, open_rig
+from calflow.commands.common import campaign as load
+from calflow.commands.common import meta, open_rig
 from calflow.errors import RigError
 from calflow.family import family_of
 
@@ -19,11 +20,19 @@ def _recorded(job, rig, c: dict):
     robot = rig.attrs.get("robot")
     if robot != c["robot"] or job.controller is not None:
         rig.close()
-        why = (f"holds a {robot} recording, the campaign's robot is {c['robot']!r}" if robot != c["robot"] else
-               "is an instrument's recording, which cannot replay a run commanded through the models at run time")
+        why = (
+            f"holds a {robot} recording, the campaign's robot is {c['robot']!r}"
+            if robot != c["robot"]
+            else "is an instrument's recording, which cannot replay a run commanded through the models at run time"
+        )
         raise RigError(f"{rig.path}: rig.options.recordings.{job.run_id}: {why}")
-    return Acquisition(rig.recorded_plan, job.run_id, job.model, None,
-                       {**job.attrs, "imported_from": rig.attrs.get("imported_from", rig.path.name)})
+    return Acquisition(
+        rig.recorded_plan,
+        job.run_id,
+        job.model,
+        None,
+        {**job.attrs, "imported_from": rig.attrs.get("imported_from", rig.path.name)},
+    )
 
 
 def acquire_job(c: dict, plan_name: str, args, plugins=None, journal_path: str | None = None):
@@ -42,8 +51,9 @@ def acquire_job(c: dict, plan_name: str, args, plugins=None, journal_path: str |
     journal = Journal(journal_path, plan_digest(job.plan)) if journal_path else None
     try:
         with progress(f"{c['name']} {job.run_id}", len(job.plan)) as step:
-            ds = (job.runner or acquire)(job.plan, rig, meta(c, source, plan_name, job.model), journal, step,
-                                         job.controller)
+            ds = (job.runner or acquire)(
+                job.plan, rig, meta(c, source, plan_name, job.model), journal, step, job.controller
+            )
         truth = rig.truth() if hasattr(rig, "truth") else {"available": False}
     finally:
         rig.close()
@@ -63,8 +73,10 @@ def run(args) -> None:
     empty = [n for n in rig.sensors if n in ds and ds.sizes.get("sample") and ds[n].isnull().all()]
     if empty:  # refused here, not two rules later as "needs at least 2 valid poses"
         journal.close(remove=True)
-        raise RigError(f"{args.out}: rig {c['rig']['factory']!r}: every reading of {empty[0]} in plan "
-                       f"{args.plan!r} is NaN; no run written (is the sensor connected and in range?)")
+        raise RigError(
+            f"{args.out}: rig {c['rig']['factory']!r}: every reading of {empty[0]} in plan "
+            f"{args.plan!r} is NaN; no run written (is the sensor connected and in range?)"
+        )
     if args.truth:
         write_json(truth, args.truth)
     write_dataset(ds, args.out)

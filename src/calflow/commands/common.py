@@ -18,8 +18,13 @@ def campaign(path: str, rig_plugins=None) -> dict:
 
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
     return RunMetadata(
-        campaign=c["name"], robot=c["robot"], source=source, plan=plan,
-        config_sha256=campaign_digest(c), start=c["start"], model=model,
+        campaign=c["name"],
+        robot=c["robot"],
+        source=source,
+        plan=plan,
+        config_sha256=campaign_digest(c),
+        start=c["start"],
+        model=model,
         history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in sys.argv[1:])}",
     )
 

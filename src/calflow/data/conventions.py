@@ -67,8 +67,11 @@ def utc_now() -> str:
     import os
 
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    now = (_dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch and epoch.isdigit()
-           else _dt.datetime.now(_dt.timezone.utc))
+    now = (
+        _dt.datetime.fromtimestamp(int(epoch), _dt.UTC)
+        if epoch and epoch.isdigit()
+        else _dt.datetime.now(_dt.UTC)
+    )
     return now.replace(microsecond=0).isoformat()
 
 

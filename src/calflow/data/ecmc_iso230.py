@@ -109,19 +109,28 @@ def parse(text: str, where: str = "ISO 230-2 file") -> Iso230Recording:
             idx = _indices(index, 1 if key == "TGT_DATA" else 2, key, where, number)
             name = f"{key}[{','.join(map(str, idx))}]"
             if (key, *idx) in cells:
-                raise _fail(where, number, f"{name} given again (first on line {cells[(key, *idx)][1]}); "
-                                           "expected each reading once")
+                raise _fail(
+                    where,
+                    number,
+                    f"{name} given again (first on line {cells[(key, *idx)][1]}); expected each reading once",
+                )
             cells[(key, *idx)] = (_real(value, name, where, number), number)
         elif key in ("UNIT", "CYCLES", "POSITIONS", *IGNORED_KEYS) and index is None:
             if key in scalars:
                 raise _fail(where, number, f"{key} given again (first on line {scalars[key][1]})")
             scalars[key] = (value, number)
         else:
-            raise _fail(where, number, f"unknown key {m.group(1)!r}; expected UNIT, CYCLES, POSITIONS, "
-                                       "TGT_DATA[i], REF_DATA_FWD[i,j] or REF_DATA_BWD[i,j]")
+            raise _fail(
+                where,
+                number,
+                f"unknown key {m.group(1)!r}; expected UNIT, CYCLES, POSITIONS, "
+                "TGT_DATA[i], REF_DATA_FWD[i,j] or REF_DATA_BWD[i,j]",
+            )
     unit, unit_line = scalars.get("UNIT", (DEFAULTS["UNIT"], 0))
     if unit not in UM_PER_UNIT:
-        raise _fail(where, unit_line, f"UNIT: expected a length unit, one of {list(UM_PER_UNIT)}, got {unit!r}")
+        raise _fail(
+            where, unit_line, f"UNIT: expected a length unit, one of {list(UM_PER_UNIT)}, got {unit!r}"
+        )
     sizes = {}
     for key in ("CYCLES", "POSITIONS"):
         value, line = scalars.get(key, (str(DEFAULTS[key]), 0))
@@ -129,7 +138,7 @@ def parse(text: str, where: str = "ISO 230-2 file") -> Iso230Recording:
     positions, cycles = sizes["POSITIONS"], sizes["CYCLES"]
     for (key, *idx), (_, line) in cells.items():
         limits = (positions,) if key == "TGT_DATA" else (positions, cycles)
-        for k, (v, hi, what) in enumerate(zip(idx, limits, ("POSITIONS", "CYCLES"))):
+        for v, hi, what in zip(idx, limits, ("POSITIONS", "CYCLES")):
             if v > hi:
                 raise _fail(where, line, f"{key}[{','.join(map(str, idx))}]: index {v} is beyond {what}={hi}")
     end = len(text.splitlines())
@@ -139,8 +148,10 @@ def parse(text: str, where: str = "ISO 230-2 file") -> Iso230Recording:
         if len(given) < math.prod(shape):
             one = next(i for i in (tuple(k + 1 for k in idx) for idx in np.ndindex(*shape)) if i not in given)
             what = "targets" if key == "TGT_DATA" else f"x CYCLES={cycles} readings per direction"
-            raise DataError(f"{where}: line {end}: {key}[{','.join(map(str, one))}] missing; "
-                            f"expected POSITIONS={positions} {what}")
+            raise DataError(
+                f"{where}: line {end}: {key}[{','.join(map(str, one))}] missing; "
+                f"expected POSITIONS={positions} {what}"
+            )
         out = np.empty(shape)  # bounded by the file's own lines
         for idx in given:
             out[tuple(k - 1 for k in idx)] = cells[(key, *idx)][0]
@@ -148,12 +159,18 @@ def parse(text: str, where: str = "ISO 230-2 file") -> Iso230Recording:
 
     targets = table("TGT_DATA", (positions,))
     if positions > 1 and not (np.all(np.diff(targets) > 0) or np.all(np.diff(targets) < 0)):
-        k = next(i for i in range(1, positions) if (targets[i] - targets[i - 1]) * (targets[1] - targets[0]) <= 0)
-        raise _fail(where, cells[("TGT_DATA", k + 1)][1],
-                    f"TGT_DATA[{k + 1}]: expected targets strictly increasing or decreasing with i, "
-                    f"got {targets[k]!r} after {targets[k - 1]!r}")
-    return Iso230Recording(unit, targets, table("REF_DATA_FWD", (positions, cycles)),
-                           table("REF_DATA_BWD", (positions, cycles)))
+        k = next(
+            i for i in range(1, positions) if (targets[i] - targets[i - 1]) * (targets[1] - targets[0]) <= 0
+        )
+        raise _fail(
+            where,
+            cells[("TGT_DATA", k + 1)][1],
+            f"TGT_DATA[{k + 1}]: expected targets strictly increasing or decreasing with i, "
+            f"got {targets[k]!r} after {targets[k - 1]!r}",
+        )
+    return Iso230Recording(
+        unit, targets, table("REF_DATA_FWD", (positions, cycles)), table("REF_DATA_BWD", (positions, cycles))
+    )
 
 
 def read(path: str | os.PathLike) -> Iso230Recording:

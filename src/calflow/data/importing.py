@@ -27,8 +27,9 @@ import csv
 import datetime as _dt
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -88,12 +89,16 @@ def check_mapping(raw: Any, where: str = "mapping") -> dict:
     out["dwell_s"] = None if raw.get("dwell_s") is None else _number(raw["dwell_s"], where, "dwell_s")
     out["description"] = str(raw.get("description", ""))
     delimiter = raw.get("delimiter", ",")
-    if not isinstance(delimiter, str) or len(delimiter) != 1 or delimiter in "\"\r\n":
-        raise DataError(f"{where}: key 'delimiter': expected one character such as ',' ';' or '\\t', got {delimiter!r}")
+    if not isinstance(delimiter, str) or len(delimiter) != 1 or delimiter in '"\r\n':
+        raise DataError(
+            f"{where}: key 'delimiter': expected one character such as ',' ';' or '\\t', got {delimiter!r}"
+        )
     out["delimiter"] = delimiter
     columns = raw.get("columns")
     if not isinstance(columns, Mapping) or not columns:
-        raise DataError(f"{where}: key 'columns': expected a mapping run variable -> {{column: NAME}}, got {columns!r}")
+        raise DataError(
+            f"{where}: key 'columns': expected a mapping run variable -> {{column: NAME}}, got {columns!r}"
+        )
     allowed = _targets(robot) if robot else sorted(RUN_VARIABLES) + ["time"]
     fields: dict[str, dict] = {}
     for target, spec in columns.items():
@@ -101,22 +106,32 @@ def check_mapping(raw: Any, where: str = "mapping") -> dict:
         if target not in allowed:
             raise DataError(f"{where}: key {key!r}: unknown run variable; expected one of {allowed}")
         if not isinstance(spec, Mapping):
-            raise DataError(f"{where}: key {key!r}: expected a mapping such as {{column: NAME}}, got {spec!r}")
+            raise DataError(
+                f"{where}: key {key!r}: expected a mapping such as {{column: NAME}}, got {spec!r}"
+            )
         for k in spec:
             if k not in FIELD_KEYS:
                 raise DataError(f"{where}: key '{key}.{k}': unknown; expected some of {list(FIELD_KEYS)}")
         field: dict[str, Any] = {"scale": 1.0, "offset": 0.0, "format": "number"}
         if target == "temperature":
             cols = spec.get("columns")
-            if "column" in spec or not isinstance(cols, Mapping) or not cols or not all(
-                    isinstance(n, str) and n and isinstance(c, str) and c for n, c in cols.items()):
-                raise DataError(f"{where}: key '{key}.columns': expected a mapping thermometer name -> "
-                                f"CSV column, e.g. {{T1: temp1}}, got {cols!r}")
+            if (
+                "column" in spec
+                or not isinstance(cols, Mapping)
+                or not cols
+                or not all(isinstance(n, str) and n and isinstance(c, str) and c for n, c in cols.items())
+            ):
+                raise DataError(
+                    f"{where}: key '{key}.columns': expected a mapping thermometer name -> "
+                    f"CSV column, e.g. {{T1: temp1}}, got {cols!r}"
+                )
             field["columns"] = {str(n): str(c) for n, c in cols.items()}
         else:
             col = spec.get("column")
             if "columns" in spec or not isinstance(col, str) or not col:
-                raise DataError(f"{where}: key '{key}.column': expected the name of one CSV column, got {col!r}")
+                raise DataError(
+                    f"{where}: key '{key}.column': expected the name of one CSV column, got {col!r}"
+                )
             field["column"] = col
         for k in ("scale", "offset"):
             if k in spec:
@@ -161,7 +176,7 @@ def _parse_start(start: str, where: str) -> _dt.datetime:
         t0 = _dt.datetime.fromisoformat(start)
     except ValueError:
         raise DataError(f"{where}: campaign start {start!r}: expected an ISO 8601 timestamp") from None
-    return t0 if t0.tzinfo else t0.replace(tzinfo=_dt.timezone.utc)
+    return t0 if t0.tzinfo else t0.replace(tzinfo=_dt.UTC)
 
 
 def refuse_duplicate_rows(path, rows: list[tuple[int, list[str]]]) -> None:
@@ -176,8 +191,10 @@ def refuse_duplicate_rows(path, rows: list[tuple[int, list[str]]]) -> None:
     for r, cells in rows:
         key = tuple(c.strip() for c in cells)
         if key in seen:
-            raise DataError(f"{path}: row {r}: repeats row {seen[key]} cell for cell; a duplicated row would count "
-                            "one measurement twice — remove it (or the export's duplicate) and import again")
+            raise DataError(
+                f"{path}: row {r}: repeats row {seen[key]} cell for cell; a duplicated row would count "
+                "one measurement twice — remove it (or the export's duplicate) and import again"
+            )
         seen[key] = r
 
 
@@ -212,19 +229,25 @@ class _Table:
             raise DataError(f"{path}: row 2: expected a data row after the header, the file has none")
         for r, row in enumerate(self.rows, start=2):
             if len(row) != len(self.header):
-                raise DataError(f"{path}: row {r}: expected {len(self.header)} fields as in the header, "
-                                f"got {len(row)} (check the delimiter)")
+                raise DataError(
+                    f"{path}: row {r}: expected {len(self.header)} fields as in the header, "
+                    f"got {len(row)} (check the delimiter)"
+                )
         refuse_duplicate_rows(path, list(enumerate(self.rows, start=2)))
 
     def cells(self, column: str, target: str) -> list[str]:
         if column not in self.header:
-            raise DataError(f"{self.path}: row 1: column {column!r} (for {target}) missing from the header; "
-                            f"header has {self.header}")
+            raise DataError(
+                f"{self.path}: row 1: column {column!r} (for {target}) missing from the header; "
+                f"header has {self.header}"
+            )
         k = self.header.index(column)
         return [row[k].strip() for row in self.rows]
 
     def fail(self, r: int, column: str, target: str, expected: str, cell: str) -> DataError:
-        return DataError(f"{self.path}: row {r + 2}, column {column!r} ({target}): expected {expected}, got {cell!r}")
+        return DataError(
+            f"{self.path}: row {r + 2}, column {column!r} ({target}): expected {expected}, got {cell!r}"
+        )
 
     def numbers(self, column: str, target: str, allow_missing: bool) -> np.ndarray:
         out = np.empty(len(self.rows))
@@ -258,7 +281,9 @@ class _Table:
             try:
                 t = _dt.datetime.fromisoformat(cell.replace("Z", "+00:00") if cell.endswith("Z") else cell)
             except ValueError:
-                raise self.fail(r, column, target, "an ISO 8601 timestamp (2026-03-02T10:15:00+00:00)", cell) from None
+                raise self.fail(
+                    r, column, target, "an ISO 8601 timestamp (2026-03-02T10:15:00+00:00)", cell
+                ) from None
             if t.tzinfo is None:
                 t = t.replace(tzinfo=t0.tzinfo)
             out[r] = (t - t0).total_seconds()
@@ -280,13 +305,18 @@ def import_csv(path: str | os.PathLike, mapping: Mapping, meta: RunMetadata) -> 
     m = check_mapping(mapping)
     robot = m["robot"] or meta.robot
     if m["robot"] and m["robot"] != meta.robot:
-        raise DataError(f"{path}: mapping robot {m['robot']!r} differs from the campaign robot {meta.robot!r}")
+        raise DataError(
+            f"{path}: mapping robot {m['robot']!r} differs from the campaign robot {meta.robot!r}"
+        )
     if robot not in ROBOTS:
         raise DataError(f"{path}: robot: expected one of {list(ROBOTS)}, got {robot!r}")
     if m["plan"] != meta.plan:
-        raise DataError(f"{path}: mapping plan {m['plan']!r} differs from the run metadata plan {meta.plan!r}")
-    m = check_mapping({**{k: v for k, v in m.items() if v is not None and k != "description"},
-                       "robot": robot}, "mapping")  # re-check the columns against the robot's joints
+        raise DataError(
+            f"{path}: mapping plan {m['plan']!r} differs from the run metadata plan {meta.plan!r}"
+        )
+    m = check_mapping(
+        {**{k: v for k, v in m.items() if v is not None and k != "description"}, "robot": robot}, "mapping"
+    )  # re-check the columns against the robot's joints
     cols = m["columns"]
     table = _Table(path, m["delimiter"])
     n = len(table.rows)
@@ -303,11 +333,16 @@ def import_csv(path: str | os.PathLike, mapping: Mapping, meta: RunMetadata) -> 
     back = np.flatnonzero(np.diff(time) < 0)
     if back.size:
         r = int(back[0]) + 1
-        raise DataError(f"{path}: row {r + 2}, column {tf['column']!r} (time): expected non-decreasing time, "
-                        f"got {float(time[r])!r} s after {float(time[r - 1])!r} s")
+        raise DataError(
+            f"{path}: row {r + 2}, column {tf['column']!r} (time): expected non-decreasing time, "
+            f"got {float(time[r])!r} s after {float(time[r - 1])!r} s"
+        )
     index = {}
-    for name, default, choices in (("pose", np.arange(n), None), ("cycle", np.zeros(n, int), None),
-                                   ("direction", np.zeros(n, int), {-1, 0, 1})):
+    for name, default, choices in (
+        ("pose", np.arange(n), None),
+        ("cycle", np.zeros(n, int), None),
+        ("direction", np.zeros(n, int), {-1, 0, 1}),
+    ):
         index[name] = table.integers(cols[name]["column"], name, choices) if name in cols else default
     axes = ROBOT_JOINTS[robot]
     commands = {a: values(f"cmd_{a}", allow_missing=False) for a in axes}
@@ -321,11 +356,23 @@ def import_csv(path: str | os.PathLike, mapping: Mapping, meta: RunMetadata) -> 
         for name, column in f["columns"].items():
             thermometers.append(name)
             temps[name] = table.numbers(column, f"temperature {name}", True) * f["scale"] + f["offset"]
-    readings = [{"time": float(time[i]), **{s: float(meas[s][i]) for s in sensors},
-                 **{t: float(temps[t][i]) for t in thermometers}} for i in range(n)]
-    plan = Plan(name=m["plan"], commands=commands, pose=index["pose"], cycle=index["cycle"],
-                direction=index["direction"], targets=targets,
-                dwell_s=m["dwell_s"] if m["dwell_s"] is not None else 0.0)
+    readings = [
+        {
+            "time": float(time[i]),
+            **{s: float(meas[s][i]) for s in sensors},
+            **{t: float(temps[t][i]) for t in thermometers},
+        }
+        for i in range(n)
+    ]
+    plan = Plan(
+        name=m["plan"],
+        commands=commands,
+        pose=index["pose"],
+        cycle=index["cycle"],
+        direction=index["direction"],
+        targets=targets,
+        dwell_s=m["dwell_s"] if m["dwell_s"] is not None else 0.0,
+    )
     ds = run_dataset(readings, plan, sensors, thermometers, meta)
     if m["dwell_s"] is None:
         del ds.attrs["dwell_s"]

@@ -6,19 +6,18 @@ complete, so an interrupted job never leaves a half-written file under the final
 
 from __future__ import annotations
 
-import hashlib
-
 import contextlib
 import glob
+import hashlib
 import json
 import math
 import os
 import tempfile
+from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import numpy as np
-
 import xarray as xr
 
 from calflow.errors import DataError
@@ -30,7 +29,9 @@ def output_folder(path: str | os.PathLike) -> Path:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
-        blocker = next((p for p in [path.parent, *path.parent.parents] if p.exists() and not p.is_dir()), path.parent)
+        blocker = next(
+            (p for p in [path.parent, *path.parent.parents] if p.exists() and not p.is_dir()), path.parent
+        )
         raise DataError(f"{path}: cannot create its folder: {blocker} is a file, not a folder") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot create its folder {path.parent} ({exc.strerror})") from None
@@ -82,13 +83,20 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 def _encoding(ds: xr.Dataset) -> dict:
     """Compressed numeric data; CF coordinate variables (named as their dimension) carry no
     ``_FillValue`` (CF 2.5.1: they must have no missing values)."""
-    enc = {name: {"zlib": True, "complevel": 4}
-           for name, var in ds.data_vars.items() if var.dtype.kind in "fiu" and var.ndim > 0}
-    enc.update({name: {"_FillValue": None} for name in ds.coords if name in ds.dims and ds[name].dtype.kind == "f"})
+    enc = {
+        name: {"zlib": True, "complevel": 4}
+        for name, var in ds.data_vars.items()
+        if var.dtype.kind in "fiu" and var.ndim > 0
+    }
+    enc.update(
+        {name: {"_FillValue": None} for name in ds.coords if name in ds.dims and ds[name].dtype.kind == "f"}
+    )
     return enc
 
 
-def write_dataset(ds: xr.Dataset, path: str | os.PathLike, groups: dict[str, xr.Dataset] | None = None) -> Path:
+def write_dataset(
+    ds: xr.Dataset, path: str | os.PathLike, groups: dict[str, xr.Dataset] | None = None
+) -> Path:
     """Write ``ds`` as netCDF4 to ``path`` atomically and return the path.
 
     ``groups`` are written as netCDF groups of the same file (e.g. a model's lookup tables).
@@ -100,7 +108,9 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike, groups: dict[str, xr.
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
         for name, group in (groups or {}).items():
-            group.to_netcdf(tmp, mode="a", group=name, engine="netcdf4", format="NETCDF4", encoding=_encoding(group))
+            group.to_netcdf(
+                tmp, mode="a", group=name, engine="netcdf4", format="NETCDF4", encoding=_encoding(group)
+            )
     return Path(path)
 
 

@@ -69,15 +69,22 @@ def _rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
         raise DataError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except (OSError, csv.Error) as exc:
         raise DataError(f"{path}: not readable CSV ({exc})") from None
-    numbered = [(k, row) for k, row in enumerate(lines, start=1)
-                if any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    numbered = [
+        (k, row)
+        for k, row in enumerate(lines, start=1)
+        if any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
+    ]
     if not numbered:
-        raise DataError(f"{path}: row 1: expected a header row with columns {list(REQUIRED)}, the file has none")
+        raise DataError(
+            f"{path}: row 1: expected a header row with columns {list(REQUIRED)}, the file has none"
+        )
     r0, header = numbered[0]
     header = [c.strip() for c in header]
     for name in REQUIRED:
         if name not in header:
-            raise DataError(f"{path}: row {r0}: column {name!r} missing from the header; expected {list(REQUIRED)}")
+            raise DataError(
+                f"{path}: row {r0}: column {name!r} missing from the header; expected {list(REQUIRED)}"
+            )
     if len(set(header)) != len(header):
         dup = next(h for h in header if header.count(h) > 1)
         raise DataError(f"{path}: row {r0}: column {dup!r} appears twice in the header")
@@ -86,7 +93,9 @@ def _rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
         raise DataError(f"{path}: row {r0 + 1}: expected a data row after the header, the file has none")
     for r, row in data:
         if len(row) != len(header):
-            raise DataError(f"{path}: row {r}: expected {len(header)} fields as in the header, got {len(row)}")
+            raise DataError(
+                f"{path}: row {r}: expected {len(header)} fields as in the header, got {len(row)}"
+            )
     return header, data
 
 
@@ -132,8 +141,12 @@ def read(path: str | os.PathLike) -> TrackerRecording:
     back = np.flatnonzero(np.diff(seconds) < 0)
     if back.size:
         r = data[int(back[0]) + 1][0]
-        raise fail(r, "timestamp", f"a time not before the previous row's ({stamps[int(back[0])].isoformat()})",
-                   data[int(back[0]) + 1][1][col["timestamp"]].strip())
+        raise fail(
+            r,
+            "timestamp",
+            f"a time not before the previous row's ({stamps[int(back[0])].isoformat()})",
+            data[int(back[0]) + 1][1][col["timestamp"]].strip(),
+        )
     pose = np.array([index(r, "pose", cells) for r, cells in data])
     if "cycle" in col:
         cycle = np.array([index(r, "cycle", cells) for r, cells in data])
@@ -144,8 +157,12 @@ def read(path: str | os.PathLike) -> TrackerRecording:
     z = command[:, 2]
     if np.any(z != z[0]):
         k = int(np.argmax(z != z[0]))
-        raise fail(data[k][0], "Z_cmd_mm", f"the commanded Z of every row ({float(z[0])!r} mm): the stage is planar",
-                   data[k][1][col["Z_cmd_mm"]].strip())
+        raise fail(
+            data[k][0],
+            "Z_cmd_mm",
+            f"the commanded Z of every row ({float(z[0])!r} mm): the stage is planar",
+            data[k][1][col["Z_cmd_mm"]].strip(),
+        )
     return TrackerRecording(stamps[0].isoformat(), seconds, pose, cycle, command, measured)
 
 

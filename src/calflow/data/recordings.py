@@ -16,8 +16,9 @@ software, so replaying means commanding exactly those.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -44,8 +45,11 @@ def entry(spec: Any) -> dict:
         name = Path(spec).name
         fmt = "ecmc_iso230" if name.upper().endswith("ISO230.DAT") else "nc" if name.endswith(".nc") else None
         if fmt is None:
-            raise BadEntry("", f"a .nc run file, an *ISO230.dat file or {{file: ..., format: one of {list(FORMATS)}}}",
-                           str(spec))
+            raise BadEntry(
+                "",
+                f"a .nc run file, an *ISO230.dat file or {{file: ..., format: one of {list(FORMATS)}}}",
+                str(spec),
+            )
         return {"file": str(spec), "format": fmt, "mapping": None}
     if not isinstance(spec, Mapping):
         raise BadEntry("", "a file name or {file: ..., format: ...}", spec)
@@ -58,9 +62,13 @@ def entry(spec: Any) -> dict:
     if fmt not in FORMATS:
         raise BadEntry(".format", f"one of {list(FORMATS)}", fmt)
     if fmt == "csv" and not (isinstance(spec.get("mapping"), str) and spec["mapping"]):
-        raise BadEntry(".mapping", "the column mapping file of a csv recording (docs/data.md)", spec.get("mapping"))
+        raise BadEntry(
+            ".mapping", "the column mapping file of a csv recording (docs/data.md)", spec.get("mapping")
+        )
     if fmt != "csv" and "mapping" in spec:
-        raise BadEntry(".mapping", f"no mapping: it applies to format 'csv' only, not {fmt!r}", spec["mapping"])
+        raise BadEntry(
+            ".mapping", f"no mapping: it applies to format 'csv' only, not {fmt!r}", spec["mapping"]
+        )
     return {"file": spec["file"], "format": fmt, "mapping": spec.get("mapping")}
 
 
@@ -70,17 +78,23 @@ def check_entry(spec: Any) -> None:
     e = entry(spec)
     for key in ("file", "mapping"):
         if e[key] is not None and not Path(e[key]).is_file():
-            raise BadEntry("" if isinstance(spec, (str, Path)) else f".{key}",
-                           "an existing file (paths are relative to the project folder)", e[key])
+            raise BadEntry(
+                "" if isinstance(spec, (str, Path)) else f".{key}",
+                "an existing file (paths are relative to the project folder)",
+                e[key],
+            )
 
 
 def _meta(robot: str, plan: str, path: Path, start: str = RECORDING_START) -> RunMetadata:
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    return RunMetadata(campaign="recording", robot=robot, source="replay", plan=plan, config_sha256=digest,
-                       start=start)
+    return RunMetadata(
+        campaign="recording", robot=robot, source="replay", plan=plan, config_sha256=digest, start=start
+    )
 
 
-def _imported(readings: list[dict], plan: Plan, sensors: list[str], meta: RunMetadata, path: Path) -> xr.Dataset:
+def _imported(
+    readings: list[dict], plan: Plan, sensors: list[str], meta: RunMetadata, path: Path
+) -> xr.Dataset:
     ds = run_dataset(readings, plan, sensors, (), meta)
     del ds.attrs["dwell_s"]  # the instrument's file does not say
     ds.attrs["imported_from"] = path.name
@@ -93,8 +107,15 @@ def iso230_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
     from calflow.data.ecmc_iso230 import read, standard_cycle
 
     rows = standard_cycle(read(path))
-    plan = Plan(name=plan_name, commands={"x": rows["target"]}, targets={"x": rows["target"].copy()},
-                pose=rows["pose"], cycle=rows["cycle"], direction=rows["direction"], dwell_s=0.0)
+    plan = Plan(
+        name=plan_name,
+        commands={"x": rows["target"]},
+        targets={"x": rows["target"].copy()},
+        pose=rows["pose"],
+        cycle=rows["cycle"],
+        direction=rows["direction"],
+        dwell_s=0.0,
+    )
     readings = [{"time": 0.0, "meas_x": float(v)} for v in rows["reading"]]
     return _imported(readings, plan, ["meas_x"], _meta("stage1d", plan_name, path), path), plan
 
@@ -106,11 +127,19 @@ def tracker_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
 
     rec = read(path)
     cmd, meas = rec.command * UM_PER_MM, rec.measured * UM_PER_MM
-    plan = Plan(name=plan_name, commands={"x": cmd[:, 0], "y": cmd[:, 1]},
-                targets={"x": cmd[:, 0].copy(), "y": cmd[:, 1].copy()}, pose=rec.pose, cycle=rec.cycle,
-                direction=np.zeros(len(rec.pose), int), dwell_s=0.0)
-    readings = [{"time": float(rec.time[k]), "meas_x": float(meas[k, 0]), "meas_y": float(meas[k, 1])}
-                for k in range(len(rec.pose))]
+    plan = Plan(
+        name=plan_name,
+        commands={"x": cmd[:, 0], "y": cmd[:, 1]},
+        targets={"x": cmd[:, 0].copy(), "y": cmd[:, 1].copy()},
+        pose=rec.pose,
+        cycle=rec.cycle,
+        direction=np.zeros(len(rec.pose), int),
+        dwell_s=0.0,
+    )
+    readings = [
+        {"time": float(rec.time[k]), "meas_x": float(meas[k, 0]), "meas_y": float(meas[k, 1])}
+        for k in range(len(rec.pose))
+    ]
     ds = _imported(readings, plan, ["meas_x", "meas_y"], _meta("stage2d", plan_name, path, rec.start), path)
     z = meas[:, 2][np.isfinite(meas[:, 2])]
     ds.attrs["z_range_um"] = float(z.max() - z.min()) if z.size else float("nan")
@@ -133,10 +162,15 @@ def plan_of(ds: xr.Dataset, name: str) -> Plan:
     """The plan a run dataset recorded: its commands, targets and pose/cycle/direction indices."""
     joints = [v[4:] for v in ds.data_vars if v.startswith("cmd_")]
     axes = [v[7:] for v in ds.data_vars if v.startswith("target_")]
-    return Plan(name=name, commands={j: ds[f"cmd_{j}"].values.astype(float) for j in joints},
-                targets={a: ds[f"target_{a}"].values.astype(float) for a in axes},
-                pose=ds["pose"].values.astype(int), cycle=ds["cycle"].values.astype(int),
-                direction=ds["direction"].values.astype(int), dwell_s=float(ds.attrs.get("dwell_s", 0.0)))
+    return Plan(
+        name=name,
+        commands={j: ds[f"cmd_{j}"].values.astype(float) for j in joints},
+        targets={a: ds[f"target_{a}"].values.astype(float) for a in axes},
+        pose=ds["pose"].values.astype(int),
+        cycle=ds["cycle"].values.astype(int),
+        direction=ds["direction"].values.astype(int),
+        dwell_s=float(ds.attrs.get("dwell_s", 0.0)),
+    )
 
 
 def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Dataset | None, Plan | None]:

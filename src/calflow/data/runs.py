@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 import xarray as xr
@@ -77,31 +77,46 @@ def run_dataset(
     for sensor in sensors:
         data[sensor] = _var(np.array([r[sensor] for r in readings], dtype=float), sensor)
     if thermometers:
-        temps = np.array([[r[t] for t in thermometers] for r in readings], dtype=float).reshape(n, len(thermometers))
+        temps = np.array([[r[t] for t in thermometers] for r in readings], dtype=float).reshape(
+            n, len(thermometers)
+        )
         data["temperature"] = _var(temps, "temperature", ("sample", "sensor"))
     data["pose"] = _var(np.asarray(plan.pose[:n], dtype="int32"), "pose")
     data["cycle"] = _var(np.asarray(plan.cycle[:n], dtype="int32"), "cycle")
     data["direction"] = _var(np.asarray(plan.direction[:n], dtype="int8"), "direction")
     if "test" in plan.extra:
-        data["test"] = xr.Variable(("sample",), np.asarray(plan.extra["test"][:n], dtype="int32"),
-                                   attrs={"units": "1", "long_name": "index of the validation test"})
+        data["test"] = xr.Variable(
+            ("sample",),
+            np.asarray(plan.extra["test"][:n], dtype="int32"),
+            attrs={"units": "1", "long_name": "index of the validation test"},
+        )
     if "mode" in plan.extra:
         data["test_mode"] = xr.Variable(
-            ("sample",), np.asarray(plan.extra["mode"][:n], dtype="int8"),
-            attrs={"units": "1", "long_name": "calibration used by the test",
-                   "flag_values": np.arange(len(plan.modes), dtype="int8"), "flag_meanings": " ".join(plan.modes)},
+            ("sample",),
+            np.asarray(plan.extra["mode"][:n], dtype="int8"),
+            attrs={
+                "units": "1",
+                "long_name": "calibration used by the test",
+                "flag_values": np.arange(len(plan.modes), dtype="int8"),
+                "flag_meanings": " ".join(plan.modes),
+            },
         )
     visits = [r for r in readings if "kmz_time" in r]
     if visits:
-        for key, units, long_name in (("kmz_time", None, "time of the kilometre-zero visit"),
-                                      ("kmz_command", "um", "joint command at the kilometre-zero visit"),
-                                      ("kmz_measured", "um", "sensor reading at the kilometre-zero visit")):
+        for key, units, long_name in (
+            ("kmz_time", None, "time of the kilometre-zero visit"),
+            ("kmz_command", "um", "joint command at the kilometre-zero visit"),
+            ("kmz_measured", "um", "sensor reading at the kilometre-zero visit"),
+        ):
             attrs = {"units": units or time_units(meta.start), "long_name": long_name}
-            data[key] = xr.Variable(("kmz_visit",), np.array([r[key] for r in visits], dtype=float), attrs=attrs)
+            data[key] = xr.Variable(
+                ("kmz_visit",), np.array([r[key] for r in visits], dtype=float), attrs=attrs
+            )
     coords = {}
     if thermometers:
-        coords["sensor"] = xr.Variable(("sensor",), np.array(list(thermometers), dtype=object),
-                                       attrs={"long_name": "thermocouple name"})
+        coords["sensor"] = xr.Variable(
+            ("sensor",), np.array(list(thermometers), dtype=object), attrs={"long_name": "thermocouple name"}
+        )
     ds = xr.Dataset(data, coords=coords, attrs=meta.attrs("run"))
     ds.attrs["dwell_s"] = float(plan.dwell_s)
     return ds

@@ -36,7 +36,9 @@ def _check_global(ds: xr.Dataset) -> list[str]:
     if source is not None and source not in SOURCES:
         problems.append(f"global attribute 'source': expected one of {list(SOURCES)}, got {source!r}")
     if "Conventions" in ds.attrs and not str(ds.attrs["Conventions"]).startswith("CF-"):
-        problems.append(f"global attribute 'Conventions': expected 'CF-1.11', got {ds.attrs['Conventions']!r}")
+        problems.append(
+            f"global attribute 'Conventions': expected 'CF-1.11', got {ds.attrs['Conventions']!r}"
+        )
     return problems
 
 
@@ -63,14 +65,18 @@ def _check_run(ds: xr.Dataset) -> list[str]:
     if "time" in ds.variables:
         units = str(ds["time"].attrs.get("units", ""))
         if not units.startswith("seconds since "):
-            problems.append(f"variable 'time': units expected 'seconds since <campaign start>', got {units!r}")
+            problems.append(
+                f"variable 'time': units expected 'seconds since <campaign start>', got {units!r}"
+            )
         t = np.asarray(ds["time"].values, dtype=float)
         if t.size and not np.all(np.isfinite(t)):
             problems.append("variable 'time': expected finite values, found NaN or inf")
         elif t.size > 1 and np.any(np.diff(t) < 0):
             i = int(np.argmax(np.diff(t) < 0))
-            problems.append(f"variable 'time': expected non-decreasing values, got {t[i]!r} then {t[i + 1]!r} "
-                            f"at sample {i + 1}")
+            problems.append(
+                f"variable 'time': expected non-decreasing values, got {t[i]!r} then {t[i + 1]!r} "
+                f"at sample {i + 1}"
+            )
     joints = ROBOT_JOINTS.get(ds.attrs.get("robot"), ())
     for joint in joints:
         for prefix in ("cmd", "meas"):
@@ -101,8 +107,12 @@ def _check_run(ds: xr.Dataset) -> list[str]:
 def _looks_like_run(ds: xr.Dataset) -> bool:
     """A run's shape: dimension ``sample`` with plan indices, commands and measurements."""
     names = set(ds.variables)
-    return ("sample" in ds.dims and {"pose", "cycle", "direction"} <= names
-            and any(n.startswith("cmd_") for n in names) and any(n.startswith("meas_") for n in names))
+    return (
+        "sample" in ds.dims
+        and {"pose", "cycle", "direction"} <= names
+        and any(n.startswith("cmd_") for n in names)
+        and any(n.startswith("meas_") for n in names)
+    )
 
 
 def validate_dataset(ds: xr.Dataset) -> list[str]:
@@ -110,8 +120,10 @@ def validate_dataset(ds: xr.Dataset) -> list[str]:
     problems = _check_global(ds) + _check_cf_variables(ds)
     kind = ds.attrs.get("calflow_kind")
     if kind != "run" and kind in KINDS and _looks_like_run(ds):
-        problems.append(f"global attribute 'calflow_kind': expected 'run' for a dataset of settled samples "
-                        f"(dimension 'sample', pose, cycle, direction, cmd_*, meas_*), got {kind!r}")
+        problems.append(
+            f"global attribute 'calflow_kind': expected 'run' for a dataset of settled samples "
+            f"(dimension 'sample', pose, cycle, direction, cmd_*, meas_*), got {kind!r}"
+        )
     if kind == "run" or _looks_like_run(ds):
         problems += _check_run(ds)
     return problems

@@ -6,19 +6,44 @@ documentation (MS249E, C-863.12 User Manual, §8 "GCS Commands"); PI's ``pipytho
 used. The emulator (:mod:`calflow.gcs.emulator`) is imported on demand only.
 """
 
-from calflow.gcs.client import (DEFAULT_BAUD, DEFAULT_PORT, GCSController, SerialTransport,
-                                TCPTransport)
-from calflow.gcs.protocol import (ERROR_NAMES, GCSConnectionLost, GCSControllerError, GCSError,
-                                  GCSInvalidAxisError, GCSMotionNotAllowedError,
-                                  GCSMotionTimeout, GCSParameterSyntaxError,
-                                  GCSPositionOutOfLimitsError, GCSProtocolError,
-                                  GCSStoppedError, GCSTimeout, GCSUnknownCommandError,
-                                  GCSVelocityOutOfLimitsError, error_from_code)
+from calflow.gcs.client import DEFAULT_BAUD, DEFAULT_PORT, GCSController, SerialTransport, TCPTransport
+from calflow.gcs.protocol import (
+    ERROR_NAMES,
+    GCSConnectionLost,
+    GCSControllerError,
+    GCSError,
+    GCSInvalidAxisError,
+    GCSMotionNotAllowedError,
+    GCSMotionTimeout,
+    GCSParameterSyntaxError,
+    GCSPositionOutOfLimitsError,
+    GCSProtocolError,
+    GCSStoppedError,
+    GCSTimeout,
+    GCSUnknownCommandError,
+    GCSVelocityOutOfLimitsError,
+    error_from_code,
+)
 
 __all__ = [
-    "DEFAULT_BAUD", "DEFAULT_PORT", "ERROR_NAMES", "GCSConnectionLost", "GCSController",
-    "GCSControllerError", "GCSError", "GCSInvalidAxisError", "GCSMotionNotAllowedError",
-    "GCSMotionTimeout", "GCSParameterSyntaxError", "GCSPositionOutOfLimitsError",
-    "GCSProtocolError", "GCSStoppedError", "GCSTimeout", "GCSUnknownCommandError",
-    "GCSVelocityOutOfLimitsError", "SerialTransport", "TCPTransport", "error_from_code",
+    "DEFAULT_BAUD",
+    "DEFAULT_PORT",
+    "ERROR_NAMES",
+    "GCSConnectionLost",
+    "GCSController",
+    "GCSControllerError",
+    "GCSError",
+    "GCSInvalidAxisError",
+    "GCSMotionNotAllowedError",
+    "GCSMotionTimeout",
+    "GCSParameterSyntaxError",
+    "GCSPositionOutOfLimitsError",
+    "GCSProtocolError",
+    "GCSStoppedError",
+    "GCSTimeout",
+    "GCSUnknownCommandError",
+    "GCSVelocityOutOfLimitsError",
+    "SerialTransport",
+    "TCPTransport",
+    "error_from_code",
 ]

@@ -54,8 +54,10 @@ class AxisConfig:
 
     def __post_init__(self) -> None:
         if not (self.settle_window > 0 and self.settle_time >= 0 and self.counts_per_unit > 0):
-            raise ValueError("axis needs settle_window > 0, settle_time >= 0 and counts_per_unit > 0, "
-                             f"got {self.settle_window}, {self.settle_time}, {self.counts_per_unit}")
+            raise ValueError(
+                "axis needs settle_window > 0, settle_time >= 0 and counts_per_unit > 0, "
+                f"got {self.settle_window}, {self.settle_time}, {self.counts_per_unit}"
+            )
         if not self.tmn < self.tmx:
             raise ValueError(f"axis travel limits need tmn < tmx, got {self.tmn}, {self.tmx}")
         if not (0 < self.velocity <= self.max_velocity and self.accel > 0):
@@ -79,8 +81,9 @@ def axis_configs(axes: Any, kind: type[AxisConfig] = AxisConfig) -> dict[str, Ax
     if isinstance(axes, str):
         axes = [a.strip() for a in axes.split(",") if a.strip()]
     if isinstance(axes, Mapping):
-        items = [(k, v if isinstance(v, AxisConfig) else kind.from_mapping(dict(v or {})))
-                 for k, v in axes.items()]
+        items = [
+            (k, v if isinstance(v, AxisConfig) else kind.from_mapping(dict(v or {}))) for k, v in axes.items()
+        ]
     else:
         items = [(k, kind()) for k in axes]
     if not items:
@@ -144,8 +147,9 @@ class SimAxis:
         """Commanded trajectory position at simulation time ``now``."""
         if now >= self._t1:
             return self._target
-        return self._start + profile_distance(now - self._t0, self._target - self._start,
-                                              self._move_velocity, self.config.accel)
+        return self._start + profile_distance(
+            now - self._t0, self._target - self._start, self._move_velocity, self.config.accel
+        )
 
     def target(self) -> float:
         return self._target

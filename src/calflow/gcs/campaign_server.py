@@ -1,7 +1,7 @@
 """Serving a campaign's stages from a controller emulator until Ctrl-C or ``--duration``.
 
-The command-line side shared by the C-863 campaign emulator (:mod:`calflow.xytheta.emulate`)
-and the E-727-class one (:mod:`calflow.nano.emulate`), and ``calflow emulate gcs``, which
+The command-line side shared by the C-863 campaign emulator (:mod:`calflow.xytheta.stage.emulate`)
+and the E-727-class one (:mod:`calflow.nano.stage.emulate`), and ``calflow emulate gcs``, which
 serves a campaign with the emulator of its robot family (:func:`emulate_command`):
 arguments ``--campaign``, ``--port``, ``--time-scale``, ``--duration``, checked in one line
 each; the emulator's address and the campaign ``rig:`` section that drives it are printed.
@@ -39,11 +39,16 @@ def _parser(prog: str, description: str) -> argparse.ArgumentParser:
     return p
 
 
-def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
-                   start: Callable[[dict, int, float], GCSEmulator],
-                   banner: Callable[[GCSEmulator, dict, float], str],
-                   rig_section: Callable[[GCSEmulator, dict, float], dict],
-                   stop_event: threading.Event | None = None) -> int:
+def serve_campaign(
+    argv: list[str] | None,
+    *,
+    prog: str,
+    description: str,
+    start: Callable[[dict, int, float], GCSEmulator],
+    banner: Callable[[GCSEmulator, dict, float], str],
+    rig_section: Callable[[GCSEmulator, dict, float], dict],
+    stop_event: threading.Event | None = None,
+) -> int:
     """Parse the arguments, start the emulator (``start(campaign, port, time_scale)``),
     print ``banner`` and the ``rig:`` section, serve until Ctrl-C, ``stop_event`` or
     ``--duration`` seconds."""
@@ -64,8 +69,11 @@ def serve_campaign(argv: list[str] | None, *, prog: str, description: str,
     deadline = math.inf if a.duration is None else time.monotonic() + a.duration
     try:
         print(banner(emu, c, a.time_scale), flush=True)
-        print("campaign rig section for it:\n" + yaml.safe_dump(
-            {"rig": rig_section(emu, c, a.time_scale)}, sort_keys=False), flush=True)
+        print(
+            "campaign rig section for it:\n"
+            + yaml.safe_dump({"rig": rig_section(emu, c, a.time_scale)}, sort_keys=False),
+            flush=True,
+        )
         while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:
             stop_event.wait(min(0.5, left))
     except KeyboardInterrupt:
@@ -82,12 +90,17 @@ def emulate_command(args) -> int:
     from calflow.family import family_of, resolve
 
     argv = list(args.rest)
-    known = _parser("calflow emulate gcs", "Serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1 "
-                    "(docs/gcs.md): C-863 for xytheta, E-727 class for stage1d/stage2d.").parse_args(argv)
+    known = _parser(
+        "calflow emulate gcs",
+        "Serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1 "
+        "(docs/gcs.md): C-863 for xytheta, E-727 class for stage1d/stage2d.",
+    ).parse_args(argv)
     c = load_campaign_arg(known.campaign)
     robot = c.get("robot")
     fam = family_of(str(robot))
     if fam.emulator is None:
-        raise CalflowError(f"calflow emulate gcs: {known.campaign}: robot {robot!r} (family {fam.name}) has no "
-                           "controller emulator")
+        raise CalflowError(
+            f"calflow emulate gcs: {known.campaign}: robot {robot!r} (family {fam.name}) has no "
+            "controller emulator"
+        )
     return resolve(fam.emulator)(argv, prog="calflow emulate gcs")

@@ -22,20 +22,33 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from calflow.gcs.protocol import (MOTION_STATUS, READY_STATUS, STOP_ALL, GCSConnectionLost,
-                                  GCSError, GCSInvalidAxisError, GCSMotionTimeout,
-                                  GCSProtocolError, GCSStoppedError, GCSTimeout, ReplyFramer,
-                                  check_axis, check_text,
-                                  error_from_code, format_command, format_pairs,
-                                  parse_axis_values, parse_bool, parse_int, parse_ready,
-                                  strip_address)
-
+from calflow.gcs.protocol import (
+    MOTION_STATUS,
+    READY_STATUS,
+    STOP_ALL,
+    GCSConnectionLost,
+    GCSError,
+    GCSInvalidAxisError,
+    GCSMotionTimeout,
+    GCSProtocolError,
+    GCSStoppedError,
+    GCSTimeout,
+    ReplyFramer,
+    check_axis,
+    check_text,
+    error_from_code,
+    format_command,
+    format_pairs,
+    parse_axis_values,
+    parse_bool,
+    parse_int,
+    parse_ready,
+    strip_address,
+)
 from calflow.gcs.transport import DEFAULT_BAUD, DEFAULT_PORT, SerialTransport, TCPTransport, Transport  # noqa: F401
 
 log = logging.getLogger("calflow.gcs")
 Axes = str | Iterable[str] | None
-
-
 
 
 def _axis_list(axes: Axes) -> list[str]:
@@ -58,13 +71,11 @@ class GCSController:
         self._transport: Transport | None = opener()
 
     @classmethod
-    def connect_tcp(cls, host: str, port: int = DEFAULT_PORT,
-                    timeout: float = 5.0) -> GCSController:
+    def connect_tcp(cls, host: str, port: int = DEFAULT_PORT, timeout: float = 5.0) -> GCSController:
         return cls(lambda: TCPTransport(host, port, timeout), timeout)
 
     @classmethod
-    def connect_serial(cls, port: str, baudrate: int = DEFAULT_BAUD,
-                       timeout: float = 5.0) -> GCSController:
+    def connect_serial(cls, port: str, baudrate: int = DEFAULT_BAUD, timeout: float = 5.0) -> GCSController:
         return cls(lambda: SerialTransport(port, baudrate, timeout), timeout)
 
     def close(self) -> None:
@@ -79,8 +90,7 @@ class GCSController:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def reconnect(self, max_tries: int = 5, backoff: float = 0.2,
-                  max_backoff: float = 10.0) -> int:
+    def reconnect(self, max_tries: int = 5, backoff: float = 0.2, max_backoff: float = 10.0) -> int:
         """Reopen the link with exponential backoff; returns the number of tries used.
 
         Waits ``backoff * 2**k`` (capped at ``max_backoff``) between tries and checks each
@@ -126,12 +136,12 @@ class GCSController:
                 self._framer.feed(io.read(left))
             except GCSTimeout:
                 self._in_sync = False
-                raise GCSTimeout(f"no reply to {command!r} within {limit} s",
-                                 command=command) from None
+                raise GCSTimeout(f"no reply to {command!r} within {limit} s", command=command) from None
             except GCSConnectionLost as exc:
                 self._in_sync = False
-                raise GCSConnectionLost(f"{exc} (while waiting for reply to {command!r})",
-                                        command=command) from None
+                raise GCSConnectionLost(
+                    f"{exc} (while waiting for reply to {command!r})", command=command
+                ) from None
         reply[0] = strip_address(reply[0])
         return reply
 
@@ -189,21 +199,24 @@ class GCSController:
             pass
         return None
 
-    def _values(self, query: str, axes: Axes = None, convert: Callable[[str], Any] = float,
-                ) -> dict[str, Any]:
+    def _values(
+        self,
+        query: str,
+        axes: Axes = None,
+        convert: Callable[[str], Any] = float,
+    ) -> dict[str, Any]:
         names = _axis_list(axes)
         known = self.axes() if names else None
         for a in names:
             if known is not None and a not in known:  # the controller would not answer
-                raise GCSInvalidAxisError(f"invalid axis identifier {a!r} (controller has "
-                                          f"{known})", code=15, axis=a, command=query)
-        return parse_axis_values(self.query(query, *names), convert, command=query,
-                                 expect=names or None)
+                raise GCSInvalidAxisError(
+                    f"invalid axis identifier {a!r} (controller has {known})", code=15, axis=a, command=query
+                )
+        return parse_axis_values(self.query(query, *names), convert, command=query, expect=names or None)
 
     def _pairs_command(self, mnemonic: str, pairs: Mapping[str, float | int]) -> None:
         """``MNEMONIC ax1 val1 ax2 val2`` (MOV, VEL, SVO) followed by the ERR? check."""
-        self.command(mnemonic, *format_pairs(mnemonic, pairs).decode("ascii").split()[1:],
-                     axes=list(pairs))
+        self.command(mnemonic, *format_pairs(mnemonic, pairs).decode("ascii").split()[1:], axes=list(pairs))
 
     def _single(self, byte: bytes, name: str) -> list[str]:
         with self._lock:
@@ -239,8 +252,9 @@ class GCSController:
     def servo_state(self, axes: Axes = None) -> dict[str, bool]:
         return self._values("SVO?", axes, parse_bool)
 
-    def reference(self, axes: Axes, *, method: str = "FRF", wait: bool = True,
-                  timeout: float = 60.0, poll: float = 0.05) -> None:
+    def reference(
+        self, axes: Axes, *, method: str = "FRF", wait: bool = True, timeout: float = 60.0, poll: float = 0.05
+    ) -> None:
         """Reference axes with FRF (reference switch) or FNL/FPL (limit switches).
 
         With ``wait``, polls ``#7`` until the controller is ready again and checks ``FRF?``.
@@ -254,13 +268,13 @@ class GCSController:
         deadline = time.monotonic() + timeout
         while not self.ready():
             if time.monotonic() > deadline:
-                raise GCSMotionTimeout(f"{method} not finished after {timeout} s",
-                                       command=method)
+                raise GCSMotionTimeout(f"{method} not finished after {timeout} s", command=method)
             time.sleep(poll)
         missing = [a for a, ok in self.is_referenced(names or None).items() if not ok]
         if missing:
-            raise GCSError(f"{method} finished but axes {missing} are not referenced",
-                           command=method, axis=missing[0])
+            raise GCSError(
+                f"{method} finished but axes {missing} are not referenced", command=method, axis=missing[0]
+            )
 
     def is_referenced(self, axes: Axes = None) -> dict[str, bool]:
         return self._values("FRF?", axes, parse_bool)
@@ -298,21 +312,20 @@ class GCSController:
         lines = check_text(self.query("SPA?", name, text), "SPA?")
         key, sep, value = lines[0].rpartition("=") if len(lines) == 1 else ("", "", "")
         if not sep or key.split() != [name, text]:
-            raise GCSProtocolError(f"unexpected reply to 'SPA? {name} {text}': {lines!r}",
-                                   command="SPA?")
+            raise GCSProtocolError(f"unexpected reply to 'SPA? {name} {text}': {lines!r}", command="SPA?")
         try:
             return float(value)
         except ValueError:
-            raise GCSProtocolError(f"not a number in reply to 'SPA? {name} {text}': {value!r}",
-                                   command="SPA?") from None
+            raise GCSProtocolError(
+                f"not a number in reply to 'SPA? {name} {text}': {value!r}", command="SPA?"
+            ) from None
 
     def set_parameter(self, axis: str, pid: int, value: float) -> None:
         """``SPA <axis> <pid> <value>`` (volatile memory), then the ERR? check."""
         self.command("SPA", check_axis(axis), f"0x{int(pid):X}", float(value), axes=[axis])
 
     # ------------------------------------------------------------------ data recorder
-    def configure_recorder(self, tables: Mapping[int, tuple[str, int]],
-                           rate: int | None = None) -> None:
+    def configure_recorder(self, tables: Mapping[int, tuple[str, int]], rate: int | None = None) -> None:
         """``DRC`` table -> (axis, option: 1 target, 2 current position); ``RTR`` rate."""
         args = [x for t, (axis, opt) in tables.items() for x in (int(t), check_axis(axis), int(opt))]
         self.command("DRC", *args)
@@ -327,8 +340,9 @@ class GCSController:
         """``DRL? <table>``: points recorded so far."""
         return parse_axis_values(self.query("DRL?", int(table)), int, command="DRL?")[str(table)]
 
-    def read_recorder(self, tables: Iterable[int], first: int = 1,
-                      count: int | None = None) -> tuple[dict[str, str], Any]:
+    def read_recorder(
+        self, tables: Iterable[int], first: int = 1, count: int | None = None
+    ) -> tuple[dict[str, str], Any]:
         """``DRR?``: (header, points x tables array) in the GCS array format."""
         from calflow.gcs.datarecorder import parse_array
 
@@ -340,8 +354,9 @@ class GCSController:
         except ValueError as exc:
             raise GCSProtocolError(f"reply to DRR?: {exc}", command="DRR?") from None
 
-    def wait_on_target(self, timeout: float = 30.0, poll: float = 0.05,
-                       axes: Axes = None) -> dict[str, float]:
+    def wait_on_target(
+        self, timeout: float = 30.0, poll: float = 0.05, axes: Axes = None
+    ) -> dict[str, float]:
         """Poll ``ONT?`` until all axes are on target; return ``POS?``.
 
         Raises :class:`GCSMotionTimeout` (motion still running; it is not stopped),
@@ -352,13 +367,17 @@ class GCSController:
         deadline = time.monotonic() + timeout
         while True:
             if self._stops != stops:
-                raise GCSStoppedError("motion was stopped while waiting for on-target",
-                                      code=10, command="ONT?")
+                raise GCSStoppedError(
+                    "motion was stopped while waiting for on-target", code=10, command="ONT?"
+                )
             if all(self.on_target(axes).values()):
                 break
             if time.monotonic() > deadline:
-                raise GCSMotionTimeout(f"axes not on target after {timeout} s",
-                                       command="ONT?", axis=",".join(_axis_list(axes)) or None)
+                raise GCSMotionTimeout(
+                    f"axes not on target after {timeout} s",
+                    command="ONT?",
+                    axis=",".join(_axis_list(axes)) or None,
+                )
             time.sleep(poll)
         code = self.error_code()
         if code or self._stops != stops:
@@ -390,4 +409,3 @@ class GCSController:
             self._send(format_command("STP"))
             self._stops += 1
             return self.error_code()
-

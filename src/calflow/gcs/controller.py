@@ -47,23 +47,51 @@ class _Err(Exception):
 class EmulatedController:
     """Controller state and GCS command semantics, independent of the transport."""
 
-    HELP = ["*IDN?", "CSV?", "SAI? [ALL]", "HLP?", "ERR?", "SVO {<AxisID> <State>}", "SVO?",
-            "FRF [{<AxisID>}]", "FNL [{<AxisID>}]", "FPL [{<AxisID>}]", "FRF?",
-            "VEL {<AxisID> <Velocity>}", "VEL?", "MOV {<AxisID> <Position>}", "MOV?", "POS?",
-            "ONT?", "TMN?", "TMX?", "SPA {<ItemID> <PamID> <PamValue>}",
-            "SPA? [{<ItemID> <PamID>}]", "STP", "#5", "#7", "#24"]
+    HELP = [
+        "*IDN?",
+        "CSV?",
+        "SAI? [ALL]",
+        "HLP?",
+        "ERR?",
+        "SVO {<AxisID> <State>}",
+        "SVO?",
+        "FRF [{<AxisID>}]",
+        "FNL [{<AxisID>}]",
+        "FPL [{<AxisID>}]",
+        "FRF?",
+        "VEL {<AxisID> <Velocity>}",
+        "VEL?",
+        "MOV {<AxisID> <Position>}",
+        "MOV?",
+        "POS?",
+        "ONT?",
+        "TMN?",
+        "TMX?",
+        "SPA {<ItemID> <PamID> <PamValue>}",
+        "SPA? [{<ItemID> <PamID>}]",
+        "STP",
+        "#5",
+        "#7",
+        "#24",
+    ]
     IDN = "(c)2024 calflow, C-863.12-EMU, 0000000000, 0.1.0"
     AXIS: type[SimAxis] = SimAxis
     AXIS_CONFIG: type[AxisConfig] = AxisConfig
     # MS249E parameter overview: settling window (counts) and time (s), counts per unit
-    PARAMETERS: dict[int, Parameter] = {0x36: ("settle_window", _counts),
-                                        0x3F: ("settle_time", _unit)}
+    PARAMETERS: dict[int, Parameter] = {0x36: ("settle_window", _counts), 0x3F: ("settle_time", _unit)}
     READ_ONLY: dict[int, Callable[[SimAxis], float]] = {
-        0xE: lambda ax: ax.config.counts_per_unit, 0xF: lambda ax: 1.0}
+        0xE: lambda ax: ax.config.counts_per_unit,
+        0xF: lambda ax: 1.0,
+    }
 
-    def __init__(self, axes: Any = None, *, time_scale: float = 1.0,
-                 true_position: TruePosition | None = None,
-                 idn: str | None = None) -> None:
+    def __init__(
+        self,
+        axes: Any = None,
+        *,
+        time_scale: float = 1.0,
+        true_position: TruePosition | None = None,
+        idn: str | None = None,
+    ) -> None:
         if not time_scale > 0:
             raise ValueError("time_scale must be > 0")
         self.axes = {n: self.AXIS(n, c) for n, c in axis_configs(axes, self.AXIS_CONFIG).items()}
@@ -87,9 +115,11 @@ class EmulatedController:
                 reply = self._axis_query(name, args, now)
                 if reply is not None:
                     return reply
-                handler = getattr(self, "_q_" + name[:-1].lstrip("*")
-                                  if name.endswith("?") else "_c_" + name.replace("#", "h"),
-                                  None)
+                handler = getattr(
+                    self,
+                    "_q_" + name[:-1].lstrip("*") if name.endswith("?") else "_c_" + name.replace("#", "h"),
+                    None,
+                )
                 if handler is None:
                     raise _Err(2)
                 return handler(args, now)
@@ -122,8 +152,8 @@ class EmulatedController:
     @staticmethod
     def _answer(axes: Iterable[SimAxis], fn: Callable[[SimAxis], object]) -> list[str]:
         def fmt(v: object) -> str:
-            return str(int(v)) if isinstance(v, bool) else f"{v:.6f}" if isinstance(v, float) \
-                else str(v)
+            return str(int(v)) if isinstance(v, bool) else f"{v:.6f}" if isinstance(v, float) else str(v)
+
         return [f"{ax.name}={fmt(fn(ax))}" for ax in axes]
 
     # ------------------------------------------------------------------ queries
@@ -164,9 +194,15 @@ class EmulatedController:
     def _q_SPA(self, args: list[str], now: float) -> list[str]:
         if len(args) % 2:
             raise _Err(1)
-        items = ([(a, f"0x{p:08X}" if p > 0xFFFF else f"0x{p:X}") for a in self.axes for p in sorted({**self.READ_ONLY,
-                                                                         **self.PARAMETERS})]
-                 if not args else list(zip(args[0::2], args[1::2])))
+        items = (
+            [
+                (a, f"0x{p:08X}" if p > 0xFFFF else f"0x{p:X}")
+                for a in self.axes
+                for p in sorted({**self.READ_ONLY, **self.PARAMETERS})
+            ]
+            if not args
+            else list(zip(args[0::2], args[1::2]))
+        )
         out = []
         for axis, raw in items:
             ax, pid = self._parameter(axis, raw)

@@ -98,13 +98,20 @@ class DataRecorder:
         return self.start + (np.arange(count) + first - 1) * self.sample_time
 
 
-def format_array(columns: list[np.ndarray], names: list[str], sample_time: float,
-                 remark: str) -> list[str]:
+def format_array(columns: list[np.ndarray], names: list[str], sample_time: float, remark: str) -> list[str]:
     """Lines of a GCS array (header, ``# END_HEADER``, one line per point)."""
     n = len(columns[0]) if columns else 0
-    head = [f"# REM {remark}", "# VERSION = 1", "# TYPE = 1", "# SEPARATOR = 32",
-            f"# DIM = {len(columns)}", f"# SAMPLE_TIME = {sample_time:.9g}", f"# NDATA = {n}",
-            *(f"# NAME{i} = {name}" for i, name in enumerate(names)), "# END_HEADER"]
+    head = [
+        f"# REM {remark}",
+        "# VERSION = 1",
+        "# TYPE = 1",
+        "# SEPARATOR = 32",
+        f"# DIM = {len(columns)}",
+        f"# SAMPLE_TIME = {sample_time:.9g}",
+        f"# NDATA = {n}",
+        *(f"# NAME{i} = {name}" for i, name in enumerate(names)),
+        "# END_HEADER",
+    ]
     rows = np.column_stack(columns) if columns else np.empty((0, 0))
     return head + [" ".join(f"{v:.9g}" for v in row) for row in rows]
 
@@ -119,7 +126,7 @@ def parse_array(lines: list[str]) -> tuple[dict[str, str], np.ndarray]:
     for i, line in enumerate(lines):
         text = line.strip()
         if text.upper() == "# END_HEADER":
-            rows = [r.split() for r in lines[i + 1:] if r.strip()]
+            rows = [r.split() for r in lines[i + 1 :] if r.strip()]
             break
         if not text.startswith("#"):
             raise ValueError(f"GCS array: header line {line!r} does not start with '#'")

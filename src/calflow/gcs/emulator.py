@@ -60,15 +60,23 @@ class Faults:
 class GCSEmulator:
     """Threaded TCP server around an :class:`EmulatedController`, bound to 127.0.0.1 only."""
 
-    def __init__(self, axes: Any = None, host: str = LOCALHOST, port: int = 0,
-                 faults: Faults | None = None, *, time_scale: float = 1.0,
-                 true_position: TruePosition | None = None,
-                 address_prefix: int | None = None,
-                 controller: EmulatedController | None = None) -> None:
+    def __init__(
+        self,
+        axes: Any = None,
+        host: str = LOCALHOST,
+        port: int = 0,
+        faults: Faults | None = None,
+        *,
+        time_scale: float = 1.0,
+        true_position: TruePosition | None = None,
+        address_prefix: int | None = None,
+        controller: EmulatedController | None = None,
+    ) -> None:
         if host not in (LOCALHOST, "localhost"):
             raise ValueError(f"the GCS emulator binds to {LOCALHOST} only, not {host!r}")
-        self.controller = controller or EmulatedController(axes, time_scale=time_scale,
-                                                           true_position=true_position)
+        self.controller = controller or EmulatedController(
+            axes, time_scale=time_scale, true_position=true_position
+        )
         self.faults = faults or Faults()
         self.address_prefix = address_prefix  # replies start "0 <n> " (MS249E §8.3)
         self.commands_handled = 0
@@ -136,7 +144,7 @@ class GCSEmulator:
         while not self._stop.is_set():
             try:
                 conn, _ = self._sock.accept()
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 continue
             except OSError:
                 return
@@ -156,8 +164,9 @@ class GCSEmulator:
         def recv() -> bytes | None:
             try:
                 return conn.recv(4096)
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 return None
+
         try:
             self._session(recv, conn.sendall)
         except OSError:
@@ -187,8 +196,11 @@ class GCSEmulator:
                     log.info("fault: dropping connection at %r", line)
                     return
                 with self._lock:
-                    refuse = self.faults.error > 0 and not is_query(split_command(line)[0]) \
+                    refuse = (
+                        self.faults.error > 0
+                        and not is_query(split_command(line)[0])
                         and split_command(line)[0] not in ("#24", "STP")
+                    )
                     self.faults.error -= int(refuse)
                 if refuse:
                     log.info("fault: refusing %r with error %d", line, self.faults.error_code)
@@ -227,21 +239,24 @@ class GCSEmulator:
                 return os.read(master, 4096) if ready else None
             except OSError:
                 return b""
+
         self._spawn(self._session, recv, lambda b: os.write(master, b))
         return os.ttyname(slave)
 
 
-def serve(config: Mapping[str, Any] | None = None,
-          stop_event: threading.Event | None = None) -> None:
+def serve(config: Mapping[str, Any] | None = None, stop_event: threading.Event | None = None) -> None:
     """Run an emulator until Ctrl-C, ``stop_event`` or ``config['duration']`` seconds.
 
     config keys: host (127.0.0.1), port (50000), axes ("1,2", a list, or a mapping of axis
     name to :class:`AxisConfig` fields), time_scale (1.0), pty (False), duration (None).
     """
     cfg = dict(config or {})
-    emu = GCSEmulator(axes=cfg.get("axes", "1"), host=cfg.get("host", LOCALHOST),
-                      port=int(cfg.get("port", 50000)),
-                      time_scale=float(cfg.get("time_scale", 1.0)))
+    emu = GCSEmulator(
+        axes=cfg.get("axes", "1"),
+        host=cfg.get("host", LOCALHOST),
+        port=int(cfg.get("port", 50000)),
+        time_scale=float(cfg.get("time_scale", 1.0)),
+    )
     duration = cfg.get("duration")
     stop_event = stop_event or threading.Event()
     deadline = math.inf if duration is None else time.monotonic() + float(duration)
@@ -258,16 +273,16 @@ def serve(config: Mapping[str, Any] | None = None,
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m calflow.gcs.emulator",
-                                description="Emulate a PI GCS 2.0 controller on 127.0.0.1.")
+    p = argparse.ArgumentParser(
+        prog="python -m calflow.gcs.emulator", description="Emulate a PI GCS 2.0 controller on 127.0.0.1."
+    )
     p.add_argument("--port", type=int, default=50000, help="TCP port (0 = any free port)")
     p.add_argument("--axes", default="1", help="comma-separated axis identifiers, e.g. 1,2")
     p.add_argument("--time-scale", type=float, default=1.0, help="simulation speed-up factor")
     p.add_argument("--duration", type=float, default=None, help="stop after N seconds")
     p.add_argument("--pty", action="store_true", help="also serve on a pseudo-terminal")
     a = p.parse_args(argv)
-    serve({"port": a.port, "axes": a.axes, "time_scale": a.time_scale, "pty": a.pty,
-           "duration": a.duration})
+    serve({"port": a.port, "axes": a.axes, "time_scale": a.time_scale, "pty": a.pty, "duration": a.duration})
     return 0
 
 

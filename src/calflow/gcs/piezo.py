@@ -60,8 +60,7 @@ class PiezoAxisConfig(AxisConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         if not (self.servo_tau > 0 and self.sensor_noise >= 0 and self.sensor_resolution >= 0):
-            raise ValueError("piezo axis needs servo_tau > 0, sensor_noise >= 0 and "
-                             "sensor_resolution >= 0")
+            raise ValueError("piezo axis needs servo_tau > 0, sensor_noise >= 0 and sensor_resolution >= 0")
         if not (self.natural_hz >= 0 and 0 < self.damping < 1):
             raise ValueError("piezo axis needs natural_hz >= 0 and 0 < damping < 1")
 
@@ -151,15 +150,31 @@ class PiezoController(EmulatedController):
     AXIS_CONFIG = PiezoAxisConfig
     PARAMETERS = {0x07000900: ("settle_window", _unit), 0x07000901: ("settle_time", _unit)}
     READ_ONLY: dict = {}
-    HELP = [*EmulatedController.HELP, "DRC {<RecTableID> <Source> <RecOption>}", "DRC?",
-            "DRT <RecTableID> <TriggerSource> <Value>", "DRT?", "RTR <Rate>", "RTR?",
-            "DRL? [{<RecTableID>}]", "DRR? [<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]]",
-            "TNR?"]
+    HELP = [
+        *EmulatedController.HELP,
+        "DRC {<RecTableID> <Source> <RecOption>}",
+        "DRC?",
+        "DRT <RecTableID> <TriggerSource> <Value>",
+        "DRT?",
+        "RTR <Rate>",
+        "RTR?",
+        "DRL? [{<RecTableID>}]",
+        "DRR? [<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]]",
+        "TNR?",
+    ]
 
-    def __init__(self, axes: Any = None, *, time_scale: float = 1.0, seed: int = 0,
-                 recorder: DataRecorder | None = None, idn: str | None = None) -> None:
-        super().__init__(axes if axes is not None else {"1": PiezoAxisConfig()},
-                         time_scale=time_scale, idn=idn)
+    def __init__(
+        self,
+        axes: Any = None,
+        *,
+        time_scale: float = 1.0,
+        seed: int = 0,
+        recorder: DataRecorder | None = None,
+        idn: str | None = None,
+    ) -> None:
+        super().__init__(
+            axes if axes is not None else {"1": PiezoAxisConfig()}, time_scale=time_scale, idn=idn
+        )
         self.seed = int(seed)
         self.recorder = recorder or DataRecorder()
         self._rng = np.random.default_rng([self.seed, 0])
@@ -180,8 +195,7 @@ class PiezoController(EmulatedController):
             return reply
 
     @staticmethod
-    def _sense(ax: PiezoAxis, values: np.ndarray, rng: np.random.Generator,
-               skip: int = 0) -> np.ndarray:
+    def _sense(ax: PiezoAxis, values: np.ndarray, rng: np.random.Generator, skip: int = 0) -> np.ndarray:
         """The capacitive sensor's reading of true positions ``values`` (µm); the noise is
         the generator's draws after the first ``skip``."""
         noise = rng.standard_normal(skip + values.size)[skip:]
@@ -255,12 +269,16 @@ class PiezoController(EmulatedController):
         n_rec = rec.recorded(now)
         first = self._int(args[0]) if args else 1
         count = self._int(args[1]) if len(args) > 1 else n_rec - first + 1
-        tables = [self._int(a) for a in args[2:]] or sorted(
-            t for t, (_, o) in rec.config.items() if o)
+        tables = [self._int(a) for a in args[2:]] or sorted(t for t, (_, o) in rec.config.items() if o)
         for t in tables:
             self._recorder(rec.check_table, t)
-        if first < 1 or count < 0 or first + count - 1 > n_rec or not tables or \
-                any(rec.config.get(t, ("", 0))[1] == 0 for t in tables):
+        if (
+            first < 1
+            or count < 0
+            or first + count - 1 > n_rec
+            or not tables
+            or any(rec.config.get(t, ("", 0))[1] == 0 for t in tables)
+        ):
             raise _Err(17)
         times = rec.times(first, count) if count else np.empty(0)
         columns, names = [], []
@@ -274,8 +292,12 @@ class PiezoController(EmulatedController):
                 values = self._sense(ax, ax.positions_at(times), rng, skip=first - 1)
             columns.append(values)
             names.append(f"{OPTIONS[option]} of axis {source}")
-        return format_array(columns, names, rec.sample_time, f"{self.IDN.split(',')[1].strip()} "
-                            f"data recorder, {count} points from point {first}")
+        return format_array(
+            columns,
+            names,
+            rec.sample_time,
+            f"{self.IDN.split(',')[1].strip()} data recorder, {count} points from point {first}",
+        )
 
     @staticmethod
     def _int(text: str) -> int:
@@ -285,8 +307,10 @@ class PiezoController(EmulatedController):
             raise _Err(1) from None
 
 
-def piezo_emulator(axes: Any = None, *, port: int = 0, time_scale: float = 1.0, seed: int = 0,
-                   faults: Faults | None = None) -> GCSEmulator:
+def piezo_emulator(
+    axes: Any = None, *, port: int = 0, time_scale: float = 1.0, seed: int = 0, faults: Faults | None = None
+) -> GCSEmulator:
     """An (unstarted) TCP emulator of an E-727-class controller on 127.0.0.1."""
-    return GCSEmulator(port=port, faults=faults, controller=PiezoController(
-        axes, time_scale=time_scale, seed=seed))
+    return GCSEmulator(
+        port=port, faults=faults, controller=PiezoController(axes, time_scale=time_scale, seed=seed)
+    )

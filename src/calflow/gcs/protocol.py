@@ -45,8 +45,7 @@ ERROR_NAMES: dict[int, tuple[str, str]] = {
     2: ("PI_CNTR_UNKNOWN_COMMAND", "unknown command"),
     3: ("PI_CNTR_COMMAND_TOO_LONG", "command length out of limits or command buffer overrun"),
     4: ("PI_CNTR_SCAN_ERROR", "error while scanning"),
-    5: ("PI_CNTR_MOVE_WITHOUT_REF_OR_NO_SERVO",
-        "motion not allowed: servo off or axis not referenced"),
+    5: ("PI_CNTR_MOVE_WITHOUT_REF_OR_NO_SERVO", "motion not allowed: servo off or axis not referenced"),
     6: ("PI_CNTR_INVALID_SGA_PARAM", "parameter for SGA not valid"),
     7: ("PI_CNTR_POS_OUT_OF_LIMITS", "position out of limits"),
     8: ("PI_CNTR_VEL_OUT_OF_LIMITS", "velocity out of limits"),
@@ -71,8 +70,9 @@ ERROR_NAMES: dict[int, tuple[str, str]] = {
 class GCSError(RigError):
     """Base of every GCS failure. ``code`` is the GCS error number (None if not from ERR?)."""
 
-    def __init__(self, message: str, *, code: int | None = None, axis: str | None = None,
-                 command: str | None = None) -> None:
+    def __init__(
+        self, message: str, *, code: int | None = None, axis: str | None = None, command: str | None = None
+    ) -> None:
         super().__init__(message)
         self.code, self.axis, self.command = code, axis, command
 
@@ -126,18 +126,20 @@ class GCSInvalidAxisError(GCSControllerError):
 
 
 ERROR_CLASSES: dict[int, type[GCSControllerError]] = {
-    1: GCSParameterSyntaxError, 2: GCSUnknownCommandError, 5: GCSMotionNotAllowedError,
-    7: GCSPositionOutOfLimitsError, 8: GCSVelocityOutOfLimitsError, 10: GCSStoppedError,
+    1: GCSParameterSyntaxError,
+    2: GCSUnknownCommandError,
+    5: GCSMotionNotAllowedError,
+    7: GCSPositionOutOfLimitsError,
+    8: GCSVelocityOutOfLimitsError,
+    10: GCSStoppedError,
     15: GCSInvalidAxisError,
 }
 
 
-def error_from_code(code: int, *, command: str | None = None,
-                    axis: str | None = None) -> GCSControllerError:
+def error_from_code(code: int, *, command: str | None = None, axis: str | None = None) -> GCSControllerError:
     """Build the exception for GCS error ``code``; unknown codes give a plain GCSControllerError."""
     name, text = ERROR_NAMES.get(code, ("UNKNOWN", f"unknown GCS error code {code}"))
-    where = "".join([f", command {command!r}" if command else "",
-                     f", axis {axis!r}" if axis else ""])
+    where = "".join([f", command {command!r}" if command else "", f", axis {axis!r}" if axis else ""])
     msg = f"GCS error {code} ({name}): {text}{where}"
     return ERROR_CLASSES.get(code, GCSControllerError)(msg, code=code, axis=axis, command=command)
 
@@ -267,8 +269,7 @@ def check_text(lines: list[str], command: str | None = None) -> list[str]:
     """Reject replies containing control characters (line noise, binary garbage)."""
     for line in lines:
         if _GARBAGE_RE.search(line):
-            raise GCSProtocolError(f"garbage in reply to {command!r}: {line!r}",
-                                   command=command)
+            raise GCSProtocolError(f"garbage in reply to {command!r}: {line!r}", command=command)
     return lines
 
 
@@ -281,10 +282,13 @@ def parse_bool(text: str) -> bool:
     return text == "1"
 
 
-def parse_axis_values(lines: list[str],
-                      convert: Callable[[str], T] = float,  # type: ignore[assignment]
-                      *, command: str | None = None,
-                      expect: Iterable[str] | None = None) -> dict[str, T]:
+def parse_axis_values(
+    lines: list[str],
+    convert: Callable[[str], T] = float,  # type: ignore[assignment]
+    *,
+    command: str | None = None,
+    expect: Iterable[str] | None = None,
+) -> dict[str, T]:
     """Parse ``axis=value`` lines into a dict; with ``expect``, the axes must match exactly."""
     out: dict[str, T] = {}
     for line in check_text(lines, command):
@@ -294,11 +298,13 @@ def parse_axis_values(lines: list[str],
                 raise ValueError("no '='")
             out[check_axis(key.strip())] = convert(value.strip())
         except ValueError as exc:
-            raise GCSProtocolError(f"cannot parse reply line {line!r} to {command!r}: {exc}",
-                                   command=command) from None
+            raise GCSProtocolError(
+                f"cannot parse reply line {line!r} to {command!r}: {exc}", command=command
+            ) from None
     if expect is not None and sorted(out) != sorted(expect):
-        raise GCSProtocolError(f"reply to {command!r} names axes {sorted(out)}, "
-                               f"expected {sorted(expect)}", command=command)
+        raise GCSProtocolError(
+            f"reply to {command!r} names axes {sorted(out)}, expected {sorted(expect)}", command=command
+        )
     return out
 
 
@@ -311,8 +317,9 @@ def parse_int(lines: list[str], *, base: int = 10, command: str | None = None) -
     try:
         return int(text, base)
     except ValueError:
-        raise GCSProtocolError(f"expected one integer in reply to {command!r}, got {lines!r}",
-                               command=command) from None
+        raise GCSProtocolError(
+            f"expected one integer in reply to {command!r}, got {lines!r}", command=command
+        ) from None
 
 
 def parse_ready(lines: list[str]) -> bool:

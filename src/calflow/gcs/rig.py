@@ -2,7 +2,7 @@
 
 Stages are driven with :class:`calflow.gcs.GCSController` (docs/gcs.md "Servo,
 referencing, motion"); readings come from a sensor plug-in
-(:mod:`calflow.xytheta.vision_sensor`, docs/gcs.md "Sensor drivers") given the stages' actual
+(:mod:`calflow.xytheta.stage.vision_sensor`, docs/gcs.md "Sensor drivers") given the stages' actual
 ``POS?`` positions. At open: servo on, FRF for axes not referenced (``reference: true``).
 
 Resilience (docs/gcs.md "What the client does on errors", "Resilience of the gcs rig"):
@@ -24,17 +24,26 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from calflow.errors import RigError
-from calflow.gcs import (DEFAULT_BAUD, DEFAULT_PORT, ERROR_NAMES, GCSConnectionLost,
-                         GCSController, GCSControllerError, GCSError, GCSMotionTimeout,
-                         GCSProtocolError, GCSTimeout)
+from calflow.gcs import (
+    DEFAULT_BAUD,
+    DEFAULT_PORT,
+    ERROR_NAMES,
+    GCSConnectionLost,
+    GCSController,
+    GCSControllerError,
+    GCSError,
+    GCSMotionTimeout,
+    GCSProtocolError,
+    GCSTimeout,
+)
 from calflow.gcs.controller import parse_parameter_id
 from calflow.gcs.rig_records import RecordedMoves
 from calflow.gcs.sensors import load_sensor
@@ -42,8 +51,10 @@ from calflow.gcs.sensors import load_sensor
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")
 LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
-RESUME = ("; the samples already taken are kept in the acquisition journal (<out>.journal): "
-          "fix the cause and run the same command again to continue after the last one")
+RESUME = (
+    "; the samples already taken are kept in the acquisition journal (<out>.journal): "
+    "fix the cause and run the same command again to continue after the last one"
+)
 
 
 @dataclass
@@ -69,11 +80,17 @@ def _connection(spec: Mapping[str, Any], timeout: float) -> tuple[tuple, str, Ca
         raise RigError("gcs rig: each controller needs exactly one of 'host' (TCP) or 'serial'")
     if host is not None:
         port = int(spec.get("port") or DEFAULT_PORT)
-        return (("tcp", str(host), port), f"tcp://{host}:{port}",
-                lambda: GCSController.connect_tcp(str(host), port, timeout))
+        return (
+            ("tcp", str(host), port),
+            f"tcp://{host}:{port}",
+            lambda: GCSController.connect_tcp(str(host), port, timeout),
+        )
     baud = int(spec.get("baudrate") or DEFAULT_BAUD)
-    return (("serial", str(serial), baud), f"serial:{serial}",
-            lambda: GCSController.connect_serial(str(serial), baud, timeout))
+    return (
+        ("serial", str(serial), baud),
+        f"serial:{serial}",
+        lambda: GCSController.connect_serial(str(serial), baud, timeout),
+    )
 
 
 def _lock_controllers(names: list[str]) -> list:
@@ -90,7 +107,9 @@ def _lock_controllers(names: list[str]) -> list:
 
     held = []
     for name in names:
-        path = Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
+        path = (
+            Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
+        )
         f = open(path, "a+")
         fcntl.flock(f, fcntl.LOCK_EX)
         held.append(f)
@@ -111,10 +130,19 @@ class GCSRig(RecordedMoves):
 
     replayable = False  # a real rig is continued, not replayed, on resume
 
-    def __init__(self, links: list[Link], sensor: Any, *, scale: Mapping[str, float],
-                 tries: int = 5, backoff_s: float = 0.2, max_backoff_s: float = 10.0,
-                 time_scale: float = 1.0, move_timeout_s: float = 60.0,
-                 poll_s: float = 0.02) -> None:
+    def __init__(
+        self,
+        links: list[Link],
+        sensor: Any,
+        *,
+        scale: Mapping[str, float],
+        tries: int = 5,
+        backoff_s: float = 0.2,
+        max_backoff_s: float = 10.0,
+        time_scale: float = 1.0,
+        move_timeout_s: float = 60.0,
+        poll_s: float = 0.02,
+    ) -> None:
         self.links, self.sensor = links, sensor
         self.joints = tuple(j for link in links for j in link.joints)
         self.sensors = tuple(sensor.sensors)
@@ -145,18 +173,21 @@ class GCSRig(RecordedMoves):
         if unknown:
             raise RigError(f"gcs rig: command names joints {unknown}; the rig has {list(self.joints)}")
         started = self.time()
-        plan = [(link, {a: float(command[j]) / self.scale[j] for j, a in link.joints.items()
-                        if j in command}) for link in self.links]
+        plan = [
+            (link, {a: float(command[j]) / self.scale[j] for j, a in link.joints.items() if j in command})
+            for link in self.links
+        ]
         plan = [(link, targets) for link, targets in plan if targets]
         for link, targets in plan:
             self._run(link, "MOV", lambda retry, link=link, t=targets: link.ctl.move(t))
         settled: dict[str, float] = {}
         for link, targets in plan:
+
             def settle(retry: bool, link: Link = link, t: dict = targets) -> dict[str, float]:
                 if retry:  # the interrupted move is sent again: MOV is idempotent
                     link.ctl.move(t)
-                return link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s,
-                                               axes=list(t))
+                return link.ctl.wait_on_target(timeout=self.move_timeout_s, poll=self.poll_s, axes=list(t))
+
             pos = self._run(link, "wait on target", settle)
             settled.update({j: pos[a] * self.scale[j] for j, a in link.joints.items() if a in pos})
         if hasattr(self.sensor, "moved"):  # e.g. a simulated sensor keeping its own clock
@@ -193,11 +224,19 @@ class GCSRig(RecordedMoves):
         dt = float(header.get("SAMPLE_TIME", rate * 5e-5))
         n = min(len(data) - 1, int(np.floor(seconds / dt + 1e-9)))
         times = start + dt * np.arange(1, n + 1)
-        positions = {link.joint_of(a): data[1:n + 1, i] * self.scale[link.joint_of(a)]
-                     for i, a in enumerate(link.axes)}
+        positions = {
+            link.joint_of(a): data[1 : n + 1, i] * self.scale[link.joint_of(a)]
+            for i, a in enumerate(link.axes)
+        }
         values = self._sensor("stream", times, positions)
-        return iter([{"time": times, **{k: np.asarray(values[k], dtype=float)
-                                        for k in (*self.sensors, *self.thermometers)}}])
+        return iter(
+            [
+                {
+                    "time": times,
+                    **{k: np.asarray(values[k], dtype=float) for k in (*self.sensors, *self.thermometers)},
+                }
+            ]
+        )
 
     def positions(self) -> dict[str, float]:
         """Actual joint positions (``POS?``) in rig units (µm, degree)."""
@@ -244,23 +283,28 @@ class GCSRig(RecordedMoves):
             except LINK_ERRORS as exc:
                 failures += 1
                 if failures > self.tries:
-                    raise RigError(f"gcs rig: {link.name}: {what} failed {failures} times in a "
-                                   f"row, giving up (last: {exc})" + RESUME) from exc
+                    raise RigError(
+                        f"gcs rig: {link.name}: {what} failed {failures} times in a "
+                        f"row, giving up (last: {exc})" + RESUME
+                    ) from exc
                 self._recover(link, what, failures, exc)
             except GCSError as exc:  # GCSControllerError and other controller-side failures
                 self._fail(link, what, exc)
 
     def _recover(self, link: Link, what: str, failures: int, exc: Exception) -> None:
-        log.warning("gcs rig: %s: %s failed (%s); reconnecting (%d/%d)", link.name, what, exc,
-                    failures, self.tries)
+        log.warning(
+            "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)", link.name, what, exc, failures, self.tries
+        )
         if failures > 1:
             time.sleep(min(self.backoff_s * 2 ** (failures - 1), self.max_backoff_s))
         try:
-            link.ctl.reconnect(max_tries=max(1, self.tries), backoff=self.backoff_s,
-                               max_backoff=self.max_backoff_s)
+            link.ctl.reconnect(
+                max_tries=max(1, self.tries), backoff=self.backoff_s, max_backoff=self.max_backoff_s
+            )
         except GCSConnectionLost as lost:
-            raise RigError(f"gcs rig: {link.name}: link lost during {what} and reconnecting "
-                           f"failed: {lost}" + RESUME) from exc
+            raise RigError(
+                f"gcs rig: {link.name}: link lost during {what} and reconnecting failed: {lost}" + RESUME
+            ) from exc
         self.recoveries += 1
 
     def stop_all(self) -> list[str]:
@@ -284,8 +328,11 @@ class GCSRig(RecordedMoves):
 
     def _fail(self, link: Link, what: str, exc: GCSError) -> None:
         joint = link.joint_of(exc.axis)
-        where = (f"joint {joint!r} (axis {exc.axis!r}" if joint else
-                 f"joints {', '.join(link.joints)} (axes {', '.join(link.axes)}") + f" on {link.name})"
+        where = (
+            f"joint {joint!r} (axis {exc.axis!r}"
+            if joint
+            else f"joints {', '.join(link.joints)} (axes {', '.join(link.axes)}"
+        ) + f" on {link.name})"
         if isinstance(exc, GCSControllerError) and exc.code is not None:
             name = ERROR_NAMES.get(exc.code, ("", "unknown error"))[1]
             cause = f"command {exc.command or what!r} failed with GCS error {exc.code} ({name})"
@@ -294,19 +341,29 @@ class GCSRig(RecordedMoves):
         else:
             cause = f"{what} failed: {exc}"
         failed = self.stop_all()
-        stopped = ("all axes stopped (#24)" if not failed
-                   else f"#24 could not be sent to {', '.join(failed)}")
+        stopped = "all axes stopped (#24)" if not failed else f"#24 could not be sent to {', '.join(failed)}"
         raise RigError(f"gcs rig: {where}: {cause}; {stopped}" + RESUME) from exc
 
 
-def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PORT,
-        serial: str | None = None, baudrate: int = DEFAULT_BAUD, timeout: float = 5.0,
-        sensor: Mapping[str, Any] | None = None, reconnect: Mapping[str, Any] | None = None,
-        reference: bool = True, servo: bool = True, scale: Mapping[str, float] | None = None,
-        velocity: Mapping[str, float] | None = None, time_scale: float = 1.0,
-        move_timeout_s: float = 60.0, poll_s: float = 0.02,
-        recorder: Mapping[str, float] | None = None,
-        parameters: Mapping[str, Mapping[Any, float]] | None = None) -> GCSRig:
+def gcs(
+    axes: Mapping[str, Any],
+    host: str | None = None,
+    port: int = DEFAULT_PORT,
+    serial: str | None = None,
+    baudrate: int = DEFAULT_BAUD,
+    timeout: float = 5.0,
+    sensor: Mapping[str, Any] | None = None,
+    reconnect: Mapping[str, Any] | None = None,
+    reference: bool = True,
+    servo: bool = True,
+    scale: Mapping[str, float] | None = None,
+    velocity: Mapping[str, float] | None = None,
+    time_scale: float = 1.0,
+    move_timeout_s: float = 60.0,
+    poll_s: float = 0.02,
+    recorder: Mapping[str, float] | None = None,
+    parameters: Mapping[str, Mapping[Any, float]] | None = None,
+) -> GCSRig:
     """Factory of the ``gcs`` rig (docs/gcs.md, "The gcs rig").
 
     ``axes`` maps joint -> axis id on the controller at ``host``/``port`` (TCP) or
@@ -345,24 +402,46 @@ def gcs(axes: Mapping[str, Any], host: str | None = None, port: int = DEFAULT_PO
             except GCSError as exc:
                 raise RigError(f"gcs rig: cannot open controller {name}: {exc}") from exc
             links.append(link)
-            _prepare(link, servo=servo, reference=reference, velocity=velocity or {},
-                     timeout=move_timeout_s, poll=poll_s, parameters=parameters or {})
+            _prepare(
+                link,
+                servo=servo,
+                reference=reference,
+                velocity=velocity or {},
+                timeout=move_timeout_s,
+                poll=poll_s,
+                parameters=parameters or {},
+            )
     except BaseException:
         for link in links:
             link.ctl.close()
         _unlock(locks)
         raise
-    rig = GCSRig(links, sensor_obj, scale=scale or {}, tries=rc.get("tries", 5),
-                 backoff_s=float(rc.get("backoff_s", 0.2)),
-                 max_backoff_s=float(rc.get("max_backoff_s", 10.0)), time_scale=float(time_scale),
-                 move_timeout_s=float(move_timeout_s), poll_s=float(poll_s))
+    rig = GCSRig(
+        links,
+        sensor_obj,
+        scale=scale or {},
+        tries=rc.get("tries", 5),
+        backoff_s=float(rc.get("backoff_s", 0.2)),
+        max_backoff_s=float(rc.get("max_backoff_s", 10.0)),
+        time_scale=float(time_scale),
+        move_timeout_s=float(move_timeout_s),
+        poll_s=float(poll_s),
+    )
     rig._locks = locks
     rig.recorder = dict(recorder or {})
     return rig
 
 
-def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str, float],
-             timeout: float, poll: float, parameters: Mapping[str, Mapping[Any, float]]) -> None:
+def _prepare(
+    link: Link,
+    *,
+    servo: bool,
+    reference: bool,
+    velocity: Mapping[str, float],
+    timeout: float,
+    poll: float,
+    parameters: Mapping[str, Mapping[Any, float]],
+) -> None:
     """Check the axes exist (SAI?), set parameters (SPA), servo on (SVO), FRF what is not
     referenced, set VEL."""
     ctl = link.ctl
@@ -370,10 +449,11 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
         known = ctl.axes()
         for joint, axis in link.joints.items():
             if axis not in known:
-                raise RigError(f"gcs rig: axes.{joint}: controller {link.name} has no axis "
-                               f"{axis!r} (SAI? lists {known})")
+                raise RigError(
+                    f"gcs rig: axes.{joint}: controller {link.name} has no axis {axis!r} (SAI? lists {known})"
+                )
         for joint, values in parameters.items():
-            for pid, value in (values.items() if joint in link.joints else ()):
+            for pid, value in values.items() if joint in link.joints else ():
                 ctl.set_parameter(link.joints[joint], parse_parameter_id(str(pid)), float(value))
         if servo:
             ctl.servo_on(link.axes)
@@ -386,8 +466,9 @@ def _prepare(link: Link, *, servo: bool, reference: bool, velocity: Mapping[str,
         if vel:
             ctl.set_velocity(vel)
     except GCSError as exc:
-        raise RigError(f"gcs rig: preparing controller {link.name} "
-                       f"(joints {', '.join(link.joints)}) failed: {exc}") from exc
+        raise RigError(
+            f"gcs rig: preparing controller {link.name} (joints {', '.join(link.joints)}) failed: {exc}"
+        ) from exc
 
 
 # The config check calls this (calflow.rigs.plugin.check_rig): options checked, nothing opened.

@@ -17,9 +17,25 @@ from calflow.errors import OptionError, UnknownOptionError
 from calflow.gcs.controller import parse_parameter_id
 from calflow.gcs.protocol import check_axis
 
-OPTIONS = ("axes", "host", "port", "serial", "baudrate", "timeout", "sensor", "reconnect",
-           "reference", "servo", "scale", "velocity", "time_scale", "move_timeout_s", "poll_s",
-           "recorder", "parameters")
+OPTIONS = (
+    "axes",
+    "host",
+    "port",
+    "serial",
+    "baudrate",
+    "timeout",
+    "sensor",
+    "reconnect",
+    "reference",
+    "servo",
+    "scale",
+    "velocity",
+    "time_scale",
+    "move_timeout_s",
+    "poll_s",
+    "recorder",
+    "parameters",
+)
 LINK = ("host", "port", "serial", "baudrate")
 RECONNECT = {"tries": "int", "backoff_s": ">=", "max_backoff_s": ">="}
 RECORDER = {"rate_hz": ">", "servo_cycle_s": ">"}
@@ -27,20 +43,32 @@ RECORDER = {"rate_hz": ">", "servo_cycle_s": ">"}
 
 def _number(name: str, value: Any, bound: str | None = ">") -> float:
     """A finite number (``bound``: ">" positive, ">=" non-negative, "!=" non-zero)."""
-    expected = {">": "a finite number > 0", ">=": "a finite number >= 0",
-                "!=": "a finite non-zero number", None: "a finite number"}[bound]
+    expected = {
+        ">": "a finite number > 0",
+        ">=": "a finite number >= 0",
+        "!=": "a finite non-zero number",
+        None: "a finite number",
+    }[bound]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise OptionError(name, expected, value)
     v = float(value)
-    if not math.isfinite(v) or (bound == ">" and v <= 0) or (bound == ">=" and v < 0) \
-            or (bound == "!=" and v == 0):
+    if (
+        not math.isfinite(v)
+        or (bound == ">" and v <= 0)
+        or (bound == ">=" and v < 0)
+        or (bound == "!=" and v == 0)
+    ):
         raise OptionError(name, expected, value)
     return v
 
 
 def _integer(name: str, value: Any, low: int, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low or \
-            (high is not None and value > high):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int)
+        or value < low
+        or (high is not None and value > high)
+    ):
         raise OptionError(name, f"an integer {low}-{high}" if high else f"an integer >= {low}", value)
     return value
 
@@ -77,15 +105,17 @@ def _axes(axes: Any, shared: Mapping[str, Any]) -> list[str]:
         try:
             check_axis(spec["axis"])
         except ValueError:
-            raise OptionError(f"axes.{joint}.axis", "a GCS axis id (1-16 of A-Z a-z 0-9 _)",
-                              spec["axis"]) from None
+            raise OptionError(
+                f"axes.{joint}.axis", "a GCS axis id (1-16 of A-Z a-z 0-9 _)", spec["axis"]
+            ) from None
         _link(f"axes.{joint}.", spec)
         link = {**shared, **{k: spec[k] for k in LINK if k in spec}}
         if ("host" in spec) != ("serial" in spec):  # a per-joint link replaces the shared one
             link["serial" if "host" in spec else "host"] = None
         if (link.get("host") is None) == (link.get("serial") is None):
-            raise OptionError(f"axes.{joint}", "exactly one of 'host' (TCP) or 'serial' for its "
-                              "controller", dict(spec))
+            raise OptionError(
+                f"axes.{joint}", "exactly one of 'host' (TCP) or 'serial' for its controller", dict(spec)
+            )
     return [str(j) for j in axes]
 
 
@@ -138,8 +168,9 @@ def check_options(**options: Any) -> dict[str, Any]:
             _number(f"parameters.{joint}.{pid}", value, None)
     sensor = options.get("sensor")
     if not isinstance(sensor, Mapping) or not isinstance(sensor.get("factory"), str):
-        raise OptionError("sensor", "{factory: 'simulated_vision' | 'package.module:callable', "
-                          "options: {...}}", sensor)
+        raise OptionError(
+            "sensor", "{factory: 'simulated_vision' | 'package.module:callable', options: {...}}", sensor
+        )
     unknown = sorted(set(sensor) - {"factory", "options"})
     if unknown:
         raise UnknownOptionError(f"sensor.{unknown[0]}", "expected factory, options")

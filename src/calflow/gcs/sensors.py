@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import importlib
 import re
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from calflow.errors import RigError
 from calflow.family import families
@@ -33,19 +34,24 @@ def builtin_sensors() -> dict[str, str]:
 def load_sensor(spec: Mapping[str, Any] | None) -> Any:
     """Build the sensor named by ``{factory, options}`` and check its interface."""
     if not isinstance(spec, Mapping) or "factory" not in spec:
-        raise RigError("gcs rig: option 'sensor' is required: {factory: 'simulated_vision' or "
-                       "'package.module:callable', options: {...}}")
+        raise RigError(
+            "gcs rig: option 'sensor' is required: {factory: 'simulated_vision' or "
+            "'package.module:callable', options: {...}}"
+        )
     name, options = str(spec["factory"]), dict(spec.get("options") or {})
     target = builtin_sensors().get(name, name)
     if not _FACTORY_RE.match(target):
-        raise RigError(f"gcs rig: sensor.factory: expected 'simulated_vision' or "
-                       f"'package.module:callable', got {name!r}")
+        raise RigError(
+            f"gcs rig: sensor.factory: expected 'simulated_vision' or 'package.module:callable', got {name!r}"
+        )
     module_name, attr = target.split(":")
     from calflow.rigs.plugin import HOW_TO_ALLOW, is_allowed
 
     if target == name and not is_allowed(module_name):  # not a registered short name: plug-in code
-        raise RigError(f"gcs rig: sensor.factory: {name!r} is not allowed to run; "
-                       + HOW_TO_ALLOW.format(module=module_name))
+        raise RigError(
+            f"gcs rig: sensor.factory: {name!r} is not allowed to run; "
+            + HOW_TO_ALLOW.format(module=module_name)
+        )
     try:
         factory = getattr(importlib.import_module(module_name), attr, None)
     except ImportError as exc:

@@ -14,6 +14,7 @@ from calflow.gcs.protocol import GCSConnectionLost, GCSError, GCSTimeout
 DEFAULT_PORT = 50000
 DEFAULT_BAUD = 115200
 
+
 class Transport(Protocol):
     def write(self, data: bytes) -> None: ...
     def read(self, timeout: float) -> bytes: ...  # some bytes, or raise GCSTimeout
@@ -26,7 +27,7 @@ class TCPTransport:
     def __init__(self, host: str, port: int = DEFAULT_PORT, timeout: float = 5.0) -> None:
         try:
             self._sock = socket.create_connection((host, port), timeout=timeout)
-        except (TimeoutError, socket.timeout) as exc:
+        except TimeoutError as exc:
             raise GCSTimeout(f"connecting to {host}:{port} timed out after {timeout} s") from exc
         except OSError as exc:
             raise GCSConnectionLost(f"cannot connect to {host}:{port}: {exc}") from exc
@@ -44,7 +45,7 @@ class TCPTransport:
         try:
             self._sock.settimeout(max(timeout, 1e-4))
             data = self._sock.recv(4096)
-        except (TimeoutError, socket.timeout):
+        except TimeoutError:
             raise GCSTimeout(f"{self.name}: no reply within the timeout") from None
         except OSError as exc:
             raise GCSConnectionLost(f"{self.name}: connection lost: {exc}") from exc
@@ -66,8 +67,7 @@ class SerialTransport:
             raise GCSError("serial transport needs pyserial: pip install pyserial") from exc
         self._serial_exc = serial.SerialException
         try:
-            self._ser = serial.serial_for_url(port, baudrate=baudrate, timeout=timeout,
-                                              write_timeout=timeout)
+            self._ser = serial.serial_for_url(port, baudrate=baudrate, timeout=timeout, write_timeout=timeout)
         except (serial.SerialException, OSError) as exc:
             raise GCSConnectionLost(f"cannot open serial port {port}: {exc}") from exc
         self.name = f"serial:{port}@{baudrate}"

@@ -14,7 +14,7 @@ the singular values σ_k = √λ_k(M)). Continuous weights by the multiplicative
 (Titterington 1976 for D, Yu 2010's power 1/2 for A), each weight capped at one pose
 (a repeated pose repeats its error), rounded to the n largest, then polished by Fedorov
 exchange on the exact criterion. Shared by the families: XYΘ poses
-(:mod:`calflow.xytheta.design`) and the nano training positions (:mod:`calflow.nano.design`).
+(:mod:`calflow.xytheta.design.criteria`) and the nano training positions (:mod:`calflow.nano.plans.design`).
 """
 
 from __future__ import annotations
@@ -89,11 +89,14 @@ def _minimax_variance(M: np.ndarray) -> np.ndarray:
 
 def _check(name: str) -> None:
     if name not in CRITERIA:
-        raise ValueError(f"identification.design.criterion: expected one of {', '.join(CRITERIA)}, got {name!r}")
+        raise ValueError(
+            f"identification.design.criterion: expected one of {', '.join(CRITERIA)}, got {name!r}"
+        )
 
 
-def multiplicative_weights(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | None = None,
-                           iterations: int = 300) -> np.ndarray:
+def multiplicative_weights(
+    J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | None = None, iterations: int = 300
+) -> np.ndarray:
     """Approximate design: weights over the candidates ``J`` (N, m, p) summing to 1, each at most
     one pose's share, 1/(n − m) of the n − m poses left besides ``fixed``.
 
@@ -149,8 +152,15 @@ def _exact_criterion(A: np.ndarray, S: np.ndarray, k: int, name: str, scale: np.
     return criterion(M * np.outer(scale, scale), name)
 
 
-def exchange(J: np.ndarray, chosen: np.ndarray, name: str = "D", fixed: np.ndarray | None = None,
-             scale: np.ndarray | None = None, max_swaps: int | None = None, full_pairs: int = 200_000) -> np.ndarray:
+def exchange(
+    J: np.ndarray,
+    chosen: np.ndarray,
+    name: str = "D",
+    fixed: np.ndarray | None = None,
+    scale: np.ndarray | None = None,
+    max_swaps: int | None = None,
+    full_pairs: int = 200_000,
+) -> np.ndarray:
     """Fedorov exchange: swap a chosen candidate for an unchosen one while the exact criterion
     improves; returns the indices of the chosen candidates (distinct).
 
@@ -216,8 +226,9 @@ class Design:
     value: float
 
 
-def optimal_design(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | None = None,
-                   scale: np.ndarray | None = None) -> Design:
+def optimal_design(
+    J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | None = None, scale: np.ndarray | None = None
+) -> Design:
     """n distinct candidates of ``J`` (N, m, p) maximising the criterion (with ``fixed`` poses).
 
     ``scale`` (p): the parameters' reference σ, making A and O2–O4 unit-free.
@@ -227,7 +238,9 @@ def optimal_design(J: np.ndarray, n: int, name: str = "D", fixed: np.ndarray | N
     if n - m < 1:
         raise ValueError(f"design: {n} poses leave none to choose besides the {m} fixed ones")
     scale = np.ones(J.shape[-1]) if scale is None else np.asarray(scale, dtype=float)
-    w = multiplicative_weights(J * scale, n, "A" if name == "A" else "D", None if fixed is None else fixed * scale)
+    w = multiplicative_weights(
+        J * scale, n, "A" if name == "A" else "D", None if fixed is None else fixed * scale
+    )
     start = np.argsort(-w, kind="stable")[: n - m]  # rounding: the n − m largest weights
     index = exchange(J, start, name, fixed, scale)
     M = information(J[index] if fixed is None else np.concatenate([fixed, J[index]]))

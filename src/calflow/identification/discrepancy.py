@@ -122,8 +122,15 @@ def design_sums(Jh: np.ndarray, K: np.ndarray, ws: Workspace, index: np.ndarray)
     return A, G, np.einsum("iap,iaq->pq", Ji, U)
 
 
-def expected_error(J: np.ndarray, q: np.ndarray, J_test: np.ndarray, q_test: np.ndarray, kernel,
-                   home: np.ndarray, sigma_um: float) -> dict:
+def expected_error(
+    J: np.ndarray,
+    q: np.ndarray,
+    J_test: np.ndarray,
+    q_test: np.ndarray,
+    kernel,
+    home: np.ndarray,
+    sigma_um: float,
+) -> dict:
     """The criterion of one design: poses ``q`` (n, d) with Jacobians ``J`` (n, m, p), test poses
     ``q_test`` (T, d) with ``J_test``, ``kernel`` k(a, b) → (len a, len b), frame anchored at
     ``home``. Returns ``imse``, ``variance`` and ``bias`` (µm², bias = imse − variance)."""
@@ -137,9 +144,19 @@ def expected_error(J: np.ndarray, q: np.ndarray, J_test: np.ndarray, q_test: np.
     return {"imse": total, "variance": variance, "bias": total - variance}
 
 
-def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarray, q_test: np.ndarray,
-             kernel, home: np.ndarray, sigma_um: float, sigma_max: np.ndarray | None = None,
-             keep: np.ndarray | None = None, max_swaps: int | None = None) -> np.ndarray:
+def exchange(
+    J: np.ndarray,
+    q: np.ndarray,
+    chosen: np.ndarray,
+    J_test: np.ndarray,
+    q_test: np.ndarray,
+    kernel,
+    home: np.ndarray,
+    sigma_um: float,
+    sigma_max: np.ndarray | None = None,
+    keep: np.ndarray | None = None,
+    max_swaps: int | None = None,
+) -> np.ndarray:
     """Swap chosen candidates (indices into ``q`` (N, d), Jacobians ``J`` (N, m, p)) for others
     while the IMSE falls: each step adds the candidate that lowers it most, then drops the pose
     whose removal raises it least (the added one's information gives the σ bound room to
@@ -184,7 +201,7 @@ def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarra
         a = cand[k]
         A1, G1, B1 = A + F[a], G + Gc[a], B_a[k]
         out = np.flatnonzero(inside & removable)  # ... then loses the pose that costs least, σ kept
-        U1 = U[out] + kt(q[out], q[a:a + 1])[:, 0, None, None] * Jh[a]
+        U1 = U[out] + kt(q[out], q[a : a + 1])[:, 0, None, None] * Jh[a]
         JU = np.einsum("iap,iaq->ipq", Jh[out], U1)
         A2 = A1 - F[out]
         B2 = B1 - JU - JU.transpose(0, 2, 1) + kdiag[out, None, None] * F[out]
@@ -195,7 +212,7 @@ def exchange(J: np.ndarray, q: np.ndarray, chosen: np.ndarray, J_test: np.ndarra
         if not loss[j] < best - 1e-9 * max(1.0, abs(best)):
             break
         inside[r], inside[a] = False, True
-        U += (kt(q, q[a:a + 1])[:, 0, None, None] * Jh[a] - kt(q, q[r:r + 1])[:, 0, None, None] * Jh[r])
+        U += kt(q, q[a : a + 1])[:, 0, None, None] * Jh[a] - kt(q, q[r : r + 1])[:, 0, None, None] * Jh[r]
         JUr = Jh[r].T @ U1[j]
         A, G, B, best = A2[j], G1 - Gc[r], B1 - JUr - JUr.T + kdiag[r] * F[r], float(loss[j])
     return np.flatnonzero(inside)

@@ -50,8 +50,16 @@ def _rho(z: np.ndarray, loss: str) -> tuple[np.ndarray, np.ndarray]:
     raise ValueError(f"loss {loss!r}: expected linear, soft_l1, huber or cauchy")
 
 
-def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: int = 100,
-          rtol: float = RTOL, normal=None) -> Solution:
+def solve(
+    fun,
+    jac,
+    x0,
+    loss: str = "linear",
+    f_scale: float = 1.0,
+    max_iter: int = 100,
+    rtol: float = RTOL,
+    normal=None,
+) -> Solution:
     """Minimise Σ f² ρ((r_i/f)²) over x for residuals ``fun(x)`` with Jacobian ``jac(x)``.
 
     Gauss–Newton (iteratively reweighted for a robust ``loss``) with step halving while
@@ -87,9 +95,15 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
             break
         if not np.all(np.isfinite(step)):
             break
-        change = float(np.linalg.norm(A @ step)) if plain is None else float(np.sqrt(max(step @ plain @ step, 0.0)))
+        change = (
+            float(np.linalg.norm(A @ step))
+            if plain is None
+            else float(np.sqrt(max(step @ plain @ step, 0.0)))
+        )
         if change <= rtol * float(np.linalg.norm(r)) + ATOL * np.sqrt(r.size):
-            return Solution(x, r, nfev, True, f"Gauss-Newton converged ({loss} loss)")  # the step is below tolerance
+            return Solution(
+                x, r, nfev, True, f"Gauss-Newton converged ({loss} loss)"
+            )  # the step is below tolerance
         t = 1.0
         while t > 1e-6:
             trial = x - t * step
@@ -104,13 +118,29 @@ def solve(fun, jac, x0, loss: str = "linear", f_scale: float = 1.0, max_iter: in
         x, r, c = trial, r_new, c_new
     method = "lm" if loss == "linear" else "trf"
     kw = {} if loss == "linear" else {"loss": loss, "f_scale": float(f_scale)}
-    sol = least_squares(fun, x, jac=jac, method=method, x_scale="jac", xtol=1e-15 if method == "lm" else 1e-12,
-                        ftol=1e-15 if method == "lm" else 1e-12, gtol=1e-15 if method == "lm" else 1e-12, **kw)
-    return Solution(sol.x, sol.fun, nfev + int(sol.nfev), bool(sol.success),
-                    f"scipy.optimize.least_squares({method}) after Gauss-Newton stalled: {sol.message}")
+    sol = least_squares(
+        fun,
+        x,
+        jac=jac,
+        method=method,
+        x_scale="jac",
+        xtol=1e-15 if method == "lm" else 1e-12,
+        ftol=1e-15 if method == "lm" else 1e-12,
+        gtol=1e-15 if method == "lm" else 1e-12,
+        **kw,
+    )
+    return Solution(
+        sol.x,
+        sol.fun,
+        nfev + int(sol.nfev),
+        bool(sol.success),
+        f"scipy.optimize.least_squares({method}) after Gauss-Newton stalled: {sol.message}",
+    )
 
 
-def solve_batch(cost, normal, x0, sizes, max_iter: int = 100, rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray]:
+def solve_batch(
+    cost, normal, x0, sizes, max_iter: int = 100, rtol: float = RTOL
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`solve`'s least-squares iteration run on k independent problems in lock-step.
 
     ``x0`` (k × p) the starts; ``cost(x)`` the k sums of squared residuals at the rows of

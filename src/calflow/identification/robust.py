@@ -43,7 +43,7 @@ class Robust:
             raise ValueError("robust: f_scale_sigma and reject_sigma must be > 0 and max_rounds >= 1")
 
     @classmethod
-    def from_config(cls, spec: dict | None) -> "Robust | None":
+    def from_config(cls, spec: dict | None) -> Robust | None:
         """From a campaign's ``identification.robust``; None when its loss is ``none``."""
         spec = dict(spec or {})
         if spec.get("loss", cls.loss) == "none":

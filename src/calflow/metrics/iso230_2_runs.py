@@ -37,7 +37,7 @@ def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
         raise DataError(f"{_where(run)}: no target is reached in both directions; ISO 230-2 needs both")
 
     def table(sign: int) -> tuple[np.ndarray, np.ndarray]:
-        d = (direction == sign)
+        d = direction == sign
         cycles = np.unique(cycle[d])
         a = np.full((both.size, cycles.size), np.nan)
         for j, c in enumerate(cycles):
@@ -51,8 +51,10 @@ def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
     fwd, fc = table(1)
     bwd, bc = table(-1)
     r = iso230_2(both, fwd, bwd)
-    nm = {k: float(getattr(r, k)) * NM_PER_UM for k in ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd",
-                                                          "R_bwd", "A", "A_fwd", "A_bwd")}
+    nm = {
+        k: float(getattr(r, k)) * NM_PER_UM
+        for k in ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd", "R_bwd", "A", "A_fwd", "A_bwd")
+    }
     return {
         "units": "nm",
         **{f"{k}_nm": v for k, v in nm.items()},

@@ -11,8 +11,8 @@ j-th attained ``y_j`` and ``z_j`` (ISO 9283, 7.2.2).  This module implements the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -47,7 +47,9 @@ def _pose_arrays(command, attained) -> tuple[np.ndarray, np.ndarray]:
     if cmd.ndim == 0:
         cmd = cmd[None]
     if cmd.shape != (d,):
-        raise ValueError(f"command must have shape ({d},) to match attained {att.shape}; got shape {cmd.shape}")
+        raise ValueError(
+            f"command must have shape ({d},) to match attained {att.shape}; got shape {cmd.shape}"
+        )
     if n < 2:
         raise ValueError(
             f"ISO 9283 needs n >= 2 attained poses (RP uses a standard deviation with n - 1); got n = {n}"

@@ -14,8 +14,8 @@ on a translation stage and is not computed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -51,8 +51,10 @@ def _direction(a, h: int) -> np.ndarray:
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] not in (1, 2, 3):
-        raise ValueError(f"direction {h}: attained must have shape (n, d) with n >= 1 and d in 1..3; "
-                         f"got shape {np.shape(a)}")
+        raise ValueError(
+            f"direction {h}: attained must have shape (n, d) with n >= 1 and d in 1..3; "
+            f"got shape {np.shape(a)}"
+        )
     return _finite(arr, f"direction {h} attained")
 
 
@@ -77,7 +79,9 @@ def iso9283_vap(attained_by_direction: Sequence) -> MultiDirectionalResult:
     """
     groups = [_direction(a, h) for h, a in enumerate(attained_by_direction)]
     if len(groups) < 2:
-        raise ValueError(f"vAP needs attained positions from at least 2 approach directions; got {len(groups)}")
+        raise ValueError(
+            f"vAP needs attained positions from at least 2 approach directions; got {len(groups)}"
+        )
     dims = {g.shape[1] for g in groups}
     if len(dims) != 1:
         raise ValueError(f"every direction must have the same number of coordinates d; got {sorted(dims)}")

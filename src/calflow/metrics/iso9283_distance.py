@@ -80,8 +80,10 @@ def iso9283_distance(command_1, command_2, attained_1, attained_2) -> DistanceRe
     c1, a1 = _pose_arrays(command_1, attained_1)
     c2, a2 = _pose_arrays(command_2, attained_2)
     if a1.shape != a2.shape:
-        raise ValueError(f"attained_1 {a1.shape} and attained_2 {a2.shape} must have the same shape: "
-                         "one row per cycle, both poses of a cycle in the same row")
+        raise ValueError(
+            f"attained_1 {a1.shape} and attained_2 {a2.shape} must have the same shape: "
+            "one row per cycle, both poses of a cycle in the same row"
+        )
     d_cmd = float(np.linalg.norm(c1 - c2))
     d_j = np.linalg.norm(a1 - a2, axis=1)
     d_mean = float(d_j.mean())

@@ -82,7 +82,9 @@ def iso9283_stabilisation(time, trajectory, attained, band) -> StabilisationResu
     if np.any(np.diff(t) <= 0):
         raise ValueError("time must be strictly increasing")
     if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] not in (1, 2, 3):
-        raise ValueError(f"trajectory must have shape ({t.size}, d) with d in 1..3; got shape {np.shape(trajectory)}")
+        raise ValueError(
+            f"trajectory must have shape ({t.size}, d) with d in 1..3; got shape {np.shape(trajectory)}"
+        )
     p = np.atleast_1d(np.asarray(attained, dtype=float))
     if p.shape != (x.shape[1],):
         raise ValueError(f"attained must have shape ({x.shape[1]},) to match trajectory; got shape {p.shape}")

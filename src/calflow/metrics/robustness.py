@@ -26,8 +26,8 @@ Reading of the thesis, and choices made:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -52,7 +52,9 @@ def _tests(ap_per_test) -> list[np.ndarray]:
     for i, t in enumerate(tests):
         a = np.asarray(t, dtype=float)
         if a.ndim != 1 or a.size == 0:
-            raise ValueError(f"test {i}: expected a non-empty 1-D array of per-pose AP values; got shape {a.shape}")
+            raise ValueError(
+                f"test {i}: expected a non-empty 1-D array of per-pose AP values; got shape {a.shape}"
+            )
         _finite(a, f"test {i} accuracies")
         if np.any(a < 0):
             raise ValueError(f"test {i}: accuracies AP are distances and cannot be negative")

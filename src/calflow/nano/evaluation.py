@@ -37,8 +37,8 @@ import xarray as xr
 
 from calflow.data.conventions import utc_now
 from calflow.errors import DataError
-from calflow.metrics.iso230_2_runs import iso230_2_of_run  # noqa: F401 (re-exported)
 from calflow.metrics import decompose_repeatability, iso9283, space_robustness, time_robustness
+from calflow.metrics.iso230_2_runs import iso230_2_of_run  # noqa: F401 (re-exported)
 
 NM_PER_UM = 1000.0
 MODES = {"stage1d": ("no_calibration", "adaptive_kmz", "single"), "stage2d": ("no_calibration", "single")}
@@ -72,7 +72,9 @@ def run_seconds(run: xr.Dataset) -> np.ndarray:
     if np.issubdtype(v.dtype, np.datetime64):
         units = t.encoding.get("units", "")
         if " since " not in units:
-            raise DataError(f"{_where(run)}: decoded time has no 'since' origin; open it with decode_times=False")
+            raise DataError(
+                f"{_where(run)}: decoded time has no 'since' origin; open it with decode_times=False"
+            )
         origin = np.datetime64(units.split(" since ", 1)[1].strip().split("+")[0].replace(" ", "T"))
         return (v - origin) / np.timedelta64(1, "s")
     return np.asarray(v, dtype=float)
@@ -105,7 +107,9 @@ def mode_names(run_or_metrics: xr.Dataset) -> tuple[str, ...]:
     return MODES.get(run_or_metrics.attrs.get("robot", "stage1d"), MODES["stage1d"])
 
 
-def common_mode_drift(deviation: np.ndarray, test: np.ndarray, cycle: np.ndarray, pose: np.ndarray) -> np.ndarray:
+def common_mode_drift(
+    deviation: np.ndarray, test: np.ndarray, cycle: np.ndarray, pose: np.ndarray
+) -> np.ndarray:
     """Estimated extrinsic drift L_i (Eq. 3.15-3.18) of each sample, in the deviation's unit.
 
     ``deviation`` (n, d) = x_m − x_T (NaN rows ignored).  Within each test, each sample's
@@ -159,8 +163,10 @@ def run_columns(run: xr.Dataset, axes) -> tuple[np.ndarray, ...]:
     meas = np.column_stack([run[f"meas_{a}"].values.astype(float) for a in axes])
     tgt = np.column_stack([run[f"target_{a}"].values.astype(float) for a in axes])
     mode_var = "test_mode" if "test_mode" in run else "mode" if "mode" in run else None
-    ints = [run[v].values.astype(int) if v is not None and v in run else np.zeros(n, int)
-            for v in ("pose", "cycle", "direction", "test", mode_var)]
+    ints = [
+        run[v].values.astype(int) if v is not None and v in run else np.zeros(n, int)
+        for v in ("pose", "cycle", "direction", "test", mode_var)
+    ]
     return (meas, tgt, *ints, run_seconds(run) / 3600.0)
 
 
@@ -186,8 +192,10 @@ def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
         if tp.size == 0:
             raise DataError(f"{_where(run)}: pose {p} has no finite target")
         if np.ptp(tp, axis=0).max() > 1e-6:
-            raise DataError(f"{_where(run)}: pose {p} has several targets ({np.unique(tp, axis=0)[:3].tolist()} um); "
-                            "one target per pose expected")
+            raise DataError(
+                f"{_where(run)}: pose {p} has several targets ({np.unique(tp, axis=0)[:3].tolist()} um); "
+                "one target per pose expected"
+            )
         targets[k] = tp[0]
         pose_dir[k] = direction[pose == p][0]
     dev = meas - tgt
@@ -195,21 +203,38 @@ def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
     drift = common_mode_drift(dev, test, cycle, pose)
 
     shape = (tests.size, poses.size)
-    cells = {k: np.full(shape, np.nan) for k in ("ap", "rp", "rp_intrinsic", "intrinsic_term", "extrinsic_term",
-                                                   "rp_bound")}
+    cells = {
+        k: np.full(shape, np.nan)
+        for k in ("ap", "rp", "rp_intrinsic", "intrinsic_term", "extrinsic_term", "rp_bound")
+    }
     bias = np.full(shape + (len(axes),), np.nan)
     visits = np.zeros(shape, int)
-    per_test = {k: np.full(tests.size, np.nan) for k in ("time_h", "time_start_h", "time_end_h", "temperature_c",
-                                                           "temperature_min_c", "temperature_max_c")}
+    per_test = {
+        k: np.full(tests.size, np.nan)
+        for k in (
+            "time_h",
+            "time_start_h",
+            "time_end_h",
+            "temperature_c",
+            "temperature_min_c",
+            "temperature_max_c",
+        )
+    }
     test_mode = np.zeros(tests.size, int)
     for i, t in enumerate(tests):
         in_t = test == t
         modes_t = np.unique(mode[in_t])
         if modes_t.size != 1:
-            raise DataError(f"{_where(run)}: test {t} mixes modes {modes_t.tolist()}; one mode per test expected")
+            raise DataError(
+                f"{_where(run)}: test {t} mixes modes {modes_t.tolist()}; one mode per test expected"
+            )
         test_mode[i] = modes_t[0]
         h = hours[in_t]
-        per_test["time_h"][i], per_test["time_start_h"][i], per_test["time_end_h"][i] = h.mean(), h.min(), h.max()
+        per_test["time_h"][i], per_test["time_start_h"][i], per_test["time_end_h"][i] = (
+            h.mean(),
+            h.min(),
+            h.max(),
+        )
         tt = temp[in_t][np.isfinite(temp[in_t])]
         if tt.size:
             per_test["temperature_c"][i], per_test["temperature_min_c"][i] = tt.mean(), tt.min()
@@ -227,7 +252,9 @@ def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
                 cells[key][i, k] = value
 
     def tp(values, long_name):
-        return xr.Variable(("test", "pose"), values * NM_PER_UM, attrs={"units": "nm", "long_name": long_name})
+        return xr.Variable(
+            ("test", "pose"), values * NM_PER_UM, attrs={"units": "nm", "long_name": long_name}
+        )
 
     def tv(values, units, long_name):
         return xr.Variable(("test",), values, attrs={"units": units, "long_name": long_name})
@@ -239,40 +266,77 @@ def pose_metrics(run: xr.Dataset, axes: tuple[str, ...]) -> xr.Dataset:
         "rp": tp(cells["rp"], "ISO 9283 pose repeatability RP, Eq. (3.14)/(3.16)/(3.18)"),
         "rp_intrinsic": tp(cells["rp_intrinsic"], "RP of the readings minus the estimated drift, Eq. (3.14)"),
         "rp_intrinsic_term": tp(cells["intrinsic_term"], "(1/n) sum |P_i - mean P|, Eq. (3.16)"),
-        "rp_extrinsic_term": tp(cells["extrinsic_term"], "(1/n) sum |L_i - mean L| (estimated drift), Eq. (3.16)"),
-        "rp_bound": tp(cells["rp_bound"], "intrinsic term + extrinsic term + 3 sigma, right side of Eq. (3.16)"),
+        "rp_extrinsic_term": tp(
+            cells["extrinsic_term"], "(1/n) sum |L_i - mean L| (estimated drift), Eq. (3.16)"
+        ),
+        "rp_bound": tp(
+            cells["rp_bound"], "intrinsic term + extrinsic term + 3 sigma, right side of Eq. (3.16)"
+        ),
         "visits": xr.Variable(("test", "pose"), visits, attrs={"units": "1", "long_name": "valid visits"}),
         "ap_max": tv(ap_max * NM_PER_UM, "nm", "accuracy of the test, max over poses of AP (Sec. 3.2.3)"),
-        "rp_max": tv(rp_max * NM_PER_UM, "nm", "repeatability of the test, max over poses of RP (Sec. 3.2.3)"),
+        "rp_max": tv(
+            rp_max * NM_PER_UM, "nm", "repeatability of the test, max over poses of RP (Sec. 3.2.3)"
+        ),
         "time_h": tv(per_test["time_h"], "h", "mean sample time of the test since campaign start"),
-        "time_start_h": tv(per_test["time_start_h"], "h", "first sample time of the test since campaign start"),
+        "time_start_h": tv(
+            per_test["time_start_h"], "h", "first sample time of the test since campaign start"
+        ),
         "time_end_h": tv(per_test["time_end_h"], "h", "last sample time of the test since campaign start"),
         "temperature_c": tv(per_test["temperature_c"], "degC", "test mean of the thermocouple mean"),
-        "temperature_min_c": tv(per_test["temperature_min_c"], "degC", "min of the thermocouple mean in the test"),
-        "temperature_max_c": tv(per_test["temperature_max_c"], "degC", "max of the thermocouple mean in the test"),
-        "temperature_range_c": tv(per_test["temperature_max_c"] - per_test["temperature_min_c"], "degC",
-                                  "range of the thermocouple mean within the test"),
-        "mode": xr.Variable(("test",), test_mode, attrs={"units": "1", "long_name": "test mode",
-                                                           "flag_values": list(range(len(names))),
-                                                           "flag_meanings": " ".join(names)}),
-        "direction": xr.Variable(("pose",), pose_dir, attrs={"units": "1", "long_name": "approach direction"}),
+        "temperature_min_c": tv(
+            per_test["temperature_min_c"], "degC", "min of the thermocouple mean in the test"
+        ),
+        "temperature_max_c": tv(
+            per_test["temperature_max_c"], "degC", "max of the thermocouple mean in the test"
+        ),
+        "temperature_range_c": tv(
+            per_test["temperature_max_c"] - per_test["temperature_min_c"],
+            "degC",
+            "range of the thermocouple mean within the test",
+        ),
+        "mode": xr.Variable(
+            ("test",),
+            test_mode,
+            attrs={
+                "units": "1",
+                "long_name": "test mode",
+                "flag_values": list(range(len(names))),
+                "flag_meanings": " ".join(names),
+            },
+        ),
+        "direction": xr.Variable(
+            ("pose",), pose_dir, attrs={"units": "1", "long_name": "approach direction"}
+        ),
     }
     for j, a in enumerate(axes):
-        data[f"target_{a}"] = xr.Variable(("pose",), targets[:, j], attrs={"units": "um", "long_name": f"target {a}"})
+        data[f"target_{a}"] = xr.Variable(
+            ("pose",), targets[:, j], attrs={"units": "um", "long_name": f"target {a}"}
+        )
         data[f"bias_{a}"] = tp(bias[..., j], f"mean {a} deviation from target (signed), x̄ - x_T")
-    coords = {"test": xr.Variable(("test",), tests, attrs={"units": "1", "long_name": "test index"}),
-              "pose": xr.Variable(("pose",), poses, attrs={"units": "1", "long_name": "pose index within a cycle"})}
+    coords = {
+        "test": xr.Variable(("test",), tests, attrs={"units": "1", "long_name": "test index"}),
+        "pose": xr.Variable(("pose",), poses, attrs={"units": "1", "long_name": "pose index within a cycle"}),
+    }
     if "kmz_visit" in run.dims and "kmz_time" in run and "kmz_measured" in run and "kmz_command" in run:
         kt = run["kmz_time"].values
         kt = kt / np.timedelta64(1, "s") if np.issubdtype(kt.dtype, np.timedelta64) else kt.astype(float)
-        data["kmz_time_h"] = xr.Variable(("kmz_visit",), kt / 3600.0, attrs={"units": "h", "long_name": "KMZ visit time"})
-        data["kmz_offset"] = xr.Variable(("kmz_visit",), (run["kmz_measured"].values - run["kmz_command"].values)
-                                         * NM_PER_UM, attrs={"units": "nm", "long_name": "KMZ reading minus command"})
+        data["kmz_time_h"] = xr.Variable(
+            ("kmz_visit",), kt / 3600.0, attrs={"units": "h", "long_name": "KMZ visit time"}
+        )
+        data["kmz_offset"] = xr.Variable(
+            ("kmz_visit",),
+            (run["kmz_measured"].values - run["kmz_command"].values) * NM_PER_UM,
+            attrs={"units": "nm", "long_name": "KMZ reading minus command"},
+        )
     attrs = {k: v for k, v in run.attrs.items() if k not in ("created", "dwell_s")}
-    attrs.update(calflow_kind="metrics", created=utc_now(), axes=" ".join(axes),
-                 start_time_h=float(np.nanmin(hours)) if n else float("nan"),
-                 end_time_h=float(np.nanmax(hours)) if n else float("nan"),
-                 drift_estimator="per-cycle mean of pose-centred deviations within each test (no simulated truth)")
+    attrs.update(
+        calflow_kind="metrics",
+        created=utc_now(),
+        axes=" ".join(axes),
+        start_time_h=float(np.nanmin(hours)) if n else float("nan"),
+        end_time_h=float(np.nanmax(hours)) if n else float("nan"),
+        drift_estimator="per-cycle mean of pose-centred deviations within each test (no simulated truth)",
+    )
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -307,7 +371,9 @@ def robustness_by_mode(metrics: xr.Dataset) -> dict:
         if not rows:
             continue
         per_test = [ap_um[i][np.isfinite(ap_um[i])] for i in rows]
-        duration = float(metrics["time_end_h"].values[rows].max() - metrics["time_start_h"].values[rows].min())
+        duration = float(
+            metrics["time_end_h"].values[rows].max() - metrics["time_start_h"].values[rows].min()
+        )
         out[name] = {
             "space": space_robustness(per_test),  # Eq. (5.8), µm
             "time": time_robustness(per_test, duration) if duration > 0 else None,  # Eq. (5.9), µm/h
@@ -345,8 +411,10 @@ def accuracy_vs_temperature(metrics: xr.Dataset, training_range_c: tuple[float, 
             inside = [None] * rows.size
         else:
             lo, hi = training_range_c
-            inside = [None if not (np.isfinite(a) and np.isfinite(b)) else bool(a >= lo and b <= hi)
-                      for a, b in zip(lo_t, hi_t)]
+            inside = [
+                None if not (np.isfinite(a) and np.isfinite(b)) else bool(a >= lo and b <= hi)
+                for a, b in zip(lo_t, hi_t)
+            ]
         out[name] = {
             "test": metrics["test"].values[rows].tolist(),
             "temperature_c": metrics["temperature_c"].values[rows].tolist(),

@@ -11,8 +11,8 @@ import zlib
 
 from calflow.family import Family
 
-_P = "calflow.nano.campaign_plans"
-_C = "calflow.nano.commands"
+_P = "calflow.nano.plans.campaign"
+_C = "calflow.nano.steps"
 
 
 def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
@@ -24,55 +24,104 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
         options["start_offset_s"] = start_s
     elif factory == "gcs" and (options.get("sensor") or {}).get("factory") == "simulated_interferometer":
         sensor = dict(options["sensor"])  # the world behind the emulated controller: same rule
-        sensor["options"] = {"world_seed": c["seed"], **(sensor.get("options") or {}),
-                             "seed": zlib.crc32(f"{c['seed']}:{run_id}:gcs".encode()),
-                             "start_offset_s": start_s}
+        sensor["options"] = {
+            "world_seed": c["seed"],
+            **(sensor.get("options") or {}),
+            "seed": zlib.crc32(f"{c['seed']}:{run_id}:gcs".encode()),
+            "start_offset_s": start_s,
+        }
         options["sensor"] = sensor
     return options
 
 
 _CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
-_MODELS = ("calflow.nano.model", "calflow.nano.models", "calflow.nano.thermal_model", "calflow.nano.kmz",
-           "calflow.stepwise")
+_MODELS = (
+    "calflow.nano.models.geometric",
+    "calflow.nano.models.registry",
+    "calflow.nano.models.thermal",
+    "calflow.nano.models.kmz",
+    "calflow.stepwise",
+)
 
 FAMILY = Family(
     name="nano",
     robots=("stage1d", "stage2d"),
-    rigs={"stage1d": {"simulated": "calflow.nano.rig:nano1d"}, "stage2d": {"simulated": "calflow.nano.rig:nano2d"}},
+    rigs={
+        "stage1d": {"simulated": "calflow.nano.stage.rig:nano1d"},
+        "stage2d": {"simulated": "calflow.nano.stage.rig:nano2d"},
+    },
     plans={
-        "stage1d": {"training": f"{_P}:training_1d", "metrology": f"{_P}:metrology_1d",
-                    "validation": f"{_P}:validation_1d", "step_response": f"{_P}:step_response"},
-        "stage2d": {"training": f"{_P}:training_2d", "validation": f"{_P}:validation_2d",
-                    "step_response": f"{_P}:step_response"},
+        "stage1d": {
+            "training": f"{_P}:training_1d",
+            "metrology": f"{_P}:metrology_1d",
+            "validation": f"{_P}:validation_1d",
+            "step_response": f"{_P}:step_response",
+        },
+        "stage2d": {
+            "training": f"{_P}:training_2d",
+            "validation": f"{_P}:validation_2d",
+            "step_response": f"{_P}:step_response",
+        },
     },
     rig_options="calflow.nano.family:rig_options",
     steps={
         "identify": f"{_C}:identify",
         "metrics": f"{_C}:metrics",
         "summarise": f"{_C}:summarise",
-        "figures": "calflow.nano.figures:build",
+        "figures": "calflow.nano.report.figures:build",
     },
-    templates="calflow.nano",
-    sensors={"simulated_interferometer": "calflow.nano.interferometer_sensor:simulated_interferometer"},
-    emulator="calflow.nano.emulate:main",
+    templates="calflow.nano.report",
+    sensors={"simulated_interferometer": "calflow.nano.stage.interferometer_sensor:simulated_interferometer"},
+    emulator="calflow.nano.stage.emulate:main",
     modules={
-        "acquire": _CORE + _MODELS + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.nano.plans",
-                                      "calflow.nano.campaign_plans", "calflow.identification.design",
-                                      "calflow.nano.design", "calflow.nano.design_plan", "calflow.nano.rig", "calflow.nano.rig_options",
-                                      "calflow.nano.rig_records",
-                                      "calflow.nano.piezo", "calflow.nano.interferometer", "calflow.nano.thermal_network",
-                                      "calflow.nano.controllers", "calflow.nano.family",
-                                      "calflow.nano.interferometer_sensor"),
-        "identify": _CORE + _MODELS + ("calflow.nano.commands",),
-        "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.commands"),
-        "summarise": _CORE + _MODELS + ("calflow.reference", "calflow.uncertainty", "calflow.metrics",
-                                        "calflow.nano.evaluation", "calflow.nano.summary", "calflow.nano.commands",
-                                        "calflow.nano.error_budget", "calflow.nano.ordering", "calflow.nano.rig",
-                                        "calflow.nano.rig_records", "calflow.nano.stabilisation_summary",
-                                        "calflow.nano.iso9283_summary", "calflow.identification.design",
-                                        "calflow.nano.design", "calflow.nano.design_plan", "calflow.nano.plans",
-                                        "calflow.nano.rig_options", "calflow.nano.piezo", "calflow.nano.interferometer",
-                                        "calflow.nano.thermal_network", "calflow.rigs"),
-        "report": _CORE + ("calflow.report", "calflow.nano.figures", "calflow.nano.templates"),
+        "acquire": _CORE
+        + _MODELS
+        + (
+            "calflow.acquisition",
+            "calflow.rigs",
+            "calflow.gcs",
+            "calflow.nano.plans.sequences",
+            "calflow.nano.plans.campaign",
+            "calflow.identification.design",
+            "calflow.nano.plans.design",
+            "calflow.nano.plans.designed",
+            "calflow.nano.stage.rig",
+            "calflow.nano.stage.options",
+            "calflow.nano.stage.records",
+            "calflow.nano.stage.piezo",
+            "calflow.nano.stage.interferometer",
+            "calflow.nano.stage.thermal_network",
+            "calflow.nano.models.controllers",
+            "calflow.nano.family",
+            "calflow.nano.stage.interferometer_sensor",
+        ),
+        "identify": _CORE + _MODELS + ("calflow.nano.steps",),
+        "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.steps"),
+        "summarise": _CORE
+        + _MODELS
+        + (
+            "calflow.reference",
+            "calflow.uncertainty",
+            "calflow.metrics",
+            "calflow.nano.evaluation",
+            "calflow.nano.report.summary",
+            "calflow.nano.steps",
+            "calflow.nano.stage.error_budget",
+            "calflow.nano.report.ordering",
+            "calflow.nano.stage.rig",
+            "calflow.nano.stage.records",
+            "calflow.nano.report.stabilisation",
+            "calflow.nano.report.iso9283",
+            "calflow.identification.design",
+            "calflow.nano.plans.design",
+            "calflow.nano.plans.designed",
+            "calflow.nano.plans.sequences",
+            "calflow.nano.stage.options",
+            "calflow.nano.stage.piezo",
+            "calflow.nano.stage.interferometer",
+            "calflow.nano.stage.thermal_network",
+            "calflow.rigs",
+        ),
+        "report": _CORE + ("calflow.report", "calflow.nano.report.figures", "calflow.nano.report.templates"),
     },
 )

@@ -32,11 +32,21 @@ TEXT_WIDTH_IN = 6.9
 
 #: One palette for every report: calflow's results in saturated colours, the thesis grey.
 COLORS = {
-    "forward": "#1f5fa8", "backward": "#c0392b",
-    "none": "#7f7f7f", "linear": "#1f5fa8", "cubic": "#e67e22",
-    "no_calibration": "#7f7f7f", "single": "#1f5fa8", "adaptive_kmz": "#2e8b57",
-    "I": "#7f7f7f", "II": "#c0392b", "III": "#e67e22", "IV": "#1f5fa8", "V": "#2e8b57",
-    "thesis": "#9aa0a6", "shade": "#dbe7f5",
+    "forward": "#1f5fa8",
+    "backward": "#c0392b",
+    "none": "#7f7f7f",
+    "linear": "#1f5fa8",
+    "cubic": "#e67e22",
+    "no_calibration": "#7f7f7f",
+    "single": "#1f5fa8",
+    "adaptive_kmz": "#2e8b57",
+    "I": "#7f7f7f",
+    "II": "#c0392b",
+    "III": "#e67e22",
+    "IV": "#1f5fa8",
+    "V": "#2e8b57",
+    "thesis": "#9aa0a6",
+    "shade": "#dbe7f5",
 }
 #: Resolution of the artists drawn ``rasterized=True`` (dense scatters of thousands of
 #: readings): embedded as one image in the SVG, which keeps pages light and fast to print.
@@ -87,8 +97,11 @@ class Figure:
 
 
 def mode_label(name: str) -> str:
-    return {"no_calibration": "no calibration", "adaptive_kmz": "adaptive model (KMZ)",
-            "single": "single model"}.get(name, name.replace("_", " "))
+    return {
+        "no_calibration": "no calibration",
+        "adaptive_kmz": "adaptive model (KMZ)",
+        "single": "single model",
+    }.get(name, name.replace("_", " "))
 
 
 def new_figure(ncols: int = 1, nrows: int = 1, height: float = 2.6, width: float = TEXT_WIDTH_IN, **kw):
@@ -112,7 +125,7 @@ def to_svg(fig, key: str) -> Markup:
         fig.savefig(buf, format="svg", dpi=RASTER_DPI, metadata={"Date": None})
     plt.close(fig)
     text = buf.getvalue()
-    text = text[text.index("<svg"):]
+    text = text[text.index("<svg") :]
     text = re.sub(r"<metadata>.*?</metadata>", "", text, count=1, flags=re.S)
     head_end = text.index(">")
     head = text[:head_end]
@@ -137,8 +150,10 @@ def to_png(fig, key: str) -> Markup:
         fig.savefig(buf, format="png", dpi=RASTER_DPI, metadata={"Software": None})
     data = buf.getvalue()
     width_pt = int.from_bytes(data[16:20], "big") / RASTER_DPI * 72  # IHDR width, pixels
-    return Markup(f'<img id="{key}-png" class="plot" alt="" style="width:100%;max-width:{width_pt:.1f}pt;'
-                  f'height:auto" src="data:image/png;base64,{base64.b64encode(data).decode()}">')
+    return Markup(
+        f'<img id="{key}-png" class="plot" alt="" style="width:100%;max-width:{width_pt:.1f}pt;'
+        f'height:auto" src="data:image/png;base64,{base64.b64encode(data).decode()}">'
+    )
 
 
 def legend_below(fig, ax, ncol: int = 3) -> None:
@@ -245,5 +260,7 @@ def hours(run: xr.Dataset) -> np.ndarray:
     """Sample times of an undecoded run in hours since the campaign start."""
     t = np.asarray(run["time"].values, dtype=float)
     units = str(run["time"].attrs.get("units", "seconds"))
-    scale = {"seconds": 1 / 3600, "minutes": 1 / 60, "hours": 1.0, "days": 24.0}.get(units.split()[0], 1 / 3600)
+    scale = {"seconds": 1 / 3600, "minutes": 1 / 60, "hours": 1.0, "days": 24.0}.get(
+        units.split()[0], 1 / 3600
+    )
     return t * scale

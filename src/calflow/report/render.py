@@ -22,14 +22,38 @@ import yaml
 from calflow import __version__
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
-DEPENDENCIES = ("numpy", "scipy", "xarray", "netCDF4", "snakemake", "jinja2", "matplotlib", "weasyprint", "statsmodels")
+DEPENDENCIES = (
+    "numpy",
+    "scipy",
+    "xarray",
+    "netCDF4",
+    "snakemake",
+    "jinja2",
+    "matplotlib",
+    "weasyprint",
+    "statsmodels",
+)
 
-_UNITS = {"um": "µm", "um-1": "µm⁻¹", "um-2": "µm⁻²", "um degC-1": "µm/°C", "degC": "°C", "degree": "°",
-          "nm": "nm", "1": "—", "um/h": "µm/h", "h": "h"}
+_UNITS = {
+    "um": "µm",
+    "um-1": "µm⁻¹",
+    "um-2": "µm⁻²",
+    "um degC-1": "µm/°C",
+    "degC": "°C",
+    "degree": "°",
+    "nm": "nm",
+    "1": "—",
+    "um/h": "µm/h",
+    "h": "h",
+}
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-_MODES = {"no_calibration": "no calibration", "adaptive_kmz": "adaptive model (KMZ)", "single": "single model"}
+_MODES = {
+    "no_calibration": "no calibration",
+    "adaptive_kmz": "adaptive model (KMZ)",
+    "single": "single model",
+}
 
 
 def dig(data, key: str):
@@ -63,7 +87,7 @@ def sig(v, digits: int = 4) -> str:
         return "0"
     exponent = math.floor(math.log10(abs(v)))
     if exponent < -3 or exponent >= 5:
-        mantissa = v / 10 ** exponent
+        mantissa = v / 10**exponent
         if round(abs(mantissa), digits - 1) >= 10:
             mantissa, exponent = mantissa / 10, exponent + 1
         return f"{mantissa:.{digits - 1}f} × 10{str(exponent).translate(_SUPERSCRIPT)}"
@@ -91,8 +115,13 @@ def environment() -> jinja2.Environment:
         trim_blocks=True,
         lstrip_blocks=True,
     )
-    env.filters.update(num=num, sig=sig, unit=unit, label=lambda n: str(n).replace("_", " "),
-                       mode=lambda n: _MODES.get(str(n), str(n).replace("_", " ")))
+    env.filters.update(
+        num=num,
+        sig=sig,
+        unit=unit,
+        label=lambda n: str(n).replace("_", " "),
+        mode=lambda n: _MODES.get(str(n), str(n).replace("_", " ")),
+    )
     env.globals.update(dig=dig, is_number=is_number)
     return env
 
@@ -121,15 +150,21 @@ def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -
         if str(Path(f)) not in listed and Path(f).is_file():
             extra[str(f)] = sha256_file(f)
     name = summary.get("campaign", campaign.get("name", "campaign"))
-    report_cmd = (f"calflow report --campaign config/campaigns/{name}.yaml --summary results/{name}/summary.json"
-                  + (" --files " + " ".join(shlex.quote(str(f)) for f in files) if files else "")
-                  + f" --html reports/{name}/report.html --pdf reports/{name}/report.pdf")
+    report_cmd = (
+        f"calflow report --campaign config/campaigns/{name}.yaml --summary results/{name}/summary.json"
+        + (" --files " + " ".join(shlex.quote(str(f)) for f in files) if files else "")
+        + f" --html reports/{name}/report.html --pdf reports/{name}/report.pdf"
+    )
     return {
         "versions": _versions(),
         "machine": _machine(),
-        "campaign_yaml": yaml.safe_dump({k: v for k, v in campaign.items() if not str(k).startswith("_")},
-                                        sort_keys=False, allow_unicode=True, width=90,
-                                        default_flow_style=None),
+        "campaign_yaml": yaml.safe_dump(
+            {k: v for k, v in campaign.items() if not str(k).startswith("_")},
+            sort_keys=False,
+            allow_unicode=True,
+            width=90,
+            default_flow_style=None,
+        ),
         "inputs": inputs,
         "extra_inputs": extra,
         "command": command,
@@ -152,8 +187,9 @@ def render_campaign(summary: dict, campaign: dict, command: str, files: list[str
     return render_campaign_pages(summary, campaign, command, files, pdf=False)[0]
 
 
-def render_campaign_pages(summary: dict, campaign: dict, command: str,
-                          files: list[str] | None = None, pdf: bool = True) -> tuple[str, str]:
+def render_campaign_pages(
+    summary: dict, campaign: dict, command: str, files: list[str] | None = None, pdf: bool = True
+) -> tuple[str, str]:
     """The HTML report of one campaign (SVG figures) and the same page for the PDF, whose
     figures are the PNG renderings of the same matplotlib figures (:func:`write_pdf`).
     Figures are drawn once for both; with ``pdf=False`` no PNG is rendered and the second
@@ -166,8 +202,12 @@ def render_campaign_pages(summary: dict, campaign: dict, command: str,
     finally:
         RASTER.reset(token)
     template = environment().get_template(f"{summary['robot']}.html.j2")
-    context = dict(s=summary, notes=notes, prov=_provenance(summary, campaign, command, files or []),
-                   css=(TEMPLATES / "style.css").read_text())
+    context = dict(
+        s=summary,
+        notes=notes,
+        prov=_provenance(summary, campaign, command, files or []),
+        css=(TEMPLATES / "style.css").read_text(),
+    )
     html = template.render(figures=figures, **context)
     if not pdf:
         return html, html
@@ -178,8 +218,12 @@ def render_campaign_pages(summary: dict, campaign: dict, command: str,
 def render_index(summaries: list[dict]) -> str:
     """``reports/index.html``: every campaign's headline numbers beside the thesis's."""
     template = environment().get_template("index.html.j2")
-    return template.render(summaries=summaries, versions=_versions(), machine=_machine(),
-                           css=(TEMPLATES / "style.css").read_text())
+    return template.render(
+        summaries=summaries,
+        versions=_versions(),
+        machine=_machine(),
+        css=(TEMPLATES / "style.css").read_text(),
+    )
 
 
 def write_pdf(html: str, base_url: str | Path) -> bytes:

@@ -25,9 +25,10 @@ from __future__ import annotations
 import importlib
 import os
 import re
+from collections.abc import Callable, Iterable, Mapping
 from functools import lru_cache
 from importlib.metadata import entry_points
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 from calflow.errors import CalflowError, ConfigError, OptionError, RigError
 from calflow.rigs.protocol import Rig, missing_members
@@ -39,10 +40,12 @@ _FACTORY_RE = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 CORE_RIGS = {"replay": "calflow.rigs.replay:replay", "gcs": "calflow.gcs.rig:gcs"}
 GROUP = "calflow.rigs"  # entry points of installed rig plug-ins: name -> "module:callable"
 ENV = "CALFLOW_RIG_PLUGINS"  # the allow-list given to a job: module names, comma-separated
-HOW_TO_ALLOW = ("plugins are code: allow the module outside the campaign file with "
-                "'rig_plugins: [{module}]' in config/config.yaml (or snakemake --config "
-                "'rig_plugins=[\"{module}\"]', or calflow acquire --rig-plugins {module}), "
-                "or register it as a 'calflow.rigs' entry point")
+HOW_TO_ALLOW = (
+    "plugins are code: allow the module outside the campaign file with "
+    "'rig_plugins: [{module}]' in config/config.yaml (or snakemake --config "
+    "'rig_plugins=[\"{module}\"]', or calflow acquire --rig-plugins {module}), "
+    "or register it as a 'calflow.rigs' entry point"
+)
 
 
 def builtin(name: str, robot: str) -> str | None:
@@ -61,7 +64,9 @@ def _builtin_targets(robot: str) -> set[str]:
     """The ``module:callable`` of every built-in rig (a campaign may name them in full)."""
     from calflow.family import families
 
-    return set(CORE_RIGS.values()) | {t for fam in families() for rigs in fam.rigs.values() for t in rigs.values()}
+    return set(CORE_RIGS.values()) | {
+        t for fam in families() for rigs in fam.rigs.values() for t in rigs.values()
+    }
 
 
 @lru_cache(maxsize=1)
@@ -95,17 +100,21 @@ def target_of(name: str, robot: str, allowed: Iterable[str] | str | None = None)
         return registered()[name], "plugin"
     if not _FACTORY_RE.match(name):
         extra = f", a registered plug-in ({', '.join(sorted(registered()))})" if registered() else ""
-        raise RigError(f"rig.factory: expected 'simulated', 'replay', 'gcs'{extra} or "
-                       f"'package.module:callable', got {name!r}")
+        raise RigError(
+            f"rig.factory: expected 'simulated', 'replay', 'gcs'{extra} or "
+            f"'package.module:callable', got {name!r}"
+        )
     module = name.partition(":")[0]
     if not is_allowed(module, allowed) and name not in _builtin_targets(robot):
-        raise RigError(f"rig.factory: {name!r} is not allowed to run; "
-                       + HOW_TO_ALLOW.format(module=module))
+        raise RigError(f"rig.factory: {name!r} is not allowed to run; " + HOW_TO_ALLOW.format(module=module))
     return name, "plugin"
 
 
-def resolve_factory(name: str, robot: str, allowed: Iterable[str] | str | None = None,
-                    ) -> tuple[Callable[..., Any], str]:
+def resolve_factory(
+    name: str,
+    robot: str,
+    allowed: Iterable[str] | str | None = None,
+) -> tuple[Callable[..., Any], str]:
     """Return the factory callable named by ``name`` and the data ``source`` it implies.
 
     ``allowed``: the modules a ``module:callable`` factory may come from (default: the
@@ -123,8 +132,9 @@ def resolve_factory(name: str, robot: str, allowed: Iterable[str] | str | None =
     return factory, source
 
 
-def load_rig(name: str, robot: str, options: Mapping[str, Any],
-             allowed: Iterable[str] | str | None = None) -> tuple[Rig, str]:
+def load_rig(
+    name: str, robot: str, options: Mapping[str, Any], allowed: Iterable[str] | str | None = None
+) -> tuple[Rig, str]:
     """Build a rig with ``factory(**options)``; return it and its data ``source``."""
     factory, source = resolve_factory(name, robot, allowed)
     try:
@@ -137,8 +147,9 @@ def load_rig(name: str, robot: str, options: Mapping[str, Any],
     return rig, source
 
 
-def check_rig(campaign: Mapping[str, Any], path, allowed: Iterable[str] | str | None = None,
-              plugins: bool = True) -> None:
+def check_rig(
+    campaign: Mapping[str, Any], path, allowed: Iterable[str] | str | None = None, plugins: bool = True
+) -> None:
     """The config check of a campaign's ``rig`` section; raises :class:`ConfigError` naming
     ``path`` and the key.
 
@@ -162,7 +173,8 @@ def check_rig(campaign: Mapping[str, Any], path, allowed: Iterable[str] | str | 
         return
     options = dict(rig.get("options") or {})
     for where, opts in [("rig.options", options)] + [
-            (f"rig.runs.{run}", {**options, **extra}) for run, extra in (rig.get("runs") or {}).items()]:
+        (f"rig.runs.{run}", {**options, **extra}) for run, extra in (rig.get("runs") or {}).items()
+    ]:
         try:
             check(**opts)
         except OptionError as exc:
@@ -170,4 +182,6 @@ def check_rig(campaign: Mapping[str, Any], path, allowed: Iterable[str] | str | 
                 where = "rig.options"
             raise ConfigError(exc.at(path, where)) from None
         except (TypeError, ValueError) as exc:
-            raise ConfigError(f"{path}: key '{where}': the {name!r} rig rejected the options ({exc})") from None
+            raise ConfigError(
+                f"{path}: key '{where}': the {name!r} rig rejected the options ({exc})"
+            ) from None

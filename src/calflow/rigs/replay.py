@@ -22,8 +22,8 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -49,7 +49,9 @@ def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
             return next(iter(files.values()))
         raise RigError(f"{where}: replay stream: expected a run id, one of {sorted(files)}")
     if stream not in files:
-        raise RigError(f"{where}: replay stream {stream!r}: no recording; recorded run ids are {sorted(files)}")
+        raise RigError(
+            f"{where}: replay stream {stream!r}: no recording; recorded run ids are {sorted(files)}"
+        )
     return files[stream]
 
 
@@ -62,8 +64,14 @@ class ReplayRig:
     own unit (µm for translations, degree for rotations).
     """
 
-    def __init__(self, path: str | os.PathLike, stream: str = "", tolerance: float = 1e-6,
-                 dataset=None, recorded_plan=None):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        stream: str = "",
+        tolerance: float = 1e-6,
+        dataset=None,
+        recorded_plan=None,
+    ):
         self.path = Path(path)
         self.stream = stream or self.path.stem
         self.tolerance = float(tolerance)
@@ -78,7 +86,11 @@ class ReplayRig:
 
         problems = validate_dataset(ds)  # the data contract, units included: a replay serves µm and degree
         if problems:
-            more = f" (and {len(problems) - 1} more; calflow validate {self.path} lists them)" if len(problems) > 1 else ""
+            more = (
+                f" (and {len(problems) - 1} more; calflow validate {self.path} lists them)"
+                if len(problems) > 1
+                else ""
+            )
             raise RigError(f"{self.path}: replay: {problems[0]}{more}")
         self.attrs = dict(ds.attrs)
         self.units = {name: str(ds[name].attrs.get("units", "")) for name in ds.data_vars}
@@ -90,8 +102,10 @@ class ReplayRig:
         self.sensors = tuple(ordered + [m for m in meas if m not in ordered])
         if "temperature" in ds.data_vars:
             if ds["temperature"].dims != ("sample", "sensor") or "sensor" not in ds.coords:
-                raise RigError(f"{self.path}: variable 'temperature': expected dims ('sample', 'sensor') "
-                               f"with a 'sensor' coordinate, got {ds['temperature'].dims}")
+                raise RigError(
+                    f"{self.path}: variable 'temperature': expected dims ('sample', 'sensor') "
+                    f"with a 'sensor' coordinate, got {ds['temperature'].dims}"
+                )
             self.thermometers = tuple(str(s) for s in ds["sensor"].values)
             self._temps = np.asarray(ds["temperature"].values, dtype=float)
         else:
@@ -133,24 +147,33 @@ class ReplayRig:
         self._check_open("move()")
         i = self._i + 1
         if i >= self.n:
-            raise RigError(f"{self.path}: replay: move() past the end of the recording "
-                           f"({self.n} samples); the plan has more rows than the recorded run")
+            raise RigError(
+                f"{self.path}: replay: move() past the end of the recording "
+                f"({self.n} samples); the plan has more rows than the recorded run"
+            )
         unknown = sorted(set(command) - set(self.joints))
         if unknown:
-            raise RigError(f"{self.path}: sample {i}: command names joint(s) {unknown} "
-                           f"the recording does not have {list(self.joints)}")
+            raise RigError(
+                f"{self.path}: sample {i}: command names joint(s) {unknown} "
+                f"the recording does not have {list(self.joints)}"
+            )
         for joint in self.joints:
             if joint not in command:
                 raise RigError(f"{self.path}: sample {i}: command lacks joint {joint!r}")
             recorded = float(self._cmd[joint][i])
             requested = float(command[joint])
-            same = (math.isnan(recorded) and math.isnan(requested)) or abs(recorded - requested) <= self.tolerance
+            same = (math.isnan(recorded) and math.isnan(requested)) or abs(
+                recorded - requested
+            ) <= self.tolerance
             if not same:
-                unit = {"um": "µm"}.get(self.units.get(f"cmd_{joint}", ""), self.units.get(f"cmd_{joint}", ""))
+                unit = {"um": "µm"}.get(
+                    self.units.get(f"cmd_{joint}", ""), self.units.get(f"cmd_{joint}", "")
+                )
                 raise RigError(
                     f"{self.path}: sample {i}: joint {joint!r}: recorded command {recorded!r} {unit}, "
                     f"requested {requested!r} {unit} (tolerance {self.tolerance:g} {unit}); "
-                    "the replayed plan differs from the recorded one")
+                    "the replayed plan differs from the recorded one"
+                )
         self._i = i
 
     def wait(self, seconds: float) -> None:
@@ -162,8 +185,10 @@ class ReplayRig:
         self._check_open("read()")
         i = self._i
         if i < 0:
-            raise RigError(f"{self.path}: replay: read() before the first move(); "
-                           "a recording has readings of settled poses only")
+            raise RigError(
+                f"{self.path}: replay: read() before the first move(); "
+                "a recording has readings of settled poses only"
+            )
         if i >= self.n:  # cannot happen through move(), kept as a guard
             raise RigError(f"{self.path}: replay: read() past the end of the recording ({self.n} samples)")
         reading = {"time": float(self._time[i])}
@@ -189,8 +214,13 @@ class ReplayRig:
         return {"available": False}
 
 
-def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "",
-           tolerance_um: float = 1e-6, seed: int | None = None, campaign_start: str | None = None) -> ReplayRig:
+def replay(
+    recordings: str | os.PathLike | Mapping[str, object],
+    stream: str = "",
+    tolerance_um: float = 1e-6,
+    seed: int | None = None,
+    campaign_start: str | None = None,
+) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
 
     ``recordings`` is a folder of ``<run id>.nc`` run files (a campaign's
@@ -223,8 +253,9 @@ def replay(recordings: str | os.PathLike | Mapping[str, object], stream: str = "
     return ReplayRig(path, stream=stream, tolerance=tolerance, dataset=ds, recorded_plan=plan)
 
 
-def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None,
-                  campaign_start=None) -> None:
+def check_options(
+    recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None, campaign_start=None
+) -> None:
     """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
     ``recordings`` given, each entry of a mapping well formed and its files present, the
     tolerance a number >= 0. Recordings are read when a run is acquired, not here."""
@@ -237,10 +268,15 @@ def check_options(recordings=None, stream: str = "", tolerance_um: float = 1e-6,
             except BadEntry as exc:
                 raise OptionError(f"recordings.{run_id}{exc.key}", exc.expected, exc.value) from None
     elif not isinstance(recordings, (str, os.PathLike)) or not str(recordings):
-        raise OptionError("recordings", "a folder of <run id>.nc run files or a mapping run id -> recording",
-                          recordings)
-    if isinstance(tolerance_um, bool) or not isinstance(tolerance_um, (int, float)) or not tolerance_um >= 0 \
-            or not math.isfinite(tolerance_um):
+        raise OptionError(
+            "recordings", "a folder of <run id>.nc run files or a mapping run id -> recording", recordings
+        )
+    if (
+        isinstance(tolerance_um, bool)
+        or not isinstance(tolerance_um, (int, float))
+        or not tolerance_um >= 0
+        or not math.isfinite(tolerance_um)
+    ):
         raise OptionError("tolerance_um", "a finite number >= 0 (µm; degree for rotations)", tolerance_um)
     if not isinstance(stream, str):
         raise OptionError("stream", "a run id (string)", stream)

@@ -30,7 +30,9 @@ def closed_loop_step(since_move_s, natural_hz: float, damping: float):
             return 0.0
         if natural_hz <= 0 or damping * w * t > 745.0:  # exp underflows to 0: exactly settled
             return 1.0
-        return 1.0 - math.exp(-damping * w * t) * (math.cos(w * root * t) + damping / root * math.sin(w * root * t))
+        return 1.0 - math.exp(-damping * w * t) * (
+            math.cos(w * root * t) + damping / root * math.sin(w * root * t)
+        )
     t = np.asarray(since_move_s, dtype=float)
     if natural_hz <= 0:
         return np.where(t < 0.0, 0.0, 1.0)

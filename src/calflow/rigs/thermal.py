@@ -18,7 +18,7 @@ Profiles (all deterministic given ``seed``, vectorised over time):
   what the stage does with it is the thermal network's business.
 
 :class:`LinearBank` integrates any linear network driven by the room (the lumped thermal
-network of the nano rigs, :mod:`calflow.nano.thermal_network`) exactly for a
+network of the nano rigs, :mod:`calflow.nano.stage.thermal_network`) exactly for a
 piecewise-linear input on a fixed grid, interpolated linearly between grid points;
 :class:`LagBank` is its special case of independent first-order lags. The grid is anchored in profile time (not rig time), so two rigs started at
 different offsets see the same structure temperatures at the same campaign time.
@@ -237,10 +237,18 @@ class LagBank(LinearBank):
     """Independent first-order lags ``dT_k/dt = (T_room(t) - T_k) / tau_k`` of a room profile
     (``taus_s`` in s), starting in equilibrium ``warmup_taus`` time constants early."""
 
-    def __init__(self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_taus: float = 12.0):
+    def __init__(
+        self, room, taus_s, *, dt_s: float = 30.0, earliest_s: float = 0.0, warmup_taus: float = 12.0
+    ):
         taus = np.asarray(taus_s, dtype=float)
         if taus.ndim != 1 or not np.all(taus > 0):
             raise ValueError("LagBank time constants must be a 1-D array of positive seconds")
         self.taus = taus
-        super().__init__(room, np.diag(-1.0 / taus), 1.0 / taus, dt_s=dt_s, earliest_s=earliest_s,
-                         warmup_s=warmup_taus * float(taus.max()))
+        super().__init__(
+            room,
+            np.diag(-1.0 / taus),
+            1.0 / taus,
+            dt_s=dt_s,
+            earliest_s=earliest_s,
+            warmup_s=warmup_taus * float(taus.max()),
+        )

@@ -18,24 +18,33 @@ def check_campaign(campaign: dict, path: Path) -> None:
                 raise ConfigError(
                     f"{path}: key 'identification.{axis}_um': expected poses within the characterised stroke "
                     f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
-                    f"got up to {ident[f'{axis}_um'][1]}")
+                    f"got up to {ident[f'{axis}_um'][1]}"
+                )
 
 
 def _check_models(models: dict, path: Path) -> None:
     """Each model is identified (``free``) or built on another (``base`` + ``angle_table``)."""
     for name, spec in models.items():
         if ("free" in spec) == ("base" in spec):
-            raise ConfigError(f"{path}: key 'models.{name}': expected either 'free' (identified) or "
-                              "'base' with 'angle_table: true' (post-calibration), not both or neither")
+            raise ConfigError(
+                f"{path}: key 'models.{name}': expected either 'free' (identified) or "
+                "'base' with 'angle_table: true' (post-calibration), not both or neither"
+            )
         if "base" in spec:
             base = spec["base"]
             if base not in models:
-                raise ConfigError(f"{path}: key 'models.{name}.base': expected one of {sorted(models)}, got {base!r}")
+                raise ConfigError(
+                    f"{path}: key 'models.{name}.base': expected one of {sorted(models)}, got {base!r}"
+                )
             if "base" in models[base]:
-                raise ConfigError(f"{path}: key 'models.{name}.base': model {base!r} has a base itself; "
-                                  "expected an identified model")
+                raise ConfigError(
+                    f"{path}: key 'models.{name}.base': model {base!r} has a base itself; "
+                    "expected an identified model"
+                )
             if not spec.get("angle_table"):
-                raise ConfigError(f"{path}: key 'models.{name}.angle_table': expected true for a model with a base")
+                raise ConfigError(
+                    f"{path}: key 'models.{name}.angle_table': expected true for a model with a base"
+                )
 
 
 def _check_design(campaign: dict, path: Path) -> None:
@@ -46,12 +55,20 @@ def _check_design(campaign: dict, path: Path) -> None:
     if ident["plan"] == "optimal" or "design_study" in campaign:
         if spec is None or "free" not in spec:
             usable = sorted(k for k, s in campaign["models"].items() if "free" in s)
-            raise ConfigError(f"{path}: key 'identification.design.model': expected an identified model "
-                              f"(one of {usable}), got {d['model']!r}")
+            raise ConfigError(
+                f"{path}: key 'identification.design.model': expected an identified model "
+                f"(one of {usable}), got {d['model']!r}"
+            )
         given = d["noise_um"]
-        if campaign["rig"]["factory"] != "simulated" and (given.get("pose") is None or given.get("frame") is None):
-            raise ConfigError(f"{path}: key 'identification.design.noise_um': expected pose and frame (um) "
-                              "for a rig other than the simulated one")
+        if campaign["rig"]["factory"] != "simulated" and (
+            given.get("pose") is None or given.get("frame") is None
+        ):
+            raise ConfigError(
+                f"{path}: key 'identification.design.noise_um': expected pose and frame (um) "
+                "for a rig other than the simulated one"
+            )
         if d.get("poses") is not None and d["poses"] > d["candidates"]:
-            raise ConfigError(f"{path}: key 'identification.design.poses': expected at most design.candidates "
-                              f"({d['candidates']}), got {d['poses']}")
+            raise ConfigError(
+                f"{path}: key 'identification.design.poses': expected at most design.candidates "
+                f"({d['candidates']}), got {d['poses']}"
+            )

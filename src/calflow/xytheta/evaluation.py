@@ -13,8 +13,8 @@ import xarray as xr
 
 from calflow.data.runs import RunMetadata
 from calflow.errors import DataError
-from calflow.xytheta.kinematics import world_from_pattern
 from calflow.metrics import iso9283
+from calflow.xytheta.models.kinematics import world_from_pattern
 
 
 def attained_points(run: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
@@ -40,7 +40,9 @@ def xytheta_validation_metrics(run: xr.Dataset, meta: RunMetadata) -> xr.Dataset
     for p in poses:
         sel = (run["pose"].values == p) & np.isfinite(x) & np.isfinite(y)
         if sel.sum() < 2:
-            raise DataError(f"run {run.attrs.get('plan')!r}: target {p} has {sel.sum()} valid visits, expected >= 2")
+            raise DataError(
+                f"run {run.attrs.get('plan')!r}: target {p} has {sel.sum()} valid visits, expected >= 2"
+            )
         command = np.array([run["target_x"].values[sel][0], run["target_y"].values[sel][0]])
         result = iso9283(command, np.column_stack([x[sel], y[sel]]))
         rows.append((p, command, run["target_theta"].values[sel][0], result, int(sel.sum())))
@@ -60,8 +62,13 @@ def xytheta_validation_metrics(run: xr.Dataset, meta: RunMetadata) -> xr.Dataset
             "ap_y": var([r[3].ap_components[1] for r in rows], "um", "barycentre minus command, y"),
             "visits": var([r[4] for r in rows], "1", "number of valid visits"),
         },
-        coords={"target": xr.Variable(("target",), np.array([r[0] for r in rows], dtype="int32"),
-                                      attrs={"units": "1", "long_name": "validation target index"})},
+        coords={
+            "target": xr.Variable(
+                ("target",),
+                np.array([r[0] for r in rows], dtype="int32"),
+                attrs={"units": "1", "long_name": "validation target index"},
+            )
+        },
         attrs=meta.attrs("metrics"),
     )
     ds.attrs["accuracy_um"] = float(ds["ap"].max())

@@ -10,9 +10,9 @@ import argparse
 
 from calflow.family import Command, Family
 
-_P = "calflow.xytheta.campaign_plans"
-_C = "calflow.xytheta.commands"
-_S = "calflow.xytheta.study_commands"
+_P = "calflow.xytheta.plans.campaign"
+_C = "calflow.xytheta.steps"
+_S = "calflow.xytheta.studies.cli"
 
 
 def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
@@ -30,8 +30,12 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
 
 def _acquire_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
-    p.add_argument("--compensation", choices=["none", "linear", "cubic"], default="none",
-                   help="lookup-table compensation of the square / random-points runs (Sec. 4.4.2)")
+    p.add_argument(
+        "--compensation",
+        choices=["none", "linear", "cubic"],
+        default="none",
+        help="lookup-table compensation of the square / random-points runs (Sec. 4.4.2)",
+    )
     p.add_argument("--export", help="a model's export folder, for --plan validation_export (docs/export.md)")
 
 
@@ -55,14 +59,20 @@ def _budget_arguments(p: argparse.ArgumentParser) -> None:
 
 def _export_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
-    p.add_argument("--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc")
-    p.add_argument("--out", required=True, help="folder of the exports; each model's in <out>/<model file's stem>")
+    p.add_argument(
+        "--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc"
+    )
+    p.add_argument(
+        "--out", required=True, help="folder of the exports; each model's in <out>/<model file's stem>"
+    )
 
 
 def _export_verify_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
     p.add_argument("--run", nargs="+", required=True, help="validation_export runs")
-    p.add_argument("--heldout", nargs="+", required=True, help="metrics of the models' in-process held-out runs")
+    p.add_argument(
+        "--heldout", nargs="+", required=True, help="metrics of the models' in-process held-out runs"
+    )
     p.add_argument("--out", nargs="+", required=True, help="one metrics file per --run, in the same order")
 
 
@@ -75,7 +85,9 @@ def _point_arguments(p: argparse.ArgumentParser) -> None:
     _study(p)
     p.add_argument("--seed", required=True, help="seed N, or seeds FIRST-LAST run in this one job")
     p.add_argument("--noise", required=True, help="sensor noise (um), one of the study's noise_um")
-    p.add_argument("--poses", type=int, required=True, help="number of identification poses, one of the study's")
+    p.add_argument(
+        "--poses", type=int, required=True, help="number of identification poses, one of the study's"
+    )
     p.add_argument("--off-grid", action="store_true", help="allow noise/poses outside the study's grid")
     p.add_argument("--out", required=True)
 
@@ -98,65 +110,166 @@ _CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "
 FAMILY = Family(
     name="xytheta",
     robots=("xytheta",),
-    rigs={"xytheta": {"simulated": "calflow.xytheta.rig:simulated_xytheta"}},
-    plans={"xytheta": {name: f"{_P}:{name}" for name in (
-        "identification", "validation", "validation_heldout", "characterisation_x", "characterisation_y", "angle_residuals",
-        "square", "random_points")}
-                | {"validation_export": "calflow.xytheta.export.verification:validation_export"}},
+    rigs={"xytheta": {"simulated": "calflow.xytheta.stage.rig:simulated_xytheta"}},
+    plans={
+        "xytheta": {
+            name: f"{_P}:{name}"
+            for name in (
+                "identification",
+                "validation",
+                "validation_heldout",
+                "characterisation_x",
+                "characterisation_y",
+                "angle_residuals",
+                "square",
+                "random_points",
+            )
+        }
+        | {"validation_export": "calflow.xytheta.export.verification:validation_export"}
+    },
     rig_options="calflow.xytheta.family:rig_options",
     steps={
         "identify": f"{_C}:identify",
         "metrics": f"{_C}:metrics",
-        "summarise": "calflow.xytheta.summary:xytheta_summary",
-        "figures": "calflow.xytheta.figures:build",
+        "summarise": "calflow.xytheta.report.summary:xytheta_summary",
+        "figures": "calflow.xytheta.report.figures:build",
         "check": "calflow.xytheta.checks:check_campaign",
     },
-    templates="calflow.xytheta",
+    templates="calflow.xytheta.report",
     modules={
-        "acquire": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.xytheta.campaign_plans",
-                            "calflow.xytheta.plans", "calflow.xytheta.sweeps", "calflow.xytheta.rig", "calflow.xytheta.rig_physics",
-                            "calflow.xytheta.vision_sensor", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
-                            "calflow.identification.design", "calflow.xytheta.design", "calflow.xytheta.design_plan",
-                            "calflow.xytheta.pose_lookup", "calflow.xytheta.models", "calflow.xytheta.angle_table",
-                            "calflow.xytheta.family"),
-        "characterise": _CORE + ("calflow.xytheta.characterisation", "calflow.xytheta.commands"),
-        "identify": _CORE + ("calflow.identification", "calflow.xytheta.identification", "calflow.xytheta.cost",
-                             "calflow.xytheta.models", "calflow.xytheta.kinematics", "calflow.xytheta.lookup",
-                             "calflow.xytheta.pose_lookup", "calflow.xytheta.angle_table", "calflow.xytheta.commands",
-                             "calflow.xytheta.design", "calflow.xytheta.design_plan", "calflow.xytheta.design_study"),
-        "metrics": _CORE + ("calflow.metrics", "calflow.xytheta.evaluation", "calflow.xytheta.characterisation",
-                            "calflow.xytheta.kinematics", "calflow.xytheta.commands"),
-        "summarise": _CORE + ("calflow.reference", "calflow.metrics", "calflow.xytheta.summary", "calflow.xytheta.oracle",
-                              "calflow.xytheta.rig", "calflow.xytheta.rig_physics", "calflow.acquisition",
-                              "calflow.xytheta.characterisation", "calflow.xytheta.kinematics",
-                              "calflow.xytheta.export.verification", "calflow.xytheta.design_study"),
+        "acquire": _CORE
+        + (
+            "calflow.acquisition",
+            "calflow.rigs",
+            "calflow.gcs",
+            "calflow.xytheta.plans.campaign",
+            "calflow.xytheta.plans.poses",
+            "calflow.xytheta.plans.sweeps",
+            "calflow.xytheta.stage.rig",
+            "calflow.xytheta.stage.physics",
+            "calflow.xytheta.stage.vision_sensor",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.tables.lookup",
+            "calflow.identification.design",
+            "calflow.xytheta.design.criteria",
+            "calflow.xytheta.design.plan",
+            "calflow.xytheta.tables.pose",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.tables.angle",
+            "calflow.xytheta.family",
+        ),
+        "characterise": _CORE + ("calflow.xytheta.tables.characterisation", "calflow.xytheta.steps"),
+        "identify": _CORE
+        + (
+            "calflow.identification",
+            "calflow.xytheta.models.identification",
+            "calflow.xytheta.models.cost",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.tables.lookup",
+            "calflow.xytheta.tables.pose",
+            "calflow.xytheta.tables.angle",
+            "calflow.xytheta.steps",
+            "calflow.xytheta.design.criteria",
+            "calflow.xytheta.design.plan",
+            "calflow.xytheta.design.study",
+        ),
+        "metrics": _CORE
+        + (
+            "calflow.metrics",
+            "calflow.xytheta.evaluation",
+            "calflow.xytheta.tables.characterisation",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.steps",
+        ),
+        "summarise": _CORE
+        + (
+            "calflow.reference",
+            "calflow.metrics",
+            "calflow.xytheta.report.summary",
+            "calflow.xytheta.stage.oracle",
+            "calflow.xytheta.stage.rig",
+            "calflow.xytheta.stage.physics",
+            "calflow.acquisition",
+            "calflow.xytheta.tables.characterisation",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.export.verification",
+            "calflow.xytheta.design.study",
+        ),
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
-        "export": _CORE + ("calflow.xytheta.export", "calflow.xytheta.models", "calflow.xytheta.lookup",
-                           "calflow.xytheta.pose_lookup", "calflow.xytheta.angle_table", "calflow.xytheta.kinematics",
-                           "calflow.xytheta.evaluation", "calflow.xytheta.campaign_plans", "calflow.xytheta.plans"),
-        "report": _CORE + ("calflow.report", "calflow.xytheta.figures", "calflow.xytheta.templates",
-                           "calflow.xytheta.models", "calflow.xytheta.design_study"),
+        "export": _CORE
+        + (
+            "calflow.xytheta.export",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.tables.lookup",
+            "calflow.xytheta.tables.pose",
+            "calflow.xytheta.tables.angle",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.evaluation",
+            "calflow.xytheta.plans.campaign",
+            "calflow.xytheta.plans.poses",
+        ),
+        "report": _CORE
+        + (
+            "calflow.report",
+            "calflow.xytheta.report.figures",
+            "calflow.xytheta.report.templates",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.design.study",
+        ),
     },
     acquire_arguments=_acquire_arguments,
     commands=(
-        Command("characterise", "XY error tables from the characterisation sweeps (Sec. 4.4.1)",
-                _characterise_arguments, f"{_C}:characterise"),
-        Command("observability", "observability indices against the number of poses (Fig. 4.21)",
-                _observability_arguments, f"{_C}:observability"),
-        Command("error-budget", "replay the calibration with each rig effect off: the error budget (simulated rigs)",
-                _budget_arguments, "calflow.xytheta.error_budget:error_budget_command"),
-        Command("design-study", "Cramér–Rao σ against poses and rig time, random against designed",
-                _observability_arguments, "calflow.xytheta.design_study:study"),
-        Command("export", "a model's controller files and bundle for users' code (docs/export.md)",
-                _export_arguments, "calflow.xytheta.export.command:export"),
-        Command("export-verify", "accuracy through the exported files beside the in-process model's",
-                _export_verify_arguments, "calflow.xytheta.export.command:verify"),
-        Command("mc-point", "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
-                _point_arguments, f"{_S}:point"),
-        Command("mc-aggregate", "aggregate the points of a Monte-Carlo study", _aggregate_arguments,
-                f"{_S}:aggregate"),
+        Command(
+            "characterise",
+            "XY error tables from the characterisation sweeps (Sec. 4.4.1)",
+            _characterise_arguments,
+            f"{_C}:characterise",
+        ),
+        Command(
+            "observability",
+            "observability indices against the number of poses (Fig. 4.21)",
+            _observability_arguments,
+            f"{_C}:observability",
+        ),
+        Command(
+            "error-budget",
+            "replay the calibration with each rig effect off: the error budget (simulated rigs)",
+            _budget_arguments,
+            "calflow.xytheta.stage.error_budget:error_budget_command",
+        ),
+        Command(
+            "design-study",
+            "Cramér–Rao σ against poses and rig time, random against designed",
+            _observability_arguments,
+            "calflow.xytheta.design.study:study",
+        ),
+        Command(
+            "export",
+            "a model's controller files and bundle for users' code (docs/export.md)",
+            _export_arguments,
+            "calflow.xytheta.export.command:export",
+        ),
+        Command(
+            "export-verify",
+            "accuracy through the exported files beside the in-process model's",
+            _export_verify_arguments,
+            "calflow.xytheta.export.command:verify",
+        ),
+        Command(
+            "mc-point",
+            "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
+            _point_arguments,
+            f"{_S}:point",
+        ),
+        Command(
+            "mc-aggregate",
+            "aggregate the points of a Monte-Carlo study",
+            _aggregate_arguments,
+            f"{_S}:aggregate",
+        ),
         Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
     ),
-    sensors={"simulated_vision": "calflow.xytheta.vision_sensor:simulated_vision"},
-    emulator="calflow.xytheta.emulate:emulate_main",
+    sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
+    emulator="calflow.xytheta.stage.emulate:emulate_main",
 )

@@ -18,16 +18,18 @@ import numpy as np
 from calflow import __version__
 from calflow.data.io import jsonable, sha256_file, write_json
 from calflow.errors import DataError
-from calflow.xytheta import kinematics as kin
 from calflow.xytheta.export.tables import rebuild, write_tables
+from calflow.xytheta.models import kinematics as kin
 
 FORMAT = "calflow-xytheta-bundle"
 VERSION = 1
 BUNDLE = "bundle.json"
 
-LIMITS = ("The bundle is the whole model: parameters, position tables (own-axis and cross-axis terms) and the "
-          "angle table; the Compensator applies all of them as calflow's in-process model does. Controller files "
-          "(LinuxCNC, TwinCAT) hold the own-axis terms only.")
+LIMITS = (
+    "The bundle is the whole model: parameters, position tables (own-axis and cross-axis terms) and the "
+    "angle table; the Compensator applies all of them as calflow's in-process model does. Controller files "
+    "(LinuxCNC, TwinCAT) hold the own-axis terms only."
+)
 
 
 def provenance(model_path) -> dict:
@@ -36,10 +38,16 @@ def provenance(model_path) -> dict:
 
     with xr.open_dataset(model_path, engine="netcdf4", decode_times=False) as ds:
         attrs = dict(ds.attrs)
-    return {"campaign": attrs.get("campaign"), "config_sha256": attrs.get("config_sha256"),
-            "source": attrs.get("source"), "model_created": attrs.get("created"),
-            "model_calflow_version": attrs.get("calflow_version"), "export_calflow_version": __version__,
-            "model_file": Path(model_path).name, "model_sha256": sha256_file(model_path)}
+    return {
+        "campaign": attrs.get("campaign"),
+        "config_sha256": attrs.get("config_sha256"),
+        "source": attrs.get("source"),
+        "model_created": attrs.get("created"),
+        "model_calflow_version": attrs.get("calflow_version"),
+        "export_calflow_version": __version__,
+        "model_file": Path(model_path).name,
+        "model_sha256": sha256_file(model_path),
+    }
 
 
 def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> Path:
@@ -48,17 +56,34 @@ def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> 
     ``controllers``: what the controller files written beside it hold (:mod:`.writer`)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    params = {name: {"value": float(getattr(model.parameters, name)), "std": jsonable(model.std.get(name, np.nan)),
-                     "units": kin.PARAMETER_UNITS[name], "free": name in model.free}
-              for name in kin.PARAMETER_NAMES}
+    params = {
+        name: {
+            "value": float(getattr(model.parameters, name)),
+            "std": jsonable(model.std.get(name, np.nan)),
+            "units": kin.PARAMETER_UNITS[name],
+            "free": name in model.free,
+        }
+        for name in kin.PARAMETER_NAMES
+    }
     tables = {name: write_tables(ds, folder, name) for name, ds in model.groups().items()}
-    doc = {"format": FORMAT, "version": VERSION, "model": model.name, "parameters": params,
-           "free": list(model.free), "correlation": jsonable(np.asarray(model.correlation, dtype=float)),
-           "interpolation": model.method, "tables": tables, "provenance": jsonable(prov),
-           "conventions": {"units": "um for positions and errors, degree for angles",
-                           "errors": "target - measured; joint command = inverse kinematics + table error (Eq. 4.19)",
-                           "kinematics": "thesis Eq. 4.18 (forward) and 4.19 (inverse)"},
-           "limits": LIMITS, "controllers": jsonable(controllers or {})}
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "model": model.name,
+        "parameters": params,
+        "free": list(model.free),
+        "correlation": jsonable(np.asarray(model.correlation, dtype=float)),
+        "interpolation": model.method,
+        "tables": tables,
+        "provenance": jsonable(prov),
+        "conventions": {
+            "units": "um for positions and errors, degree for angles",
+            "errors": "target - measured; joint command = inverse kinematics + table error (Eq. 4.19)",
+            "kinematics": "thesis Eq. 4.18 (forward) and 4.19 (inverse)",
+        },
+        "limits": LIMITS,
+        "controllers": jsonable(controllers or {}),
+    }
     return write_json(doc, folder / BUNDLE)
 
 
@@ -73,8 +98,10 @@ def load(folder) -> dict:
     except json.JSONDecodeError as exc:
         raise DataError(f"{path}: not JSON ({exc})") from None
     if doc.get("format") != FORMAT or doc.get("version") != VERSION:
-        raise DataError(f"{path}: fields 'format', 'version': expected {FORMAT!r} {VERSION}, "
-                        f"got {doc.get('format')!r} {doc.get('version')!r}")
+        raise DataError(
+            f"{path}: fields 'format', 'version': expected {FORMAT!r} {VERSION}, "
+            f"got {doc.get('format')!r} {doc.get('version')!r}"
+        )
     for name in kin.PARAMETER_NAMES:
         if not isinstance(doc.get("parameters", {}).get(name, {}).get("value"), (int, float)):
             raise DataError(f"{path}: field 'parameters.{name}.value': expected a number")
@@ -83,10 +110,10 @@ def load(folder) -> dict:
 
 def read_model(folder):
     """The :class:`MicroModel` of a bundle, tables and all."""
-    from calflow.xytheta.angle_table import AngleTable
-    from calflow.xytheta.lookup import AngleLUT, PositionLUT
-    from calflow.xytheta.models import MicroModel
-    from calflow.xytheta.pose_lookup import PoseAngleLUT
+    from calflow.xytheta.models.ladder import MicroModel
+    from calflow.xytheta.tables.angle import AngleTable
+    from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+    from calflow.xytheta.tables.pose import PoseAngleLUT
 
     path = Path(folder)
     folder = path if path.is_dir() else path.parent
@@ -99,7 +126,17 @@ def read_model(folder):
     angle = None
     if "angle_table" in tables:
         t = tables["angle_table"]
-        angle = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(t.attrs.get("table"), AngleLUT) \
-            .from_dataset(t)
-    return MicroModel(doc["model"], params, tuple(doc["free"]), std, np.asarray(doc["correlation"], dtype=float),
-                      {}, position, angle, doc["interpolation"])
+        angle = {"position_angle": PoseAngleLUT, "angle_sweep": AngleTable}.get(
+            t.attrs.get("table"), AngleLUT
+        ).from_dataset(t)
+    return MicroModel(
+        doc["model"],
+        params,
+        tuple(doc["free"]),
+        std,
+        np.asarray(doc["correlation"], dtype=float),
+        {},
+        position,
+        angle,
+        doc["interpolation"],
+    )

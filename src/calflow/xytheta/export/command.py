@@ -27,15 +27,18 @@ def export(args) -> None:
 def verify(args) -> None:
     """Export paths' accuracy beside the in-process model's: each ``--run`` (a validation_export
     run) against the ``--heldout`` metrics of its model, into the ``--out`` at its position."""
-    from calflow.commands.common import campaign as load, meta
+    from calflow.commands.common import campaign as load
+    from calflow.commands.common import meta
     from calflow.data.io import open_dataset, write_dataset
     from calflow.errors import CalflowError
     from calflow.xytheta.export.verification import compare
 
     c = load(args.campaign)
     if len(args.out) != len(args.run):
-        raise CalflowError(f"calflow export-verify: --out: expected one file per --run ({len(args.run)}), "
-                           f"got {len(args.out)}")
+        raise CalflowError(
+            f"calflow export-verify: --out: expected one file per --run ({len(args.run)}), "
+            f"got {len(args.out)}"
+        )
     heldout = {}
     for path in args.heldout:
         ds = open_dataset(path, kind="metrics")
@@ -43,9 +46,12 @@ def verify(args) -> None:
     for run_path, out in zip(args.run, args.out):
         run = open_dataset(run_path, kind="run")
         if run.attrs.get("plan") != "validation_export":
-            raise CalflowError(f"{run_path}: attribute 'plan': expected 'validation_export', "
-                               f"got {run.attrs.get('plan')!r}")
+            raise CalflowError(
+                f"{run_path}: attribute 'plan': expected 'validation_export', got {run.attrs.get('plan')!r}"
+            )
         model = run.attrs.get("model")
         if model not in heldout:
             raise CalflowError(f"{run_path}: model {model!r}: no --heldout metrics of that model")
-        write_dataset(compare(run, heldout[model], meta(c, run.attrs["source"], "validation_export", model)), out)
+        write_dataset(
+            compare(run, heldout[model], meta(c, run.attrs["source"], "validation_export", model)), out
+        )

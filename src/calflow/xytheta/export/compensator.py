@@ -23,7 +23,7 @@ class Compensator:
         self.model = model
 
     @classmethod
-    def load(cls, path) -> "Compensator":
+    def load(cls, path) -> Compensator:
         return cls(read_model(path))
 
     @property

@@ -4,7 +4,7 @@ A controller's axis (joint) compensation is one-dimensional: at nominal commande
 positions N of one joint it holds one correction for travel in the positive direction and
 one for the negative direction, interpolates linearly in N and adds the correction of the
 current direction of travel to the command. Of calflow's XY tables (Eq. 4.14, 4.15,
-:class:`calflow.xytheta.lookup.PositionLUT`) a per-axis table expresses the own-axis
+:class:`calflow.xytheta.tables.lookup.PositionLUT`) a per-axis table expresses the own-axis
 terms f_xx/b_xx (X) and f_yy/b_yy (Y) only; the cross-axis terms (f_yx/b_yx: x error
 while Y moves, f_xy/b_xy: y error while X moves), the kinematic parameters and the angle
 table stay with the kinematics (the controller-neutral bundle, :mod:`.bundle`).
@@ -41,7 +41,7 @@ from scipy.interpolate import make_lsq_spline
 
 from calflow.data.io import write_text
 from calflow.errors import DataError
-from calflow.xytheta.lookup import _interpolator, infer_directions
+from calflow.xytheta.tables.lookup import _interpolator, infer_directions
 
 LINUXCNC_MAX_ENTRIES = 256  # "the limit inside LinuxCNC is for 256 triplets per joint"
 TWINCAT_MAX_ENTRIES = 1500  # kw.ssfk.max_points default (P-COMP-00059)
@@ -72,8 +72,11 @@ class AxisCompensation:
         linear between entries, the end value outside (the controller's first/last entry)."""
         nominal = np.asarray(nominal, dtype=float)
         d = np.broadcast_to(np.asarray(direction), nominal.shape)
-        return np.where(d > 0, np.interp(nominal, self.nominal, self.forward),
-                        np.interp(nominal, self.nominal, self.reverse))
+        return np.where(
+            d > 0,
+            np.interp(nominal, self.nominal, self.forward),
+            np.interp(nominal, self.nominal, self.reverse),
+        )
 
     def command(self, nominal, start: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Joint commands (µm) a controller sends for a sequence of nominal commands: nominal
@@ -84,8 +87,9 @@ class AxisCompensation:
         return nominal + self.correction(nominal, d), d
 
 
-def from_position_table(lut, axis: str, method: str = "linear", max_entries: int | None = None,
-                        iterations: int = 6) -> tuple[AxisCompensation, dict]:
+def from_position_table(
+    lut, axis: str, method: str = "linear", max_entries: int | None = None, iterations: int = 6
+) -> tuple[AxisCompensation, dict]:
     """The own-axis part of a :class:`PositionLUT` as a per-axis compensation.
 
     At each of the table's own positions N the correction is the fixed point t = e(N + t)
@@ -109,14 +113,18 @@ def from_position_table(lut, axis: str, method: str = "linear", max_entries: int
     for col, label in ((0, "forward"), (1, "reverse")):
         f = _interpolator(pos, table[:, col], method, f"{axis} table ({label})", "clamp")
 
-        def fixed_point(q):
+        def fixed_point(q, f=f):
             t = f(q)
             for _ in range(iterations - 1):
                 t = f(q + t)
             return t
 
         t_full = fixed_point(full)
-        t = t_full if grid is full else make_lsq_spline(full, t_full, np.r_[grid[0], grid, grid[-1]], k=1)(grid)
+        t = (
+            t_full
+            if grid is full
+            else make_lsq_spline(full, t_full, np.r_[grid[0], grid, grid[-1]], k=1)(grid)
+        )
         trims.append(t)
         errors[label] = float(np.max(np.abs(np.interp(full, grid, t) - t_full)))
     return AxisCompensation(axis, grid, trims[0], trims[1]), {"resampling_error_um": errors}
@@ -124,12 +132,17 @@ def from_position_table(lut, axis: str, method: str = "linear", max_entries: int
 
 # --- LinuxCNC -------------------------------------------------------------------------
 
+
 def write_linuxcnc(comp: AxisCompensation, path) -> Path:
     """``COMP_FILE_TYPE = 1`` file in millimetres (machine units ``mm``), atomically."""
     if comp.nominal.size > LINUXCNC_MAX_ENTRIES:
-        raise ValueError(f"axis {comp.axis}: {comp.nominal.size} entries, LinuxCNC reads at most {LINUXCNC_MAX_ENTRIES}")
-    lines = [f"{n * MM_PER_UM:.7f} {f * MM_PER_UM:.7f} {r * MM_PER_UM:.7f}"
-             for n, f, r in zip(comp.nominal, comp.forward, comp.reverse)]
+        raise ValueError(
+            f"axis {comp.axis}: {comp.nominal.size} entries, LinuxCNC reads at most {LINUXCNC_MAX_ENTRIES}"
+        )
+    lines = [
+        f"{n * MM_PER_UM:.7f} {f * MM_PER_UM:.7f} {r * MM_PER_UM:.7f}"
+        for n, f, r in zip(comp.nominal, comp.forward, comp.reverse)
+    ]
     return write_text("\n".join(lines) + "\n", path)
 
 
@@ -144,11 +157,15 @@ def read_linuxcnc(path, axis: str) -> AxisCompensation:
         except ValueError:
             values = []
         if len(values) != 3 or not all(np.isfinite(values)):
-            raise DataError(f"{path}: line {k}: expected 'nominal forward_trim reverse_trim' (three numbers, mm), "
-                            f"got {line.strip()!r}")
+            raise DataError(
+                f"{path}: line {k}: expected 'nominal forward_trim reverse_trim' (three numbers, mm), "
+                f"got {line.strip()!r}"
+            )
         rows.append(values)
     if len(rows) > LINUXCNC_MAX_ENTRIES:
-        raise DataError(f"{path}: {len(rows)} lines, expected at most {LINUXCNC_MAX_ENTRIES} (LinuxCNC's limit)")
+        raise DataError(
+            f"{path}: {len(rows)} lines, expected at most {LINUXCNC_MAX_ENTRIES} (LinuxCNC's limit)"
+        )
     a = np.asarray(rows, dtype=float).reshape(-1, 3) / MM_PER_UM
     try:
         return AxisCompensation(axis, a[:, 0], a[:, 1], a[:, 2])
@@ -166,21 +183,25 @@ def write_twincat(comp: AxisCompensation, path, axis_number: int, provenance: st
 
     Setpoints and values are rounded to 0.1 µm, the list's resolution."""
     if comp.nominal.size > TWINCAT_MAX_ENTRIES:
-        raise ValueError(f"axis {comp.axis}: {comp.nominal.size} entries, more than kw.ssfk.max_points' "
-                         f"default {TWINCAT_MAX_ENTRIES}")
+        raise ValueError(
+            f"axis {comp.axis}: {comp.nominal.size} entries, more than kw.ssfk.max_points' "
+            f"default {TWINCAT_MAX_ENTRIES}"
+        )
     tenth = lambda v: np.rint(np.asarray(v, dtype=float) * 10.0).astype(np.int64)  # noqa: E731
     setpoint, pos, neg = tenth(comp.nominal), tenth(-comp.forward), tenth(-comp.reverse)
     if not np.all(np.diff(setpoint) > 0):
         raise ValueError(f"axis {comp.axis}: entries closer than 0.1 um")
     out = [f"# {line}" for line in provenance.splitlines()]
-    out += [f"kopf.achs_nr                 {int(axis_number)}",
-            f"kopf.log_achs_name           {comp.axis.upper()}",
-            "kw.ssfk.unit                 1",
-            "kw.ssfk.interval             0",
-            f"kw.ssfk.kw_startpos          {setpoint[0]}",
-            f"kw.ssfk.kw_nr_max            {setpoint.size}",
-            "kw.ssfk.bilateral            1",
-            "kw.ssfk.modulo               0"]
+    out += [
+        f"kopf.achs_nr                 {int(axis_number)}",
+        f"kopf.log_achs_name           {comp.axis.upper()}",
+        "kw.ssfk.unit                 1",
+        "kw.ssfk.interval             0",
+        f"kw.ssfk.kw_startpos          {setpoint[0]}",
+        f"kw.ssfk.kw_nr_max            {setpoint.size}",
+        "kw.ssfk.bilateral            1",
+        "kw.ssfk.modulo               0",
+    ]
     for field, values in (("setpoint", setpoint), ("pos", pos), ("neg", neg)):
         out += [f"kw.ssfk.table[{i}].{field:<10} {int(v)}" for i, v in enumerate(values)]
     return write_text("\n".join(out) + "\n", path)
@@ -200,18 +221,27 @@ def read_twincat(path, axis: str | None = None) -> tuple[AxisCompensation, int]:
         try:
             value = int(m.group(4)) if m.group(2) is not None else m.group(4)
         except ValueError:
-            raise DataError(f"{path}: line {k}: {m.group(1)}: expected an integer (0.1 um), got {m.group(4)!r}") from None
+            raise DataError(
+                f"{path}: line {k}: {m.group(1)}: expected an integer (0.1 um), got {m.group(4)!r}"
+            ) from None
         if m.group(2) is not None:
             table.setdefault(int(m.group(2)), {})[m.group(3)] = value
         else:
             keys[m.group(1)] = value
     if keys.get("kw.ssfk.unit") != "1" or keys.get("kw.ssfk.bilateral") != "1":
-        raise DataError(f"{path}: kw.ssfk.unit and kw.ssfk.bilateral: expected 1 (metric 0.1 um, double-sided)")
+        raise DataError(
+            f"{path}: kw.ssfk.unit and kw.ssfk.bilateral: expected 1 (metric 0.1 um, double-sided)"
+        )
     n = int(keys.get("kw.ssfk.kw_nr_max", -1))
     if sorted(table) != list(range(n)) or any(len(table[i]) != 3 for i in table):
-        raise DataError(f"{path}: kw.ssfk.table: expected setpoint, pos and neg for entries 0..{n - 1} "
-                        f"(kw.ssfk.kw_nr_max {n})")
-    a = np.array([[table[i]["setpoint"], table[i]["pos"], table[i]["neg"]] for i in range(n)], dtype=float) / 10.0
+        raise DataError(
+            f"{path}: kw.ssfk.table: expected setpoint, pos and neg for entries 0..{n - 1} "
+            f"(kw.ssfk.kw_nr_max {n})"
+        )
+    a = (
+        np.array([[table[i]["setpoint"], table[i]["pos"], table[i]["neg"]] for i in range(n)], dtype=float)
+        / 10.0
+    )
     name = axis or str(keys.get("kopf.log_achs_name", "?")).lower()
     try:
         return AxisCompensation(name, a[:, 0], -a[:, 1], -a[:, 2]), int(keys.get("kopf.achs_nr", 0))

@@ -45,7 +45,11 @@ def write_tables(ds: xr.Dataset, folder, prefix: str) -> dict:
                 values, unit = ds[d].values, ds[d].attrs.get("units", "1")
             else:
                 values, unit = np.arange(shape[k]), "index"
-            columns.append(np.broadcast_to(values.reshape([-1 if j == k else 1 for j in range(len(dims))]), shape).ravel())
+            columns.append(
+                np.broadcast_to(
+                    values.reshape([-1 if j == k else 1 for j in range(len(dims))]), shape
+                ).ravel()
+            )
             headers.append(f"{d} [{unit}]")
         for name in names:
             columns.append(ds[name].transpose(*dims).values.ravel())
@@ -59,8 +63,13 @@ def write_tables(ds: xr.Dataset, folder, prefix: str) -> dict:
         files[file] = {"dims": list(dims), "shape": list(shape), "variables": names}
     return {
         "files": files,
-        "coords": {d: {"dtype": "int" if np.issubdtype(ds[d].dtype, np.integer) else "float",
-                       "attrs": jsonable(dict(ds[d].attrs))} for d in ds.coords},
+        "coords": {
+            d: {
+                "dtype": "int" if np.issubdtype(ds[d].dtype, np.integer) else "float",
+                "attrs": jsonable(dict(ds[d].attrs)),
+            }
+            for d in ds.coords
+        },
         "variables": {n: jsonable(dict(ds[n].attrs)) for n in ds.data_vars},
         "scalars": {n: jsonable(float(ds[n].values)) for n in ds.data_vars if ds[n].ndim == 0},
         "attrs": jsonable(dict(ds.attrs)),
@@ -98,8 +107,10 @@ def rebuild(folder, description: dict) -> xr.Dataset:
         dims, shape = tuple(spec["dims"]), tuple(spec["shape"])
         expected = [*dims, *spec["variables"]]
         if names != expected or values.shape[0] != int(np.prod(shape)):
-            raise DataError(f"{folder / file}: expected columns {expected} and {int(np.prod(shape))} rows, "
-                            f"got {names} and {values.shape[0]}")
+            raise DataError(
+                f"{folder / file}: expected columns {expected} and {int(np.prod(shape))} rows, "
+                f"got {names} and {values.shape[0]}"
+            )
         for k, d in enumerate(dims):
             if units[k] == "index" or d in coords:
                 continue
@@ -109,9 +120,11 @@ def rebuild(folder, description: dict) -> xr.Dataset:
             line = line.astype(np.int64 if c.get("dtype") == "int" else float)
             coords[d] = xr.Variable((d,), line, attrs=c.get("attrs", {}))
         for j, name in enumerate(spec["variables"]):
-            data[name] = xr.Variable(dims, values[:, len(dims) + j].reshape(shape),
-                                     attrs=description["variables"].get(name, {}))
+            data[name] = xr.Variable(
+                dims, values[:, len(dims) + j].reshape(shape), attrs=description["variables"].get(name, {})
+            )
     for name, value in description["scalars"].items():
-        data[name] = xr.Variable((), float("nan") if value is None else float(value),
-                                 attrs=description["variables"].get(name, {}))
+        data[name] = xr.Variable(
+            (), float("nan") if value is None else float(value), attrs=description["variables"].get(name, {})
+        )
     return xr.Dataset(data, coords=coords, attrs=description["attrs"])

@@ -1,0 +1,1 @@
+"""What the nano rig is commanded: sequences, the campaign's plans, designed training."""

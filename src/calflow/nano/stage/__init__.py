@@ -1,0 +1,1 @@
+"""The simulated piezo stages: physics, thermal network, interferometer, records, emulation, budget."""

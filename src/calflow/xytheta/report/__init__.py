@@ -1,0 +1,1 @@
+"""The XYΘ campaign summary, its figures and its report template."""

@@ -1,0 +1,188 @@
+"""A GCS emulator serving the simulated stages of a campaign (docs/gcs.md, "Emulating a campaign").
+
+``calflow emulate gcs --campaign config/campaigns/X.yaml --port 50000 [--time-scale 100]``
+starts :class:`calflow.gcs.emulator.GCSEmulator` on 127.0.0.1 with one axis per joint of
+the campaign's XYΘ robot and prints the ``rig:`` section that drives it with the ``gcs``
+rig. The model is deliberately simple:
+
+* axes ``1``, ``2`` (X, Y) are M-111-like lead-screw stages in **mm** in the campaign's
+  joint coordinates (Table 4.1's 15 mm travel from 0, soft limits -0.5 to 15 mm: the plans'
+  approach and compensated moves reach -0.15 mm; reference switch at mid-travel; 1.5 mm/s,
+  need FRF); axis ``3`` (Θ) is a rotation stage in **degree** (±30°, 10°/s, absolute);
+* ``POS?`` answers what the controller's encoder measures: the trajectory position,
+  quantised to the encoder's resolution (``ENCODER_UM``, the 50 nm of Table 4.1 for X and
+  Y). Like a real controller's, it cannot see the errors only an external sensor sees —
+  lead screw, backlash, coupling, scale, straightness, the Θ stage's angle errors;
+* the vision sensor is not served over GCS: the rig's built-in ``simulated_vision`` sensor
+  (:mod:`calflow.xytheta.stage.vision_sensor`) is the physical world: read at those encoder
+  positions, it puts the carriages where the simulated physics
+  (:class:`calflow.xytheta.stage.physics.XYThetaTruth`) puts them — lead screw and lost
+  motion of the approach, coupling, scale, straightness, Θ errors, runout, yaw — and adds
+  stage repeatability, noise, decoding errors and drift.
+
+So a run through the emulator sees the same physics as the simulated rig, with the
+stages' timing, limits and faults of a controller (the emulator's ``faults``).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from calflow.errors import CalflowError
+from calflow.gcs.axis import AxisConfig
+from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
+from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
+from calflow.xytheta.stage.rig import XYThetaTruth
+from calflow.xytheta.stage.vision_sensor import truth_from_options
+
+JOINT_AXES = {"x": "1", "y": "2", "theta": "3"}
+SCALE = {"x": 1000.0, "y": 1000.0, "theta": 1.0}  # µm or degree per controller unit
+AXIS_CONFIGS = {
+    "1": AxisConfig(tmn=-0.5, tmx=15.0, ref_position=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "2": AxisConfig(tmn=-0.5, tmx=15.0, ref_position=7.5, velocity=1.5, max_velocity=2.0, accel=10.0),
+    "3": AxisConfig(
+        tmn=-30.0, tmx=30.0, velocity=10.0, max_velocity=20.0, accel=100.0, needs_reference=False
+    ),
+}
+
+
+ENCODER_UM = {"x": 0.05, "y": 0.05, "theta": 0.0}  # Table 4.1: 50 nm resolution; Θ: < 1.1 µ° (Table 4.2)
+
+
+class StagePhysics:
+    """``true_position`` hook of the emulator: what each axis's encoder reads (module doc)."""
+
+    def __init__(self, truth: XYThetaTruth) -> None:
+        self.truth = truth
+        self.controller: EmulatedController | None = None  # set by :func:`campaign_emulator`
+
+    def __call__(self, axis: str, commanded: float) -> float:
+        joint = next(j for j, a in JOINT_AXES.items() if a == axis)
+        q = commanded * SCALE[joint]
+        res = ENCODER_UM[joint]
+        if res > 0:
+            q = round(q / res) * res
+        return float(q) / SCALE[joint]
+
+
+_load = load_campaign_arg
+
+
+def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
+    """:class:`XYThetaTruth` overrides of a campaign: the simulated rig's options, or the
+    ``simulated_vision`` sensor options of a ``gcs`` rig (seed and stream removed)."""
+    if campaign.get("robot", "xytheta") != "xytheta":
+        raise CalflowError(
+            f"emulate gcs: robot {campaign.get('robot')!r}: only xytheta campaigns "
+            "have simulated stages to serve"
+        )
+    rig = campaign.get("rig") or {}
+    options = dict(rig.get("options") or {})
+    if rig.get("factory", "simulated") != "simulated":
+        sensor = options.get("sensor") or {}
+        options = dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_vision" else {}
+    return {k: v for k, v in options.items() if k not in ("seed", "stream")}
+
+
+def campaign_emulator(
+    campaign: Mapping[str, Any] | str | Path,
+    *,
+    port: int = 0,
+    time_scale: float = 1.0,
+    faults: Faults | None = None,
+) -> GCSEmulator:
+    """An (unstarted) emulator with axes 1, 2, 3 backed by the campaign's XYΘ physics."""
+    c = _load(campaign)
+    try:
+        physics = StagePhysics(truth_from_options(physics_options(c)))
+    except (TypeError, ValueError) as exc:
+        raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
+    emu = GCSEmulator(
+        axes=dict(AXIS_CONFIGS), port=port, faults=faults, time_scale=time_scale, true_position=physics
+    )
+    physics.controller = emu.controller
+    return emu
+
+
+def rig_options(
+    address: tuple[str, int],
+    campaign: Mapping[str, Any],
+    *,
+    time_scale: float = 1.0,
+    timeout: float = 5.0,
+    tries: int = 5,
+    backoff_s: float = 0.2,
+) -> dict[str, Any]:
+    """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
+    return {
+        "axes": dict(JOINT_AXES),
+        "host": address[0],
+        "port": int(address[1]),
+        "timeout": timeout,
+        "scale": dict(SCALE),
+        "time_scale": time_scale,
+        "reference": True,
+        "reconnect": {"tries": tries, "backoff_s": backoff_s},
+        "sensor": {
+            "factory": "simulated_vision",
+            "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
+        },
+    }
+
+
+def emulated_rig_options(
+    campaign: Mapping[str, Any] | str | Path,
+    *,
+    port: int = 0,
+    time_scale: float = 100.0,
+    timeout: float = 1.0,
+    tries: int = 5,
+    backoff_s: float = 0.05,
+    faults: Faults | None = None,
+) -> tuple[GCSEmulator, dict[str, Any]]:
+    """Start a campaign emulator; return it and the ``gcs`` rig options that drive it.
+
+    For tests: the caller stops it (``emu.stop()``). The rig's ``time_scale`` equals the
+    emulator's, so dwell and reported times are in simulation seconds.
+    """
+    c = _load(campaign)
+    emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
+    return emu, rig_options(
+        emu.address, c, time_scale=time_scale, timeout=timeout, tries=tries, backoff_s=backoff_s
+    )
+
+
+def emulate_main(
+    argv: list[str] | None = None,
+    stop_event: threading.Event | None = None,
+    prog: str = "calflow emulate gcs",
+) -> int:
+    """``calflow emulate gcs`` of an XYΘ campaign: serve its simulated stages until Ctrl-C or --duration."""
+
+    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
+        host, port = emu.address
+        return (
+            f"GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
+            f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {time_scale:g})"
+        )
+
+    return serve_campaign(
+        argv,
+        prog=prog,
+        stop_event=stop_event,
+        description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
+        "127.0.0.1 (docs/gcs.md).",
+        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
+        banner=banner,
+        rig_section=lambda emu, c, ts: {
+            "factory": "gcs",
+            "options": rig_options(emu.address, c, time_scale=ts),
+        },
+    )
+
+
+if __name__ == "__main__":
+    raise SystemExit(emulate_main())

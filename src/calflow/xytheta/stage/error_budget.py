@@ -1,0 +1,211 @@
+"""Error budget after calibration at the held-out targets, per effect of the simulated rig.
+
+What is left of each effect once a model has calibrated the rig. Test and report use
+only, like the oracle (:mod:`calflow.xytheta.stage.oracle`): it reads the simulated rig's
+effects. Analysis code never imports it.
+
+For every effect ``e`` the rig has on, the campaign's calibration is replayed in-process —
+characterisation and XY tables, identification of every model, angle characterisation,
+held-out validation — on the same rig with ``e`` switched off, with the same seeds and
+noise streams, through the same command functions the workflow's jobs run. One more
+replay, the *baseline*, has every effect off: what is left is noise (stage repeatability,
+sensor noise and resolution, through identification, tables and validation) and the
+model's own structural error on a rig it should describe (Model I's fixed α, β).
+
+How the contributions combine. Per model, the score is the mean square of the per-target
+systematic errors at the held-out targets, MS = mean_k AP_k² (µm², AP_k the ISO 9283
+distance from target k to the barycentre of its visits). With every effect on,
+
+    MS_full = MS_baseline + Σ_e ΔMS_e + MS_interaction,   ΔMS_e = MS_full − MS_{−e},
+
+ΔMS_e what switching ``e`` off removes, MS_baseline the baseline replay's MS, and the
+interaction the remainder (effects that add or cancel in the same direction are not
+additive). The budget is given in µm as sign(ΔMS)·√|ΔMS|; the RMS of AP_k is √MS_full.
+An effect a model compensates has a small ΔMS_e; one it cannot has ΔMS_e near the
+effect's own mean square at the targets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from calflow.config import safe_yaml
+from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+
+EXTRA = {"lost_motion": {"lost_motion": False}, "gross_errors": {"gross_error_rate": 0.0}}  # beyond EFFECTS
+REPLAYS = ("baseline", *EFFECTS, *EXTRA)  # "baseline": every effect off; any other: that effect off
+
+
+def active_effects(truth: XYThetaTruth) -> list[str]:
+    """The effects (names of :data:`EFFECTS` and ``lost_motion``, ``gross_errors``) that
+    ``truth`` has switched on."""
+    names = [e for e, fs in EFFECTS.items() if any(np.any(np.asarray(getattr(truth, f)) != 0) for f in fs)]
+    if truth.lost_motion:
+        names.append("lost_motion")
+    if truth.gross_error_rate > 0:
+        names.append("gross_errors")
+    return names
+
+
+def replay_options(replay: str) -> dict:
+    """Rig options of a replay: every effect off (``baseline``), one effect off, or none (``none``)."""
+    if replay == "none":
+        return {}
+    if replay == "baseline":
+        return options_off()
+    return dict(EXTRA[replay]) if replay in EXTRA else options_off(replay)
+
+
+def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> dict[str, list[float]]:
+    """Per-target AP (µm) at the held-out targets of every model, after replaying the
+    campaign's XYΘ calibration in ``work`` on its simulated rig with ``rig_options``
+    overriding the campaign's. Same seeds and noise streams as the campaign's own runs."""
+    from calflow.commands.acquire import acquire_job
+    from calflow.commands.common import campaign as load
+    from calflow.data.io import open_dataset, write_dataset
+    from calflow.xytheta import steps as commands
+
+    raw = safe_yaml(Path(campaign_path).read_text())
+    raw.setdefault("rig", {})
+    raw["rig"]["options"] = {**(raw["rig"].get("options") or {}), **rig_options}
+    work.mkdir(parents=True, exist_ok=True)
+    path = work / Path(campaign_path).name  # the same stem: the same campaign name, seeds and streams
+    path.write_text(yaml.safe_dump(raw))
+    c_path, f = str(path), lambda name: str(work / name)
+    c = load(c_path)
+
+    def run(plan: str, out: str, model: str | None = None) -> None:  # `calflow acquire`, without a journal
+        args = argparse.Namespace(model=[f(model)] if model else None, luts=None, compensation="none")
+        write_dataset(acquire_job(c, plan, args)[0], f(out))
+
+    def identify(name: str, **files) -> None:
+        ns = dict(
+            campaign=c_path,
+            model_name=name,
+            run=f("identification.nc"),
+            luts=None,
+            base=None,
+            residuals=None,
+            out=f(f"{name}.nc"),
+        )
+        commands.identify(argparse.Namespace(**{**ns, **{k: f(v) for k, v in files.items()}}))
+
+    models = c["models"]
+    if any(s.get("position_table") for s in models.values()):
+        run("characterisation_x", "cx.nc")
+        run("characterisation_y", "cy.nc")
+        commands.characterise(
+            argparse.Namespace(campaign=c_path, x=f("cx.nc"), y=f("cy.nc"), out=f("luts.nc"))
+        )
+    run("identification", "identification.nc")
+    for name, spec in models.items():
+        if "base" not in spec:
+            identify(name, **({"luts": "luts.nc"} if spec.get("position_table") else {}))
+    for base in sorted({s["base"] for s in models.values() if "base" in s}):
+        run("angle_residuals", f"angle_{base}.nc", f"{base}.nc")
+    for name, spec in models.items():
+        if "base" in spec:
+            identify(name, base=f"{spec['base']}.nc", residuals=f"angle_{spec['base']}.nc")
+    out = {}
+    for name in models:
+        run("validation_heldout", f"heldout_{name}.nc", f"{name}.nc")
+        commands.metrics(
+            argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
+        )
+        out[name] = [float(v) for v in open_dataset(f(f"m_{name}.nc"))["ap"].values]
+    return out
+
+
+def replay(campaign_path: str | Path, name: str) -> dict:
+    """One replay of the budget (:data:`REPLAYS`, or ``none``): its per-target held-out AP
+    by model, or ``active: false`` when the campaign's rig has that effect off already."""
+    from calflow.commands.common import campaign as load
+
+    truth = truth_from_options(dict(load(campaign_path)["rig"].get("options") or {}))
+    if name not in ("baseline", "none") and name not in active_effects(truth):
+        return {"replay": name, "active": False}
+    with tempfile.TemporaryDirectory(prefix="calflow-budget-") as tmp:
+        ap = replay_heldout(campaign_path, replay_options(name), Path(tmp))
+    return {"replay": name, "active": True, "options": replay_options(name), "ap_um": ap}
+
+
+def replays(campaign_path: str | Path, names=REPLAYS, workers: int = 1) -> list[dict]:
+    """:func:`replay` of each of ``names``, over ``workers`` processes."""
+    if workers <= 1:
+        return [replay(campaign_path, n) for n in names]
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(workers) as pool:
+        return list(pool.map(replay, [str(campaign_path)] * len(names), names))
+
+
+def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
+    """The budget of every model from the campaign's own held-out per-target AP (µm) and the
+    replays' (module docstring): per model ``rms_ap_um`` and ``error_budget_um`` (effect →
+    signed µm, with ``baseline`` and ``interaction``); Σ sign·v² over it = rms_ap_um²."""
+    by = {r["replay"]: r for r in records if r.get("active")}
+    effects = [n for n in by if n not in ("baseline", "none")]
+    models = {}
+    for name, ap in heldout_ap.items():
+        ms = float(np.mean(np.asarray(ap, dtype=float) ** 2))
+        delta = {e: ms - float(np.mean(np.asarray(by[e]["ap_um"][name]) ** 2)) for e in effects}
+        ms_base = float(np.mean(np.asarray(by["baseline"]["ap_um"][name]) ** 2))
+        budget = {
+            "baseline": float(np.sqrt(ms_base)),
+            **{e: _signed_root(d) for e, d in delta.items()},
+            "interaction": _signed_root(ms - ms_base - sum(delta.values())),
+        }
+        models[name] = {"rms_ap_um": float(np.sqrt(ms)), "error_budget_um": budget}
+    return {
+        "effects": effects,
+        "unmodelled": [e for e in effects if e in EXTRA or set(EFFECTS[e]) & set(UNMODELLED)],
+        "combination": "rms_ap_um^2 = sum over error_budget_um of sign(v)*v^2, where rms_ap_um^2 is the mean "
+        "over held-out targets of AP_k^2; an effect's entry is sign*sqrt(rms_ap_um^2 - the same "
+        "mean after a calibration on the rig without it); baseline: every effect off; "
+        "interaction: the remainder",
+        "models": models,
+    }
+
+
+def groups(budget_um: dict[str, float], unmodelled: list[str]) -> dict[str, float]:
+    """A model's budget in four parts (signed µm, combining as the entries do): ``baseline``,
+    ``modelled`` (effects some calflow model represents), ``unmodelled``, ``interaction``."""
+
+    def part(names):
+        return _signed_root(sum(np.sign(budget_um[n]) * budget_um[n] ** 2 for n in names))
+
+    effects = [n for n in budget_um if n not in ("baseline", "interaction")]
+    return {
+        "baseline": budget_um["baseline"],
+        "modelled": part([n for n in effects if n not in unmodelled]),
+        "unmodelled": part([n for n in effects if n in unmodelled]),
+        "interaction": budget_um["interaction"],
+    }
+
+
+def _signed_root(value: float) -> float:
+    return float(np.sign(value) * np.sqrt(abs(value)))
+
+
+def error_budget_command(args) -> None:
+    """``calflow error-budget``: the budget's replays of a campaign on its simulated rig,
+    written as JSON for the summary step (tests and reports only)."""
+    from calflow.commands.common import campaign as load
+    from calflow.data.io import output_folder, write_json
+    from calflow.errors import CalflowError
+
+    c = load(args.campaign)
+    if c["robot"] != "xytheta" or c["rig"]["factory"] != "simulated":
+        raise CalflowError(
+            f"{args.campaign}: key 'rig.factory': the error budget needs the simulated rig "
+            f"(it replays the calibration on the rig's truth), got {c['rig']['factory']!r}"
+        )
+    output_folder(args.out)
+    write_json(
+        {"campaign": c["name"], "replays": replays(args.campaign, REPLAYS, max(1, int(args.jobs)))}, args.out
+    )
