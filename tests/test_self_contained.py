@@ -11,7 +11,22 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SCOPE = ("src", "workflow", "docs", "config", "README.md", "Snakefile", "Makefile", "pyproject.toml")
-TEXT = {".py", ".smk", ".md", ".rst", ".j2", ".html", ".yaml", ".yml", ".json", ".toml", ".cfg", ".txt", ".css", ""}
+TEXT = {
+    ".py",
+    ".smk",
+    ".md",
+    ".rst",
+    ".j2",
+    ".html",
+    ".yaml",
+    ".yml",
+    ".json",
+    ".toml",
+    ".cfg",
+    ".txt",
+    ".css",
+    "",
+}
 
 # A GCS controller's single-character commands are written "#5", "#7" and "#24" (PI MS249E §8);
 # they are the only "#<number>" that may appear. Hex colours ("#1f5fa8") and HTML character
@@ -38,15 +53,27 @@ def _files() -> list[Path]:
 def offences(text: str) -> list[str]:
     """What in ``text`` points outside the repository, one entry per finding."""
     found = [f"{what}: {m.group(0)!r}" for what, rx in PATTERNS.items() for m in rx.finditer(text)]
-    found += [f"an issue number: {m.group(0)!r}" for m in HASH_NUMBER.finditer(text)
-              if m.group(1) not in GCS_SINGLE_CHARACTER]
+    found += [
+        f"an issue number: {m.group(0)!r}"
+        for m in HASH_NUMBER.finditer(text)
+        if m.group(1) not in GCS_SINGLE_CHARACTER
+    ]
     return found
 
 
 @pytest.mark.parametrize(
     "text",
-    ["see DESIGN.md", "(issue 15)", "Issue 14: the budget", "after issues 14-16", "fixes #17",
-     "(#15)", "issue #3", "PR 12 moved it", "the issue's targets"],
+    [
+        "see DESIGN.md",
+        "(issue 15)",
+        "Issue 14: the budget",
+        "after issues 14-16",
+        "fixes #17",
+        "(#15)",
+        "issue #3",
+        "PR 12 moved it",
+        "the issue's targets",
+    ],
 )
 def test_offences_are_found(text):
     assert offences(text), text
@@ -54,8 +81,17 @@ def test_offences_are_found(text):
 
 @pytest.mark.parametrize(
     "text",
-    ["sends #24 (stop all)", "#5 (hex mask), #7", "color: #1f5fa8;", "&#8212;", "a tissue 3 mm",
-     "Eq. (4.19)", "Table 4.7", "results/<campaign>/summary.json", "an issue with the rig"],
+    [
+        "sends #24 (stop all)",
+        "#5 (hex mask), #7",
+        "color: #1f5fa8;",
+        "&#8212;",
+        "a tissue 3 mm",
+        "Eq. (4.19)",
+        "Table 4.7",
+        "results/<campaign>/summary.json",
+        "an issue with the rig",
+    ],
 )
 def test_legitimate_text_passes(text):
     assert offences(text) == [], text
