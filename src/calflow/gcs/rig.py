@@ -30,6 +30,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+from filelock import FileLock
+from tenacity import RetryError, Retrying, retry_if_exception_type, stop_after_attempt
 
 from calflow.errors import RigError
 from calflow.gcs import (
@@ -93,35 +95,30 @@ def _connection(spec: Mapping[str, Any], timeout: float) -> tuple[tuple, str, Ca
     )
 
 
-def _lock_controllers(names: list[str]) -> list:
+def _lock_controllers(names: list[str]) -> list[FileLock]:
     """Hold an exclusive lock per controller while a rig drives it.
 
     A stage moves one plan at a time: two acquisitions on the same controllers (e.g.
     two validation jobs that Snakemake runs in parallel) must take turns, whatever the
-    executor. The locks are files in the temporary directory, taken in sorted order (no
-    deadlock), blocking until free, released on ``close`` or when the process dies.
+    executor. The locks are files in the temporary directory (filelock: ``flock`` on POSIX,
+    ``msvcrt`` locking on the Windows PCs that drive many lab controllers), taken in sorted
+    order (no deadlock), blocking until free, released on ``close`` or when the process dies.
     """
-    import fcntl
     import hashlib
     import tempfile
 
     held = []
     for name in names:
-        path = (
-            Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
-        )
-        f = open(path, "a+")
-        fcntl.flock(f, fcntl.LOCK_EX)
-        held.append(f)
+        digest = hashlib.sha1(name.encode()).hexdigest()[:16]
+        lock = FileLock(Path(tempfile.gettempdir()) / f"calflow-gcs-{digest}.lock", thread_local=False)
+        lock.acquire()
+        held.append(lock)
     return held
 
 
-def _unlock(locks: list) -> None:
-    import fcntl
-
-    for f in locks:
-        fcntl.flock(f, fcntl.LOCK_UN)
-        f.close()
+def _unlock(locks: list[FileLock]) -> None:
+    for lock in locks:
+        lock.release()
 
 
 class GCSRig(RecordedMoves):
@@ -273,30 +270,57 @@ class GCSRig(RecordedMoves):
 
     # ------------------------------------------------------------------ resilience
     def _run(self, link: Link, what: str, op: Callable[[bool], T]) -> T:
-        """Run ``op(retry)`` on ``link``; recover link failures, fail on controller errors."""
-        failures = 0
-        while True:
-            try:
-                return op(failures > 0)
-            except GCSMotionTimeout as exc:
-                self._fail(link, what, exc)
-            except LINK_ERRORS as exc:
-                failures += 1
-                if failures > self.tries:
-                    raise RigError(
-                        f"gcs rig: {link.name}: {what} failed {failures} times in a "
-                        f"row, giving up (last: {exc})" + RESUME
-                    ) from exc
-                self._recover(link, what, failures, exc)
-            except GCSError as exc:  # GCSControllerError and other controller-side failures
-                self._fail(link, what, exc)
+        """Run ``op(retry)`` on ``link``; recover link failures, fail on controller errors.
 
-    def _recover(self, link: Link, what: str, failures: int, exc: Exception) -> None:
-        log.warning(
-            "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)", link.name, what, exc, failures, self.tries
+        A link failure (``LINK_ERRORS``) is retried up to ``tries`` times (tenacity): after
+        the k-th, wait ``backoff_s * 2**(k-1)`` (none after the first, capped at
+        ``max_backoff_s``), reconnect, and run ``op(True)`` again."""
+        last: list[Exception] = []
+
+        def announce(state) -> None:
+            log.warning(
+                "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)",
+                link.name,
+                what,
+                state.outcome.exception(),
+                state.attempt_number,
+                self.tries,
+            )
+
+        retrying = Retrying(
+            stop=stop_after_attempt(self.tries + 1),
+            wait=self._wait_before_recovery,
+            retry=retry_if_exception_type(LINK_ERRORS),
+            before_sleep=announce,
         )
-        if failures > 1:
-            time.sleep(min(self.backoff_s * 2 ** (failures - 1), self.max_backoff_s))
+        try:
+            for attempt in retrying:
+                with attempt:
+                    if last:
+                        self._recover(link, what, last[-1])
+                    try:
+                        return op(bool(last))
+                    except GCSMotionTimeout as exc:
+                        self._fail(link, what, exc)
+                    except LINK_ERRORS as exc:
+                        last.append(exc)
+                        raise
+                    except GCSError as exc:  # GCSControllerError and other controller-side failures
+                        self._fail(link, what, exc)
+        except RetryError as err:
+            exc = err.last_attempt.exception()
+            raise RigError(
+                f"gcs rig: {link.name}: {what} failed {err.last_attempt.attempt_number} times in a "
+                f"row, giving up (last: {exc})" + RESUME
+            ) from exc
+        raise AssertionError("unreachable: every attempt returns or raises")
+
+    def _wait_before_recovery(self, state) -> float:
+        """Seconds before the reconnect that follows the ``state.attempt_number``-th failure."""
+        k = state.attempt_number
+        return 0.0 if k == 1 else min(self.backoff_s * 2 ** (k - 1), self.max_backoff_s)
+
+    def _recover(self, link: Link, what: str, exc: Exception) -> None:
         try:
             link.ctl.reconnect(
                 max_tries=max(1, self.tries), backoff=self.backoff_s, max_backoff=self.max_backoff_s
