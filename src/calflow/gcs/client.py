@@ -95,8 +95,7 @@ class GCSController:
     def reconnect(self, max_tries: int = 5, backoff: float = 0.2, max_backoff: float = 10.0) -> int:
         """Reopen the link with exponential backoff; returns the number of tries used.
 
-        Waits ``backoff * 2**k`` (capped at ``max_backoff``) between tries (tenacity's
-        exponential wait) and checks each
+        Waits ``backoff * 2**k`` (capped at ``max_backoff``; tenacity) between tries and checks each
         new link with ``*IDN?``. Controller state (servo, referencing) survives a dropped
         link on real controllers, so a higher layer can resume where it stopped.
         """
@@ -114,9 +113,8 @@ class GCSController:
             last = err.last_attempt.exception()
             self._in_sync = False
             raise GCSConnectionLost(f"could not reconnect after {max_tries} tries: {last}") from last
-        tries = retrying.statistics["attempt_number"]
-        log.info("GCS link re-established after %d tries", tries)
-        return tries
+        log.info("GCS link re-established after %d tries", retrying.statistics["attempt_number"])
+        return retrying.statistics["attempt_number"]
 
     def _reopen(self) -> None:
         """One try of :meth:`reconnect`: a new link, checked with ``*IDN?``."""

@@ -53,6 +53,7 @@ from calflow.gcs.sensors import load_sensor
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")
 LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
+RECONNECTING = "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)"
 RESUME = (
     "; the samples already taken are kept in the acquisition journal (<out>.journal): "
     "fix the cause and run the same command again to continue after the last one"
@@ -276,22 +277,13 @@ class GCSRig(RecordedMoves):
         the k-th, wait ``backoff_s * 2**(k-1)`` (none after the first, capped at
         ``max_backoff_s``), reconnect, and run ``op(True)`` again."""
         last: list[Exception] = []
-
-        def announce(state) -> None:
-            log.warning(
-                "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)",
-                link.name,
-                what,
-                state.outcome.exception(),
-                state.attempt_number,
-                self.tries,
-            )
-
         retrying = Retrying(
             stop=stop_after_attempt(self.tries + 1),
             wait=self._wait_before_recovery,
             retry=retry_if_exception_type(LINK_ERRORS),
-            before_sleep=announce,
+            before_sleep=lambda s: log.warning(
+                RECONNECTING, link.name, what, s.outcome.exception(), s.attempt_number, self.tries
+            ),
         )
         try:
             for attempt in retrying:
@@ -313,7 +305,6 @@ class GCSRig(RecordedMoves):
                 f"gcs rig: {link.name}: {what} failed {err.last_attempt.attempt_number} times in a "
                 f"row, giving up (last: {exc})" + RESUME
             ) from exc
-        raise AssertionError("unreachable: every attempt returns or raises")
 
     def _wait_before_recovery(self, state) -> float:
         """Seconds before the reconnect that follows the ``state.attempt_number``-th failure."""
