@@ -25,7 +25,7 @@ from calflow.xytheta.plans import sweeps
 from calflow.xytheta.stage.physics import options_off
 from calflow.xytheta.stage.rig import simulated_xytheta
 from calflow.xytheta.tables.characterisation import characterise
-from calflow.xytheta.tables.lookup import PositionLUT
+from calflow.xytheta.tables.position import PositionLUT
 
 PARAMETERS = (("x_R", "x_R_um"), ("y_R", "y_R_um"), ("alpha", "alpha_deg"), ("beta", "beta_deg"))
 

@@ -127,3 +127,43 @@ def test_acquire_does_not_branch_on_plans():
         if isinstance(node, ast.Compare):
             names = {n.attr for n in ast.walk(node) if isinstance(n, ast.Attribute)}
             assert "plan" not in names, f"calflow acquire compares args.plan (line {node.lineno})"
+
+
+# ------------------------------------------------------------------ rooms inside a family
+MAX_SIBLINGS = 13  # "~12": a folder that holds more has grown a concept of its own
+# Rooms that analyse what a rig recorded; they never import the simulated stage (its truth
+# is for tests and reports only).
+ANALYSIS_ROOMS = ("models", "tables", "export")
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[2] if len(parts) > 3 else None
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_rooms_stay_small(family):
+    for folder in [PACKAGE / family, *(p for p in (PACKAGE / family).rglob("*") if p.is_dir())]:
+        if folder.name in ("__pycache__", "templates"):
+            continue
+        entries = [
+            p
+            for p in folder.iterdir()
+            if p.name != "__pycache__"
+            and (p.suffix == ".py" or (p.is_dir() and (p / "__init__.py").is_file()))
+        ]
+        assert len(entries) <= MAX_SIBLINGS, f"{folder.relative_to(PACKAGE)} holds {len(entries)} modules"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _family(m) and _room(m) in ANALYSIS_ROOMS))
+def test_analysis_never_imports_the_simulated_stage(module):
+    stage = f"calflow.{_family(module)}.stage"
+    for dep in GRAPH[module]:
+        assert not dep.startswith(stage), f"{module} (analysis) imports the simulated stage {dep}"
+
+
+def test_rooms_are_packages_with_a_docstring():
+    for family in FAMILIES:
+        for init in (PACKAGE / family).rglob("__init__.py"):
+            doc = ast.get_docstring(ast.parse(init.read_text()))
+            assert doc, f"{init.relative_to(PACKAGE)} says nothing of what its room holds"

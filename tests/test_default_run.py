@@ -219,7 +219,7 @@ def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis)
     from calflow.xytheta.models.kinematics import inverse as nominal_inverse
     from calflow.xytheta.plans.poses import validation
     from calflow.xytheta.stage.rig import simulated_xytheta
-    from calflow.xytheta.tables.lookup import infer_directions
+    from calflow.xytheta.tables.position import infer_directions
 
     c = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
     rig = simulated_xytheta(seed=c["seed"], stream="validation_oracle", **c["rig"]["options"])

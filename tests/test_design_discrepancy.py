@@ -14,7 +14,7 @@ from calflow.config import load_campaign
 from calflow.identification import discrepancy as dc
 from calflow.xytheta.design import discrepancy as dd
 from calflow.xytheta.design import plan as dp
-from calflow.xytheta.tables.lookup import PositionLUT
+from calflow.xytheta.tables.position import PositionLUT
 
 ROOT = Path(__file__).resolve().parents[1]
 

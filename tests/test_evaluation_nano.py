@@ -17,10 +17,10 @@ from calflow.nano.evaluation import (
     iso230_2_of_run,
     pose_metrics_1d,
     pose_metrics_2d,
-    robustness_by_mode,
     temperature_range,
 )
 from calflow.nano.report.summary import stage1d_summary, stage2d_summary
+from calflow.nano.robustness import robustness_by_mode
 
 MODES_1D = "no_calibration adaptive_kmz single"
 FWD = np.arange(0.0, 481.0, 80.0)

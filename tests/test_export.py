@@ -21,8 +21,9 @@ from calflow.xytheta.export.writer import export_model
 from calflow.xytheta.models.kinematics import Parameters
 from calflow.xytheta.models.ladder import MicroModel
 from calflow.xytheta.tables.angle import AngleTable
-from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+from calflow.xytheta.tables.angle_residuals import AngleLUT
 from calflow.xytheta.tables.pose import PoseAngleLUT
+from calflow.xytheta.tables.position import PositionLUT
 
 PROV = {"campaign": "test", "config_sha256": "0" * 64, "export_calflow_version": "test"}
 small = st.floats(-20.0, 20.0, allow_nan=False)

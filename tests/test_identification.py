@@ -355,7 +355,7 @@ def test_readings_are_the_reading_residuals_as_a_linear_map(n, seed, weighted):
 def test_cross_validation_refits_each_fold_as_identify_does():
     """The bare fold fits of cross_validate (shared trigonometry, row subsets) are the
     identification of each fold's training poses."""
-    from calflow.xytheta.models.identification import cross_validate
+    from calflow.xytheta.models.resampling import cross_validate
 
     X, Y, theta = _poses(200, 11)
     P_mx, P_my = _measure(X, Y, theta, TRUE, noise=0.5, seed=12)

@@ -17,15 +17,9 @@ from calflow.xytheta.models.kinematics import Parameters, forward, inverse
 from calflow.xytheta.plans import sweeps
 from calflow.xytheta.plans.poses import validation
 from calflow.xytheta.stage.rig import simulated_xytheta
+from calflow.xytheta.tables.angle_residuals import AngleLUT, angle_residuals_from_run, joint_increments
 from calflow.xytheta.tables.characterisation import characterise, xy_positioning_metrics
-from calflow.xytheta.tables.lookup import (
-    AngleLUT,
-    PositionLUT,
-    angle_residuals_from_run,
-    infer_directions,
-    joint_increments,
-    sequential_commands,
-)
+from calflow.xytheta.tables.position import PositionLUT, infer_directions, sequential_commands
 
 
 def meta(plan):

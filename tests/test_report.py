@@ -194,7 +194,7 @@ def xytheta_pages(tmp_path_factory, strict):
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.models.kinematics import Parameters
     from calflow.xytheta.models.ladder import MicroModel
-    from calflow.xytheta.tables.lookup import AngleLUT
+    from calflow.xytheta.tables.angle_residuals import AngleLUT
     from calflow.xytheta.tables.pose import PoseAngleLUT
 
     root = tmp_path_factory.mktemp("xytheta")

@@ -10,7 +10,7 @@ from calflow.data.validate import validate_dataset
 from calflow.xytheta.models.kinematics import Parameters, inverse
 from calflow.xytheta.plans import sweeps
 from calflow.xytheta.stage.rig import simulated_xytheta
-from calflow.xytheta.tables.lookup import infer_directions
+from calflow.xytheta.tables.position import infer_directions
 
 
 def test_characterisation_rows_passes_and_approach_directions():

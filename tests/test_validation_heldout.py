@@ -10,8 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.xytheta.models import cost
-from calflow.xytheta.models.identification import cross_validate, identify
+from calflow.xytheta.models.identification import identify
 from calflow.xytheta.models.kinematics import Parameters, forward
+from calflow.xytheta.models.resampling import cross_validate
 from calflow.xytheta.plans.poses import heldout_targets, identification
 from calflow.xytheta.report.summary import adequacy, disjointness, repeatability_floor
 from calflow.xytheta.stage.physics import options_off

@@ -37,7 +37,7 @@ import xarray as xr
 
 from calflow.data.conventions import utc_now
 from calflow.errors import DataError
-from calflow.metrics import decompose_repeatability, iso9283, space_robustness, time_robustness
+from calflow.metrics import decompose_repeatability, iso9283
 from calflow.metrics.iso230_2_runs import iso230_2_of_run  # noqa: F401 (re-exported)
 
 NM_PER_UM = 1000.0
@@ -52,7 +52,6 @@ __all__ = [
     "pose_metrics",
     "pose_metrics_1d",
     "pose_metrics_2d",
-    "robustness_by_mode",
     "run_columns",
     "run_seconds",
     "temperature_range",
@@ -349,39 +348,6 @@ def pose_metrics_1d(run: xr.Dataset) -> xr.Dataset:
 def pose_metrics_2d(run: xr.Dataset) -> xr.Dataset:
     """AP and RP (nm) per (test, pose) of a 2-DoF stage run over (x, y), d = 2 (Eq. 3.5-3.8)."""
     return pose_metrics(run, ("x", "y"))
-
-
-def robustness_by_mode(metrics: xr.Dataset) -> dict:
-    """Space and time robustness per test mode (Eq. 5.8, 5.9), as Table 5.2.
-
-    AP_i = the per-pose AP of test i in µm (as Table 5.2).  Per mode, the tests of that
-    mode with at least one finite AP (NaN poses dropped).  R_S = mean over tests of
-    [max AP_i − min AP_i] in µm; R_T = mean over tests of max AP_i divided by Time, with
-    Time = duration spanned by the mode's tests in hours (first sample of its first test
-    to last sample of its last test; the thesis does not give the unit), so µm/h.
-    Returns ``{mode_name: {"space", "time", "n_tests", "duration_h", "units"}}``; modes
-    without tests are left out; ``time`` is None when the duration is not positive.
-    """
-    names = mode_names(metrics)
-    out: dict = {}
-    ap_um = metrics["ap"].transpose("test", "pose").values / NM_PER_UM
-    mode = metrics["mode"].values
-    for k, name in enumerate(names):
-        rows = [i for i in np.flatnonzero(mode == k) if np.isfinite(ap_um[i]).any()]
-        if not rows:
-            continue
-        per_test = [ap_um[i][np.isfinite(ap_um[i])] for i in rows]
-        duration = float(
-            metrics["time_end_h"].values[rows].max() - metrics["time_start_h"].values[rows].min()
-        )
-        out[name] = {
-            "space": space_robustness(per_test),  # Eq. (5.8), µm
-            "time": time_robustness(per_test, duration) if duration > 0 else None,  # Eq. (5.9), µm/h
-            "n_tests": len(rows),
-            "duration_h": duration,
-            "units": {"space": "um", "time": "um/h", "ap": "um", "duration": "h"},
-        }
-    return out
 
 
 def temperature_range(run: xr.Dataset) -> tuple[float, float]:

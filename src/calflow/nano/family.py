@@ -37,6 +37,7 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
 _CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
 _MODELS = (
     "calflow.nano.models.geometric",
+    "calflow.nano.models.terms",
     "calflow.nano.models.registry",
     "calflow.nano.models.thermal",
     "calflow.nano.models.kmz",
@@ -104,6 +105,7 @@ FAMILY = Family(
             "calflow.uncertainty",
             "calflow.metrics",
             "calflow.nano.evaluation",
+            "calflow.nano.robustness",
             "calflow.nano.report.summary",
             "calflow.nano.steps",
             "calflow.nano.stage.error_budget",

@@ -39,7 +39,8 @@ def _without(a, rows):
 def _fit_quality(c: dict, X, Y, theta, P_mx, P_my, free, initial, ex, ey, f_ax=0.0, f_ay=0.0) -> dict:
     """Residual RMS and σ̂ of a model on the identification poses, and its k-fold CV RMS."""
     from calflow.xytheta.models import cost
-    from calflow.xytheta.models.identification import cross_validate, noise_sigma
+    from calflow.xytheta.models.identification import noise_sigma
+    from calflow.xytheta.models.resampling import cross_validate
 
     p = c["identification"]
     X, Y, theta, P_mx, P_my = (np.asarray(a, dtype=float) for a in (X, Y, theta, P_mx, P_my))
@@ -71,11 +72,11 @@ def identify(args) -> None:
     from calflow.identification import diagnostics
     from calflow.identification.robust import Robust
     from calflow.xytheta.models import kinematics as kin
-    from calflow.xytheta.models.identification import bootstrap_std
     from calflow.xytheta.models.identification import identify as fit
     from calflow.xytheta.models.kinematics import Parameters
     from calflow.xytheta.models.ladder import MicroModel, joint_directions
-    from calflow.xytheta.tables.lookup import PositionLUT, infer_directions
+    from calflow.xytheta.models.resampling import bootstrap_std
+    from calflow.xytheta.tables.position import PositionLUT, infer_directions
 
     c = load(args.campaign)
     spec = c["models"].get(args.model_name)
@@ -167,7 +168,7 @@ def _angle_model(c: dict, args, base):
     """Model IV/V: the base model plus the angle table from the angle characterisation run."""
     from calflow.xytheta.models.ladder import MicroModel
     from calflow.xytheta.tables.angle import AngleTable
-    from calflow.xytheta.tables.lookup import angle_residuals_from_run
+    from calflow.xytheta.tables.angle_residuals import angle_residuals_from_run
     from calflow.xytheta.tables.pose import PoseAngleLUT
 
     a = c["angle_residuals"]

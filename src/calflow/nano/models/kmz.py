@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow.nano.models.geometric import ModelInputError, Term, as_temperatures, as_vector, power_unit
+from calflow.nano.models.terms import ModelInputError, Term, as_temperatures, as_vector, power_unit
 from calflow.nano.models.thermal import SingleModel, _Thermal1D
 
 __all__ = ["KMZReading", "AdaptiveKMZModel"]

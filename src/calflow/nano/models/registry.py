@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import xarray as xr
 
-from calflow.nano.models.geometric import GeometricModel, ModelInputError, Term
+from calflow.nano.models.geometric import GeometricModel
 from calflow.nano.models.kmz import AdaptiveKMZModel, KMZReading
+from calflow.nano.models.terms import ModelInputError, Term
 from calflow.nano.models.thermal import SingleModel, ThermalDriftModel, TwoDoFModel
 
 __all__ = [

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow.nano.models.geometric import (
+from calflow.nano.models.geometric import Nano1DModel, _Model
+from calflow.nano.models.terms import (
     ModelInputError,
-    Nano1DModel,
     _check_order,
-    _Model,
     as_temperatures,
     as_vector,
     geometric_specs,

@@ -23,8 +23,9 @@ from calflow.data.io import (
     jsonable,  # noqa: F401 (re-exported)
     sha256_file,
 )
-from calflow.nano.evaluation import accuracy_vs_temperature, mode_names, robustness_by_mode
+from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
+from calflow.nano.robustness import robustness_by_mode
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 

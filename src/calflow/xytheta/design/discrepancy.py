@@ -25,7 +25,7 @@ TEST_POSES = 256
 
 
 def kernel_from_tables(luts) -> dc.Discrepancy:
-    """The discrepancy's kernel from the XY error tables (a :class:`calflow.xytheta.tables.lookup.PositionLUT`).
+    """The discrepancy's kernel from the XY error tables (a :class:`calflow.xytheta.tables.position.PositionLUT`).
 
     Per joint j ∈ {X, Y}: the tables of its own and its cross error (forward and backward
     columns), each less its linear fit; s_j² = ½ Σ_tables var e (the variance per reading axis
@@ -53,7 +53,7 @@ def with_kernel_from_tables(campaign: dict, luts_path) -> dict:
     import copy
 
     from calflow.data.io import open_dataset
-    from calflow.xytheta.tables.lookup import PositionLUT
+    from calflow.xytheta.tables.position import PositionLUT
 
     given = campaign["identification"]["design"].get("discrepancy") or {}
     if given.get("amplitude_um") is not None and given.get("length") is not None:

@@ -112,8 +112,9 @@ def read_model(folder):
     """The :class:`MicroModel` of a bundle, tables and all."""
     from calflow.xytheta.models.ladder import MicroModel
     from calflow.xytheta.tables.angle import AngleTable
-    from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT
+    from calflow.xytheta.tables.angle_residuals import AngleLUT
     from calflow.xytheta.tables.pose import PoseAngleLUT
+    from calflow.xytheta.tables.position import PositionLUT
 
     path = Path(folder)
     folder = path if path.is_dir() else path.parent

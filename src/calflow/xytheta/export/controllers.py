@@ -4,7 +4,7 @@ A controller's axis (joint) compensation is one-dimensional: at nominal commande
 positions N of one joint it holds one correction for travel in the positive direction and
 one for the negative direction, interpolates linearly in N and adds the correction of the
 current direction of travel to the command. Of calflow's XY tables (Eq. 4.14, 4.15,
-:class:`calflow.xytheta.tables.lookup.PositionLUT`) a per-axis table expresses the own-axis
+:class:`calflow.xytheta.tables.position.PositionLUT`) a per-axis table expresses the own-axis
 terms f_xx/b_xx (X) and f_yy/b_yy (Y) only; the cross-axis terms (f_yx/b_yx: x error
 while Y moves, f_xy/b_xy: y error while X moves), the kinematic parameters and the angle
 table stay with the kinematics (the controller-neutral bundle, :mod:`.bundle`).
@@ -41,7 +41,7 @@ from scipy.interpolate import make_lsq_spline
 
 from calflow.data.io import write_text
 from calflow.errors import DataError
-from calflow.xytheta.tables.lookup import _interpolator, infer_directions
+from calflow.xytheta.tables.position import _interpolator, infer_directions
 
 LINUXCNC_MAX_ENTRIES = 256  # "the limit inside LinuxCNC is for 256 triplets per joint"
 TWINCAT_MAX_ENTRIES = 1500  # kw.ssfk.max_points default (P-COMP-00059)

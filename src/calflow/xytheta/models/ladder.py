@@ -20,8 +20,9 @@ from calflow.data.io import group_names, open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
 from calflow.xytheta.models import kinematics as kin
 from calflow.xytheta.tables.angle import AngleTable
-from calflow.xytheta.tables.lookup import AngleLUT, PositionLUT, infer_directions, joint_increments
+from calflow.xytheta.tables.angle_residuals import AngleLUT, joint_increments
 from calflow.xytheta.tables.pose import PoseAngleLUT
+from calflow.xytheta.tables.position import PositionLUT, infer_directions
 
 _LONG = {
     "x_R": "x coordinate of the rotation centre in the world frame",

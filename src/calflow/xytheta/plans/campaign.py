@@ -167,7 +167,7 @@ def _compensation(c: dict, args):
     if args.compensation == "none":
         return None
     from calflow.data.io import open_dataset
-    from calflow.xytheta.tables.lookup import PositionLUT
+    from calflow.xytheta.tables.position import PositionLUT
 
     if not args.luts:
         raise CalflowError(f"calflow acquire --compensation {args.compensation}: --luts LUTS.nc is required")

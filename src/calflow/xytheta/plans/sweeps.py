@@ -115,10 +115,10 @@ def _xy_plan(
     name: str, x_T, y_T, pose, cycle, compensate: Compensate | None, directions: str, dwell_s: float
 ) -> Plan:
     """Home row + XY targets commanded through ``compensate`` (identity when None)."""
-    from calflow.xytheta.tables.lookup import (
+    from calflow.xytheta.tables.position import (  # analysis helpers, no rig
         infer_directions,
         sequential_commands,
-    )  # analysis helpers, no rig
+    )
 
     x_T, y_T = np.asarray(x_T, dtype=float), np.asarray(y_T, dtype=float)
     if compensate is None:
@@ -178,7 +178,7 @@ def square(
     (Fig. 4.10, as in the thesis); ``"command"`` (default) makes them consistent with
     the sign of the *command* change, which is what the stage does (a command that must
     creep back on an axis whose target is constant, e.g. X on BC, reverses it; see
-    ``calflow.xytheta.tables.lookup.sequential_commands``). Pose k = 1..4N is the k-th square point;
+    ``calflow.xytheta.tables.position.sequential_commands``). Pose k = 1..4N is the k-th square point;
     segment = (pose - 1) // N (0 AB, 1 BC, 2 CD, 3 DA). Direction column: 0.
     """
     t = square_targets(side_um, origin_um, points_per_segment)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from calflow.xytheta.tables.lookup import infer_directions
+from calflow.xytheta.tables.position import infer_directions
 
 
 def oracle_validation(truth: dict, run: xr.Dataset, seed: int) -> dict:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from calflow.xytheta.tables.lookup import joint_increments
+from calflow.xytheta.tables.angle_residuals import joint_increments
 
 DIRECTIONS = (1, -1)  # rows of the tables: forward, backward
 

@@ -18,7 +18,7 @@ Errors are *target − measured* in this frame: while X moves to x_T (Fig. 4.8, 
 
 and likewise f_yy, f_yx while Y moves; forward tables (f_..) hold direction +1, backward
 tables (b_..) direction -1. Because Eq. (4.18) reads X - ex, the stage reaches
-``X_cmd - e``: commanding ``x_T + e`` brings it onto x_T (``calflow.xytheta.tables.lookup``).
+``X_cmd - e``: commanding ``x_T + e`` brings it onto x_T (``calflow.xytheta.tables.position``).
 
 The linear trend of the coupling tables is the stage misalignment: the trend of f_yx is
 the perpendicularity bias δx(y) of Eq. (4.14); the trend of f_xy, δy(x), is what
@@ -238,7 +238,7 @@ def characterise_axis(run: xr.Dataset, axis: str | None = None) -> xr.Dataset:
 
 
 def characterise(run_x: xr.Dataset, run_y: xr.Dataset, meta: RunMetadata | None = None) -> xr.Dataset:
-    """Error tables of both XY stages (Sec. 4.4.1) for ``calflow.xytheta.tables.lookup.PositionLUT``.
+    """Error tables of both XY stages (Sec. 4.4.1) for ``calflow.xytheta.tables.position.PositionLUT``.
 
     Merges :func:`characterise_axis` of the X and Y runs and adds, from the linear trends,
     ``x_stage_angle`` (angle of X motion from x_PF, = α − 180° of Eq. 4.18) and

@@ -9,7 +9,7 @@ position-dependent errors" and Models IV and V end up close (Table 4.8).
 At a query (x, y, Θ): f is interpolated in Θ at every table position (with f = 0 at
 Θ = 0, where the world frame is defined, Eq. 4.27), then the positions are combined by
 inverse-distance weighting (power 2), which is exact at the table positions. g follows
-from f through the inverse kinematics as in :func:`calflow.xytheta.tables.lookup.joint_increments`.
+from f through the inverse kinematics as in :func:`calflow.xytheta.tables.position.joint_increments`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from calflow.data.runs import RunMetadata
-from calflow.xytheta.tables.lookup import joint_increments
+from calflow.xytheta.tables.angle_residuals import joint_increments
 
 
 @dataclass
