@@ -121,6 +121,16 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
         )
     from calflow.data.io import jsonable
     from calflow.nano.plans.designed import training_design_block
+    from calflow.nano.report.extrapolation import extrapolation_block
+
+    if summary.get("validation") is not None:  # beside each day's figures: does it leave training's range?
+        humidity = None
+        if physics is not None:
+            from calflow.nano.stage.error_budget import humidity_ranges
+
+            humidity = humidity_ranges(truth, training, metrics["validation"])
+        block = extrapolation_block(metrics.get("validation"), t_range, summary["tests"], humidity)
+        summary["validation"]["extrapolation"] = jsonable(block)
 
     summary["training_design"] = jsonable(training_design_block(c, training, models))
     return {**summary, "unsupported": unsupported}
