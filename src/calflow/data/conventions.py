@@ -1,4 +1,4 @@
-"""Names, units and attributes of calflow datasets (DESIGN.md, "Data conventions").
+"""Names, units and attributes of calflow datasets (docs/architecture.md, "Datasets").
 
 Lengths are in micrometres (``um``), angles in ``degree``, temperatures in ``degC``;
 time is CF time in seconds since the campaign start.

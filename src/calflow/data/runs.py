@@ -14,7 +14,7 @@ from calflow.data.conventions import CF_CONVENTIONS, run_variables, time_units, 
 
 @dataclass
 class RunMetadata:
-    """Global attributes of a run dataset (DESIGN.md, "Data conventions")."""
+    """Global attributes of a run dataset (docs/architecture.md, "Datasets")."""
 
     campaign: str
     robot: str

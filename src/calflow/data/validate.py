@@ -1,4 +1,4 @@
-"""Check a dataset against the calflow data contract (DESIGN.md, "Data conventions").
+"""Check a dataset against the calflow data contract (docs/architecture.md, "Datasets").
 
 :func:`validate_dataset` returns a list of problems, one line each, that name the
 variable or attribute and what was expected; an empty list means the dataset conforms.

@@ -56,7 +56,7 @@ def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
 
 
 class ReplayRig:
-    """Serves one recorded run dataset through the rig protocol (DESIGN.md).
+    """Serves one recorded run dataset through the rig protocol (docs/rigs.md).
 
     ``joints`` are the recorded ``cmd_*`` variables, ``sensors`` the ``meas_*``
     variables, ``thermometers`` the ``sensor`` coordinate of ``temperature``.

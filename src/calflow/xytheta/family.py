@@ -253,7 +253,7 @@ FAMILY = Family(
         ),
         Command(
             "design-study",
-            "Cramér–Rao σ against poses and rig time, random against designed (issue 15)",
+            "Cramér–Rao σ against poses and rig time, random against designed",
             _observability_arguments,
             "calflow.xytheta.design.study:study",
         ),

@@ -1,4 +1,4 @@
-"""Campaign summaries of the nanopositioning stages (``summary.json``, DESIGN.md).
+"""Campaign summaries of the nanopositioning stages (``summary.json``; keys in docs/architecture.md).
 
 Built from the metrics datasets of :mod:`calflow.nano.evaluation` (AP/RP in nm per test
 and pose).  Every value is JSON-ready: Python numbers, lists and dicts only, NaN and
@@ -266,7 +266,7 @@ def stage1d_summary(
     error_budget: dict | None = None,
     step_response_run: xr.Dataset | None = None,
 ) -> dict:
-    """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
+    """Summary of a 1-DoF nano campaign (docs/architecture.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
     ``tests.<mode>`` from the validation run (:func:`mode_block`); ``robustness.<mode>``
@@ -307,7 +307,7 @@ def stage2d_summary(
     error_budget: dict | None = None,
     step_response_run: xr.Dataset | None = None,
 ) -> dict:
-    """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
+    """Summary of a 2-DoF nano campaign (docs/architecture.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.nano.report.reference.STAGE2D``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
@@ -326,7 +326,7 @@ def stage2d_summary(
 
 
 def _physics_blocks(summary: dict, error_budget: dict | None) -> None:
-    """Issue 14: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
+    """The rig physics' blocks: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
     calibration, :mod:`calflow.nano.stage.error_budget`), ``validation.error_budget_method`` and the
     ``ordering`` paragraph (:mod:`calflow.nano.report.ordering`)."""
     from calflow.nano.report.ordering import ordering_block

@@ -1,4 +1,4 @@
-"""The campaign summary (``results/<campaign>/summary.json``, DESIGN.md).
+"""The campaign summary (``results/<campaign>/summary.json``; keys in docs/architecture.md).
 
 The summary is assembled from the campaign's result files, recognised by their
 attributes (``calflow_kind``, ``plan``, ``model``), so a rule hands over its inputs as a
@@ -418,7 +418,7 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
 
 
 def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) -> None:
-    """The bound before beside the result after (issue 15): each model's Cramér–Rao σ and the
+    """The bound before beside the result after (optimal design): each model's Cramér–Rao σ and the
     expected virtual rig time, written into the identification run before acquisition
     (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
     next to the achieved ``parameters.<p>.std``; the run's actual virtual time as
