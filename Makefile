@@ -37,7 +37,7 @@ dry-run: $(STAMP)
 lint: $(STAMP)  ## style: ruff (lint and format) and snakefmt, checked, nothing changed
 	$(BIN)/ruff check $(LINTED)
 	$(BIN)/ruff format --check $(LINTED)
-	$(BIN)/snakefmt --check Snakefile workflow
+	$(BIN)/snakefmt --check Snakefile workflow src/calflow/*/rules $(wildcard plugins/*/src/*/rules)
 
 lock: $(STAMP)  ## resolve requirements/lock.txt again from pyproject.toml, on PyPI
 	PIP_CONFIG_FILE=/dev/null CUSTOM_COMPILE_COMMAND="make lock" $(BIN)/pip-compile --quiet $(LOCK_FLAGS) --extra test --extra cluster \

@@ -51,7 +51,8 @@ def test_noiseless_poses_give_back_the_geometry(seed):
     error = fit.parameters.vector() - truth.vector()
     lengths = [k for k, name in enumerate(NAMES) if not name.endswith(("_u", "_v", "_w"))]
     assert np.max(np.abs(error[lengths])) < 1e-4  # µm, against errors of tens of µm to mm
-    assert np.max(np.abs(np.delete(error, lengths))) < 1e-8  # degree
+    # degree: 1e-7° over the ~100 mm joint radii is ~2e-4 µm, the same round-off as the lengths
+    assert np.max(np.abs(np.delete(error, lengths))) < 1e-7
     assert fit.residual_rms_um < 1e-5
 
 
