@@ -170,10 +170,7 @@ def parser() -> argparse.ArgumentParser:
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
     i.add_argument("--model-name", required=True)
-    i.add_argument("--run", help="identification (XYΘ) or training (nano) run")
-    i.add_argument("--luts", help="XY error tables (models with position_table)")
-    i.add_argument("--base", help="base model (models with angle_table)")
-    i.add_argument("--residuals", help="angle-residual run commanded through the base model")
+    i.add_argument("--run", help="the run the model is identified from (its family's identification run)")
     i.add_argument("--out", required=True)
 
     m = _sub(sub, "metrics", cmd_metrics, "ISO 9283 accuracy and repeatability of a run")
@@ -254,7 +251,7 @@ def parser() -> argparse.ArgumentParser:
         "emulate",
         _run("calflow.gcs.campaign_server:emulate_command"),
         "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
-        "its robot family registers (C-863 for xytheta, E-727 class for nano)",
+        "its robot family registers (docs/gcs.md)",
     )
     e.add_argument("kind", choices=["gcs"])
     e.add_argument(
@@ -268,6 +265,8 @@ def parser() -> argparse.ArgumentParser:
     for family in families():
         if family.acquire_arguments is not None:
             family.acquire_arguments(a)
+        if family.identify_arguments is not None:
+            family.identify_arguments(i)
         for command in family.commands:
             command.arguments(_sub(sub, command.name, _run(command.run), command.help))
     return p

@@ -1,6 +1,6 @@
 """Simulated 1-DoF and 2-DoF nanopositioning rigs (thesis Chapter 5, Sec. 5.2-5.4).
 
-Both rigs follow the rig protocol of DESIGN.md (``move``/``wait``/``read``/``close``) on a
+Both rigs follow the rig protocol (docs/rigs.md: ``move``/``wait``/``read``/``close``) on a
 virtual clock, plus ``stream`` (raw high-rate samples of a dwell), ``truth()``,
 ``true_position()`` and ``effect_terms()`` for tests and the summary step. Lengths in um,
 temperatures in degC, time in s.

@@ -1,4 +1,4 @@
-"""The campaign summary (``results/<campaign>/summary.json``, DESIGN.md).
+"""The campaign summary (``results/<campaign>/summary.json``; keys in docs/architecture.md).
 
 The summary is assembled from the campaign's result files, recognised by their
 attributes (``calflow_kind``, ``plan``, ``model``), so a rule hands over its inputs as a
@@ -12,9 +12,12 @@ import json
 import numpy as np
 import xarray as xr
 
-from calflow import __version__, reference
+from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
+from calflow.summary_routing import route
+from calflow.xytheta.family import FAMILY
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS
+from calflow.xytheta.report.reference import XYTHETA
 
 _SUFFIX = {"um": "um", "degree": "deg"}
 
@@ -99,7 +102,7 @@ def _model_entry(
         entry["reference_targets"] = {
             "accuracy_um": jsonable(float(ref.attrs["accuracy_um"])),
             "repeatability_um": jsonable(float(ref.attrs["repeatability_um"])),
-            "thesis_accuracy_um": reference.XYTHETA["models"].get(name, {}).get("accuracy_um"),
+            "thesis_accuracy_um": XYTHETA["models"].get(name, {}).get("accuracy_um"),
             "per_target": _per_target(ref),
         }
     if angle is not None:
@@ -282,36 +285,27 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
     models, paths, ref, heldout, xy, luts, obs, iso, study = {}, {}, {}, {}, {}, None, None, {}, None
-    heldout_runs, training_runs = [], []
-    exported = {}  # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
-    for path in files:
-        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
-            ds = ds.load()
-        kind, plan = ds.attrs.get("calflow_kind"), ds.attrs.get("plan")
-        if kind == "model":
-            models[ds.attrs["model"]], paths[ds.attrs["model"]] = ds, path
-        elif kind == "metrics" and plan == "validation":
-            ref[ds.attrs["model"]] = ds
-        elif kind == "metrics" and plan == "validation_heldout":
-            heldout[ds.attrs["model"]] = ds
-        elif kind == "metrics" and plan in ("square", "random_points"):
-            xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
-        elif kind == "metrics" and plan == "observability":
-            obs = ds
-        elif kind == "metrics" and plan == "design_study":
-            from calflow.xytheta.design.study import summary_block
+    found = route(files, FAMILY.summary_sections, "XYΘ family")
+    for path, ds in found.get("models", []):
+        models[ds.attrs["model"]], paths[ds.attrs["model"]] = ds, path
+    ref = {ds.attrs["model"]: ds for _, ds in found.get("reference_targets", [])}
+    heldout = {ds.attrs["model"]: ds for _, ds in found.get("heldout", [])}
+    for _, ds in found.get("xy_tests", []):
+        xy.setdefault(ds.attrs["plan"], {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
+    for _, ds in found.get("observability", []):
+        obs = ds
+    for _, ds in found.get("design_study", []):
+        from calflow.xytheta.design.study import summary_block
 
-            study = summary_block(ds)
-        elif kind == "luts":
-            luts = ds
-        elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
-            iso[plan[-1]] = _iso230_2_of_sweep(ds, plan[-1])
-        elif kind == "run" and plan == "validation_heldout":
-            heldout_runs.append(ds)
-        elif kind == "metrics" and plan == "validation_export":
-            exported[ds.attrs["model"]] = ds
-        elif kind == "run" and plan in ("identification", "angle_residuals"):
-            training_runs.append(ds)
+        study = summary_block(ds)
+    for _, ds in found.get("characterisation", []):
+        luts = ds
+    for _, ds in found.get("iso230_2", []):
+        iso[ds.attrs["plan"][-1]] = _iso230_2_of_sweep(ds, ds.attrs["plan"][-1])
+    heldout_runs = [ds for _, ds in found.get("heldout_runs", [])]
+    # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
+    exported = {ds.attrs["model"]: ds for _, ds in found.get("export", [])}
+    training_runs = [ds for _, ds in found.get("training_runs", [])]
     order = [name for name in campaign["models"] if name in models]
     floor = repeatability_floor(list(heldout.values()) + list(ref.values()))
     summary = {
@@ -333,7 +327,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             for name in order
         },
         "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
-        "reference": reference.BY_ROBOT["xytheta"],
+        "reference": XYTHETA,
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     if exported:
@@ -424,7 +418,7 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
 
 
 def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) -> None:
-    """The bound before beside the result after (issue 15): each model's Cramér–Rao σ and the
+    """The bound before beside the result after (optimal design): each model's Cramér–Rao σ and the
     expected virtual rig time, written into the identification run before acquisition
     (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
     next to the achieved ``parameters.<p>.std``; the run's actual virtual time as

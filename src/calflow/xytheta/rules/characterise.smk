@@ -12,7 +12,7 @@ rule characterise:
     benchmark:
         "results/{campaign}/benchmarks/characterise.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
     params:
@@ -31,7 +31,7 @@ rule observability:
     benchmark:
         "results/{campaign}/benchmarks/observability.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
     params:
@@ -49,7 +49,7 @@ rule design_study:
     benchmark:
         "results/{campaign}/benchmarks/design_study.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
     params:
