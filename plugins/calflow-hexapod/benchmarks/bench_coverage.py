@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Coverage of the identified parameters' 95 % intervals on hexapods with only the model's errors.
 
-For each of ``--seeds`` simulated H-811-class hexapods (:mod:`calflow_hexapod.synthetic`):
+For each of ``--seeds`` simulated H-811-class hexapods (:mod:`calflow_hexapod.models.synthetic`):
 the model's identifiable parameters drawn about the nominal geometry (joint centres 50 µm,
 leg offsets 20 µm, leg scales 100 ppm, instrument frames mm and degree; the parameters the
 QR analysis fixes stay nominal — the gauge in which the identification reports them),
@@ -27,9 +27,9 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from calflow_hexapod import synthetic  # noqa: E402
-from calflow_hexapod.geometry import h811  # noqa: E402
-from calflow_hexapod.identification import identify  # noqa: E402
-from calflow_hexapod.models import LADDER, Parameters  # noqa: E402
+from calflow_hexapod.models.geometry import h811  # noqa: E402
+from calflow_hexapod.models.identification import identify  # noqa: E402
+from calflow_hexapod.models.ladder import LADDER, Parameters  # noqa: E402
 
 SIGMA_POSE = (0.5, 0.5, 0.5, 2e-5, 2e-5, 2e-5)
 Z95 = 1.959963984540054

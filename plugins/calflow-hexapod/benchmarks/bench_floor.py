@@ -1,7 +1,7 @@
 """Held-out accuracy of the ladder's first models on the simulated hexapod, against its floor.
 
 For the default rig and for ``unmodelled: false``: the calibration replayed in-process
-(:func:`calflow_hexapod.error_budget.replay`, 150 random poses, 10 held-out targets × 5 cycles,
+(:func:`calflow_hexapod.stage.error_budget.replay`, 150 random poses, 10 held-out targets × 5 cycles,
 seed 1) and the floor through the rig's true parameters. ``--json`` prints one JSON line.
 """
 
@@ -11,7 +11,7 @@ import argparse
 import json
 import time
 
-from calflow_hexapod import error_budget
+from calflow_hexapod.stage import error_budget
 
 
 def campaign(options: dict, poses: int, seed: int) -> dict:

@@ -2,8 +2,8 @@
 
 The same small campaign — identification, the models ``nominal``, ``offsets`` and
 ``geometric``, held-out validation — is run twice with the same seed and streams: on the
-simulated rig in-process (:func:`calflow_hexapod.error_budget.replay_heldout`) and through
-the ``gcs`` rig driving a C-887 emulator (:mod:`calflow_hexapod.emulate`) whose tracker sensor
+simulated rig in-process (:func:`calflow_hexapod.stage.error_budget.replay_heldout`) and through
+the ``gcs`` rig driving a C-887 emulator (:mod:`calflow_hexapod.stage.emulate`) whose tracker sensor
 carries the same physics. The run-to-run spread is that of the simulated campaign over
 ``--spread`` other noise seeds on the same rig (same ``geometry_seed``): the per-model standard
 deviation of the RMS held-out AP. The emulated run agrees when |gcs − simulated| is within
@@ -18,10 +18,10 @@ import time
 
 import numpy as np
 
-from calflow_hexapod import error_budget
-from calflow_hexapod.emulate import campaign_emulator, rig_options
-from calflow_hexapod.geometry import AXES
-from calflow_hexapod.run_options import rig_options as run_rig_options
+from calflow_hexapod.models.geometry import AXES
+from calflow_hexapod.stage import error_budget
+from calflow_hexapod.stage.emulate import campaign_emulator, rig_options
+from calflow_hexapod.stage.run_options import rig_options as run_rig_options
 
 
 def campaign(seed: int, poses: int) -> dict:

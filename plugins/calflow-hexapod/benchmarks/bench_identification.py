@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Cost of the hexapod identification: the full geometric model from 1 000 poses.
 
-``geometric_1000_ms``: :func:`calflow_hexapod.identification.identify` of the ``geometric``
+``geometric_1000_ms``: :func:`calflow_hexapod.models.identification.identify` of the ``geometric``
 model (frames, joints and leg offsets, reduced to its identifiable set by the QR analysis —
 included in the time) from 1 000 poses of a simulated H-811-class hexapod with only the
 model's errors and instrument noise (0.5 µm, 2·10⁻⁵ degree per axis); ``scale_1000_ms``
@@ -28,9 +28,9 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from calflow_hexapod import synthetic  # noqa: E402
-from calflow_hexapod.geometry import h811  # noqa: E402
-from calflow_hexapod.identification import identify  # noqa: E402
-from calflow_hexapod.models import LADDER, Parameters  # noqa: E402
+from calflow_hexapod.models.geometry import h811  # noqa: E402
+from calflow_hexapod.models.identification import identify  # noqa: E402
+from calflow_hexapod.models.ladder import LADDER, Parameters  # noqa: E402
 
 SIGMA_POSE = (0.5, 0.5, 0.5, 2e-5, 2e-5, 2e-5)
 

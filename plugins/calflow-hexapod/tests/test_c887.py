@@ -10,17 +10,17 @@ import pytest
 
 from calflow.gcs import GCSController, GCSControllerError
 from calflow.gcs.emulator import GCSEmulator
-from calflow_hexapod.c887 import AXIS_IDS, HexapodController
-from calflow_hexapod.emulate import (
+from calflow_hexapod.models.geometry import h811
+from calflow_hexapod.models.kinematics import forward, inverse
+from calflow_hexapod.stage.c887 import AXIS_IDS, HexapodController
+from calflow_hexapod.stage.emulate import (
     SENSOR,
     SENSOR_TARGET,
     campaign_emulator,
     rig_options,
 )
-from calflow_hexapod.geometry import h811
-from calflow_hexapod.kinematics import forward, inverse
-from calflow_hexapod.rig import simulated_hexapod
-from calflow_hexapod.workspace import leg_stroke_um, reachable
+from calflow_hexapod.stage.rig import simulated_hexapod
+from calflow_hexapod.stage.workspace import leg_stroke_um, reachable
 
 MM = 1000.0
 

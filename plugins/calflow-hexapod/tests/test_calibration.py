@@ -7,11 +7,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.data.runs import RunMetadata
-from calflow_hexapod import synthetic
-from calflow_hexapod.calibration import HexapodModel, command, predict
-from calflow_hexapod.geometry import H811_TRAVEL, h811
-from calflow_hexapod.identification import identify
-from calflow_hexapod.models import LADDER, NAMES, Parameters
+from calflow_hexapod.models import synthetic
+from calflow_hexapod.models.calibration import HexapodModel, command, predict
+from calflow_hexapod.models.geometry import H811_TRAVEL, h811
+from calflow_hexapod.models.identification import identify
+from calflow_hexapod.models.ladder import LADDER, NAMES, Parameters
 
 CONTROLLER = h811(pivot=(0.0, 0.0, 20_000.0))
 NOMINAL = Parameters.nominal(CONTROLLER)

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.errors import CalflowError
-from calflow_hexapod import error_budget as eb
-from calflow_hexapod.rig_physics import EFFECTS, HexapodTruth
+from calflow_hexapod.stage import error_budget as eb
+from calflow_hexapod.stage.physics import EFFECTS, HexapodTruth
 
 
 def campaign(**rig) -> dict:

@@ -63,7 +63,7 @@ def test_pose_metrics_follow_iso9283_for_position_and_orientation():
 
 
 def test_the_summary_says_in_words_what_a_model_cannot_do():
-    from calflow_hexapod.summary import _statement
+    from calflow_hexapod.report.summary import _statement
 
     held = {"n_targets": 10, "accuracy_um": 50.0, "repeatability_um": 20.0}
     words = _statement("nominal", {"heldout": held}, best=10.0)
@@ -74,7 +74,7 @@ def test_the_summary_says_in_words_what_a_model_cannot_do():
 
 
 def test_the_bound_before_beside_the_result_after():
-    from calflow_hexapod.summary import _bound
+    from calflow_hexapod.report.summary import _bound
 
     ds = xr.Dataset({"a": ((), 0.0, {"std": 2.0}), "b": ((), 0.0, {"std": 3.0})})
     b = _bound(ds, {"a": 1.0, "b": 6.0, "absent": 1.0})

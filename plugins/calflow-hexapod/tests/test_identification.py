@@ -11,11 +11,11 @@ from hypothesis import strategies as st
 
 from calflow.errors import CalflowError
 from calflow.identification.robust import Robust
-from calflow_hexapod import synthetic
-from calflow_hexapod.geometry import compose, h811, pose_of, transform
-from calflow_hexapod.identification import _Data, identifiable, identify, prediction_rms, run_inputs
-from calflow_hexapod.loop import closure
-from calflow_hexapod.models import LADDER, NAMES, Parameters
+from calflow_hexapod.models import synthetic
+from calflow_hexapod.models.geometry import compose, h811, pose_of, transform
+from calflow_hexapod.models.identification import _Data, identifiable, identify, prediction_rms, run_inputs
+from calflow_hexapod.models.ladder import LADDER, NAMES, Parameters
+from calflow_hexapod.models.loop import closure
 
 CONTROLLER = h811()
 NOMINAL = Parameters.nominal(CONTROLLER)

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.errors import CalflowError
-from calflow_hexapod import geometry as g
-from calflow_hexapod import kinematics as k
+from calflow_hexapod.models import geometry as g
+from calflow_hexapod.models import kinematics as k
 
 GEOMETRY = g.h811()
 

@@ -10,13 +10,16 @@ import numpy as np
 import pytest
 
 from calflow.identification import design
-from calflow_hexapod import campaign_plans, design_plan, plans, tracker
-from calflow_hexapod.calibration import command
-from calflow_hexapod.geometry import AXES, h811
-from calflow_hexapod.kinematics import inverse
-from calflow_hexapod.rig import attained, truth_parameters
-from calflow_hexapod.rig_physics import HexapodTruth
-from calflow_hexapod.workspace import reachable
+from calflow_hexapod.models.calibration import command
+from calflow_hexapod.models.geometry import AXES, h811
+from calflow_hexapod.models.kinematics import inverse
+from calflow_hexapod.plans import campaign as campaign_plans
+from calflow_hexapod.plans import design as design_plan
+from calflow_hexapod.plans import poses as plans
+from calflow_hexapod.stage import tracker
+from calflow_hexapod.stage.physics import HexapodTruth
+from calflow_hexapod.stage.rig import attained, truth_parameters
+from calflow_hexapod.stage.workspace import reachable
 
 
 def campaign(**identification) -> dict:
@@ -61,7 +64,7 @@ def test_heldout_poses_are_not_identification_poses():
 
 
 def test_heldout_poses_leave_the_margin_free():
-    from calflow_hexapod.plans import MARGIN_UM, workspace_poses
+    from calflow_hexapod.plans.poses import MARGIN_UM, workspace_poses
 
     q = workspace_poses(50, 0.8, np.random.default_rng(1), margin_um=MARGIN_UM)
     assert reachable(q, margin_um=MARGIN_UM).all()

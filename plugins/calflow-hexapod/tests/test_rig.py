@@ -10,11 +10,10 @@ from hypothesis import strategies as st
 
 from calflow.errors import OptionError, RigError
 from calflow.rigs.protocol import missing_members
-from calflow_hexapod import tracker
-from calflow_hexapod.geometry import H811_TRAVEL, rotation
-from calflow_hexapod.kinematics import forward, inverse
-from calflow_hexapod.rig import SENSORS, attained, simulated_hexapod
-from calflow_hexapod.rig_physics import (
+from calflow_hexapod.models.geometry import H811_TRAVEL, rotation
+from calflow_hexapod.models.kinematics import forward, inverse
+from calflow_hexapod.stage import tracker
+from calflow_hexapod.stage.physics import (
     EFFECTS,
     UNMODELLED,
     G,
@@ -22,6 +21,7 @@ from calflow_hexapod.rig_physics import (
     check_options,
     options_off,
 )
+from calflow_hexapod.stage.rig import SENSORS, attained, simulated_hexapod
 
 NOISE_OFF = {
     "leg_repeatability_um": 0.0,
@@ -284,7 +284,7 @@ def test_forward_of_true_geometry_is_consistent():
 
 
 def test_run_options_give_each_run_its_stream_and_start():
-    from calflow_hexapod.run_options import rig_options
+    from calflow_hexapod.stage.run_options import rig_options
 
     c = {"seed": 9}
     sim = rig_options(c, "simulated", "validation_heldout_geometric", {"payload_kg": 1.0}, 3600.0)

@@ -200,6 +200,7 @@ FAMILY = Family(
             "calflow.xytheta.report.reference",
             "calflow.metrics",
             "calflow.xytheta.report.summary",
+            "calflow.xytheta.report.heldout",
             "calflow.xytheta.stage.oracle",
             "calflow.xytheta.stage.rig",
             "calflow.xytheta.stage.physics",

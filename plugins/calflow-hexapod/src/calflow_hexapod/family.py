@@ -11,7 +11,7 @@ import argparse
 
 from calflow.family import Command, Family
 
-_P = "calflow_hexapod.campaign_plans"
+_P = "calflow_hexapod.plans.campaign"
 _S = "calflow_hexapod.steps"
 _CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
 _ALL = ("calflow_hexapod",)  # a small package: any change to it reruns its steps
@@ -26,13 +26,13 @@ FAMILY = Family(
     name="hexapod",
     robots=("hexapod",),
     joints={"hexapod": ("x", "y", "z", "u", "v", "w")},
-    # U, V, W: rotations about the x, y, z axes (C-887 convention, calflow_hexapod.geometry)
+    # U, V, W: rotations about the x, y, z axes (C-887 convention, calflow_hexapod.models.geometry)
     axes={
         "u": ("degree", "rotation U about x"),
         "v": ("degree", "rotation V about y"),
         "w": ("degree", "rotation W about z"),
     },
-    rigs={"hexapod": {"simulated": "calflow_hexapod.rig:simulated_hexapod"}},
+    rigs={"hexapod": {"simulated": "calflow_hexapod.stage.rig:simulated_hexapod"}},
     plans={
         "hexapod": {
             "identification": f"{_P}:identification",
@@ -40,14 +40,14 @@ FAMILY = Family(
             "iso9283": f"{_P}:iso9283",
         }
     },
-    rig_options="calflow_hexapod.run_options:rig_options",
+    rig_options="calflow_hexapod.stage.run_options:rig_options",
     steps={
         "identify": f"{_S}:identify",
         "metrics": f"{_S}:metrics",
-        "summarise": "calflow_hexapod.summary:hexapod_summary",
-        "figures": "calflow_hexapod.figures:build",
+        "summarise": "calflow_hexapod.report.summary:hexapod_summary",
+        "figures": "calflow_hexapod.report.figures:build",
     },
-    templates="calflow_hexapod",
+    templates="calflow_hexapod.report",
     schemas="calflow_hexapod",
     index_row="hexapod_index_row.html.j2",
     summary_sections={
@@ -73,9 +73,9 @@ FAMILY = Family(
             "hexapod-error-budget",
             "replay a simulated hexapod's calibration with each rig effect off: the error budget",
             _budget_arguments,
-            "calflow_hexapod.error_budget:error_budget_command",
+            "calflow_hexapod.stage.error_budget:error_budget_command",
         ),
     ),
-    sensors={"simulated_tracker": "calflow_hexapod.sensor:simulated_tracker"},
-    emulator="calflow_hexapod.emulate:emulate_main",
+    sensors={"simulated_tracker": "calflow_hexapod.stage.sensor:simulated_tracker"},
+    emulator="calflow_hexapod.stage.emulate:emulate_main",
 )

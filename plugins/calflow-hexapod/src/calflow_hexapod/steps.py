@@ -1,7 +1,7 @@
 """The hexapod's workflow steps behind ``calflow identify`` and ``calflow metrics``.
 
 ``identify``: one model of the ladder (campaign ``models.<name>.rung``) from the identification
-run, by inverse-kinematic residuals weighted as implicit loops (:mod:`calflow_hexapod.identification`).
+run, by inverse-kinematic residuals weighted as implicit loops (:mod:`calflow_hexapod.models.identification`).
 ``metrics``: ISO 9283 pose accuracy and repeatability of a validation run (held-out targets or
 the ISO 9283 poses) for position (AP_p, RP_l, ISO 9283:1998 7.2.1–7.2.2, µm) and for
 orientation about each axis (AP_a/AP_b/AP_c, RP_a/RP_b/RP_c, degree), per target pose.
@@ -15,7 +15,7 @@ import xarray as xr
 from calflow.commands.common import campaign, meta
 from calflow.data.io import open_dataset, write_dataset
 from calflow.errors import CalflowError
-from calflow_hexapod.geometry import AXES
+from calflow_hexapod.models.geometry import AXES
 
 POSITION, ORIENTATION = AXES[:3], AXES[3:]
 
@@ -23,12 +23,12 @@ POSITION, ORIENTATION = AXES[:3], AXES[3:]
 def identify(args) -> None:
     """``calflow identify --campaign FILE --model-name NAME --run RUN --out MODEL.nc``."""
     from calflow.identification.robust import Robust
-    from calflow_hexapod.calibration import HexapodModel
-    from calflow_hexapod.design_plan import noise_model, nominal_parameters
-    from calflow_hexapod.geometry import h811
-    from calflow_hexapod.identification import SIGMA_POSE, run_inputs
-    from calflow_hexapod.identification import identify as fit_model
-    from calflow_hexapod.models import LADDER
+    from calflow_hexapod.models.calibration import HexapodModel
+    from calflow_hexapod.models.geometry import h811
+    from calflow_hexapod.models.identification import SIGMA_POSE, run_inputs
+    from calflow_hexapod.models.identification import identify as fit_model
+    from calflow_hexapod.models.ladder import LADDER
+    from calflow_hexapod.plans.design import noise_model, nominal_parameters
 
     c = campaign(args.campaign)
     spec = c["models"].get(args.model_name)

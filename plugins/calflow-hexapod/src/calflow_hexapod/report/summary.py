@@ -139,7 +139,7 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     budget = (truth or {}).get("error_budget")
-    if budget:  # replays on the simulated truth (calflow_hexapod.error_budget): reports only
+    if budget:  # replays on the simulated truth (calflow_hexapod.stage.error_budget): reports only
         for name, entry in budget["budget"]["models"].items():
             if name in summary["models"]:
                 summary["models"][name]["error_budget"] = entry

@@ -2,7 +2,7 @@
 
 A C-887-class controller turns a commanded pose into leg lengths λ through its nominal
 geometry; the hexapod's legs then have the lengths the model gives them
-(:meth:`calflow_hexapod.models.Parameters.leg_lengths`) plus Gaussian leg noise; the platform
+(:meth:`calflow_hexapod.models.ladder.Parameters.leg_lengths`) plus Gaussian leg noise; the platform
 settles where the true geometry's forward kinematics puts it; the instrument reads the target's
 pose in its own frame with Gaussian noise per axis. No other physics: that is the simulated
 rig's business. Simulated truth is for tests and benchmarks; identification never reads it.
@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow_hexapod import kinematics
-from calflow_hexapod.calibration import reading
-from calflow_hexapod.geometry import H811_TRAVEL, Geometry
-from calflow_hexapod.models import NAMES, Parameters
+from calflow_hexapod.models import kinematics
+from calflow_hexapod.models.calibration import reading
+from calflow_hexapod.models.geometry import H811_TRAVEL, Geometry
+from calflow_hexapod.models.ladder import NAMES, Parameters
 
 #: Size of each error of a simulated hexapod (1 σ): joint centres 50 µm, leg offsets 20 µm,
 #: leg scales 100 ppm; the frames (instrument placement) 2 mm and 1°, 0.5 mm and 0.5°.

@@ -5,15 +5,15 @@ Joints are the controller's pose axes ``x``, ``y``, ``z`` (µm) and ``u``, ``v``
 origin). A move runs what the controller and the legs do:
 
 1. the controller's inverse kinematics through its **nominal** geometry
-   (:func:`calflow_hexapod.kinematics.inverse` of :meth:`HexapodTruth.nominal`) gives six
+   (:func:`calflow_hexapod.models.kinematics.inverse` of :meth:`HexapodTruth.nominal`) gives six
    leg lengths; the servo holds each leg's encoder at a whole count of it (quantisation);
 2. the true legs differ from the encoders' lengths by the offsets, the screw-pitch scale,
    the play on the side of the leg's last motion, thermal expansion, the compression under
-   the payload and a random repeatability (:mod:`calflow_hexapod.rig_physics`);
+   the payload and a random repeatability (:mod:`calflow_hexapod.stage.physics`);
 3. the platform goes where the true legs put it on the true joints: the forward kinematics
-   (:func:`calflow_hexapod.kinematics.forward`) of the true geometry.
+   (:func:`calflow_hexapod.models.kinematics.forward`) of the true geometry.
 
-``read`` gives the laser tracker's pose of the probe (:mod:`calflow_hexapod.tracker`) and
+``read`` gives the laser tracker's pose of the probe (:mod:`calflow_hexapod.stage.tracker`) and
 two thermometers: ``T1`` the room's air, ``T2`` on a leg (5 mK noise, 1 mK resolution).
 Time is virtual; a seed and a stream make a run reproducible to the byte. The rig's truth
 (:meth:`SimulatedHexapod.truth`) is for tests and reports only.
@@ -28,11 +28,11 @@ import numpy as np
 
 from calflow.errors import RigError
 from calflow.rigs.thermal import LagBank, room_profile
-from calflow_hexapod import tracker
-from calflow_hexapod.geometry import AXES
-from calflow_hexapod.kinematics import forward, inverse
-from calflow_hexapod.rig_physics import HexapodTruth, check_options
-from calflow_hexapod.workspace import reachable
+from calflow_hexapod.models.geometry import AXES
+from calflow_hexapod.models.kinematics import forward, inverse
+from calflow_hexapod.stage import tracker
+from calflow_hexapod.stage.physics import HexapodTruth, check_options
+from calflow_hexapod.stage.workspace import reachable
 
 __all__ = [
     "SENSORS",
@@ -68,7 +68,7 @@ class HexapodState:
     """What a sequence of moves leaves: encoder leg lengths, each leg's last direction, time.
 
     Shared by the simulated rig and the tracker sensor of the ``gcs`` rig
-    (:mod:`calflow_hexapod.sensor`), so both see the same physics for the same moves."""
+    (:mod:`calflow_hexapod.stage.sensor`), so both see the same physics for the same moves."""
 
     def __init__(self, truth: HexapodTruth) -> None:
         self.truth = truth
@@ -273,11 +273,11 @@ simulated_hexapod.check_options = check_options  # the config check calls it (ca
 
 
 def truth_parameters(truth: HexapodTruth):
-    """The rig's truth in the models' parameters (:class:`calflow_hexapod.models.Parameters`):
+    """The rig's truth in the models' parameters (:class:`calflow_hexapod.models.ladder.Parameters`):
     frames, joints, leg offsets and scales, the legs' expansion coefficient (1/K) — for tests and
     reports only. Effects no model represents (play, compliance, the tracker's systematic
     error, quantisation) have no parameter."""
-    from calflow_hexapod.models import Parameters
+    from calflow_hexapod.models.ladder import Parameters
 
     g = truth.geometry()
     return Parameters(

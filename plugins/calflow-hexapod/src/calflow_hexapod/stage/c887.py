@@ -11,9 +11,9 @@ What differs from the single-axis C-863 emulation (:mod:`calflow.gcs.controller`
   executed is not executed at all); servo off or not referenced: error 5;
 * ``POS?`` is **encoder-true**: the controller turns the trajectory's pose into six leg
   lengths through its own nominal geometry about the current pivot
-  (:func:`calflow_hexapod.kinematics.inverse`), holds each leg's encoder at a whole count of
+  (:func:`calflow_hexapod.models.kinematics.inverse`), holds each leg's encoder at a whole count of
   ``resolution_um``, and reports the pose its nominal forward kinematics computes from those
-  encoder lengths (:func:`calflow_hexapod.kinematics.forward`). It sees none of the real
+  encoder lengths (:func:`calflow_hexapod.models.kinematics.forward`). It sees none of the real
   hexapod's joint, leg or instrument errors — only an external instrument does;
 * ``SPI {<R|S|T> <mm>}`` / ``SPI? [{<R|S|T>}]``: the pivot point in the platform frame
   (PI MS207E, "pivot point"; the coordinates R, S, T of the C-887's GCS). Rotations in
@@ -25,7 +25,7 @@ What differs from the single-axis C-863 emulation (:mod:`calflow.gcs.controller`
   ``SVO``, ``VEL``, ``ERR?``, ``SPA`` as the base controller.
 
 Serve it with ``GCSEmulator(controller=HexapodController(...))`` or
-:func:`calflow_hexapod.emulate.campaign_emulator`. pipython's GCS dialect for hexapods
+:func:`calflow_hexapod.stage.emulate.campaign_emulator`. pipython's GCS dialect for hexapods
 (``MOV``, ``qPOS``, ``qONT``, ``SPI``, ``qSPI``, ``FRF``, ``qFRF``) maps one to one onto these
 commands.
 """
@@ -39,9 +39,9 @@ import numpy as np
 
 from calflow.gcs.axis import AxisConfig, SimAxis
 from calflow.gcs.controller import EmulatedController, _Err
-from calflow_hexapod.geometry import AXES, H811_TRAVEL, Geometry, h811
-from calflow_hexapod.kinematics import forward, inverse
-from calflow_hexapod.workspace import leg_stroke_um
+from calflow_hexapod.models.geometry import AXES, H811_TRAVEL, Geometry, h811
+from calflow_hexapod.models.kinematics import forward, inverse
+from calflow_hexapod.stage.workspace import leg_stroke_um
 
 AXIS_IDS = tuple(a.upper() for a in AXES)  # the C-887's axis identifiers
 SCALE = {

@@ -2,12 +2,12 @@
 
 ``calflow emulate gcs --campaign config/campaigns/X.yaml --port 50000 [--time-scale 100]``
 (through the family's ``emulator``) starts :class:`calflow.gcs.emulator.GCSEmulator` on
-127.0.0.1 around a :class:`calflow_hexapod.c887.HexapodController` — axes X Y Z (mm) and
+127.0.0.1 around a :class:`calflow_hexapod.stage.c887.HexapodController` — axes X Y Z (mm) and
 U V W (degree), encoder-true ``POS?`` at the campaign's encoder resolution — and prints the
 ``rig:`` section that drives it with the ``gcs`` rig. The laser tracker is not served over
 GCS: the rig's sensor ``simulated_tracker`` (the family registers it as the short name of
-``calflow_hexapod.sensor:simulated_tracker``) is the physical world
-behind the controller (:mod:`calflow_hexapod.sensor`), with the campaign's physics. So a
+``calflow_hexapod.stage.sensor:simulated_tracker``) is the physical world
+behind the controller (:mod:`calflow_hexapod.stage.sensor`), with the campaign's physics. So a
 run through the emulator sees the simulated rig's physics with a controller's timing,
 limits and faults (:class:`calflow.gcs.emulator.Faults`).
 """
@@ -22,13 +22,13 @@ from typing import Any
 from calflow.errors import CalflowError
 from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
 from calflow.gcs.emulator import Faults, GCSEmulator
-from calflow_hexapod.c887 import AXIS_IDS, SCALE, HexapodController
-from calflow_hexapod.geometry import AXES
-from calflow_hexapod.rig_physics import truth_from_options
-from calflow_hexapod.run_options import simulated_physics
+from calflow_hexapod.models.geometry import AXES
+from calflow_hexapod.stage.c887 import AXIS_IDS, SCALE, HexapodController
+from calflow_hexapod.stage.physics import truth_from_options
+from calflow_hexapod.stage.run_options import simulated_physics
 
 SENSOR = "simulated_tracker"  # the gcs rig's sensor, as the family registers it
-SENSOR_TARGET = "calflow_hexapod.sensor:simulated_tracker"
+SENSOR_TARGET = "calflow_hexapod.stage.sensor:simulated_tracker"
 JOINT_AXES = dict(zip(AXES, AXIS_IDS))
 
 

@@ -2,7 +2,7 @@
 
 **Which method, and why.** Two classical formulations were read: the inverse-kinematic
 residuals of Zhuang, Yan & Masory (1998) — per pose, the six leg lengths implied by the
-measured platform pose minus the commanded ones, :mod:`calflow_hexapod.loop` — and the
+measured platform pose minus the commanded ones, :mod:`calflow_hexapod.models.loop` — and the
 implicit-loop method of Wampler, Hollerbach & Arai (1995, IEEE Trans. Robot. Autom. 11(5))
 — every loop of the mechanism written as implicit closure equations f(y_k, φ) = 0 in which
 *all* measured quantities y_k carry error, solved as a generalised least squares with the
@@ -38,10 +38,10 @@ from calflow.errors import CalflowError
 from calflow.identification import gauss_newton
 from calflow.identification.diagnostics import identifiability
 from calflow.identification.robust import Robust, mad_sigma, outliers
-from calflow_hexapod import kinematics
-from calflow_hexapod.geometry import AXES, Geometry
-from calflow_hexapod.loop import closure
-from calflow_hexapod.models import LADDER, NAMES, Parameters
+from calflow_hexapod.models import kinematics
+from calflow_hexapod.models.geometry import AXES, Geometry
+from calflow_hexapod.models.ladder import LADDER, NAMES, Parameters
+from calflow_hexapod.models.loop import closure
 
 #: Default instrument noise per axis (µm for x y z, degree for u v w) when none is given:
 #: 1 µm weighs as much as 10⁻⁴ degree (1.7 µrad). Pass the instrument's own σ: their ratio
@@ -351,7 +351,7 @@ def run_inputs(run, controller: Geometry, leg_sensor: str | None = "T2", source:
 
 
 def prediction_rms(fit: Identification, measured, commanded, zero_lengths, temperature=None) -> float:
-    """RMS (µm) of the leg-length residuals r of :mod:`calflow_hexapod.loop` on poses the fit did
+    """RMS (µm) of the leg-length residuals r of :mod:`calflow_hexapod.models.loop` on poses the fit did
     not see: what a richer model must lower to earn its place."""
     M, lam, T, _ = _validated(measured, commanded, temperature)
     r = closure(fit.parameters, M, lam, np.asarray(zero_lengths, dtype=float), T, derivatives=False)

@@ -7,7 +7,7 @@ that computes leg lengths from its *nominal* geometry. What the platform really 
 differs from the nominal by the effects below; each is switched off by setting its
 amplitude to 0, and ``unmodelled=False`` switches off, in one key, every effect no hexapod
 model of this family represents (marked *unmodelled*). The instrument that measures the
-platform is :mod:`calflow_hexapod.tracker`.
+platform is :mod:`calflow_hexapod.stage.tracker`.
 
 Effects (README.md lists them with their source, default and switch):
 
@@ -41,7 +41,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 
 from calflow.errors import OptionError, UnknownOptionError
-from calflow_hexapod.geometry import Geometry, h811, rotation
+from calflow_hexapod.models.geometry import Geometry, h811, rotation
 
 G = 9.80665  # standard gravity, m/s²
 # no hexapod model represents these (the encoders' rounding is a deterministic function of each pose)
@@ -59,7 +59,7 @@ def _off(value):
 class HexapodTruth:
     """True physics of the simulated hexapod (units in the field names)."""
 
-    # geometric errors about the nominal H-811-class geometry (calflow_hexapod.geometry.h811), drawn from geometry_seed
+    # geometric errors about the nominal H-811-class geometry (calflow_hexapod.models.geometry.h811), drawn from geometry_seed
     geometry_seed: int = 811
     joint_error_um: float = 20.0
     leg_offset_um: float = 30.0
@@ -83,7 +83,7 @@ class HexapodTruth:
     room_base_degC: float = 21.0
     room_seed: int = 0
     start_offset_s: float = 0.0  # campaign (profile) time of the rig's time 0
-    # instrument (calflow_hexapod.tracker)
+    # instrument (calflow_hexapod.stage.tracker)
     tracker_distance_m: float = 1.5
     tracker_adm_um: float = 10.0
     tracker_adm_um_per_m: float = 0.3
@@ -120,7 +120,7 @@ class HexapodTruth:
     # ------------------------------------------------------------------ geometry
     @staticmethod
     def nominal() -> Geometry:
-        """The nominal geometry, the controller's: :func:`calflow_hexapod.geometry.h811`."""
+        """The nominal geometry, the controller's: :func:`calflow_hexapod.models.geometry.h811`."""
         return h811()
 
     def _draws(self) -> np.ndarray:

@@ -15,13 +15,14 @@ import numpy as np
 
 from calflow.errors import CalflowError
 from calflow.plan import Acquisition
-from calflow_hexapod import design_plan, plans
-from calflow_hexapod.geometry import AXES
+from calflow_hexapod.models.geometry import AXES
+from calflow_hexapod.plans import design as design_plan
+from calflow_hexapod.plans import poses as plans
 
 
 def _model(args, plan: str):
-    """The model of ``--model`` (:class:`calflow_hexapod.calibration.HexapodModel`)."""
-    from calflow_hexapod.calibration import HexapodModel
+    """The model of ``--model`` (:class:`calflow_hexapod.models.calibration.HexapodModel`)."""
+    from calflow_hexapod.models.calibration import HexapodModel
 
     if not getattr(args, "model", None):
         raise CalflowError(f"calflow acquire --plan {plan}: --model MODEL.nc is required")
@@ -30,7 +31,7 @@ def _model(args, plan: str):
 
 def identification(c: dict, args) -> Acquisition:
     """The identification poses: random over the workspace (``plan: random``) or designed
-    (``plan: optimal``, :mod:`calflow_hexapod.design_plan`). The run's attribute ``design``
+    (``plan: optimal``, :mod:`calflow_hexapod.plans.design`). The run's attribute ``design``
     (JSON) holds, written before acquisition, the Cramér–Rao σ of every model's parameters
     and the expected virtual rig time."""
     p = c["identification"]

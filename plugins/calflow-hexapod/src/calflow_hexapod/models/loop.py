@@ -7,10 +7,10 @@ residuals", J. Robotic Systems 15(7)) is
     r_ki(φ) = ‖P_k p_i − b_i‖ − l_ki,    P_k = F M_k G⁻¹,
 
 the length leg i must have for the platform to be where the instrument saw it, minus the
-length the model says it has (:class:`calflow_hexapod.models.Parameters`): no forward
+length the model says it has (:class:`calflow_hexapod.models.ladder.Parameters`): no forward
 kinematics, six scalar equations per pose, each touching only its own leg's joint
 parameters. :func:`closure` returns r (n, 6) µm, its Jacobian ∂r/∂φ (n, 6, 61) over every
-parameter of :data:`calflow_hexapod.models.NAMES`, and ∂r/∂M (n, 6, 6), the derivative with
+parameter of :data:`calflow_hexapod.models.ladder.NAMES`, and ∂r/∂M (n, 6, 6), the derivative with
 respect to the measured pose, with which the implicit-loop method of Wampler, Hollerbach &
 Arai (1995) weights each pose's six equations by the noise of the measurement they carry.
 All derivatives are analytic; angles in degree.
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow_hexapod.geometry import rotation, rotation_derivatives
-from calflow_hexapod.models import NAMES, T_REF_DEGC, Parameters
+from calflow_hexapod.models.geometry import rotation, rotation_derivatives
+from calflow_hexapod.models.ladder import NAMES, T_REF_DEGC, Parameters
 
 N_PARAMETERS = len(NAMES)
 

@@ -1,7 +1,7 @@
 """Inverse and forward kinematics of a 6-6 hexapod (Stewart–Gough platform).
 
 Inverse kinematics is closed form: leg i joins the base joint b_i to the platform joint p_i
-moved by the pose (:mod:`calflow_hexapod.geometry`), so its length is
+moved by the pose (:mod:`calflow_hexapod.models.geometry`), so its length is
 
     l_i = ‖R (p_i − c) + c + t − b_i‖        (Merlet, *Parallel Robots*, 2nd ed. 2006, Sec. 4.1)
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from calflow.errors import CalflowError
-from calflow_hexapod.geometry import Geometry, rotation, rotation_derivatives
+from calflow_hexapod.models.geometry import Geometry, rotation, rotation_derivatives
 
 #: Newton stops when every leg's length is within this (µm) of its target.
 TOL_UM = 1e-7

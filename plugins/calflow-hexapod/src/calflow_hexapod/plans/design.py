@@ -1,7 +1,7 @@
 """The designed identification plan of the hexapod campaign and the bound written before it.
 
 The information of a pose comes from the loop-closure residuals of the models
-(:func:`calflow_hexapod.loop.closure`: six leg equations per pose, ∂r/∂φ). The core's design
+(:func:`calflow_hexapod.models.loop.closure`: six leg equations per pose, ∂r/∂φ). The core's design
 (:mod:`calflow.identification.design`) treats an unknown constant offset per reading axis as
 a nuisance; for the six leg equations that offset *is* the leg offset δl_i, so the design and
 its Cramér–Rao bound cover a model's identifiable parameters other than the leg offsets, with
@@ -21,12 +21,12 @@ from __future__ import annotations
 import numpy as np
 
 from calflow.identification import design
-from calflow_hexapod.geometry import h811
-from calflow_hexapod.identification import identifiable
-from calflow_hexapod.kinematics import inverse
-from calflow_hexapod.loop import closure
-from calflow_hexapod.models import LADDER, NAMES, OFFSET, Parameters
-from calflow_hexapod.plans import target_of, workspace_poses
+from calflow_hexapod.models.geometry import h811
+from calflow_hexapod.models.identification import identifiable
+from calflow_hexapod.models.kinematics import inverse
+from calflow_hexapod.models.ladder import LADDER, NAMES, OFFSET, Parameters
+from calflow_hexapod.models.loop import closure
+from calflow_hexapod.plans.poses import target_of, workspace_poses
 
 
 def nominal_parameters(campaign: dict) -> Parameters:
@@ -38,19 +38,19 @@ def nominal_parameters(campaign: dict) -> Parameters:
 def noise_model(campaign: dict) -> dict | None:
     """σ of a reading: ``position_um`` and ``angle_deg`` per axis of the instrument, ``leg_um`` of
     the legs. ``identification.design.noise`` when given, else the simulated rig's tracker
-    (MPE/4 at the station's distance, :mod:`calflow_hexapod.tracker`) and leg repeatability,
+    (MPE/4 at the station's distance, :mod:`calflow_hexapod.stage.tracker`) and leg repeatability,
     also when the simulated hexapod is served by the C-887 emulator (``rig: gcs`` with the
     tracker sensor); None for another rig that declares none."""
     given = (campaign["identification"].get("design") or {}).get("noise") or {}
     if {"position_um", "angle_deg", "leg_um"} <= set(given):
         return {k: float(given[k]) for k in ("position_um", "angle_deg", "leg_um")}
-    from calflow_hexapod.run_options import simulated_physics
+    from calflow_hexapod.stage.run_options import simulated_physics
 
     physics = simulated_physics(campaign)
     if physics is None:
         return None
-    from calflow_hexapod import tracker
-    from calflow_hexapod.rig_physics import truth_from_options
+    from calflow_hexapod.stage import tracker
+    from calflow_hexapod.stage.physics import truth_from_options
 
     t = truth_from_options(physics)
     p = tracker.probe_pose(t, np.zeros((1, 6)))[0]
@@ -100,8 +100,8 @@ def move_times(q: np.ndarray, velocity_um_s: float, velocity_deg_s: float, settl
 
 
 def _timing(campaign: dict) -> tuple[float, float, float]:
-    from calflow_hexapod.rig_physics import HexapodTruth
-    from calflow_hexapod.run_options import simulated_physics
+    from calflow_hexapod.stage.physics import HexapodTruth
+    from calflow_hexapod.stage.run_options import simulated_physics
 
     d = HexapodTruth()
     o = simulated_physics(campaign) or {}
@@ -168,7 +168,7 @@ def designed_poses(campaign: dict) -> tuple[np.ndarray, dict]:
     phi = nominal_parameters(campaign)
     free = design_free(phi, model_free(campaign, d.get("model", "geometric")), pool, noise)
     J = jacobians(pool, phi, free, noise)
-    from calflow_hexapod.plans import identification as random_plan
+    from calflow_hexapod.plans.poses import identification as random_plan
 
     rq = np.column_stack([random_plan(n, p["fraction"], campaign["seed"]).commands[a] for a in "xyzuvw"])
     ref = design.crlb_sigma(jacobians(rq, phi, free, noise))

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow_hexapod.geometry import angles, rotation
-from calflow_hexapod.rig_physics import HexapodTruth
+from calflow_hexapod.models.geometry import angles, rotation
+from calflow_hexapod.stage.physics import HexapodTruth
 
 SYSTEMATIC_PERIOD_DEG = 0.5  # period of the angle-encoder error in beam angle
 ELEVATION_DEG = 10.0  # the beam looks down on the hexapod at this angle

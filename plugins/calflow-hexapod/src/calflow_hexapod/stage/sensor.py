@@ -1,15 +1,15 @@
 """The simulated laser tracker as a sensor of calflow's ``gcs`` rig.
 
-Driving a C-887 emulator (:mod:`calflow_hexapod.c887`) with the ``gcs`` rig, the controller's
+Driving a C-887 emulator (:mod:`calflow_hexapod.stage.c887`) with the ``gcs`` rig, the controller's
 ``POS?`` is encoder-true: the pose its nominal kinematics computes from the legs' encoders.
 This sensor is the physical world behind it: from each settled ``POS?`` pose it recovers the
 encoders' leg lengths (the nominal inverse kinematics about the controller's pivot, whole
 counts), follows each leg's approach direction, and puts the platform where the simulated
-physics puts it (:func:`calflow_hexapod.rig.attained`); it then reads the laser tracker and
-the thermometers as :class:`calflow_hexapod.rig.SimulatedHexapod` does. A run through the
+physics puts it (:func:`calflow_hexapod.stage.rig.attained`); it then reads the laser tracker and
+the thermometers as :class:`calflow_hexapod.stage.rig.SimulatedHexapod` does. A run through the
 emulator therefore sees the physics of the simulated rig with the controller's timing,
 limits and faults. Options: the simulated rig's (``seed``, ``stream``, the
-:class:`~calflow_hexapod.rig_physics.HexapodTruth` fields) and ``pivot_um`` (R, S, T in µm,
+:class:`~calflow_hexapod.stage.physics.HexapodTruth` fields) and ``pivot_um`` (R, S, T in µm,
 as set with ``SPI``).
 """
 
@@ -21,10 +21,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from calflow.errors import RigError
-from calflow_hexapod import tracker
-from calflow_hexapod.geometry import AXES
-from calflow_hexapod.kinematics import inverse
-from calflow_hexapod.rig import (
+from calflow_hexapod.models.geometry import AXES
+from calflow_hexapod.models.kinematics import inverse
+from calflow_hexapod.stage import tracker
+from calflow_hexapod.stage.physics import HexapodTruth, check_options
+from calflow_hexapod.stage.rig import (
     SENSORS,
     THERMOMETER_NOISE_DEGC,
     THERMOMETERS,
@@ -32,7 +33,6 @@ from calflow_hexapod.rig import (
     HexapodState,
     attained,
 )
-from calflow_hexapod.rig_physics import HexapodTruth, check_options
 
 
 class SimulatedTracker:

@@ -23,7 +23,7 @@ The ladder (:data:`LADDER`) frees more of them at each step:
 ``offsets``   + the six leg offsets δl_i (the zero of each leg's encoder);
 ``geometric`` + every joint centre: 12 + 36 + 6 = 54 parameters, of which 12 combinations
               are not identifiable — moving the work frame (6) or the platform frame (6) with
-              the joints changes no reading. :func:`calflow_hexapod.identification.identifiable`
+              the joints changes no reading. :func:`calflow_hexapod.models.identification.identifiable`
               reduces them to the identifiable 42 by the core's QR analysis;
 ``scale``     + the six leg scales s_i;
 ``thermal``   + α_T, identifiable only when the temperature changes during the run.
@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calflow_hexapod.geometry import AXES, Geometry, h811
+from calflow_hexapod.models.geometry import AXES, Geometry, h811
 
 #: Reference temperature (degC) of dimensional metrology, ISO 1:2022.
 T_REF_DEGC = 20.0
@@ -100,7 +100,7 @@ class Parameters:
 
     @classmethod
     def nominal(cls, geometry: Geometry | None = None, frame=None, tool=None) -> Parameters:
-        """The nominal geometry (default :func:`calflow_hexapod.geometry.h811`) with the frames
+        """The nominal geometry (default :func:`calflow_hexapod.models.geometry.h811`) with the frames
         given (default: the measurement frame is the work frame, the target at the platform origin)."""
         g = geometry or h811()
         z = np.zeros(6)

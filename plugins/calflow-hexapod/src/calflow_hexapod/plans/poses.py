@@ -4,9 +4,9 @@ Commands are the controller's pose axes ``x y z`` (µm) and ``u v w`` (degree) a
 pivot. *Targets* are poses of the measured target (the tracker's probe) in the measurement
 frame — what the instrument reads — so a validation compares readings with targets without
 any model's frames. A model commands a target through its inverse
-(:func:`calflow_hexapod.calibration.command`); held-out and ISO 9283 targets are the readings
+(:func:`calflow_hexapod.models.calibration.command`); held-out and ISO 9283 targets are the readings
 the campaign's nominal model predicts for drawn commands
-(:func:`calflow_hexapod.calibration.predict`), the same targets for every model, drawn with a margin of the legs' stroke
+(:func:`calflow_hexapod.models.calibration.predict`), the same targets for every model, drawn with a margin of the legs' stroke
 (:data:`MARGIN_UM`) so that every model's command for them stays reachable.
 """
 
@@ -16,10 +16,10 @@ import numpy as np
 
 from calflow.identification.design import latin_hypercube
 from calflow.plan import Plan
-from calflow_hexapod.calibration import predict
-from calflow_hexapod.geometry import AXES, H811_TRAVEL, Geometry, h811
-from calflow_hexapod.models import Parameters
-from calflow_hexapod.workspace import reachable
+from calflow_hexapod.models.calibration import predict
+from calflow_hexapod.models.geometry import AXES, H811_TRAVEL, Geometry, h811
+from calflow_hexapod.models.ladder import Parameters
+from calflow_hexapod.stage.workspace import reachable
 
 
 def _plan(name: str, q: np.ndarray, targets: np.ndarray | None = None, cycle=None, pose=None, **kw) -> Plan:
@@ -40,7 +40,7 @@ def workspace_poses(
 ) -> np.ndarray:
     """``n`` reachable command poses (n, 6): a Latin hypercube over ± ``fraction`` of the
     datasheet travel per axis (McKay et al. 1979, :func:`calflow.identification.design.latin_hypercube`),
-    poses the legs cannot reach with ``margin_um`` to spare (:func:`calflow_hexapod.workspace.reachable`)
+    poses the legs cannot reach with ``margin_um`` to spare (:func:`calflow_hexapod.stage.workspace.reachable`)
     replaced by fresh draws of the same hypercube size until ``n`` are reachable."""
     if not 0 < fraction <= 1:
         raise ValueError(f"fraction of the travel: expected a number in (0, 1], got {fraction}")

@@ -9,11 +9,11 @@ gets the same seed, stream and start. Kept free of numerical imports.
 
 from __future__ import annotations
 
-SENSORS = ("simulated_tracker", "calflow_hexapod.sensor:simulated_tracker")
+SENSORS = ("simulated_tracker", "calflow_hexapod.stage.sensor:simulated_tracker")
 
 
 def simulated_physics(campaign: dict) -> dict | None:
-    """The :class:`~calflow_hexapod.rig_physics.HexapodTruth` overrides of a campaign whose
+    """The :class:`~calflow_hexapod.stage.physics.HexapodTruth` overrides of a campaign whose
     hexapod is simulated — the simulated rig's options, or the tracker sensor's options of a
     ``gcs`` rig (an emulated controller) — without seed, stream and pivot; None for a real rig."""
     rig = campaign.get("rig") or {}

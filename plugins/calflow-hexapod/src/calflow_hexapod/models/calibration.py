@@ -2,7 +2,7 @@
 
 :func:`predict` runs a commanded pose through the model the way the hexapod runs it: the
 controller's inverse kinematics through its nominal geometry gives leg lengths λ, the model's
-legs have the lengths l(λ) of :class:`calflow_hexapod.models.Parameters`, the platform goes
+legs have the lengths l(λ) of :class:`calflow_hexapod.models.ladder.Parameters`, the platform goes
 where the identified joints put it (forward kinematics) and the instrument sees the target
 through the measurement and tool frames, M = F⁻¹ P G. :func:`command` inverts it in closed
 form and one forward solve: for a wanted reading M, P = F M G⁻¹, l = the identified inverse
@@ -19,9 +19,9 @@ import xarray as xr
 
 from calflow.data.io import open_dataset, write_dataset
 from calflow.data.runs import RunMetadata
-from calflow_hexapod import kinematics
-from calflow_hexapod.geometry import Geometry, compose, invert, pose_of, transform
-from calflow_hexapod.models import NAMES, Parameters, long_name, unit
+from calflow_hexapod.models import kinematics
+from calflow_hexapod.models.geometry import Geometry, compose, invert, pose_of, transform
+from calflow_hexapod.models.ladder import NAMES, Parameters, long_name, unit
 
 
 def _frames(phi: Parameters):
@@ -46,7 +46,7 @@ def predict(phi: Parameters, controller: Geometry, commands, temperature=None) -
 
 def command(phi: Parameters, controller: Geometry, targets, temperature=None) -> np.ndarray:
     """Poses (n, 6) to command so that the model's reading is ``targets`` (n, 6): the inverse of
-    :func:`predict`. Raises :class:`calflow_hexapod.kinematics.ForwardKinematicsError` for a
+    :func:`predict`. Raises :class:`calflow_hexapod.models.kinematics.ForwardKinematicsError` for a
     target the controller's geometry cannot reach."""
     targets = np.asarray(targets, dtype=float)
     (RF, tF), (RG, tG) = _frames(phi)
@@ -74,7 +74,7 @@ class HexapodModel:
 
     @classmethod
     def from_identification(cls, name: str, fit, controller: Geometry) -> HexapodModel:
-        """From :class:`calflow_hexapod.identification.Identification`."""
+        """From :class:`calflow_hexapod.models.identification.Identification`."""
         diagnostics = {
             "chi2_dof": fit.chi2_dof,
             "residual_rms_um": fit.residual_rms_um,

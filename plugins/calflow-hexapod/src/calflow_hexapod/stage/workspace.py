@@ -1,12 +1,12 @@
 """The hexapod's workspace as its controller checks it: per-axis travel and the legs' stroke.
 
 PI's hexapod datasheets give the travel of each coordinate alone (H-811.I2: ±17 mm in X and
-Y, ±6.5 mm in Z, ±10° about X and Y, ±21° about Z, :data:`calflow_hexapod.geometry.H811_TRAVEL`)
+Y, ±6.5 mm in Z, ±10° about X and Y, ±21° about Z, :data:`calflow_hexapod.models.geometry.H811_TRAVEL`)
 and note that the travel ranges of the coordinates are interdependent: a pose is reachable
 when every leg stays within its stroke. The stroke used here is the largest change of any
 leg over the six single-coordinate extremes of the datasheet travel, so every datasheet
 travel is reachable alone and combined extremes are refused, as on the real controller
-(``MOV`` → GCS error 7, :mod:`calflow_hexapod.c887`).
+(``MOV`` → GCS error 7, :mod:`calflow_hexapod.stage.c887`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from calflow_hexapod.geometry import H811_TRAVEL, Geometry, h811
-from calflow_hexapod.kinematics import inverse
+from calflow_hexapod.models.geometry import H811_TRAVEL, Geometry, h811
+from calflow_hexapod.models.kinematics import inverse
 
 
 @lru_cache(maxsize=1)

@@ -3,9 +3,9 @@
 What is left of each effect once a model has calibrated the rig — test and report use only:
 it reads the simulated rig's effects. Analysis code never imports it.
 
-For every effect ``e`` of :data:`calflow_hexapod.rig_physics.EFFECTS` the rig has on, the
+For every effect ``e`` of :data:`calflow_hexapod.stage.physics.EFFECTS` the rig has on, the
 campaign's calibration is replayed in-process — identification plan, identification of every
-model (:func:`calflow_hexapod.identification.identify`), held-out validation through each
+model (:func:`calflow_hexapod.models.identification.identify`), held-out validation through each
 model's inverse — on the same rig with ``e`` switched off, with the same seeds and noise
 streams as the workflow's runs (stream = run id). One more replay, the *baseline*, has every
 effect off: what is left is noise (legs' repeatability, the tracker's random error) through
@@ -18,7 +18,7 @@ from the target to the barycentre of its visits), for the position (µm) and the
 Σ_e ΔMS_e + MS_interaction, ΔMS_e = MS_full − MS_{−e}; entries are sign(ΔMS)·√|ΔMS|.
 
 The repeatability floor (:func:`floor`) is the held-out validation commanded through the
-rig's *true* parameters (:func:`calflow_hexapod.rig.truth_parameters`): the accuracy a
+rig's *true* parameters (:func:`calflow_hexapod.stage.rig.truth_parameters`): the accuracy a
 perfect geometric model reaches on this rig, and the pooled within-target scatter of the
 readings (per reading and axis) — what no model can remove.
 """
@@ -28,14 +28,15 @@ from __future__ import annotations
 import numpy as np
 
 from calflow.errors import CalflowError
-from calflow_hexapod import campaign_plans, design_plan
-from calflow_hexapod.calibration import HexapodModel, command
-from calflow_hexapod.geometry import AXES, h811
-from calflow_hexapod.identification import identify, run_inputs
-from calflow_hexapod.models import LADDER
-from calflow_hexapod.plans import validation
-from calflow_hexapod.rig import simulated_hexapod, truth_parameters
-from calflow_hexapod.rig_physics import EFFECTS, UNMODELLED, options_off, truth_from_options
+from calflow_hexapod.models.calibration import HexapodModel, command
+from calflow_hexapod.models.geometry import AXES, h811
+from calflow_hexapod.models.identification import identify, run_inputs
+from calflow_hexapod.models.ladder import LADDER
+from calflow_hexapod.plans import campaign as campaign_plans
+from calflow_hexapod.plans import design as design_plan
+from calflow_hexapod.plans.poses import validation
+from calflow_hexapod.stage.physics import EFFECTS, UNMODELLED, options_off, truth_from_options
+from calflow_hexapod.stage.rig import simulated_hexapod, truth_parameters
 
 REPLAYS = ("baseline", *EFFECTS)  # "baseline": every effect off; any other: that effect off
 
