@@ -50,11 +50,20 @@ def wildcard_constraints(texts: list[str]) -> dict[str, str]:
     return found
 
 
-def rule_patterns(rules_dir: Path) -> dict[str, dict]:
+def rule_files(root: Path = ROOT) -> list[Path]:
+    """The workflow's rule files: the core's (workflow/rules) and each family's (a ``rules``
+    folder of a package under src/ or plugins/)."""
+    found = sorted((root / "workflow" / "rules").glob("*.smk"))
+    for base in ("src", "plugins"):
+        found += sorted(p for p in (root / base).rglob("rules/*.smk") if p.is_file())
+    return found
+
+
+def rule_patterns(files: list[Path]) -> dict[str, dict]:
     """``{rule: {"regex": compiled benchmark path, "mem_mb": declared, "runtime": declared,
     "threads": declared}}`` from the rule files' text."""
     rules = {}
-    texts = [smk.read_text() for smk in sorted(rules_dir.glob("*.smk"))]
+    texts = [smk.read_text() for smk in files]
     constraints = wildcard_constraints(texts)
     for text in texts:
         starts = [(m.start(), m.group(1)) for m in RULE.finditer(text)] + [(len(text), None)]
@@ -116,10 +125,12 @@ def proposal(rows: list[dict]) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("results", nargs="?", default="results", type=Path)
-    ap.add_argument("--rules", default=ROOT / "workflow" / "rules", type=Path)
+    ap.add_argument(
+        "--rules", nargs="*", type=Path, help="rule files (default: the workflow's and the families')"
+    )
     ap.add_argument("--check", action="store_true")
     args = ap.parse_args(argv)
-    rules = rule_patterns(args.rules)
+    rules = rule_patterns(args.rules or rule_files())
     runs = measured(args.results.resolve(), rules)
     if not runs:
         sys.stderr.write(f"job_sizes: error: {args.results}: no benchmark file of a known rule\n")
