@@ -10,14 +10,18 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/acquire.smk"
-include: "workflow/rules/step_response.smk"
-include: "workflow/rules/characterise.smk"
 include: "workflow/rules/identify.smk"
-include: "workflow/rules/validate.smk"
-include: "workflow/rules/export.smk"
+include: "workflow/rules/heldout.smk"
+include: "workflow/rules/metrics.smk"
 include: "workflow/rules/report.smk"
-include: "workflow/rules/montecarlo.smk"
+include: "workflow/rules/stages.smk"
 include: "workflow/rules/cluster.smk"
+
+
+# Each installed robot family's own rules (calflow.family.Family.rules).
+for _rules in FAMILY_RULES:
+
+    include: _rules
 
 
 rule all:
@@ -26,3 +30,5 @@ rule all:
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
         expand("reports/studies/{study}.html", study=STUDIES),
+        expand("reports/stages/{stage}/history.html", stage=STAGES),
+        expand("reports/stages/{stage}/history.pdf", stage=STAGES),

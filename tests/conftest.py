@@ -155,16 +155,26 @@ SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created
 
 
 @pytest.fixture(scope="session")
-def thesis_run(tmp_path_factory) -> Path:
-    """The default configuration (the three thesis campaigns, no study) run once: its
-    project folder, with results/ and reports/."""
-    work = tmp_path_factory.mktemp("thesis") / "project"
-    work.mkdir()
-    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-    shutil.copytree(ROOT / "workflow", work / "workflow")
-    shutil.copytree(ROOT / "config", work / "config")
-    proc = snakemake(work, "--config", "studies=[]")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+def thesis_run(tmp_path_factory, worker_id) -> Path:
+    """The default configuration (the three thesis campaigns, no study) run once per test
+    session: its project folder, with results/ and reports/. Under pytest-xdist the first
+    worker that asks runs it and the others wait for it and share it (the pattern of
+    pytest-xdist's docs: a file lock in the session's common temporary folder)."""
+    from filelock import FileLock
+
+    base = tmp_path_factory.getbasetemp()
+    shared = base if worker_id == "master" else base.parent
+    work, done = shared / "thesis" / "project", shared / "thesis" / "complete"
+    with FileLock(shared / "thesis.lock"):
+        if not done.exists():
+            shutil.rmtree(work.parent, ignore_errors=True)
+            work.mkdir(parents=True)
+            shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+            shutil.copytree(ROOT / "workflow", work / "workflow")
+            shutil.copytree(ROOT / "config", work / "config")
+            proc = snakemake(work, "--config", "studies=[]")
+            assert proc.returncode == 0, proc.stderr[-3000:]
+            done.touch()
     return work
 
 

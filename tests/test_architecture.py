@@ -9,6 +9,7 @@ core (and the controller layer ``calflow.gcs``) and never another family; the co
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -167,3 +168,74 @@ def test_rooms_are_packages_with_a_docstring():
         for init in (PACKAGE / family).rglob("__init__.py"):
             doc = ast.get_docstring(ast.parse(init.read_text()))
             assert doc, f"{init.relative_to(PACKAGE)} says nothing of what its room holds"
+
+
+# ------------------------------------------------------------------ a core that names no family
+ROOT = PACKAGE.parents[1]
+
+
+def _family_names() -> set[str]:
+    """The robot and family names of every installed family (calflow's own and plug-ins)."""
+    from calflow.family import families
+
+    return {name for fam in families() for name in (fam.name, *fam.robots)}
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                found.add(id(body[0].value))
+    return found
+
+
+def _named_families(text: str, names: set[str]) -> list[str]:
+    """Quoted robot names (``"xytheta"``) and ``calflow.<family>`` in ``text``."""
+    alternatives = "|".join(map(re.escape, sorted(names)))
+    pattern = re.compile(rf"""["']({alternatives})["']|calflow\.({alternatives})\b""")
+    return [m.group(0) for m in pattern.finditer(text)]
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _family(m) is None))
+def test_core_modules_name_no_family(module):
+    """A core module's code names no robot or family (its docstrings may, as examples): what
+    differs between robots comes from the calflow.families registry."""
+    names = _family_names()
+    tree = ast.parse(MODULES[module].read_text())
+    docs = _docstrings(tree)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            words = set(re.findall(r"[A-Za-z0-9_]+", node.value))
+            assert not words & names, f"{module} line {node.lineno} names {sorted(words & names)}"
+            assert not _named_families(node.value, names), f"{module} line {node.lineno} imports a family"
+
+
+def _workflow_files() -> list[Path]:
+    return [ROOT / "Snakefile", *sorted((ROOT / "workflow").rglob("*.smk")), *sorted(TEMPLATES.glob("*.j2"))]
+
+
+TEMPLATES = PACKAGE / "report" / "templates"
+
+
+@pytest.mark.parametrize("path", _workflow_files(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_core_rules_and_templates_name_no_family(path):
+    """The core Snakemake rules and report templates name no robot outside comments: each
+    family's own rules files and templates live in its package."""
+    names = _family_names()
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        code = line.split("#", 1)[0] if path.suffix != ".j2" else re.sub(r"\{#.*?#\}", "", line)
+        assert not _named_families(code, names), f"{path.name}:{n} names a family: {line.strip()}"
+
+
+def test_families_register_what_the_core_asks():
+    """Every installed family says what the core cannot know: its robots' joints and its rules."""
+    from calflow.family import families
+
+    for fam in families():
+        for robot in fam.robots:
+            assert fam.joints_of(robot), f"family {fam.name}: no joints for robot {robot}"
+        for path in fam.rules_files():
+            assert Path(path).is_file(), f"family {fam.name}: rules file {path} missing"
+        assert fam.hooks().open_loop_runs or fam.rules, f"family {fam.name} adds no runs to the workflow"

@@ -78,3 +78,32 @@ def test_rig_factory_must_be_a_module_callable(tmp_path, small_campaign):
     small_campaign["rig"]["factory"] = "__import__('os').system('x')"
     with pytest.raises(ConfigError, match="rig.factory"):
         load_campaign(_write(tmp_path, small_campaign))
+
+
+def test_defaults_are_independent_copies_and_follow_refs(monkeypatch):
+    """The default-setting validator copies each default (two campaigns never share one)
+    and fills defaults behind ``$ref`` and ``additionalProperties`` too."""
+    from calflow import config
+
+    sch = {
+        "$defs": {"sweep": {"type": "object", "properties": {"x_um": {"type": "array", "default": [0, 1]}}}},
+        "type": "object",
+        "properties": {"a": {"$ref": "#/$defs/sweep"}, "b": {"type": "object", "default": {}}},
+        "additionalProperties": {"type": "object", "properties": {"n": {"type": "integer", "default": 3}}},
+    }
+    monkeypatch.setattr(config, "schema", lambda name: sch)
+    one = config.validate({"a": {}, "extra": {}}, "toy", "toy.yaml")
+    two = config.validate({"a": {}}, "toy", "toy.yaml")
+    assert one == {"a": {"x_um": [0, 1]}, "b": {}, "extra": {"n": 3}}
+    one["a"]["x_um"].append(2)
+    assert two["a"]["x_um"] == [0, 1]
+    assert sch["$defs"]["sweep"]["properties"]["x_um"]["default"] == [0, 1]
+
+
+def test_an_impossible_date_names_the_key_and_the_calendar(tmp_path, small_campaign):
+    small_campaign["start"] = "2026-04-31T08:00:00+02:00"
+    with pytest.raises(ConfigError) as err:
+        load_campaign(_write(tmp_path, small_campaign))
+    msg = str(err.value)
+    assert "c1.yaml: key 'start': expected a real ISO 8601 date and time" in msg
+    assert "2026-04-31" in msg and "day is out of range" in msg and "\n" not in msg

@@ -268,7 +268,7 @@ def test_pose_metrics_2d_and_summary(tmp_path):
         {"name": "t2"}, m, {"single": {"a_1x": np.float64(1.0)}}, None, [], training_metrics=m.isel(test=[0])
     )
     json.dumps(s, allow_nan=False)
-    assert s["reference"] == reference.STAGE2D and s["robot"] == "stage2d"
+    assert s["reference"] == reference.of("stage2d") and s["robot"] == "stage2d"
     assert s["tests"]["no_calibration"]["max_accuracy_nm"] == pytest.approx(float(m["ap_max"][[0, 2]].max()))
     assert s["tests"]["single"]["max_accuracy_nm"] < 200
     assert s["training"]["accuracy_nm"] == pytest.approx(float(m["ap_max"][0]))
@@ -316,7 +316,7 @@ def test_stage1d_summary_keys_by_day_and_json(validation, tmp_path):
     by_day = s["tests"]["no_calibration"]["max_accuracy_nm_by_day"]  # run ends at 51.8 h: days 0, 1, 2
     assert by_day[:2] == pytest.approx([float(m["ap_max"][0]), float(m["ap_max"][3])]) and by_day[2] is None
     assert s["tests"]["single"]["series"]["time_h"] == pytest.approx([21.583333, 47.583333])
-    assert s["reference"] == reference.STAGE1D
+    assert s["reference"] == reference.of("stage1d")
     assert s["models"]["single"]["lam"] is None and isinstance(s["models"]["single"]["a_1"], float)
     assert s["budget"]["combined_nm"] == pytest.approx(interferometer_budget().combined_nm)
     assert len(s["budget"]["rows"]) == 9

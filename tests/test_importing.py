@@ -256,7 +256,7 @@ def with_columns(**changes):
             with_columns(pose={"column": "p", "offset": 1}),
             "map.yaml: key 'columns.pose': scale/offset do not apply",
         ),
-        ({**MAPPING, "robot": "hexapod"}, "map.yaml: key 'robot': expected one of"),
+        ({**MAPPING, "robot": "tripod"}, "map.yaml: key 'robot': expected one of"),
         ({**MAPPING, "plan": ""}, "map.yaml: key 'plan': expected a plan name"),
         ({**MAPPING, "delimiter": ";;"}, "map.yaml: key 'delimiter': expected one character"),
         ("- just\n- a list\n", "map.yaml: expected a mapping with keys"),

@@ -25,6 +25,8 @@ QUIET = dict(
     wavelength_stability_ppm=0.0,
     settle_fraction=0.0,
     creep_pct_per_decade=0.0,
+    move_settling_ppm_per_decade=0.0,  # the mechanics' log-time relaxation after the move
+    turbulence_mk=0.0,  # the beam's air fluctuates within the 50 ms record
     interferometer_resolution_nm=1e-6,
     profile="constant",
 )

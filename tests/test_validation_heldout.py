@@ -14,7 +14,7 @@ from calflow.xytheta.models.identification import identify
 from calflow.xytheta.models.kinematics import Parameters, forward
 from calflow.xytheta.models.resampling import cross_validate
 from calflow.xytheta.plans.poses import heldout_targets, identification
-from calflow.xytheta.report.summary import adequacy, disjointness, repeatability_floor
+from calflow.xytheta.report.heldout import adequacy, disjointness, repeatability_floor
 from calflow.xytheta.stage.physics import options_off
 from calflow.xytheta.steps import o2_plateau
 from calflow.xytheta.tables.angle import AngleTable, _curves, angle_spectrum

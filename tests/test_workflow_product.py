@@ -14,8 +14,10 @@ def test_snakemake_lint_is_clean():
 
 
 def test_snakefiles_are_snakefmt_formatted():
+    from calflow.family import all_rules_files
+
     proc = subprocess.run(
-        [str(BIN / "snakefmt"), "--check", "Snakefile", "workflow"],
+        [str(BIN / "snakefmt"), "--check", "Snakefile", "workflow", *all_rules_files()],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -67,7 +67,8 @@ def cmd_index(args) -> None:
     from calflow.data.io import load_summary, write_text
     from calflow.report import render_index
 
-    write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
+    histories = [load_summary(p) for p in args.histories or []]
+    write_text(render_index([load_summary(p) for p in args.summaries], histories), args.out)
 
 
 def cmd_import_csv(args) -> None:
@@ -119,9 +120,15 @@ def cmd_check_config(args) -> None:
     from calflow.config import check_campaign_name, load_campaign, load_workflow_config, load_yaml
 
     cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
+    from calflow.lifecycle.stages import stages_of
+
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
+    campaigns = {}
     for name in cfg["campaigns"]:
-        load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+        campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+    stages_of(
+        campaigns, folder
+    )  # the campaigns of each stage agree (robot, distinct starts, interim references)
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -163,10 +170,7 @@ def parser() -> argparse.ArgumentParser:
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
     i.add_argument("--campaign", required=True)
     i.add_argument("--model-name", required=True)
-    i.add_argument("--run", help="identification (XYΘ) or training (nano) run")
-    i.add_argument("--luts", help="XY error tables (models with position_table)")
-    i.add_argument("--base", help="base model (models with angle_table)")
-    i.add_argument("--residuals", help="angle-residual run commanded through the base model")
+    i.add_argument("--run", help="the run the model is identified from (its family's identification run)")
     i.add_argument("--out", required=True)
 
     m = _sub(sub, "metrics", cmd_metrics, "ISO 9283 accuracy and repeatability of a run")
@@ -190,7 +194,22 @@ def parser() -> argparse.ArgumentParser:
 
     x = _sub(sub, "index", cmd_index, "render reports/index.html over all campaigns")
     x.add_argument("--summaries", nargs="+", required=True)
+    x.add_argument("--histories", nargs="*", help="stage histories (results/stages/<id>/history.json)")
     x.add_argument("--out", required=True)
+
+    from calflow.lifecycle.commands import history_arguments, report_arguments
+
+    history_arguments(
+        _sub(sub, "history", _run("calflow.lifecycle.commands:run_history"), "write a stage's history.json")
+    )
+    report_arguments(
+        _sub(
+            sub,
+            "history-report",
+            _run("calflow.lifecycle.commands:run_report"),
+            "render a stage's history report (HTML and PDF)",
+        )
+    )
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"
@@ -232,7 +251,7 @@ def parser() -> argparse.ArgumentParser:
         "emulate",
         _run("calflow.gcs.campaign_server:emulate_command"),
         "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
-        "its robot family registers (C-863 for xytheta, E-727 class for nano)",
+        "its robot family registers (docs/gcs.md)",
     )
     e.add_argument("kind", choices=["gcs"])
     e.add_argument(
@@ -246,6 +265,8 @@ def parser() -> argparse.ArgumentParser:
     for family in families():
         if family.acquire_arguments is not None:
             family.acquire_arguments(a)
+        if family.identify_arguments is not None:
+            family.identify_arguments(i)
         for command in family.commands:
             command.arguments(_sub(sub, command.name, _run(command.run), command.help))
     return p

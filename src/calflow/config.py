@@ -20,7 +20,7 @@ import jsonschema
 import yaml
 
 from calflow.errors import ConfigError
-from calflow.family import family_of, resolve, robots
+from calflow.family import family_of, missing_family, resolve, robots
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -49,15 +49,29 @@ def safe_yaml(text: str) -> Any:
 def schema(name: str) -> dict:
     """The JSON Schema ``workflow/schemas/<name>.schema.yaml``.
 
-    ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in.
+    ``campaign-<robot>`` schemas get the keys of ``campaign-common`` merged in; a family
+    whose schemas live in its own package says so (:attr:`calflow.family.Family.schemas`).
     """
-    sch = safe_yaml((SCHEMA_DIR / f"{name}.schema.yaml").read_text())
+    sch = safe_yaml(_schema_file(name).read_text())
     if name.startswith("campaign-") and name != "campaign-common":
         common = safe_yaml((SCHEMA_DIR / "campaign-common.schema.yaml").read_text())
         sch["properties"] = {**common["properties"], **sch.get("properties", {})}
         sch["$defs"] = {**common.get("$defs", {}), **sch.get("$defs", {})}
         sch["required"] = sorted(set(common.get("required", [])) | set(sch.get("required", [])))
     return sch
+
+
+def _schema_file(name: str) -> Path:
+    """``<name>.schema.yaml`` in the core's folder, or in the ``schemas/`` folder of the
+    package of the family of robot ``<robot>`` for ``campaign-<robot>``."""
+    robot = name[len("campaign-") :] if name.startswith("campaign-") else None
+    if robot and robot in robots():
+        package = family_of(robot).schemas
+        if package:
+            from importlib.resources import files
+
+            return Path(str(files(package) / "schemas" / f"{name}.schema.yaml"))
+    return SCHEMA_DIR / f"{name}.schema.yaml"
 
 
 def _key(path) -> str:
@@ -91,28 +105,69 @@ def _describe(error: jsonschema.ValidationError, file: str) -> str:
     if v == "pattern":
         desc = s.get("description", f"text matching {s['pattern']}")
         return f"{file}: key '{key}': expected {desc}, got {error.instance!r}"
+    if v == "range":
+        return f"{file}: key '{key}': {error.message}, got {error.instance!r}"
+    if v == "format":
+        expected = _FORMAT_NAMES.get(s["format"], f"a {s['format']}")
+        cause = f" ({error.cause})" if error.cause else ""
+        return f"{file}: key '{key}': expected {expected}, got {error.instance!r}{cause}"
     if v in ("minItems", "maxItems", "minProperties"):
         return f"{file}: key '{key}': {error.message}"
     return f"{file}: key '{key}': {error.message}"
 
 
-def _apply_defaults(node: Any, sch: dict, root: dict) -> Any:
-    """Fill in schema defaults of object properties, recursively."""
-    if "$ref" in sch:
-        ref = sch["$ref"].split("/")[-1]
-        sch = {**root["$defs"][ref], **{k: v for k, v in sch.items() if k != "$ref"}}
-    if isinstance(node, dict):
-        for key, sub in sch.get("properties", {}).items():
-            if key not in node and "default" in sub:
-                node[key] = copy.deepcopy(sub["default"])
-            if key in node:
-                node[key] = _apply_defaults(node[key], sub, root)
-        extra = sch.get("additionalProperties")
-        if isinstance(extra, dict):
-            for key in node:
-                if key not in sch.get("properties", {}):
-                    node[key] = _apply_defaults(node[key], extra, root)
-    return node
+def _filling_defaults(properties):
+    """jsonschema's ``properties`` keyword, first filling in each absent property's
+    ``default`` (a deep copy) — the default-setting validator of jsonschema's FAQ."""
+
+    def validate_properties(validator, props, instance, sch):
+        if validator.is_type(instance, "object"):
+            for key, sub in props.items():
+                if key not in instance and isinstance(sub, dict) and "default" in sub:
+                    instance[key] = copy.deepcopy(sub["default"])
+        yield from properties(validator, props, instance, sch)
+
+    return validate_properties
+
+
+def _ordered_ranges(ref):
+    """jsonschema's ``$ref`` keyword, and a value of ``$defs/range`` must be ``[low, high]``
+    with low < high (an error whose ``validator`` is ``"range"``)."""
+
+    def validate_ref(validator, target, instance, sch):
+        if (
+            target.endswith("/$defs/range")
+            and validator.is_type(instance, "array")
+            and len(instance) == 2
+            and all(validator.is_type(v, "number") for v in instance)
+            and not instance[0] < instance[1]
+        ):
+            yield jsonschema.ValidationError(
+                "expected a range [low, high] with low < high", validator="range"
+            )
+        yield from ref(validator, target, instance, sch)
+
+    return validate_ref
+
+
+_Base = jsonschema.Draft202012Validator
+#: Validates, with ordered ranges; :data:`_Filling` also fills in the schema's defaults.
+_Checking = jsonschema.validators.extend(_Base, {"$ref": _ordered_ranges(_Base.VALIDATORS["$ref"])})
+_Filling = jsonschema.validators.extend(
+    _Checking, {"properties": _filling_defaults(_Base.VALIDATORS["properties"])}
+)
+
+#: ``format`` values calflow checks, and how a failure reads ("expected ...").
+FORMATS = jsonschema.FormatChecker(formats=())
+_FORMAT_NAMES = {"date-time": "a real ISO 8601 date and time"}
+
+
+@FORMATS.checks("date-time", raises=ValueError)
+def _real_date_time(value: object) -> bool:
+    """The schema's pattern lets 2026-02-31 through; Python's calendar does not."""
+    if isinstance(value, str):
+        dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+    return True
 
 
 def load_yaml(path: str | Path) -> Any:
@@ -140,24 +195,6 @@ def check_finite(node: Any, file: str | Path, path: tuple = ()) -> None:
     elif isinstance(node, list):
         for i, v in enumerate(node):
             check_finite(v, file, path + (i,))
-
-
-def _check_ranges(node: Any, sch: dict, root: dict, file, path: tuple = ()) -> None:
-    """Every ``$defs/range`` value ``[lo, hi]`` of ``node`` has lo < hi."""
-    if "$ref" in sch:
-        ref = sch["$ref"].split("/")[-1]
-        if ref == "range" and isinstance(node, list) and len(node) == 2 and not node[0] < node[1]:
-            raise ConfigError(
-                f"{file}: key '{_key(path)}': expected a range [low, high] with low < high, got {node!r}"
-            )
-        sch = root["$defs"].get(ref, {})
-    if isinstance(node, dict):
-        for key, value in node.items():
-            sub = sch.get("properties", {}).get(key)
-            if sub is None and isinstance(sch.get("additionalProperties"), dict):
-                sub = sch["additionalProperties"]
-            if sub is not None:
-                _check_ranges(value, sub, root, file, path + (key,))
 
 
 def _check_dwells(node: Any, file, path: tuple = ()) -> None:
@@ -188,29 +225,25 @@ def _check_strokes(node: Any, file, path: tuple = ()) -> None:
         _check_strokes(value, file, path + (key,))
 
 
-def _check_start(campaign: dict, file) -> None:
-    """The campaign ``start`` is a real date and time (the pattern lets 2026-02-31 through)."""
-    start = campaign.get("start")
-    try:
-        dt.datetime.fromisoformat(str(start).replace("Z", "+00:00"))
-    except ValueError as exc:
-        raise ConfigError(
-            f"{file}: key 'start': expected a real ISO 8601 date and time, got {start!r} ({exc})"
-        ) from None
-
-
 def validate(data: Any, name: str, file: str | Path) -> dict:
     """Validate ``data`` against schema ``name``; return it with defaults filled in."""
     sch = schema(name)
     if not isinstance(data, dict):
         raise ConfigError(f"{file}: <top level>: expected a mapping of keys, got {type(data).__name__}")
     check_finite(data, file)
-    validator = jsonschema.Draft202012Validator(sch)
-    errors = sorted(validator.iter_errors(data), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
+    # the schema's own errors first, shallowest first; an unordered range only after them
+    errors = sorted(
+        _Checking(sch, format_checker=FORMATS).iter_errors(data),
+        key=lambda e: (e.validator == "range", len(e.absolute_path), _key(e.absolute_path)),
+    )
     if errors:
         raise ConfigError(_describe(errors[0], str(file)))
-    _check_ranges(data, sch, sch, file)
-    return _apply_defaults(copy.deepcopy(data), sch, sch)
+    filled = copy.deepcopy(data)
+    for error in _Filling(sch).iter_errors(filled):  # a default the schema itself breaks
+        raise ConfigError(
+            f"{file}: schema {name}: default of key '{_key(error.absolute_path)}': {error.message}"
+        )
+    return filled
 
 
 def check_campaign_name(name: str) -> str:
@@ -243,9 +276,13 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     if robot is None:
         raise ConfigError(f"{path}: key 'robot': missing, it is required (one of {known})")
     if robot not in known:
-        raise ConfigError(f"{path}: key 'robot': expected one of {known}, got {robot!r}")
+        distribution = data.get("distribution")
+        raise ConfigError(
+            f"{path}: key 'robot': {missing_family(str(robot), distribution)}"
+            if isinstance(distribution, str) and distribution
+            else f"{path}: key 'robot': expected one of {known}, got {robot!r}"
+        )
     campaign = validate(data, f"campaign-{robot}", path)
-    _check_start(campaign, path)
     _check_dwells(campaign, path)
     _check_strokes(campaign, path)
     from calflow.rigs.plugin import check_rig

@@ -9,8 +9,11 @@ itself with one :class:`Family` and registers it as an entry point of the group
     xytheta = "calflow.xytheta.family:FAMILY"
 
 Everything heavy is named as ``"module:attribute"`` and imported only when a command
-needs it, so ``calflow --help`` loads no numerical library. docs/families.md sketches a
-third family.
+needs it, so ``calflow --help`` loads no numerical library. The core asks the registry
+for everything that differs between robots — the joints a run records, the published
+values a summary sits beside, the report's labels, the index row, which result file feeds
+which summary section, and the family's own Snakemake rules — so no core module and no
+core rule names a robot (docs/families.md).
 """
 
 from __future__ import annotations
@@ -58,11 +61,36 @@ class Family:
     * ``templates``: the package whose ``templates/`` folder holds ``<robot>.html.j2``.
     * ``modules``: per step, the modules whose code decides that step's outputs, so a
       change to them reruns the step's jobs (:mod:`calflow.provenance`).
-    * ``acquire_arguments``: options the family's plans read from ``calflow acquire``.
+    * ``acquire_arguments``, ``identify_arguments``: options the family's plans read from
+      ``calflow acquire``, and its identification from ``calflow identify``.
     * ``commands``: the family's own subcommands.
     * ``sensors``: short names of sensor factories for the ``gcs`` rig.
     * ``emulator``: ``"module:function"``, ``function(argv, prog=...) -> int`` serving a
       campaign's stages as a GCS controller (``calflow emulate gcs --campaign FILE``).
+    * ``joints``: per robot, the joint (axis) names of its runs, in order: a run of that
+      robot has ``cmd_<joint>`` and ``meas_<joint>`` (validation, import and replay read it).
+    * ``axes``: axis name → ``(units, long_name)`` for joints the core does not define
+      (the core knows ``x``, ``y``, ``z`` in µm and ``theta`` in degree).
+    * ``reference``: per robot, ``"module:attribute"`` of the published values (a dict with
+      a ``source``) that the summary puts beside calflow's (``summary["reference"]``).
+    * ``modes``: report label of each name of a test mode or model (``adaptive_kmz`` →
+      "adaptive model (KMZ)"), the report's ``mode`` filter.
+    * ``index_row``: template in ``templates/`` drawing a campaign's headline rows in the
+      cross-campaign index (it receives ``s``, the summary, and ``ref``, its reference).
+    * ``summary_sections``: ``"kind"`` or ``"kind:plan"`` → section name: which summary
+      section each result file feeds (:func:`calflow.summary_routing.route`).
+    * ``rules``: ``("package", "file.smk", ...)``: the family's Snakemake rules files inside
+      ``package``, included by the Snakefile for every installed family.
+    * ``workflow``: ``"module:attribute"``, a :class:`calflow.family_workflow.FamilyWorkflow`
+      answering what the core rules ask about a campaign (its result files, models,
+      identification inputs, the runs its ``acquire`` rule serves).
+    * ``studies``: ``"module:function"``, ``function(path, campaign_dir) -> dict`` loading a
+      study file over a base campaign of the family (``config/studies``).
+    * ``schemas``: the package whose ``schemas/`` folder holds ``campaign-<robot>.schema.yaml``
+      (``None``: the core's ``workflow/schemas``); the common keys are merged in.
+    * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
+      {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
+      history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
     """
 
     name: str
@@ -74,9 +102,21 @@ class Family:
     templates: str
     modules: Mapping[str, tuple[str, ...]]
     acquire_arguments: Callable[[argparse.ArgumentParser], None] | None = None
+    identify_arguments: Callable[[argparse.ArgumentParser], None] | None = None
     commands: tuple[Command, ...] = ()
     sensors: Mapping[str, str] = field(default_factory=dict)
     emulator: str | None = None
+    joints: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    axes: Mapping[str, tuple[str, str]] = field(default_factory=dict)
+    reference: Mapping[str, str] = field(default_factory=dict)
+    modes: Mapping[str, str] = field(default_factory=dict)
+    index_row: str | None = None
+    summary_sections: Mapping[str, str] = field(default_factory=dict)
+    rules: tuple[str, ...] = ()
+    workflow: str | None = None
+    studies: str | None = None
+    schemas: str | None = None
+    history_entry: str | None = None
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:
@@ -91,6 +131,28 @@ class Family:
                 f"expected one of {', '.join(plans)}"
             )
         return resolve(plans[name])
+
+    def joints_of(self, robot: str) -> tuple[str, ...]:
+        """The joints of ``robot``'s runs, in order (empty when the family does not say)."""
+        return tuple(self.joints.get(robot, ()))
+
+    def reference_of(self, robot: str) -> dict:
+        """The published values beside which ``robot``'s summaries are put (``{}`` when none)."""
+        target = self.reference.get(robot)
+        return resolve(target) if target else {}
+
+    def hooks(self) -> Any:
+        """The family's :class:`calflow.family_workflow.FamilyWorkflow` (the core's defaults when none)."""
+        return resolve(self.workflow or "calflow.family_workflow:DEFAULT")
+
+    def rules_files(self) -> list[str]:
+        """Absolute paths of the family's Snakemake rules files (``rules``)."""
+        if not self.rules:
+            return []
+        from importlib.resources import files
+
+        package, *names = self.rules
+        return [str(files(package).joinpath(name)) for name in names]
 
 
 def resolve(target: str) -> Any:
@@ -111,14 +173,51 @@ def families() -> tuple[Family, ...]:
     return tuple(found)
 
 
-def family_of(robot: str) -> Family:
-    """The family that serves campaigns with ``robot``."""
+def family_of(robot: str, distribution: str | None = None) -> Family:
+    """The family that serves campaigns with ``robot``.
+
+    ``distribution``: the package the campaign says provides the family (campaign key
+    ``distribution``), named in the error when no installed family serves ``robot``.
+    """
     for fam in families():
         if robot in fam.robots:
             return fam
+    raise CalflowError(missing_family(robot, distribution))
+
+
+def missing_family(robot: str, distribution: str | None = None) -> str:
+    """The one-line reason no installed family serves ``robot``."""
     known = sorted(r for fam in families() for r in fam.robots)
-    raise CalflowError(f"robot {robot!r}: no installed calflow family serves it; expected one of {known}")
+    if distribution:
+        return (
+            f"robot {robot!r}: its family's distribution {distribution!r} is not installed "
+            f"(pip install {distribution}); installed robots: {known}"
+        )
+    return f"robot {robot!r}: no installed calflow family serves it; expected one of {known}"
 
 
 def robots() -> tuple[str, ...]:
     return tuple(r for fam in families() for r in fam.robots)
+
+
+def joints(robot: str) -> tuple[str, ...]:
+    """The joints of a robot's runs from its family; ``()`` for a robot no family serves."""
+    for fam in families():
+        if robot in fam.robots:
+            return fam.joints_of(robot)
+    return ()
+
+
+def axes() -> dict[str, tuple[str, str]]:
+    """Axis name → (units, long_name) of every installed family's own joints."""
+    return {name: tuple(spec) for fam in families() for name, spec in fam.axes.items()}
+
+
+def modes() -> dict[str, str]:
+    """Report labels of test modes and models, from every installed family."""
+    return {name: label for fam in families() for name, label in fam.modes.items()}
+
+
+def all_rules_files() -> list[str]:
+    """The Snakemake rules files of every installed family, in entry-point name order."""
+    return [path for fam in families() for path in fam.rules_files()]

@@ -16,11 +16,18 @@ from calflow import __version__
 
 def _files(module: str) -> list[Path]:
     """The source files of ``module``: a module, a package with its submodules and data, or
-    a folder of templates inside the package (``calflow.xytheta.report.templates``)."""
-    root = Path(__file__).resolve().parent
+    a folder of templates inside the package (``calflow.xytheta.report.templates``), of
+    calflow or of a family's own installed package."""
     parts = module.split(".")
-    if parts[0] != "calflow":
-        raise ValueError(f"provenance: {module!r} is not part of calflow")
+    if parts[0] == "calflow":
+        root = Path(__file__).resolve().parent
+    else:  # a family's own distribution: its top-level package, wherever it is installed
+        import importlib.util
+
+        spec = importlib.util.find_spec(parts[0])
+        if spec is None or not spec.submodule_search_locations:
+            raise ValueError(f"provenance: no installed package {parts[0]!r} (module {module!r})")
+        root = Path(list(spec.submodule_search_locations)[0]).resolve()
     base = root.joinpath(*parts[1:])
     if base.with_suffix(".py").is_file():
         return [base.with_suffix(".py")]

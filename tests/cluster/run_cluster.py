@@ -64,11 +64,14 @@ def project(base: Path, name: str) -> Path:
 
 
 def config_args(args) -> list[str]:
-    return [
-        "--config",
-        f"campaigns={json.dumps(args.campaigns)}",
-        f"studies={json.dumps(args.studies)}",
+    """``--config`` for the campaigns and studies chosen on the command line (default: those
+    of config/config.yaml)."""
+    chosen = [
+        f"{key}={json.dumps(getattr(args, key))}"
+        for key in ("campaigns", "studies")
+        if getattr(args, key) is not None
     ]
+    return ["--config", *chosen] if chosen else []
 
 
 def snakemake(work: Path, *extra: str, background: bool = False, log: str = "run.log"):
@@ -233,12 +236,8 @@ def main(argv=None) -> int:
         type=Path,
         default=Path(os.environ.get("CALFLOW_CLUSTER_WORK", "/tmp/calflow-cluster-test")),
     )
-    ap.add_argument(
-        "--campaigns",
-        nargs="*",
-        default=["xytheta-thesis", "nano1d-thesis", "nano2d-thesis"],
-    )
-    ap.add_argument("--studies", nargs="*", default=["montecarlo-xytheta"])
+    ap.add_argument("--campaigns", nargs="*", default=None, help="default: config/config.yaml's")
+    ap.add_argument("--studies", nargs="*", default=None, help="default: config/config.yaml's")
     ap.add_argument("--cores", type=int, default=os.cpu_count())
     ap.add_argument("--fault-campaign", default="nano1d-thesis")
     ap.add_argument("--no-faults", action="store_true")

@@ -19,69 +19,8 @@ rule acquire:
         rig=rig_slots,
     params:
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [rig_digest(w.run)(w), CAMPAIGN[w.campaign].get(plan_section(w.run))]
-        ),
-        luts=lambda w, input: f"--luts {input.luts}" if "luts" in input.keys() else "",
+        digest=lambda w: digest([rig_digest(w.run)(w), plan_section(w)]),
+        args=input_args,
     shell:
-        "calflow acquire --campaign {params.campaign} --plan {wildcards.run} {params.luts}"
+        "calflow acquire --campaign {params.campaign} --plan {wildcards.run} {params.args}"
         " --out {output.run} --truth {output.truth} > {log} 2>&1"
-
-
-rule acquire_xy_test:
-    input:
-        luts=lambda w: (
-            [] if w.comp == "none" else f"results/{w.campaign}/luts/position.nc"
-        ),
-    output:
-        run="results/{campaign}/runs/{test}_{comp}.nc",
-        truth="results/{campaign}/truth/{test}_{comp}.json",
-    log:
-        "results/{campaign}/logs/acquire_{test}_{comp}.log",
-    benchmark:
-        "results/{campaign}/benchmarks/acquire_{test}_{comp}.tsv"
-    conda:
-        "../envs/calflow.yaml"
-    resources:
-        mem_mb=300,
-        runtime=1,
-        rig=rig_slots,
-    params:
-        campaign=campaign_file,
-        luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
-        digest=lambda w: digest(
-            [rig_digest(f"{w.test}_{w.comp}")(w), CAMPAIGN[w.campaign]["xy_tests"]]
-        ),
-    shell:
-        "calflow acquire --campaign {params.campaign} --plan {wildcards.test}"
-        " --compensation {wildcards.comp} {params.luts} --out {output.run}"
-        " --truth {output.truth} > {log} 2>&1"
-
-
-rule acquire_angle_residuals:
-    input:
-        model="results/{campaign}/models/{model}.nc",
-    output:
-        run="results/{campaign}/runs/angle_residuals_{model}.nc",
-        truth="results/{campaign}/truth/angle_residuals_{model}.json",
-    log:
-        "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
-    benchmark:
-        "results/{campaign}/benchmarks/acquire_angle_residuals_{model}.tsv"
-    conda:
-        "../envs/calflow.yaml"
-    resources:
-        mem_mb=400,
-        runtime=1,
-        rig=rig_slots,
-    params:
-        campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"angle_residuals_{w.model}")(w),
-                CAMPAIGN[w.campaign]["angle_residuals"],
-            ]
-        ),
-    shell:
-        "calflow acquire --campaign {params.campaign} --plan angle_residuals"
-        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"

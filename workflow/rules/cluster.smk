@@ -3,12 +3,10 @@
 from calflow.cluster import check_partitions
 
 
-# Jobs of a second or two that gather the others' results run where Snakemake runs (on a
-# cluster, the login node) instead of waiting in the queue as a SLURM job of their own.
+# The index page (a second) runs where Snakemake runs (on a cluster, the login node)
+# instead of waiting in the queue as a SLURM job of its own.
 localrules:
     index,
-    mc_aggregate,
-    mc_report,
 
 
 onstart:

@@ -1,4 +1,4 @@
-# Identification of each calibration model: XYΘ Models I-V (Sec. 4.5), nano models (Sec. 5.2).
+# Identification of each calibration model of a campaign (its family's models and inputs).
 
 
 rule identify:

@@ -71,6 +71,7 @@ rule report:
 rule index:
     input:
         summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
+        histories=expand("results/stages/{stage}/history.json", stage=STAGES),
     output:
         report(
             "reports/index.html",
@@ -88,4 +89,5 @@ rule index:
         mem_mb=200,
         runtime=1,
     shell:
-        "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"
+        "calflow index --summaries {input.summaries} --histories {input.histories}"
+        " --out {output} > {log} 2>&1"

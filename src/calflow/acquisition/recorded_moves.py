@@ -24,7 +24,7 @@ import numpy as np
 import xarray as xr
 
 from calflow.acquisition.streams import reduce_dwell
-from calflow.data.conventions import RUN_VARIABLES, time_units
+from calflow.data.conventions import run_variables, time_units
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import RigError
 from calflow.plan import Plan
@@ -87,7 +87,7 @@ def acquire_recorded_moves(
         attrs={"units": "s", "long_name": "time of the record point since the start of the move"},
     )
     for name in rig.sensors:
-        units, long_name = RUN_VARIABLES[name]
+        units, long_name = run_variables()[name]
         ds[f"record_{name}"] = xr.Variable(
             ("sample", "record"),
             np.array([r[name][:n] for r in records]),

@@ -1,4 +1,4 @@
-"""Names, units and attributes of calflow datasets (DESIGN.md, "Data conventions").
+"""Names, units and attributes of calflow datasets (docs/architecture.md, "Datasets").
 
 Lengths are in micrometres (``um``), angles in ``degree``, temperatures in ``degC``;
 time is CF time in seconds since the campaign start.
@@ -11,7 +11,6 @@ import datetime as _dt
 CF_CONVENTIONS = "CF-1.11"
 
 KINDS = ("run", "model", "metrics", "luts", "truth")
-ROBOTS = ("xytheta", "stage1d", "stage2d")
 SOURCES = ("simulated", "replay", "gcs", "plugin")
 PLANS = (
     "characterisation_x",
@@ -37,9 +36,20 @@ GLOBAL_ATTRS = (
     "history",
 )
 
-# Units of the quantities a joint or sensor of each name carries.
+# Units of the quantities a joint or sensor of each name carries; a robot family adds its
+# own axes (calflow.family.Family.axes), and says which joints each of its robots has
+# (Family.joints): the core names no robot.
 AXIS_UNITS = {"x": "um", "y": "um", "z": "um", "theta": "degree"}
 AXIS_NAMES = {"x": "x", "y": "y", "z": "z", "theta": "rotation angle"}
+
+
+def _axis_variables(axis: str, unit: str, name: str) -> dict[str, tuple[str, str]]:
+    return {
+        f"cmd_{axis}": (unit, f"joint command {name}"),
+        f"meas_{axis}": (unit, f"external sensor reading {name} in the sensor frame"),
+        f"target_{axis}": (unit, f"task-space target {name}"),
+    }
+
 
 # variable -> (units, long_name) for the run dataset (calflow_kind = "run").
 RUN_VARIABLES: dict[str, tuple[str, str]] = {
@@ -48,14 +58,36 @@ RUN_VARIABLES: dict[str, tuple[str, str]] = {
     "direction": ("1", "approach direction (+1 forward, -1 backward, 0 none)"),
 }
 for _axis, _unit in AXIS_UNITS.items():
-    _name = AXIS_NAMES[_axis]
-    RUN_VARIABLES[f"cmd_{_axis}"] = (_unit, f"joint command {_name}")
-    RUN_VARIABLES[f"meas_{_axis}"] = (_unit, f"external sensor reading {_name} in the sensor frame")
-    RUN_VARIABLES[f"target_{_axis}"] = (_unit, f"task-space target {_name}")
+    RUN_VARIABLES.update(_axis_variables(_axis, _unit, AXIS_NAMES[_axis]))
 RUN_VARIABLES["temperature"] = ("degC", "thermocouple temperature")
 
 REQUIRED_RUN_VARIABLES = ("time", "pose", "cycle", "direction")
-ROBOT_JOINTS = {"xytheta": ("x", "y", "theta"), "stage1d": ("x",), "stage2d": ("x", "y")}
+
+
+def run_variables() -> dict[str, tuple[str, str]]:
+    """:data:`RUN_VARIABLES` and the ``cmd_``/``meas_``/``target_`` variables of every
+    installed family's own axes (:attr:`calflow.family.Family.axes`)."""
+    from calflow.family import axes
+
+    out = dict(RUN_VARIABLES)
+    for axis, (unit, name) in axes().items():
+        for var, spec in _axis_variables(axis, unit, name).items():
+            out.setdefault(var, spec)
+    return out
+
+
+def robots() -> tuple[str, ...]:
+    """The robots of every installed family (:func:`calflow.family.robots`)."""
+    from calflow.family import robots as _robots
+
+    return _robots()
+
+
+def robot_joints(robot: str) -> tuple[str, ...]:
+    """The joints of ``robot``'s runs, in order, from its family; ``()`` when none serves it."""
+    from calflow.family import joints
+
+    return joints(robot)
 
 
 def utc_now() -> str:

@@ -36,7 +36,7 @@ import xarray as xr
 import yaml
 
 from calflow.config import safe_yaml
-from calflow.data.conventions import ROBOT_JOINTS, ROBOTS, RUN_VARIABLES
+from calflow.data.conventions import robot_joints, robots, run_variables
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import DataError
 from calflow.plan import Plan
@@ -49,7 +49,7 @@ MISSING = ("", "nan", "NaN", "NAN", "NA", "N/A")  # cells read as a missing read
 
 def _targets(robot: str) -> list[str]:
     """Run variables a mapping may fill for ``robot``."""
-    axes = ROBOT_JOINTS[robot]
+    axes = robot_joints(robot)
     names = ["time", *INDEX_VARIABLES, "temperature"]
     for prefix in ("cmd", "meas", "target"):
         names += [f"{prefix}_{a}" for a in axes]
@@ -75,8 +75,8 @@ def check_mapping(raw: Any, where: str = "mapping") -> dict:
             raise DataError(f"{where}: key {key!r}: unknown; expected some of {list(TOP_KEYS)}")
     out: dict[str, Any] = {}
     robot = raw.get("robot")
-    if robot is not None and robot not in ROBOTS:
-        raise DataError(f"{where}: key 'robot': expected one of {list(ROBOTS)}, got {robot!r}")
+    if robot is not None and robot not in robots():
+        raise DataError(f"{where}: key 'robot': expected one of {list(robots())}, got {robot!r}")
     out["robot"] = robot
     plan = raw.get("plan")
     if not isinstance(plan, str) or not plan.strip():
@@ -99,7 +99,7 @@ def check_mapping(raw: Any, where: str = "mapping") -> dict:
         raise DataError(
             f"{where}: key 'columns': expected a mapping run variable -> {{column: NAME}}, got {columns!r}"
         )
-    allowed = _targets(robot) if robot else sorted(RUN_VARIABLES) + ["time"]
+    allowed = _targets(robot) if robot else sorted(run_variables()) + ["time"]
     fields: dict[str, dict] = {}
     for target, spec in columns.items():
         key = f"columns.{target}"
@@ -146,7 +146,7 @@ def check_mapping(raw: Any, where: str = "mapping") -> dict:
         if target in INDEX_VARIABLES and (field["scale"] != 1.0 or field["offset"] != 0.0):
             raise DataError(f"{where}: key {key!r}: scale/offset do not apply to the index {target!r}")
         fields[target] = field
-    needed = ["time"] + ([f"{p}_{a}" for a in ROBOT_JOINTS[robot] for p in ("cmd", "meas")] if robot else [])
+    needed = ["time"] + ([f"{p}_{a}" for a in robot_joints(robot) for p in ("cmd", "meas")] if robot else [])
     for target in needed:
         if target not in fields:
             raise DataError(f"{where}: key 'columns.{target}': missing; a {robot or 'run'} run needs it")
@@ -308,8 +308,8 @@ def import_csv(path: str | os.PathLike, mapping: Mapping, meta: RunMetadata) -> 
         raise DataError(
             f"{path}: mapping robot {m['robot']!r} differs from the campaign robot {meta.robot!r}"
         )
-    if robot not in ROBOTS:
-        raise DataError(f"{path}: robot: expected one of {list(ROBOTS)}, got {robot!r}")
+    if robot not in robots():
+        raise DataError(f"{path}: robot: expected one of {list(robots())}, got {robot!r}")
     if m["plan"] != meta.plan:
         raise DataError(
             f"{path}: mapping plan {m['plan']!r} differs from the run metadata plan {meta.plan!r}"
@@ -344,7 +344,7 @@ def import_csv(path: str | os.PathLike, mapping: Mapping, meta: RunMetadata) -> 
         ("direction", np.zeros(n, int), {-1, 0, 1}),
     ):
         index[name] = table.integers(cols[name]["column"], name, choices) if name in cols else default
-    axes = ROBOT_JOINTS[robot]
+    axes = robot_joints(robot)
     commands = {a: values(f"cmd_{a}", allow_missing=False) for a in axes}
     targets = {a: values(f"target_{a}", allow_missing=True) for a in axes if f"target_{a}" in cols}
     sensors = [f"meas_{a}" for a in axes]

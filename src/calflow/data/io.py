@@ -194,11 +194,9 @@ def open_dataset(path: str | os.PathLike, kind: str | None = None, group: str | 
 
 
 def sha256_file(path: str | Path) -> str:
-    h = hashlib.sha256()
+    """SHA-256 of the file's bytes, as hex (the provenance of summaries, reports, bundles)."""
     with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def load_summary(path: str | Path) -> dict:

@@ -3,8 +3,8 @@
 A replay campaign names one recording per run id (``rig.options.recordings``). Each is a
 calflow run file (``.nc``) or a file an instrument wrote, given as::
 
-    {file: data/recordings/axis1_ISO230.dat, format: ecmc_iso230}   # ISO 230-2, stage1d
-    {file: data/recordings/tracker.csv, format: laser_tracker}      # XYZ poses, stage2d
+    {file: data/recordings/axis1_ISO230.dat, format: ecmc_iso230}   # ISO 230-2, one axis x
+    {file: data/recordings/tracker.csv, format: laser_tracker}      # XYZ poses, axes x and y
     {file: bench.csv, format: csv, mapping: bench-mapping.yaml}     # generic CSV mapping
 
 A plain path is a ``.nc`` run file, or an instrument file recognised by its name
@@ -27,7 +27,8 @@ from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import DataError
 from calflow.plan import Plan
 
-FORMATS = {"nc": None, "ecmc_iso230": "stage1d", "laser_tracker": "stage2d", "csv": None}
+# format -> the joints an instrument's file of that format records (None: the file says)
+FORMATS = {"nc": None, "ecmc_iso230": ("x",), "laser_tracker": ("x", "y"), "csv": None}
 RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
 
 
@@ -85,6 +86,20 @@ def check_entry(spec: Any) -> None:
             )
 
 
+def robot_recording(fmt: str, path: Path) -> str:
+    """The robot whose runs an instrument's file of format ``fmt`` holds: the installed robot
+    whose joints are exactly the ones the format records."""
+    from calflow.family import joints, robots
+
+    found = [r for r in robots() if joints(r) == FORMATS[fmt]]
+    if not found:
+        raise DataError(
+            f"{path}: format {fmt!r} records joints {list(FORMATS[fmt])}; no installed robot "
+            f"has exactly those joints"
+        )
+    return found[0]
+
+
 def _meta(robot: str, plan: str, path: Path, start: str = RECORDING_START) -> RunMetadata:
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     return RunMetadata(
@@ -102,8 +117,8 @@ def _imported(
 
 
 def iso230_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
-    """An ecmc ISO 230-2 file as a stage1d run (µm) in the standard test cycle; no clock in
-    the file, so every row has time 0 s."""
+    """An ecmc ISO 230-2 file as a run of the one-axis robot (µm) in the standard test cycle;
+    no clock in the file, so every row has time 0 s."""
     from calflow.data.ecmc_iso230 import read, standard_cycle
 
     rows = standard_cycle(read(path))
@@ -117,12 +132,14 @@ def iso230_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
         dwell_s=0.0,
     )
     readings = [{"time": 0.0, "meas_x": float(v)} for v in rows["reading"]]
-    return _imported(readings, plan, ["meas_x"], _meta("stage1d", plan_name, path), path), plan
+    return _imported(
+        readings, plan, ["meas_x"], _meta(robot_recording("ecmc_iso230", path), plan_name, path), path
+    ), plan
 
 
 def tracker_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
-    """A laser-tracker export as a stage2d run (µm): X, Y the stage's axes; the measured Z's
-    range is kept as the attribute ``z_range_um``."""
+    """A laser-tracker export as a run of the XY robot (µm): X, Y the stage's axes; the
+    measured Z's range is kept as the attribute ``z_range_um``."""
     from calflow.data.laser_tracker import UM_PER_MM, read
 
     rec = read(path)
@@ -140,7 +157,13 @@ def tracker_run(path: Path, plan_name: str) -> tuple[xr.Dataset, Plan]:
         {"time": float(rec.time[k]), "meas_x": float(meas[k, 0]), "meas_y": float(meas[k, 1])}
         for k in range(len(rec.pose))
     ]
-    ds = _imported(readings, plan, ["meas_x", "meas_y"], _meta("stage2d", plan_name, path, rec.start), path)
+    ds = _imported(
+        readings,
+        plan,
+        ["meas_x", "meas_y"],
+        _meta(robot_recording("laser_tracker", path), plan_name, path, rec.start),
+        path,
+    )
     z = meas[:, 2][np.isfinite(meas[:, 2])]
     ds.attrs["z_range_um"] = float(z.max() - z.min()) if z.size else float("nan")
     ds.attrs["recording_start"] = rec.start

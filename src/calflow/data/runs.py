@@ -9,12 +9,12 @@ import numpy as np
 import xarray as xr
 
 from calflow import __version__
-from calflow.data.conventions import CF_CONVENTIONS, RUN_VARIABLES, time_units, utc_now
+from calflow.data.conventions import CF_CONVENTIONS, run_variables, time_units, utc_now
 
 
 @dataclass
 class RunMetadata:
-    """Global attributes of a run dataset (DESIGN.md, "Data conventions")."""
+    """Global attributes of a run dataset (docs/architecture.md, "Datasets")."""
 
     campaign: str
     robot: str
@@ -46,7 +46,7 @@ class RunMetadata:
 
 
 def _var(values, name: str, dims=("sample",)) -> xr.Variable:
-    units, long_name = RUN_VARIABLES[name]
+    units, long_name = run_variables()[name]
     return xr.Variable(dims, values, attrs={"units": units, "long_name": long_name})
 
 

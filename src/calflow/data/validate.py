@@ -1,4 +1,4 @@
-"""Check a dataset against the calflow data contract (DESIGN.md, "Data conventions").
+"""Check a dataset against the calflow data contract (docs/architecture.md, "Datasets").
 
 :func:`validate_dataset` returns a list of problems, one line each, that name the
 variable or attribute and what was expected; an empty list means the dataset conforms.
@@ -16,10 +16,10 @@ from calflow.data.conventions import (
     GLOBAL_ATTRS,
     KINDS,
     REQUIRED_RUN_VARIABLES,
-    ROBOT_JOINTS,
-    ROBOTS,
-    RUN_VARIABLES,
     SOURCES,
+    robot_joints,
+    robots,
+    run_variables,
 )
 from calflow.errors import DataError
 
@@ -30,8 +30,8 @@ def _check_global(ds: xr.Dataset) -> list[str]:
     if kind is not None and kind not in KINDS:
         problems.append(f"global attribute 'calflow_kind': expected one of {list(KINDS)}, got {kind!r}")
     robot = ds.attrs.get("robot")
-    if robot is not None and robot not in ROBOTS:
-        problems.append(f"global attribute 'robot': expected one of {list(ROBOTS)}, got {robot!r}")
+    if robot is not None and robot not in robots():
+        problems.append(f"global attribute 'robot': expected one of {list(robots())}, got {robot!r}")
     source = ds.attrs.get("source")
     if source is not None and source not in SOURCES:
         problems.append(f"global attribute 'source': expected one of {list(SOURCES)}, got {source!r}")
@@ -77,14 +77,15 @@ def _check_run(ds: xr.Dataset) -> list[str]:
                 f"variable 'time': expected non-decreasing values, got {t[i]!r} then {t[i + 1]!r} "
                 f"at sample {i + 1}"
             )
-    joints = ROBOT_JOINTS.get(ds.attrs.get("robot"), ())
+    joints = robot_joints(str(ds.attrs.get("robot")))
     for joint in joints:
         for prefix in ("cmd", "meas"):
             if f"{prefix}_{joint}" not in ds.variables:
                 problems.append(f"variable '{prefix}_{joint}': missing for robot {ds.attrs.get('robot')!r}")
+    known = run_variables()
     for name, var in ds.data_vars.items():
-        if name in RUN_VARIABLES:
-            units, _ = RUN_VARIABLES[name]
+        if name in known:
+            units, _ = known[name]
             got = var.attrs.get("units")
             if got is not None and got != units:
                 problems.append(f"variable '{name}': units expected {units!r}, got {got!r}")

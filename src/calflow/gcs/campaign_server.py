@@ -93,7 +93,7 @@ def emulate_command(args) -> int:
     known = _parser(
         "calflow emulate gcs",
         "Serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1 "
-        "(docs/gcs.md): C-863 for xytheta, E-727 class for stage1d/stage2d.",
+        "(docs/gcs.md), with the emulator the campaign's robot family registers.",
     ).parse_args(argv)
     c = load_campaign_arg(known.campaign)
     robot = c.get("robot")

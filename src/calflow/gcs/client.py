@@ -22,6 +22,8 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from tenacity import RetryError, Retrying, retry_if_exception_type, stop_after_attempt, wait_exponential
+
 from calflow.gcs.protocol import (
     MOTION_STATUS,
     READY_STATUS,
@@ -93,28 +95,35 @@ class GCSController:
     def reconnect(self, max_tries: int = 5, backoff: float = 0.2, max_backoff: float = 10.0) -> int:
         """Reopen the link with exponential backoff; returns the number of tries used.
 
-        Waits ``backoff * 2**k`` (capped at ``max_backoff``) between tries and checks each
+        Waits ``backoff * 2**k`` (capped at ``max_backoff``; tenacity) between tries and checks each
         new link with ``*IDN?``. Controller state (servo, referencing) survives a dropped
         link on real controllers, so a higher layer can resume where it stopped.
         """
-        last: Exception | None = None
-        for attempt in range(max(1, max_tries)):
-            if attempt:
-                time.sleep(min(backoff * 2 ** (attempt - 1), max_backoff))
-            with self._lock:
-                try:
-                    self.close()
-                    self._framer.clear()
-                    self._transport = self._opener()
-                    self._in_sync = True
-                    self.idn()
-                    log.info("GCS link re-established after %d tries", attempt + 1)
-                    return attempt + 1
-                except (GCSConnectionLost, GCSTimeout, GCSProtocolError) as exc:
-                    last = exc
-                    log.warning("reconnect try %d/%d failed: %s", attempt + 1, max_tries, exc)
-        self._in_sync = False
-        raise GCSConnectionLost(f"could not reconnect after {max_tries} tries: {last}") from last
+        retrying = Retrying(
+            stop=stop_after_attempt(max(1, max_tries)),
+            wait=wait_exponential(multiplier=backoff, exp_base=2, max=max_backoff),
+            retry=retry_if_exception_type((GCSConnectionLost, GCSTimeout, GCSProtocolError)),
+            after=lambda state: log.warning(
+                "reconnect try %d/%d failed: %s", state.attempt_number, max_tries, state.outcome.exception()
+            ),
+        )
+        try:
+            retrying(self._reopen)
+        except RetryError as err:
+            last = err.last_attempt.exception()
+            self._in_sync = False
+            raise GCSConnectionLost(f"could not reconnect after {max_tries} tries: {last}") from last
+        log.info("GCS link re-established after %d tries", retrying.statistics["attempt_number"])
+        return retrying.statistics["attempt_number"]
+
+    def _reopen(self) -> None:
+        """One try of :meth:`reconnect`: a new link, checked with ``*IDN?``."""
+        with self._lock:
+            self.close()
+            self._framer.clear()
+            self._transport = self._opener()
+            self._in_sync = True
+            self.idn()
 
     # ------------------------------------------------------------------ transactions
     def _io(self) -> Transport:

@@ -25,11 +25,10 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+from tenacity import RetryError, Retrying, retry_if_exception_type, stop_after_attempt
 
 from calflow.errors import RigError
 from calflow.gcs import (
@@ -44,88 +43,22 @@ from calflow.gcs import (
     GCSProtocolError,
     GCSTimeout,
 )
-from calflow.gcs.controller import parse_parameter_id
+from calflow.gcs.link import Link, connection, lock_controllers, prepare, unlock
 from calflow.gcs.rig_records import RecordedMoves
 from calflow.gcs.sensors import load_sensor
 
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")
 LINK_ERRORS = (GCSConnectionLost, GCSTimeout, GCSProtocolError, OSError)
+RECONNECTING = "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)"
 RESUME = (
     "; the samples already taken are kept in the acquisition journal (<out>.journal): "
     "fix the cause and run the same command again to continue after the last one"
 )
 
 
-@dataclass
-class Link:
-    """One controller and the joints it drives (joint -> controller axis id)."""
-
-    name: str
-    ctl: GCSController
-    joints: dict[str, str]
-
-    @property
-    def axes(self) -> list[str]:
-        return list(self.joints.values())
-
-    def joint_of(self, axis: str | None) -> str | None:
-        return next((j for j, a in self.joints.items() if a == axis), None)
-
-
-def _connection(spec: Mapping[str, Any], timeout: float) -> tuple[tuple, str, Callable[[], GCSController]]:
-    """(key, name, opener) of a controller given host/port or serial/baudrate."""
-    host, serial = spec.get("host"), spec.get("serial")
-    if (host is None) == (serial is None):
-        raise RigError("gcs rig: each controller needs exactly one of 'host' (TCP) or 'serial'")
-    if host is not None:
-        port = int(spec.get("port") or DEFAULT_PORT)
-        return (
-            ("tcp", str(host), port),
-            f"tcp://{host}:{port}",
-            lambda: GCSController.connect_tcp(str(host), port, timeout),
-        )
-    baud = int(spec.get("baudrate") or DEFAULT_BAUD)
-    return (
-        ("serial", str(serial), baud),
-        f"serial:{serial}",
-        lambda: GCSController.connect_serial(str(serial), baud, timeout),
-    )
-
-
-def _lock_controllers(names: list[str]) -> list:
-    """Hold an exclusive lock per controller while a rig drives it.
-
-    A stage moves one plan at a time: two acquisitions on the same controllers (e.g.
-    two validation jobs that Snakemake runs in parallel) must take turns, whatever the
-    executor. The locks are files in the temporary directory, taken in sorted order (no
-    deadlock), blocking until free, released on ``close`` or when the process dies.
-    """
-    import fcntl
-    import hashlib
-    import tempfile
-
-    held = []
-    for name in names:
-        path = (
-            Path(tempfile.gettempdir()) / f"calflow-gcs-{hashlib.sha1(name.encode()).hexdigest()[:16]}.lock"
-        )
-        f = open(path, "a+")
-        fcntl.flock(f, fcntl.LOCK_EX)
-        held.append(f)
-    return held
-
-
-def _unlock(locks: list) -> None:
-    import fcntl
-
-    for f in locks:
-        fcntl.flock(f, fcntl.LOCK_UN)
-        f.close()
-
-
 class GCSRig(RecordedMoves):
-    """Rig protocol (DESIGN.md) over GCS controllers, plus ``stream`` and ``record_move``
+    """Rig protocol (docs/rigs.md) over GCS controllers, plus ``stream`` and ``record_move``
     (:mod:`calflow.gcs.rig_records`) on piezo controllers; build it with :func:`gcs`."""
 
     replayable = False  # a real rig is continued, not replayed, on resume
@@ -269,34 +202,51 @@ class GCSRig(RecordedMoves):
             self.sensor.close()
         for link in self.links:
             link.ctl.close()
-        _unlock(getattr(self, "_locks", []))
+        unlock(getattr(self, "_locks", []))
 
     # ------------------------------------------------------------------ resilience
     def _run(self, link: Link, what: str, op: Callable[[bool], T]) -> T:
-        """Run ``op(retry)`` on ``link``; recover link failures, fail on controller errors."""
-        failures = 0
-        while True:
-            try:
-                return op(failures > 0)
-            except GCSMotionTimeout as exc:
-                self._fail(link, what, exc)
-            except LINK_ERRORS as exc:
-                failures += 1
-                if failures > self.tries:
-                    raise RigError(
-                        f"gcs rig: {link.name}: {what} failed {failures} times in a "
-                        f"row, giving up (last: {exc})" + RESUME
-                    ) from exc
-                self._recover(link, what, failures, exc)
-            except GCSError as exc:  # GCSControllerError and other controller-side failures
-                self._fail(link, what, exc)
+        """Run ``op(retry)`` on ``link``; recover link failures, fail on controller errors.
 
-    def _recover(self, link: Link, what: str, failures: int, exc: Exception) -> None:
-        log.warning(
-            "gcs rig: %s: %s failed (%s); reconnecting (%d/%d)", link.name, what, exc, failures, self.tries
+        A link failure (``LINK_ERRORS``) is retried up to ``tries`` times (tenacity): after
+        the k-th, wait ``backoff_s * 2**(k-1)`` (none after the first, capped at
+        ``max_backoff_s``), reconnect, and run ``op(True)`` again."""
+        last: list[Exception] = []
+        retrying = Retrying(
+            stop=stop_after_attempt(self.tries + 1),
+            wait=self._wait_before_recovery,
+            retry=retry_if_exception_type(LINK_ERRORS),
+            before_sleep=lambda s: log.warning(
+                RECONNECTING, link.name, what, s.outcome.exception(), s.attempt_number, self.tries
+            ),
         )
-        if failures > 1:
-            time.sleep(min(self.backoff_s * 2 ** (failures - 1), self.max_backoff_s))
+        try:
+            for attempt in retrying:
+                with attempt:
+                    if last:
+                        self._recover(link, what, last[-1])
+                    try:
+                        return op(bool(last))
+                    except GCSMotionTimeout as exc:
+                        self._fail(link, what, exc)
+                    except LINK_ERRORS as exc:
+                        last.append(exc)
+                        raise
+                    except GCSError as exc:  # GCSControllerError and other controller-side failures
+                        self._fail(link, what, exc)
+        except RetryError as err:
+            exc = err.last_attempt.exception()
+            raise RigError(
+                f"gcs rig: {link.name}: {what} failed {err.last_attempt.attempt_number} times in a "
+                f"row, giving up (last: {exc})" + RESUME
+            ) from exc
+
+    def _wait_before_recovery(self, state) -> float:
+        """Seconds before the reconnect that follows the ``state.attempt_number``-th failure."""
+        k = state.attempt_number
+        return 0.0 if k == 1 else min(self.backoff_s * 2 ** (k - 1), self.max_backoff_s)
+
+    def _recover(self, link: Link, what: str, exc: Exception) -> None:
         try:
             link.ctl.reconnect(
                 max_tries=max(1, self.tries), backoff=self.backoff_s, max_backoff=self.max_backoff_s
@@ -389,11 +339,11 @@ def gcs(
         conn = {**shared, **{k: spec[k] for k in ("host", "port", "serial", "baudrate") if k in spec}}
         if ("host" in spec) != ("serial" in spec):  # a per-joint link replaces the shared one
             conn[("serial" if "host" in spec else "host")] = None
-        key, name, opener = _connection(conn, timeout)
+        key, name, opener = connection(conn, timeout)
         groups.setdefault(key, (name, opener, {}))[2][str(joint)] = str(spec["axis"])
     rc = dict(reconnect or {})
     sensor_obj = load_sensor(sensor)
-    locks = _lock_controllers(sorted(name for name, _, _ in groups.values()))
+    locks = lock_controllers(sorted(name for name, _, _ in groups.values()))
     links: list[Link] = []
     try:
         for name, opener, joints in groups.values():
@@ -402,7 +352,7 @@ def gcs(
             except GCSError as exc:
                 raise RigError(f"gcs rig: cannot open controller {name}: {exc}") from exc
             links.append(link)
-            _prepare(
+            prepare(
                 link,
                 servo=servo,
                 reference=reference,
@@ -414,7 +364,7 @@ def gcs(
     except BaseException:
         for link in links:
             link.ctl.close()
-        _unlock(locks)
+        unlock(locks)
         raise
     rig = GCSRig(
         links,
@@ -430,45 +380,6 @@ def gcs(
     rig._locks = locks
     rig.recorder = dict(recorder or {})
     return rig
-
-
-def _prepare(
-    link: Link,
-    *,
-    servo: bool,
-    reference: bool,
-    velocity: Mapping[str, float],
-    timeout: float,
-    poll: float,
-    parameters: Mapping[str, Mapping[Any, float]],
-) -> None:
-    """Check the axes exist (SAI?), set parameters (SPA), servo on (SVO), FRF what is not
-    referenced, set VEL."""
-    ctl = link.ctl
-    try:
-        known = ctl.axes()
-        for joint, axis in link.joints.items():
-            if axis not in known:
-                raise RigError(
-                    f"gcs rig: axes.{joint}: controller {link.name} has no axis {axis!r} (SAI? lists {known})"
-                )
-        for joint, values in parameters.items():
-            for pid, value in values.items() if joint in link.joints else ():
-                ctl.set_parameter(link.joints[joint], parse_parameter_id(str(pid)), float(value))
-        if servo:
-            ctl.servo_on(link.axes)
-        if reference:
-            todo = [a for a, ok in ctl.is_referenced(link.axes).items() if not ok]
-            if todo:
-                log.info("gcs rig: %s: referencing axes %s (FRF)", link.name, todo)
-                ctl.reference(todo, timeout=timeout, poll=poll)
-        vel = {link.joints[j]: float(v) for j, v in velocity.items() if j in link.joints}
-        if vel:
-            ctl.set_velocity(vel)
-    except GCSError as exc:
-        raise RigError(
-            f"gcs rig: preparing controller {link.name} (joints {', '.join(link.joints)}) failed: {exc}"
-        ) from exc
 
 
 # The config check calls this (calflow.rigs.plugin.check_rig): options checked, nothing opened.

@@ -1,4 +1,4 @@
-"""Optimal experiment design of linear(ised) models with an unknown offset (issue 15).
+"""Optimal experiment design of linear(ised) models with an unknown offset.
 
 A reading i of m axes is y_i = J_i φ + c + e_i: J_i the m × p Jacobian (or regressor
 rows) of the model at the i-th pose or position, c an offset per axis known to no one

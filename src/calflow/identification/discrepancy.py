@@ -1,5 +1,5 @@
 """Design for a model that is not exact: expected integrated squared prediction error under a
-Gaussian-process discrepancy (issue 15).
+Gaussian-process discrepancy.
 
 A reading i of m axes is y_i = J_i φ + c + δ(q_i) + e_i: J_i the m × p Jacobian at pose
 q_i, c an unknown offset per axis, e_i of covariance σ² I_m, and δ what the model does not

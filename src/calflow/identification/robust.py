@@ -14,11 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 #: Losses of :func:`scipy.optimize.least_squares` usable for the screening fit.
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
-#: Normal-consistency factor of the median absolute deviation, 1 / Φ⁻¹(3/4).
-MAD_TO_SIGMA = 1.482602218505602
 
 
 @dataclass(frozen=True)
@@ -52,13 +51,15 @@ class Robust:
 
 
 def mad_sigma(residuals: np.ndarray) -> float:
-    """Robust σ (same unit as ``residuals``): 1.4826 × the median absolute deviation from
-    the median, consistent for normal noise and unmoved by a few gross errors."""
+    """Robust σ (same unit as ``residuals``): the median absolute deviation from the median
+    scaled by 1 / Φ⁻¹(3/4) ≈ 1.4826 (:func:`scipy.stats.median_abs_deviation`,
+    ``scale="normal"``), consistent for normal noise and unmoved by a few gross errors.
+    Non-finite residuals are left out; NaN when none is left."""
     r = np.asarray(residuals, dtype=float).ravel()
     r = r[np.isfinite(r)]
     if r.size == 0:
         return float("nan")
-    return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
+    return float(median_abs_deviation(r, scale="normal"))
 
 
 def outliers(residuals: np.ndarray, sigma: float, k: float) -> np.ndarray:

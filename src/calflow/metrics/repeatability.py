@@ -45,8 +45,10 @@ def _scalar(x, name: str) -> float:
     return float(_finite(a.reshape(()), name))
 
 
-def _mad_sigma(x: np.ndarray) -> tuple[float, float]:
-    """Mean absolute deviation (1/n) sum |x_i - x̄| and σ = std(|x_i - x̄|, ddof=1)."""
+def _distance_to_barycentre(x: np.ndarray) -> tuple[float, float]:
+    """ISO 9283's l̄ and S_l in 1-D (thesis Eq. 3.6, 3.8): the mean of l_i = |x_i - x̄| (the
+    *mean* absolute deviation about the mean, not the median absolute deviation of robust
+    statistics) and the sample standard deviation (n - 1) of the l_i."""
     l = np.abs(x - x.mean())
     return float(l.mean()), float(np.std(l, ddof=1))
 
@@ -86,8 +88,8 @@ def repeatability_1d(measured) -> float:
     float
         RP in the unit of the inputs.
     """
-    mad, sigma = _mad_sigma(_series(measured, "measured"))
-    return mad + 3.0 * sigma
+    l_bar, sigma = _distance_to_barycentre(_series(measured, "measured"))
+    return l_bar + 3.0 * sigma
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,18 +179,18 @@ def decompose_repeatability(measured, target, extrinsic) -> RepeatabilityDecompo
             f"extrinsic must have one value per measurement: shape {x.shape}; got shape {ext.shape}"
         )
     n = x.size
-    mad, sigma = _mad_sigma(x)
+    l_bar, sigma = _distance_to_barycentre(x)
     corrected = x - ext  # P_i + g(x_T) + x_T
     p_dev = corrected - corrected.mean()
     l_dev = ext - ext.mean()
     intrinsic_term = float(np.abs(p_dev).mean())
     extrinsic_term = float(np.abs(l_dev).mean())
-    mad_c, sigma_c = _mad_sigma(corrected)
+    l_bar_c, sigma_c = _distance_to_barycentre(corrected)
     return RepeatabilityDecomposition(
         n=n,
         ap=abs(float(x.mean()) - x_t),
-        rp=mad + 3.0 * sigma,
-        mean_abs_deviation=mad,
+        rp=l_bar + 3.0 * sigma,
+        mean_abs_deviation=l_bar,
         sigma=sigma,
         intrinsic=_readonly(p_dev),
         extrinsic=_readonly(l_dev),
@@ -197,5 +199,5 @@ def decompose_repeatability(measured, target, extrinsic) -> RepeatabilityDecompo
         rp_bound=intrinsic_term + extrinsic_term + 3.0 * sigma,
         extrinsic_mean=float(ext.mean()),
         ap_intrinsic=abs(float(corrected.mean()) - x_t),
-        rp_intrinsic=mad_c + 3.0 * sigma_c,
+        rp_intrinsic=l_bar_c + 3.0 * sigma_c,
     )

@@ -72,9 +72,26 @@ FAMILY = Family(
         "figures": "calflow.nano.report.figures:build",
     },
     templates="calflow.nano.report",
+    schemas="calflow.nano",
     sensors={"simulated_interferometer": "calflow.nano.stage.interferometer_sensor:simulated_interferometer"},
     emulator="calflow.nano.stage.emulate:main",
+    joints={"stage1d": ("x",), "stage2d": ("x", "y")},
+    reference={
+        "stage1d": "calflow.nano.report.reference:STAGE1D",
+        "stage2d": "calflow.nano.report.reference:STAGE2D",
+    },
+    modes={
+        "no_calibration": "no calibration",
+        "adaptive_kmz": "adaptive model (KMZ)",
+        "single": "single model",
+    },
+    index_row="nano_index_row.html.j2",
+    summary_sections={"metrics": "metrics", "model": "models", "run": "runs"},
+    rules=("calflow.nano", "rules/step_response.smk", "rules/validation.smk"),
+    workflow="calflow.nano.plans.workflow:WORKFLOW",
+    history_entry="calflow.nano.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.nano.report.history"),
         "acquire": _CORE
         + _MODELS
         + (
@@ -92,6 +109,8 @@ FAMILY = Family(
             "calflow.nano.stage.piezo",
             "calflow.nano.stage.interferometer",
             "calflow.nano.stage.thermal_network",
+            "calflow.nano.stage.truth",
+            "calflow.nano.stage.unseen",
             "calflow.nano.models.controllers",
             "calflow.nano.family",
             "calflow.nano.stage.interferometer_sensor",
@@ -101,7 +120,8 @@ FAMILY = Family(
         "summarise": _CORE
         + _MODELS
         + (
-            "calflow.reference",
+            "calflow.summary_routing",
+            "calflow.nano.report.reference",
             "calflow.uncertainty",
             "calflow.metrics",
             "calflow.nano.evaluation",
@@ -122,6 +142,9 @@ FAMILY = Family(
             "calflow.nano.stage.piezo",
             "calflow.nano.stage.interferometer",
             "calflow.nano.stage.thermal_network",
+            "calflow.nano.stage.truth",
+            "calflow.nano.stage.unseen",
+            "calflow.nano.report.extrapolation",
             "calflow.rigs",
         ),
         "report": _CORE + ("calflow.report", "calflow.nano.report.figures", "calflow.nano.report.templates"),

@@ -53,22 +53,19 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
     """The stage1d / stage2d summary from the campaign's model, metrics and run files; with the
     simulated rig's ``truth``, each test type's error budget (:mod:`calflow.nano.stage.error_budget`)."""
     from calflow.nano.evaluation import iso230_2_of_run, temperature_range
+    from calflow.nano.family import FAMILY
+    from calflow.nano.models.registry import model_from_dataset
     from calflow.nano.report.summary import stage1d_summary, stage2d_summary, unsupported_sections
+    from calflow.summary_routing import route
     from calflow.uncertainty import interferometer_budget
 
-    metrics, models, runs = {}, {}, {}
-    for path in files:
-        ds = open_dataset(path)
-        kind = ds.attrs.get("calflow_kind")
-        if kind == "metrics":
-            metrics[ds.attrs["plan"]] = ds
-        elif kind == "model":
-            from calflow.nano.models.registry import model_from_dataset
-
-            m = model_from_dataset(ds)
-            models[ds.attrs["model"]] = m.coefficients.to_dict(orient="records")
-        elif kind == "run":
-            runs[ds.attrs["plan"]] = ds
+    found = route(files, FAMILY.summary_sections, "nano family")
+    metrics = {ds.attrs["plan"]: ds for _, ds in found.get("metrics", [])}
+    models = {
+        ds.attrs["model"]: model_from_dataset(ds).coefficients.to_dict(orient="records")
+        for _, ds in found.get("models", [])
+    }
+    runs = {ds.attrs["plan"]: ds for _, ds in found.get("runs", [])}
     recordings = c["rig"].get("options", {}).get("recordings")
     recorded = c["rig"]["factory"] == "replay" and isinstance(recordings, dict)  # an instrument's files
     # the thesis's interferometer inputs describe the simulated rig, not another lab's instrument
@@ -121,6 +118,16 @@ def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
         )
     from calflow.data.io import jsonable
     from calflow.nano.plans.designed import training_design_block
+    from calflow.nano.report.extrapolation import extrapolation_block
+
+    if summary.get("validation") is not None:  # beside each day's figures: does it leave training's range?
+        humidity = None
+        if physics is not None:
+            from calflow.nano.stage.error_budget import humidity_ranges
+
+            humidity = humidity_ranges(truth, training, metrics["validation"])
+        block = extrapolation_block(metrics.get("validation"), t_range, summary["tests"], humidity)
+        summary["validation"]["extrapolation"] = jsonable(block)
 
     summary["training_design"] = jsonable(training_design_block(c, training, models))
     return {**summary, "unsupported": unsupported}

@@ -97,11 +97,10 @@ class Figure:
 
 
 def mode_label(name: str) -> str:
-    return {
-        "no_calibration": "no calibration",
-        "adaptive_kmz": "adaptive model (KMZ)",
-        "single": "single model",
-    }.get(name, name.replace("_", " "))
+    """The report label of a test mode or model name, as its family registers it."""
+    from calflow.family import modes
+
+    return modes().get(name, name.replace("_", " "))
 
 
 def new_figure(ncols: int = 1, nrows: int = 1, height: float = 2.6, width: float = TEXT_WIDTH_IN, **kw):
@@ -116,7 +115,8 @@ def to_svg(fig, key: str) -> Markup:
 
     The XML prolog and doctype go; width and height become CSS so the figure scales to the
     column on screen and to the text width in print; ids are salted with ``key`` so that
-    several inline SVGs in one page never share an id; no date, so output is reproducible.
+    several inline SVGs in one page never share an id; no date, so output is reproducible. Its
+    text alternative is the figure's caption, ``<figcaption id="<key>-caption">`` (WCAG 1.1.1).
     """
     buf = io.StringIO()
     with plt.rc_context({**STYLE, "svg.hashsalt": key}):
@@ -133,7 +133,8 @@ def to_svg(fig, key: str) -> Markup:
     head = re.sub(r'\s(width|height)="[^"]*"', "", head)
     width_pt = float(m.group(1)) if m else TEXT_WIDTH_IN * 72
     # never wider than the text, never blown up beyond print size on a wide screen
-    head += f' role="img" class="plot" style="width:100%;max-width:{width_pt:.1f}pt;height:auto"'
+    head += f' role="img" aria-labelledby="{key}-caption" class="plot"'
+    head += f' style="width:100%;max-width:{width_pt:.1f}pt;height:auto"'
     return Markup(head + text[head_end:])
 
 

@@ -49,11 +49,6 @@ _UNITS = {
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-_MODES = {
-    "no_calibration": "no calibration",
-    "adaptive_kmz": "adaptive model (KMZ)",
-    "single": "single model",
-}
 
 
 def dig(data, key: str):
@@ -107,7 +102,17 @@ def _family_templates() -> list[Path]:
     return [Path(str(files(family.templates) / "templates")) for family in families()]
 
 
+def index_row(robot: str) -> str | None:
+    """The template of ``robot``'s headline rows in the index (its family's ``index_row``)."""
+    from calflow.family import families
+
+    return next((fam.index_row for fam in families() if robot in fam.robots), None)
+
+
 def environment() -> jinja2.Environment:
+    from calflow.family import modes
+
+    labels = modes()
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader([TEMPLATES, *_family_templates()]),
         autoescape=True,
@@ -120,9 +125,9 @@ def environment() -> jinja2.Environment:
         sig=sig,
         unit=unit,
         label=lambda n: str(n).replace("_", " "),
-        mode=lambda n: _MODES.get(str(n), str(n).replace("_", " ")),
+        mode=lambda n: labels.get(str(n), str(n).replace("_", " ")),
     )
-    env.globals.update(dig=dig, is_number=is_number)
+    env.globals.update(dig=dig, is_number=is_number, index_row=index_row)
     return env
 
 
@@ -215,11 +220,13 @@ def render_campaign_pages(
     return html, template.render(figures=printed, **context)
 
 
-def render_index(summaries: list[dict]) -> str:
-    """``reports/index.html``: every campaign's headline numbers beside the thesis's."""
+def render_index(summaries: list[dict], histories: list[dict] | None = None) -> str:
+    """``reports/index.html``: every campaign's headline numbers beside the thesis's, and
+    the stage histories (``results/stages/<id>/history.json``) with a link to each report."""
     template = environment().get_template("index.html.j2")
     return template.render(
         summaries=summaries,
+        histories=histories or [],
         versions=_versions(),
         machine=_machine(),
         css=(TEMPLATES / "style.css").read_text(),

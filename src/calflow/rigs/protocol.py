@@ -1,4 +1,4 @@
-"""The rig protocol (DESIGN.md): what acquisition needs from any positioning rig."""
+"""The rig protocol (docs/rigs.md): what acquisition needs from any positioning rig."""
 
 from __future__ import annotations
 

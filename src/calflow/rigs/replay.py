@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calflow.data.conventions import ROBOT_JOINTS
+from calflow.data.conventions import robot_joints
 from calflow.data.io import open_dataset
 from calflow.errors import CalflowError, OptionError, RigError
 
@@ -56,7 +56,7 @@ def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
 
 
 class ReplayRig:
-    """Serves one recorded run dataset through the rig protocol (DESIGN.md).
+    """Serves one recorded run dataset through the rig protocol (docs/rigs.md).
 
     ``joints`` are the recorded ``cmd_*`` variables, ``sensors`` the ``meas_*``
     variables, ``thermometers`` the ``sensor`` coordinate of ``temperature``.
@@ -94,7 +94,7 @@ class ReplayRig:
             raise RigError(f"{self.path}: replay: {problems[0]}{more}")
         self.attrs = dict(ds.attrs)
         self.units = {name: str(ds[name].attrs.get("units", "")) for name in ds.data_vars}
-        order = ROBOT_JOINTS.get(str(ds.attrs.get("robot")), ())
+        order = robot_joints(str(ds.attrs.get("robot")))
         cmd = [n[4:] for n in ds.data_vars if n.startswith("cmd_")]
         self.joints = tuple([j for j in order if j in cmd] + [j for j in cmd if j not in order])
         meas = [n for n in ds.data_vars if n.startswith("meas_")]

@@ -39,6 +39,12 @@ def _acquire_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--export", help="a model's export folder, for --plan validation_export (docs/export.md)")
 
 
+def _identify_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--luts", help="XY error tables (models with position_table)")
+    p.add_argument("--base", help="base model (models with angle_table)")
+    p.add_argument("--residuals", help="angle-residual run commanded through the base model")
+
+
 def _characterise_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
     p.add_argument("--x", required=True)
@@ -136,7 +142,10 @@ FAMILY = Family(
         "check": "calflow.xytheta.checks:check_campaign",
     },
     templates="calflow.xytheta.report",
+    schemas="calflow.xytheta",
+    history_entry="calflow.xytheta.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.xytheta.report.history"),
         "acquire": _CORE
         + (
             "calflow.acquisition",
@@ -187,9 +196,11 @@ FAMILY = Family(
         ),
         "summarise": _CORE
         + (
-            "calflow.reference",
+            "calflow.summary_routing",
+            "calflow.xytheta.report.reference",
             "calflow.metrics",
             "calflow.xytheta.report.summary",
+            "calflow.xytheta.report.heldout",
             "calflow.xytheta.stage.oracle",
             "calflow.xytheta.stage.rig",
             "calflow.xytheta.stage.physics",
@@ -223,6 +234,7 @@ FAMILY = Family(
         ),
     },
     acquire_arguments=_acquire_arguments,
+    identify_arguments=_identify_arguments,
     commands=(
         Command(
             "characterise",
@@ -244,7 +256,7 @@ FAMILY = Family(
         ),
         Command(
             "design-study",
-            "Cramér–Rao σ against poses and rig time, random against designed (issue 15)",
+            "Cramér–Rao σ against poses and rig time, random against designed",
             _observability_arguments,
             "calflow.xytheta.design.study:study",
         ),
@@ -276,4 +288,34 @@ FAMILY = Family(
     ),
     sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
     emulator="calflow.xytheta.stage.emulate:emulate_main",
+    joints={"xytheta": ("x", "y", "theta")},
+    reference={"xytheta": "calflow.xytheta.report.reference:XYTHETA"},
+    index_row="xytheta_index_row.html.j2",
+    summary_sections={
+        "model": "models",
+        "metrics:validation": "reference_targets",
+        "metrics:validation_heldout": "heldout",
+        "metrics:square": "xy_tests",
+        "metrics:random_points": "xy_tests",
+        "metrics:observability": "observability",
+        "metrics:design_study": "design_study",
+        "metrics:validation_export": "export",
+        "luts": "characterisation",
+        "run:characterisation_x": "iso230_2",
+        "run:characterisation_y": "iso230_2",
+        "run:validation_heldout": "heldout_runs",
+        "run:identification": "training_runs",
+        "run:angle_residuals": "training_runs",
+    },
+    rules=(
+        "calflow.xytheta",
+        "rules/common.smk",
+        "rules/acquire.smk",
+        "rules/characterise.smk",
+        "rules/validation.smk",
+        "rules/export.smk",
+        "rules/montecarlo.smk",
+    ),
+    workflow="calflow.xytheta.plans.workflow:WORKFLOW",
+    studies="calflow.xytheta.studies.montecarlo:load_study",
 )

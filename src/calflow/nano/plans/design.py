@@ -1,4 +1,4 @@
-"""Optimal design of the nano training positions and its Cramér–Rao bound (issue 15).
+"""Optimal design of the nano training positions and its Cramér–Rao bound.
 
 The single model, Eq. (5.3)–(5.5), and the 2-DoF model, Eq. (5.10), are linear in their
 coefficients: a training reading gives q = g(x)ᵀ a + tᵀ b + λ + e with the position basis

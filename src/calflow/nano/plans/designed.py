@@ -1,5 +1,5 @@
 """The designed training plan of the nano campaigns, its bound before acquisition and the
-achieved σ after identification (``training.plan: optimal``, issue 15).
+achieved σ after identification (``training.plan: optimal``).
 
 Noise model of a training reading (the mean of the last ``average_last_s`` of a dwell):
 σ² = σ_pose² + σ_sample² / N, σ_pose the stage's repeatability per visit (not reduced by

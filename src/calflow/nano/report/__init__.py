@@ -1,1 +1,1 @@
-"""Nano campaign summaries (ISO 9283, stabilisation, ordering), figures and templates."""
+"""Nano campaign summaries (ISO 9283, stabilisation, ordering, extrapolation), figures and templates."""

@@ -1,4 +1,4 @@
-"""Campaign summaries of the nanopositioning stages (``summary.json``, DESIGN.md).
+"""Campaign summaries of the nanopositioning stages (``summary.json``; keys in docs/architecture.md).
 
 Built from the metrics datasets of :mod:`calflow.nano.evaluation` (AP/RP in nm per test
 and pose).  Every value is JSON-ready: Python numbers, lists and dicts only, NaN and
@@ -18,13 +18,14 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from calflow import __version__, reference
+from calflow import __version__
 from calflow.data.io import (
     jsonable,  # noqa: F401 (re-exported)
     sha256_file,
 )
 from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
+from calflow.nano.report.reference import BY_ROBOT
 from calflow.nano.robustness import robustness_by_mode
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
@@ -234,7 +235,7 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
         "rig": (campaign.get("rig") or {}).get("factory"),
         "models": models,
         "budget": _budget(budget),
-        "reference": reference.BY_ROBOT[robot],
+        "reference": BY_ROBOT[robot],
         "inputs": {str(p): sha256_file(p) for p in inputs},
     }
 
@@ -265,7 +266,7 @@ def stage1d_summary(
     error_budget: dict | None = None,
     step_response_run: xr.Dataset | None = None,
 ) -> dict:
-    """Summary of a 1-DoF nano campaign (DESIGN.md "Campaign summary", thesis Sec. 5.3.3).
+    """Summary of a 1-DoF nano campaign (docs/architecture.md "Campaign summary", thesis Sec. 5.3.3).
 
     ``intrinsic`` from the metrology run (Remark 1: AP_I, RP_I, max over poses, nm);
     ``tests.<mode>`` from the validation run (:func:`mode_block`); ``robustness.<mode>``
@@ -273,7 +274,7 @@ def stage1d_summary(
     (training-run AP/RP, Fig. 5.13) when ``training_metrics`` is given; ``iso230_2`` as
     given (:func:`calflow.nano.evaluation.iso230_2_of_run` of the training run);
     ``models`` coefficient tables and ``budget`` rows as given; ``reference`` = the thesis
-    values (``calflow.reference.STAGE1D``); ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
+    values (``calflow.nano.report.reference.STAGE1D``); ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
     the ``validation_run`` is given (stabilisation time and overshoot from ``step_response_run``).
     """
@@ -306,9 +307,9 @@ def stage2d_summary(
     error_budget: dict | None = None,
     step_response_run: xr.Dataset | None = None,
 ) -> dict:
-    """Summary of a 2-DoF nano campaign (DESIGN.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
+    """Summary of a 2-DoF nano campaign (docs/architecture.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
-    ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.reference.STAGE2D``,
+    ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.nano.report.reference.STAGE2D``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
     tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage2d", models, budget, inputs)
@@ -325,7 +326,7 @@ def stage2d_summary(
 
 
 def _physics_blocks(summary: dict, error_budget: dict | None) -> None:
-    """Issue 14: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
+    """The rig physics' blocks: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
     calibration, :mod:`calflow.nano.stage.error_budget`), ``validation.error_budget_method`` and the
     ``ordering`` paragraph (:mod:`calflow.nano.report.ordering`)."""
     from calflow.nano.report.ordering import ordering_block

@@ -1,1 +1,2 @@
-"""The simulated piezo stages: physics, thermal network, interferometer, records, emulation, budget."""
+"""The simulated piezo stages: physics, thermal network, interferometer, drift the thermocouples
+do not see, records, emulation, budget."""

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from calflow.errors import OptionError, UnknownOptionError
+from calflow.nano.stage.unseen.options import UNSEEN, UNSEEN_EFFECTS, UNSEEN_NON_NEGATIVE, UNSEEN_POSITIVE
 
 _DAY = 86400.0
 
@@ -65,6 +66,7 @@ _COMMON = {
     "thermocouple_noise_mk": 5.0,
     "thermocouple_resolution_mk": 1.0,
     "drift_walk_nm_per_sqrt_day": 0.0,  # a random walk with no physical source: off by default
+    **UNSEEN,  # drift the thermocouples do not see (calflow.nano.stage.unseen.options)
     "unmodelled": True,  # False: every effect no calflow nano model represents is off
 }
 _POSITIVE = (
@@ -78,8 +80,10 @@ _POSITIVE = (
     "base_capacity_j_per_k",
     "air_capacity_j_per_k",
     "pressure_pa",
+    *UNSEEN_POSITIVE,
 )
 _NON_NEGATIVE = (
+    *UNSEEN_NON_NEGATIVE,
     "seed",
     "world_seed",
     "interferometer_noise_nm",
@@ -132,6 +136,7 @@ EFFECTS = {
     "settling": ("settle_fraction",),
     "step_response": ("step_natural_hz",),
     "thermocouple_noise": ("thermocouple_noise_mk",),
+    **UNSEEN_EFFECTS,
 }
 # noise and the transients of a move: not terms of effect_terms (the rig's _state adds them)
 NOISE = (
@@ -142,7 +147,7 @@ NOISE = (
     "step_response",
     "thermocouple_noise",
 )
-UNMODELLED = ("hysteresis", "creep", "expansion", "deadpath", "compensation", "walk")
+UNMODELLED = ("hysteresis", "creep", "expansion", "deadpath", "compensation", "walk", *UNSEEN_EFFECTS)
 
 
 def _off(value):
@@ -272,11 +277,9 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
         raise OptionError("thermocouple_tau_s", "values > 0", o["thermocouple_tau_s"])
     if not all(0.0 <= v <= 1.0 for v in o["thermocouple_air_weight"]):
         raise OptionError("thermocouple_air_weight", "values in [0, 1]", o["thermocouple_air_weight"])
-    if not (
-        0.0 <= o["humidity_pct"] - o["humidity_swing_pct"]
-        and o["humidity_pct"] + o["humidity_swing_pct"] <= 100.0
-    ):
-        raise OptionError("humidity_pct", "humidity +- its swing within 0-100 %", o["humidity_pct"])
+    swing = o["humidity_swing_pct"] + o["humidity_weather_pct"]
+    if not (0.0 <= o["humidity_pct"] - swing and o["humidity_pct"] + swing <= 100.0):
+        raise OptionError("humidity_pct", "humidity +- its swings within 0-100 %", o["humidity_pct"])
     if not o["unmodelled"]:  # one key switches off every effect no calflow model represents
         o = without(o, *UNMODELLED)
     from calflow.rigs.thermal import _DEFAULTS, PROFILES

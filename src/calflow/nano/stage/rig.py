@@ -1,6 +1,6 @@
 """Simulated 1-DoF and 2-DoF nanopositioning rigs (thesis Chapter 5, Sec. 5.2-5.4).
 
-Both rigs follow the rig protocol of DESIGN.md (``move``/``wait``/``read``/``close``) on a
+Both rigs follow the rig protocol (docs/rigs.md: ``move``/``wait``/``read``/``close``) on a
 virtual clock, plus ``stream`` (raw high-rate samples of a dwell), ``truth()``,
 ``true_position()`` and ``effect_terms()`` for tests and the summary step. Lengths in um,
 temperatures in degC, time in s.
@@ -16,13 +16,14 @@ A reading of sensor k is the commanded position plus one named term per effect
     deadpath, compensation    the air's refractive index (calflow.nano.stage.interferometer)
     cosine, abbe              installation (Table 3.4, U7, U8)
     walk                      a random walk, off by default (no physical source)
+    piezo_heating ... turbulence   drift the thermocouples do not see (calflow.nano.stage.unseen)
 
 plus per-move repeatability, the closed loop's step response (``record_move`` sees it), the
 settling tail, white interferometer noise and the laser's wavelength instability (noise),
 quantised to the interferometer resolution (0.3 nm).
 Temperatures come from the lumped thermal network (:mod:`calflow.nano.stage.thermal_network`)
-driven by the room profile; thermocouple j reads its own node plus its offset and noise,
-quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
+driven by the room profile; thermocouple j reads its own node plus its offset, the heat
+sources' share and its own errors (calflow.nano.stage.unseen) and noise, quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
 when the interferometer was zeroed (Sec. 5.3.1). The world (room, weather, walk) is fixed by
 ``world_seed`` and anchored in campaign time; ``seed`` drives only noise and repeatability.
 """
@@ -46,15 +47,18 @@ from calflow.nano.stage.piezo import (
 )
 from calflow.nano.stage.records import HighRateRecords
 from calflow.nano.stage.thermal_network import ThermalNetwork, network_bank
+from calflow.nano.stage.truth import RigTruth
+from calflow.nano.stage.unseen.drift import UnseenDrift
+from calflow.nano.stage.unseen.humidity import weather_at
 from calflow.rigs.thermal import room_profile
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]
 
-_DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE)
+_DETERMINISTIC = tuple(e for e in EFFECTS if e not in NOISE and e not in UnseenDrift.EFFECTS)  # built in here
 _STAGE, _BASE, _AIR = 0, 1, 2  # structural nodes of the network; thermocouples, compensation sensor follow
 
 
-class _NanoRig(HighRateRecords):
+class _NanoRig(HighRateRecords, RigTruth):
     """Common machinery of the nano rigs: options, virtual clock, noise, physics."""
 
     joints: tuple[str, ...] = ()
@@ -87,9 +91,11 @@ class _NanoRig(HighRateRecords):
             o["world_seed"], o["drift_walk_nm_per_sqrt_day"] * 1e-3 * np.ones(len(self.sensors))
         )
         self._weather = np.random.default_rng(np.random.SeedSequence([int(o["world_seed"]), 3_4])).uniform(
-            0, 2 * np.pi, 2
+            0, 2 * np.pi, 3
         )
         self._nodes0 = self._bank.at(0.0)  # the zeroing (campaign time 0)
+        self._unseen = UnseenDrift(o, net, self.room, self._AXIS, self._weather, o["start_offset_s"])
+        self._mem = self._unseen.rest()  # the moves' memory (piezo heat, settling)
         self._n0 = self._indices(0.0, self._nodes0)
         self._c_stage = np.array(o["stage_coeff_um_per_c"])
         self._tc_off = np.array(o["thermocouple_offset_c"])
@@ -133,6 +139,7 @@ class _NanoRig(HighRateRecords):
         e = self._rng_moves.standard_normal(len(self.sensors)) * self._rep_sig
         self._rep = rho * self._rep + math.sqrt(1.0 - rho * rho) * e
         self._settle = (self._t, steps)
+        self._mem = self._unseen.after_move(self._mem, self._t, steps)
         self._t += self.options["rise_time_s"]
 
     def wait(self, seconds: float) -> None:
@@ -173,46 +180,14 @@ class _NanoRig(HighRateRecords):
         """Current virtual time (s since the rig's start)."""
         return self._t
 
-    def true_position(
-        self, command, time: float | np.ndarray | None = None, direction: int | Mapping[str, int] = 0
-    ) -> dict[str, float | np.ndarray]:
-        """Noise-free sensor values (um) for ``command`` at rig ``time`` (s, default now).
-
-        Every deterministic effect, with the hysteresis of a long approach in ``direction``
-        (+1/-1 per joint or for all; 0: none); excludes noise, quantisation, per-move
-        repeatability, settling and creep (transients of a move). ``command`` (a mapping
-        joint -> um, or a number for a 1-DoF rig) and ``time`` may be arrays.
-        """
-        cmds, z = self._long_approach(command, direction)
-        t = self._t if time is None else np.asarray(time, dtype=float)
-        terms = self.effect_terms(cmds, t, z)
-        pos = self._sum(cmds, terms)
-        return {name: (p if np.ndim(p) else float(p)) for name, p in zip(self.sensors, pos)}
-
-    def truth(self) -> dict:
-        """JSON-serialisable true physics parameters (independent of the noise seed)."""
-        o = self.options
-        keep = {
-            k: (list(v) if isinstance(v, tuple) else v)
-            for k, v in o.items()
-            if k not in ("seed", "start_offset_s", "profile", "profile_params", "world_seed")
-        }
-        return {
-            "rig": self._NAME,
-            "joints": list(self.joints),
-            "sensors": list(self.sensors),
-            "thermometers": list(self.thermometers),
-            "room": self.room.describe(),
-            "world_seed": int(o["world_seed"]),
-            "geometry": self._geometry_truth(),
-            "options": keep,
-        }
-
     # ------------------------------------------------------------------ physics
-    def effect_terms(self, cmds, t_rig, z, steps=None, since_s=None, nodes=None) -> dict[str, list]:
+    def effect_terms(
+        self, cmds, t_rig, z, steps=None, since_s=None, nodes=None, memory=None
+    ) -> dict[str, list]:
         """Each deterministic effect's term (um) per sensor, at commands ``cmds`` (one array per
         joint) and rig times ``t_rig``: play states ``z`` (one (..., n) array per joint), last
-        ``steps`` (um per joint) and the time ``since_s`` the move started (creep; None: no creep).
+        ``steps`` (um per joint), the time ``since_s`` the move started (creep; None: no creep)
+        and the moves' ``memory`` (:class:`UnseenDrift`; None: piezo heat and settling are 0).
         The summary step's error budget evaluates these at a run's samples."""
         o = self.options
         tc = o["start_offset_s"] + np.asarray(t_rig, dtype=float)
@@ -255,6 +230,7 @@ class _NanoRig(HighRateRecords):
                 ifm.abbe_error_um(s, o["abbe_offset_mm"], o["abbe_pitch_urad"]) + zero if on_axis else zero
             )
             out["walk"].append(walk[..., k] + zero if walk is not None else zero)
+        out.update(self._unseen.terms(cmds, tc, t_rig, memory, self._sum(cmds, out), zero))
         return out
 
     def _nodes(self, t_campaign):
@@ -265,11 +241,7 @@ class _NanoRig(HighRateRecords):
     def _weather_at(self, t_campaign):
         """Air pressure (Pa) and relative humidity (%) at campaign time (s): a 3.3-day weather
         swing and a daily humidity swing, phases from ``world_seed``."""
-        o = self.options
-        h = np.asarray(t_campaign, dtype=float) / 3600.0
-        p = o["pressure_pa"] + o["pressure_swing_pa"] * np.sin(2 * np.pi * h / 79.0 + self._weather[0])
-        rh = o["humidity_pct"] + o["humidity_swing_pct"] * np.sin(2 * np.pi * h / 24.0 + self._weather[1])
-        return p, rh
+        return weather_at(self.options, self._weather, t_campaign)
 
     def _indices(self, t_campaign, nodes):
         """Refractive index of the beam's air and the one the compensation unit computes."""
@@ -282,23 +254,6 @@ class _NanoRig(HighRateRecords):
         )
         return n_air, n_comp
 
-    def _sum(self, cmds, terms):
-        return [
-            (cmds[a] if a is not None else 0.0) + sum(terms[name][k] for name in terms)
-            for k, a in enumerate(self._AXIS)
-        ]
-
-    def _long_approach(self, command, direction):
-        if not isinstance(command, Mapping):
-            command = {self.joints[0]: command}
-        cmds = tuple(np.asarray(command[j], dtype=float) for j in self.joints)
-        dirs = [
-            int(direction.get(j, 0)) if isinstance(direction, Mapping) else int(direction)
-            for j in self.joints
-        ]
-        z = tuple(self.play.long_approach(c, d) for c, d in zip(cmds, dirs))
-        return cmds, z
-
     def _noise_sd(self, pos):
         """Per-sensor noise sd (um): white noise (U3) and the laser's wavelength instability (U1,
         a uniform relative error of the measured distance)."""
@@ -306,7 +261,7 @@ class _NanoRig(HighRateRecords):
         return [np.hypot(self._sig_um, u1 * np.abs(p)) for p in pos]
 
     def _snapshot(self):
-        return self._cmd, self._z, self._settle, self._rep.copy()
+        return self._cmd, self._z, self._settle, self._rep.copy(), self._mem
 
     def _check_open(self):
         if self._closed:
@@ -314,12 +269,12 @@ class _NanoRig(HighRateRecords):
 
     def _state(self, t_rig, state):
         """Noise-free sensor values incl. repeatability, step response, settling and creep, and thermocouples."""
-        cmds, z, (t_start, steps), rep = state
+        cmds, z, (t_start, steps), rep, memory = state
         o = self.options
         nodes = self._nodes(o["start_offset_s"] + t_rig)
         cmds = tuple(np.asarray(c, dtype=float) for c in cmds)
         since = t_rig - t_start if math.isfinite(t_start) else None
-        terms = self.effect_terms(cmds, t_rig, z, steps, since, nodes)
+        terms = self.effect_terms(cmds, t_rig, z, steps, since, nodes, memory)
         pos = self._sum(cmds, terms)
         decay = o["settle_fraction"] * np.exp(-(t_rig - t_start) / o["settle_tau_s"])
         if since is not None:  # the closed loop's step response: the stage lags the new command
@@ -330,7 +285,11 @@ class _NanoRig(HighRateRecords):
             p + rep[k] + (steps[a] * decay if a is not None else 0.0)
             for k, (p, a) in enumerate(zip(pos, self._AXIS))
         ]
-        temps = nodes[..., 3 : 3 + self._n_tc] + self._tc_off
+        temps = (
+            nodes[..., 3 : 3 + self._n_tc]
+            + self._tc_off
+            + self._unseen.reading_c(o["start_offset_s"] + t_rig)
+        )
         return pos, temps
 
     # subclass hooks -----------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Optimal design of the XYΘ identification poses (thesis Sec. 4.2.3, 4.5.4; issue 15).
+"""Optimal design of the XYΘ identification poses (thesis Sec. 4.2.3, 4.5.4).
 
 The measured tool point of pose i is P_m,i = P(q_i; φ) − c + e_i (Eq. 4.27 with the
 initial reading c = (x_m0, y_m0) unknown), e_i of covariance σ² I₂ per axis. The Fisher

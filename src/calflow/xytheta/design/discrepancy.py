@@ -1,4 +1,4 @@
-"""The XYΘ identification design for a model that is not exact (issue 15, criterion
+"""The XYΘ identification design for a model that is not exact (criterion
 ``discrepancy``): the minimax-variance design (``MV``: the fewest poses whose worst
 parameter's Cramér–Rao σ reaches the random plan's), then exchanged against the expected
 integrated squared prediction error under a Gaussian-process discrepancy

@@ -1,5 +1,5 @@
 """The designed identification plan of the XYΘ campaign: noise and time models, the pose
-order, frames per pose, and the bound written before acquisition (issue 15).
+order, frames per pose, and the bound written before acquisition.
 
 The time model is the simulated rig's (:class:`calflow.xytheta.stage.rig.SimulatedXYTheta`):
 a move takes max(|ΔX|, |ΔY|)/v + |ΔΘ|/v_Θ + settle, then the plan dwells; a pose of k

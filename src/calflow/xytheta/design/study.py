@@ -1,4 +1,4 @@
-"""Design study of the XYΘ identification (issue 15): how many poses and how much rig time
+"""Design study of the XYΘ identification: how many poses and how much rig time
 for the σ the user asks for, random against designed.
 
 From the Fisher information alone (no acquisition): for a range of pose counts, the

@@ -1,4 +1,4 @@
-"""Export of XYΘ calibrations to controllers and users' code (issue 16).
+"""Export of XYΘ calibrations to controllers and users' code.
 
 :mod:`.bundle` — the controller-neutral bundle (JSON parameters, CSV tables, provenance);
 :mod:`.compensator` — :class:`Compensator`, the bundle's inverse for users' code;

@@ -1,4 +1,4 @@
-"""Closed-loop verification of the exported compensation on the rig (issue 16, item 2).
+"""Closed-loop verification of the exported compensation on the rig.
 
 The held-out validation targets (``validation_heldout``: same targets, same order) are
 commanded again, once per export path, each path a segment of one run starting at the

@@ -1,4 +1,4 @@
-"""The campaign summary (``results/<campaign>/summary.json``, DESIGN.md).
+"""The campaign summary (``results/<campaign>/summary.json``; keys in docs/architecture.md).
 
 The summary is assembled from the campaign's result files, recognised by their
 attributes (``calflow_kind``, ``plan``, ``model``), so a rule hands over its inputs as a
@@ -12,9 +12,13 @@ import json
 import numpy as np
 import xarray as xr
 
-from calflow import __version__, reference
+from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
+from calflow.summary_routing import route
+from calflow.xytheta.family import FAMILY
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS
+from calflow.xytheta.report.heldout import adequacy, disjointness, repeatability_floor
+from calflow.xytheta.report.reference import XYTHETA
 
 _SUFFIX = {"um": "um", "degree": "deg"}
 
@@ -99,64 +103,12 @@ def _model_entry(
         entry["reference_targets"] = {
             "accuracy_um": jsonable(float(ref.attrs["accuracy_um"])),
             "repeatability_um": jsonable(float(ref.attrs["repeatability_um"])),
-            "thesis_accuracy_um": reference.XYTHETA["models"].get(name, {}).get("accuracy_um"),
+            "thesis_accuracy_um": XYTHETA["models"].get(name, {}).get("accuracy_um"),
             "per_target": _per_target(ref),
         }
     if angle is not None:
         entry["angle_table_info"] = angle
     return entry
-
-
-def repeatability_floor(metrics: list[xr.Dataset]) -> dict:
-    """The sensor-and-stage floor (µm per reading and axis): the pooled within-target scatter
-    of every validation run, with its degrees of freedom."""
-    pairs = [(m.attrs.get("within_target_std_um"), m.attrs.get("within_target_dof", 0)) for m in metrics]
-    pairs = [(float(s), int(d)) for s, d in pairs if s is not None and np.isfinite(s) and d > 0]
-    dof = sum(d for _, d in pairs)
-    if not dof:
-        return {"floor_um": None, "dof": 0}
-    return {"floor_um": float(np.sqrt(sum(s**2 * d for s, d in pairs) / dof)), "dof": int(dof)}
-
-
-def adequacy(sigma_fit, n_poses, n_free: int, floor: dict, alpha: float = 0.01) -> dict:
-    """Lack-of-fit test of a model: its residual σ̂ against the repeatability floor.
-
-    χ²/dof = σ̂²_fit / σ²_floor is 1 when the model leaves only noise; the F-test with
-    (2(n−1) − p, floor dof) degrees of freedom rejects adequacy when p < ``alpha``. An
-    inadequate model's parameters absorb unmodelled errors, and their σ (which assume the
-    residuals are noise) understate their error.
-    """
-    if sigma_fit is None or not floor.get("floor_um") or not n_poses:
-        return {
-            "chi2_dof": None,
-            "p_value": None,
-            "adequate": None,
-            "statement": "No repeatability floor was measured: calflow cannot tell whether the model fits.",
-        }
-    from scipy.stats import f as fisher
-
-    ratio = float(sigma_fit) ** 2 / floor["floor_um"] ** 2
-    df1 = max(1, 2 * (int(n_poses) - 1) - n_free)
-    p = float(fisher.sf(ratio, df1, floor["dof"]))
-    ok = p >= alpha
-    statement = (
-        "The residuals are at the repeatability floor: the model fits, and its parameter σ can be trusted."
-        if ok
-        else f"The model does not fit: its residuals are {np.sqrt(ratio):.1f} times the repeatability floor "
-        f"({float(sigma_fit):.2f} against {floor['floor_um']:.2f} µm). Its parameters absorb errors it does "
-        f"not model, and their σ understate their real error."
-    )
-    return {
-        "chi2_dof": jsonable(ratio),
-        "p_value": jsonable(p),
-        "adequate": bool(ok),
-        "sigma_fit_um": jsonable(float(sigma_fit)),
-        "floor_um": jsonable(floor["floor_um"]),
-        "floor_dof": floor["dof"],
-        "fit_dof": df1,
-        "alpha": alpha,
-        "statement": statement,
-    }
 
 
 def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
@@ -190,42 +142,6 @@ def _angle_info(model_path: str, model: xr.Dataset) -> dict | None:
             info["sweep_f_ax_um"] = [[jsonable(float(v)) for v in row] for row in t["sweep_f_ax"].values]
             info["sweep_f_ay_um"] = [[jsonable(float(v)) for v in row] for row in t["sweep_f_ay"].values]
     return info
-
-
-def disjointness(
-    heldout_runs: list[xr.Dataset],
-    training_runs: list[xr.Dataset],
-    tol_um: float = 1.0,
-    tol_deg: float = 1e-3,
-) -> dict:
-    """Do held-out commands repeat any identification or table pose? From the run datasets.
-
-    A held-out sample coincides with a training sample when their X and Y commands are
-    within ``tol_um`` and their Θ commands within ``tol_deg``.
-    """
-
-    def joints(ds):
-        sel = ds["pose"].values > 0
-        return np.column_stack([ds[f"cmd_{j}"].values[sel] for j in ("x", "y", "theta")]).astype(float)
-
-    if not heldout_runs or not training_runs:
-        return {"coincident_samples": None}
-    train = np.vstack([joints(r) for r in training_runs])
-    order = np.argsort(train[:, 2])
-    train = train[order]
-    coincident = 0
-    for run in heldout_runs:
-        for q in joints(run):
-            lo, hi = np.searchsorted(train[:, 2], [q[2] - tol_deg, q[2] + tol_deg])
-            if hi > lo:
-                d = np.hypot(train[lo:hi, 0] - q[0], train[lo:hi, 1] - q[1])
-                coincident += int(np.any(d <= tol_um))
-    return {
-        "coincident_samples": coincident,
-        "tolerance": {"xy_um": tol_um, "theta_deg": tol_deg},
-        "checked_samples": int(sum((r["pose"].values > 0).sum() for r in heldout_runs)),
-        "training_samples": int(len(train)),
-    }
 
 
 def _characterisation(luts: xr.Dataset) -> dict:
@@ -282,36 +198,27 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
     models, paths, ref, heldout, xy, luts, obs, iso, study = {}, {}, {}, {}, {}, None, None, {}, None
-    heldout_runs, training_runs = [], []
-    exported = {}  # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
-    for path in files:
-        with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
-            ds = ds.load()
-        kind, plan = ds.attrs.get("calflow_kind"), ds.attrs.get("plan")
-        if kind == "model":
-            models[ds.attrs["model"]], paths[ds.attrs["model"]] = ds, path
-        elif kind == "metrics" and plan == "validation":
-            ref[ds.attrs["model"]] = ds
-        elif kind == "metrics" and plan == "validation_heldout":
-            heldout[ds.attrs["model"]] = ds
-        elif kind == "metrics" and plan in ("square", "random_points"):
-            xy.setdefault(plan, {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
-        elif kind == "metrics" and plan == "observability":
-            obs = ds
-        elif kind == "metrics" and plan == "design_study":
-            from calflow.xytheta.design.study import summary_block
+    found = route(files, FAMILY.summary_sections, "XYΘ family")
+    for path, ds in found.get("models", []):
+        models[ds.attrs["model"]], paths[ds.attrs["model"]] = ds, path
+    ref = {ds.attrs["model"]: ds for _, ds in found.get("reference_targets", [])}
+    heldout = {ds.attrs["model"]: ds for _, ds in found.get("heldout", [])}
+    for _, ds in found.get("xy_tests", []):
+        xy.setdefault(ds.attrs["plan"], {})[ds.attrs.get("compensation", "none")] = _xy_test(ds)
+    for _, ds in found.get("observability", []):
+        obs = ds
+    for _, ds in found.get("design_study", []):
+        from calflow.xytheta.design.study import summary_block
 
-            study = summary_block(ds)
-        elif kind == "luts":
-            luts = ds
-        elif kind == "run" and plan in ("characterisation_x", "characterisation_y"):
-            iso[plan[-1]] = _iso230_2_of_sweep(ds, plan[-1])
-        elif kind == "run" and plan == "validation_heldout":
-            heldout_runs.append(ds)
-        elif kind == "metrics" and plan == "validation_export":
-            exported[ds.attrs["model"]] = ds
-        elif kind == "run" and plan in ("identification", "angle_residuals"):
-            training_runs.append(ds)
+        study = summary_block(ds)
+    for _, ds in found.get("characterisation", []):
+        luts = ds
+    for _, ds in found.get("iso230_2", []):
+        iso[ds.attrs["plan"][-1]] = _iso230_2_of_sweep(ds, ds.attrs["plan"][-1])
+    heldout_runs = [ds for _, ds in found.get("heldout_runs", [])]
+    # models.<M>.export: the closed-loop check of the exported files (docs/export.md)
+    exported = {ds.attrs["model"]: ds for _, ds in found.get("export", [])}
+    training_runs = [ds for _, ds in found.get("training_runs", [])]
     order = [name for name in campaign["models"] if name in models]
     floor = repeatability_floor(list(heldout.values()) + list(ref.values()))
     summary = {
@@ -333,7 +240,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             for name in order
         },
         "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
-        "reference": reference.BY_ROBOT["xytheta"],
+        "reference": XYTHETA,
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     if exported:
@@ -424,7 +331,7 @@ def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor
 
 
 def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) -> None:
-    """The bound before beside the result after (issue 15): each model's Cramér–Rao σ and the
+    """The bound before beside the result after (optimal design): each model's Cramér–Rao σ and the
     expected virtual rig time, written into the identification run before acquisition
     (attribute ``design``), as ``models.<M>.identification.crlb_sigma`` / ``.rig_time_h``
     next to the achieved ``parameters.<p>.std``; the run's actual virtual time as

@@ -26,7 +26,7 @@ __all__ = ["SimulatedXYTheta", "XYThetaTruth", "check_options", "simulated_xythe
 
 
 class SimulatedXYTheta:
-    """The simulated XYΘ rig; implements the rig protocol (DESIGN.md)."""
+    """The simulated XYΘ rig; implements the rig protocol (docs/rigs.md)."""
 
     joints = ("x", "y", "theta")
     replayable = True  # deterministic given its seed: acquisition may replay it to resume

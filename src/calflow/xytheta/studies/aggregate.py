@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.stats import norm
 
 from calflow.xytheta.studies.montecarlo import PARAMETERS
 
@@ -64,8 +65,12 @@ def parameter_stats(points: list[dict], key: str) -> dict:
     }
 
 
-def coverage(rows: list[dict], z: float = 1.959964) -> float | None:
-    """Fraction of the points whose 95 % interval, estimate ± 1.96 σ, holds the truth.
+#: The two-sided 95 % normal quantile, Φ⁻¹(0.975) ≈ 1.96.
+Z_95 = float(norm.ppf(0.975))
+
+
+def coverage(rows: list[dict], z: float = Z_95) -> float | None:
+    """Fraction of the points whose 95 % interval, estimate ± z σ (z = Φ⁻¹(0.975)), holds the truth.
 
     0.95 when the reported σ are honest and the model is the rig's; below when the σ are
     optimistic or the estimate biased (an inadequate model). None for a fixed parameter.

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from markupsafe import Markup  # noqa: E402
 
-from calflow.reference import XYTHETA  # noqa: E402
+from calflow.xytheta.report.reference import XYTHETA  # noqa: E402
 
 CSS = Path(__file__).resolve().parent / "report" / "templates" / "style.css"
 LABELS = {
@@ -69,7 +69,7 @@ TEMPLATE = """<!DOCTYPE html>
 </table>
 
 {% for f in figures %}
-<figure id="{{ f.key }}">{{ f.svg }}<figcaption>Figure {{ loop.index }}. {{ f.caption }}</figcaption></figure>
+<figure id="{{ f.key }}">{{ f.svg }}<figcaption id="{{ f.key }}-caption">Figure {{ loop.index }}. {{ f.caption }}</figcaption></figure>
 {% endfor %}
 
 <h2>All grid cells</h2>
@@ -118,7 +118,10 @@ def to_svg(fig, key: str) -> Markup:
     # every id (and reference to it) gets the figure's key: matplotlib numbers "patch_1" etc. per figure
     text = re.sub(r'(\sid="|url\(#|href="#)([^")]+)', lambda m: f"{m.group(1)}{key}-{m.group(2)}", text)
     end = text.index(">")
-    head = re.sub(r'\s(width|height)="[^"]*"', "", text[:end]) + ' role="img" style="width:100%;height:auto"'
+    head = (
+        re.sub(r'\s(width|height)="[^"]*"', "", text[:end])
+        + f' role="img" aria-labelledby="{key}-caption" style="width:100%;height:auto"'
+    )
     return Markup(head + text[end:])  # generated here from numbers and fixed labels only
 
 

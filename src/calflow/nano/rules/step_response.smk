@@ -10,7 +10,7 @@ rule acquire_step_response:
     benchmark:
         "results/{campaign}/benchmarks/acquire_step_response.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=300,
         runtime=1,

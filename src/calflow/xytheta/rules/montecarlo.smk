@@ -1,4 +1,4 @@
-# Monte-Carlo studies (issue 8): many simulated XYΘ campaigns over seeds × sensor noise ×
+# Monte-Carlo studies: many simulated XYΘ campaigns over seeds × sensor noise ×
 # identification poses (config/studies/<name>.yaml), one job per point or per batch of
 # seeds (key seeds_per_job), then the aggregate and the study's page.
 # Needs from common.smk: STUDIES (names) and STUDY (name -> calflow.xytheta.studies.montecarlo.load_study()).
@@ -20,7 +20,7 @@ rule mc_point:
     benchmark:
         "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=300,
         runtime=1,
@@ -43,7 +43,7 @@ rule mc_aggregate:
     benchmark:
         "results/studies/{study}/benchmarks/aggregate.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=200,
         runtime=1,
@@ -62,7 +62,7 @@ rule mc_report:
     output:
         html=report(
             "reports/studies/{study}.html",
-            caption="../report/study.rst",
+            caption=os.path.join(REPORT_DIR, "study.rst"),
             category="Studies",
             labels={"study": "{study}"},
         ),
@@ -71,7 +71,7 @@ rule mc_report:
     benchmark:
         "results/studies/{study}/benchmarks/report.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=300,
         runtime=1,

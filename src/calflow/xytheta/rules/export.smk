@@ -8,7 +8,7 @@ rule export_models:
         models=lambda w: expand(
             "results/{c}/models/{m}.nc",
             c=w.campaign,
-            m=xytheta_models(CAMPAIGN[w.campaign]),
+            m=models_of(CAMPAIGN[w.campaign]),
         ),
     output:
         manifest="results/{campaign}/export/manifest.json",
@@ -17,7 +17,7 @@ rule export_models:
     benchmark:
         "results/{campaign}/benchmarks/export.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=400,
         runtime=1,
@@ -41,7 +41,7 @@ rule acquire_validation_export:
     benchmark:
         "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=400,
         runtime=1,
@@ -74,7 +74,7 @@ rule export_verify:
     benchmark:
         "results/{campaign}/benchmarks/export_verify_{model}.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=300,
         runtime=1,

@@ -12,7 +12,7 @@ rule characterise:
     benchmark:
         "results/{campaign}/benchmarks/characterise.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=300,
         runtime=1,
@@ -32,7 +32,7 @@ rule observability:
     benchmark:
         "results/{campaign}/benchmarks/observability.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=200,
         runtime=1,
@@ -51,7 +51,7 @@ rule design_study:
     benchmark:
         "results/{campaign}/benchmarks/design_study.tsv"
     conda:
-        "../envs/calflow.yaml"
+        CONDA_ENV
     resources:
         mem_mb=1000,
     params:

@@ -1,0 +1,81 @@
+"""What the hexapod family registers with calflow (:class:`calflow.family.Family`).
+
+Registered by this distribution's entry point (``[project.entry-points."calflow.families"]``
+``hexapod = "calflow_hexapod.family:FAMILY"``); calflow's core never names it. Kept free of
+numerical imports: ``calflow --help`` reads it.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from calflow.family import Command, Family
+
+_P = "calflow_hexapod.plans.campaign"
+_S = "calflow_hexapod.steps"
+_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
+_ALL = ("calflow_hexapod",)  # a small package: any change to it reruns its steps
+
+
+def _budget_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--out", required=True)
+
+
+FAMILY = Family(
+    name="hexapod",
+    robots=("hexapod",),
+    joints={"hexapod": ("x", "y", "z", "u", "v", "w")},
+    # U, V, W: rotations about the x, y, z axes (C-887 convention, calflow_hexapod.models.geometry)
+    axes={
+        "u": ("degree", "rotation U about x"),
+        "v": ("degree", "rotation V about y"),
+        "w": ("degree", "rotation W about z"),
+    },
+    rigs={"hexapod": {"simulated": "calflow_hexapod.stage.rig:simulated_hexapod"}},
+    plans={
+        "hexapod": {
+            "identification": f"{_P}:identification",
+            "validation_heldout": f"{_P}:validation_heldout",
+            "iso9283": f"{_P}:iso9283",
+        }
+    },
+    rig_options="calflow_hexapod.stage.run_options:rig_options",
+    steps={
+        "identify": f"{_S}:identify",
+        "metrics": f"{_S}:metrics",
+        "summarise": "calflow_hexapod.report.summary:hexapod_summary",
+        "figures": "calflow_hexapod.report.figures:build",
+    },
+    templates="calflow_hexapod.report",
+    schemas="calflow_hexapod",
+    index_row="hexapod_index_row.html.j2",
+    summary_sections={
+        "model": "models",
+        "metrics:validation_heldout": "heldout",
+        "metrics:iso9283": "iso9283",
+        "run:identification": "identification",
+    },
+    rules=("calflow_hexapod", "rules/hexapod.smk"),
+    workflow="calflow_hexapod.workflow:WORKFLOW",
+    modules={
+        "acquire": _CORE
+        + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.identification")
+        + _ALL,
+        "identify": _CORE + ("calflow.identification",) + _ALL,
+        "metrics": _CORE + ("calflow.metrics",) + _ALL,
+        "summarise": _CORE + ("calflow.metrics", "calflow.summary_routing") + _ALL,
+        "report": _CORE + ("calflow.report",) + _ALL,
+        "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.identification") + _ALL,
+    },
+    commands=(
+        Command(
+            "hexapod-error-budget",
+            "replay a simulated hexapod's calibration with each rig effect off: the error budget",
+            _budget_arguments,
+            "calflow_hexapod.stage.error_budget:error_budget_command",
+        ),
+    ),
+    sensors={"simulated_tracker": "calflow_hexapod.stage.sensor:simulated_tracker"},
+    emulator="calflow_hexapod.stage.emulate:emulate_main",
+)

@@ -1,0 +1,1 @@
+"""Hexapod geometry, kinematics, the model ladder, loop closure, identification, calibration."""

@@ -1,0 +1,1 @@
+"""What the hexapod is commanded: poses, the campaign's plans by name, the designed plan."""

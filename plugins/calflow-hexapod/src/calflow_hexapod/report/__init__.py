@@ -1,0 +1,1 @@
+"""The hexapod campaign summary, its figures and its report and index templates."""

@@ -1,0 +1,155 @@
+"""The summary of a hexapod campaign (``results/<campaign>/summary.json``).
+
+Assembled from the result files, routed by the family's plan → section registry
+(:attr:`calflow.family.Family.summary_sections`): each model of the ladder with its identified
+parameter count, what the QR analysis dropped, χ²/dof and residual; its held-out ISO 9283
+pose accuracy and repeatability for position (µm) and orientation (degree), on targets no
+identification saw; and, when the campaign has them, the same on the five ISO 9283 poses.
+The accuracy numbers are held out; what a model cannot do is said in words (``statement``).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from calflow import __version__
+from calflow.data.io import jsonable, sha256_file
+from calflow.summary_routing import route
+from calflow_hexapod.family import FAMILY
+
+_ORIENT = ("a", "b", "c")
+
+
+def _iso(m) -> dict:
+    """Maxima over target poses and per-target rows of one metrics file."""
+    out = {
+        "accuracy_um": jsonable(float(m.attrs["accuracy_um"])),
+        "repeatability_um": jsonable(float(m.attrs["repeatability_um"])),
+        **{f"accuracy_{x}_deg": jsonable(float(m.attrs[f"accuracy_{x}_deg"])) for x in _ORIENT},
+        **{f"repeatability_{x}_deg": jsonable(float(m.attrs[f"repeatability_{x}_deg"])) for x in _ORIENT},
+        "n_targets": int(m.sizes["target"]),
+        "cycles": int(m.attrs.get("cycles", 0)),
+    }
+    out["per_target"] = [
+        {
+            "target": int(t),
+            "ap_um": jsonable(float(m["ap"].sel(target=t))),
+            "rp_um": jsonable(float(m["rp"].sel(target=t))),
+            **{f"ap_{x}_deg": jsonable(float(m[f"ap_{x}"].sel(target=t))) for x in _ORIENT},
+            **{f"rp_{x}_deg": jsonable(float(m[f"rp_{x}"].sel(target=t))) for x in _ORIENT},
+        }
+        for t in m["target"].values
+    ]
+    return out
+
+
+def _model(ds) -> dict:
+    free = [str(p) for p in ds["parameter"].values] if "parameter" in ds.coords else []
+    dropped = [d for d in str(ds.attrs.get("dropped", "")).split(",") if d]
+    return {
+        "free": len(free),
+        "dropped": dropped,
+        "chi2_dof": jsonable(float(ds.attrs.get("chi2_dof", np.nan))),
+        "residual_rms_um": jsonable(float(ds.attrs.get("residual_rms_um", np.nan))),
+        "n_poses": int(ds.attrs.get("n_poses", 0)),
+        "rejected_poses": int(ds.attrs.get("rejected", 0)),
+    }
+
+
+def _bound(ds, crlb: dict | None) -> dict | None:
+    """The bound before beside the result after: each parameter's identified σ over the
+    Cramér–Rao σ the design promised before acquisition (1 when the rig's noise is as the
+    design assumed and the model fits; above 1 when the model does not)."""
+    if not crlb:
+        return None
+    ratios = {
+        p: float(ds[p].attrs["std"]) / float(sigma)
+        for p, sigma in crlb.items()
+        if p in ds and sigma and np.isfinite(float(ds[p].attrs.get("std", np.nan)))
+    }
+    if not ratios:
+        return None
+    values = np.array(list(ratios.values()))
+    return {
+        "parameters": len(ratios),
+        "sigma_ratio_median": jsonable(float(np.median(values))),
+        "sigma_ratio_max": jsonable(float(values.max())),
+        "worst": max(ratios, key=ratios.get),
+    }
+
+
+def _statement(name: str, entry: dict, best: float | None) -> str:
+    """What the model can and cannot do, in words, from its held-out numbers."""
+    h = entry.get("heldout")
+    if not h:
+        return f"Model {name} was not validated on held-out targets: its accuracy is unknown."
+    ap, rp = h["accuracy_um"], h["repeatability_um"]
+    if ap is None or rp is None:
+        return f"Model {name}: the held-out validation gave no finite accuracy."
+    words = f"On {h['n_targets']} held-out targets, model {name} reaches {ap:.2f} µm (worst AP) against a repeatability of {rp:.2f} µm"
+    if ap <= 1.2 * rp:
+        return words + ": it leaves only what the rig cannot repeat."
+    more = f" ({ap / rp:.1f} × RP): it does not model every error the rig has"
+    if best is not None and ap > 1.5 * best:
+        more += f"; a richer model of the ladder does better ({best:.2f} µm)"
+    return words + more + "."
+
+
+def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
+    """Assemble the summary of a hexapod campaign from its result files (truth unused: the
+    summary's numbers are all measured)."""
+    found = route(files, FAMILY.summary_sections, "hexapod family")
+    design = next(
+        (
+            json.loads(run.attrs["design"])
+            for _, run in found.get("identification", [])
+            if "design" in run.attrs
+        ),
+        {},
+    )
+    models = {}
+    for _, ds in found.get("models", []):
+        name = ds.attrs["model"]
+        models[name] = _model(ds)
+        bound = _bound(ds, (design.get("crlb_sigma") or {}).get(name))
+        if bound:
+            models[name]["bound"] = bound
+    for section in ("heldout", "iso9283"):
+        for _, ds in found.get(section, []):
+            name = ds.attrs.get("model")
+            if name in models:
+                models[name][section] = _iso(ds)
+    order = [m for m in campaign["models"] if m in models]
+    aps = [models[m]["heldout"]["accuracy_um"] for m in order if models[m].get("heldout")]
+    best = min((a for a in aps if a is not None), default=None)
+    for name in order:
+        models[name]["statement"] = _statement(name, models[name], best)
+    summary = {
+        "campaign": campaign["name"],
+        "robot": campaign["robot"],
+        "description": campaign.get("description", ""),
+        "calflow_version": __version__,
+        "seed": campaign.get("seed"),
+        "rig": campaign.get("rig", {}).get("factory"),
+        "models": {name: models[name] for name in order},
+        "model_order": order,  # the ladder's order (the summary's keys are written sorted)
+        "reference": {},
+        "inputs": {str(p): sha256_file(p) for p in files},
+    }
+    budget = (truth or {}).get("error_budget")
+    if budget:  # replays on the simulated truth (calflow_hexapod.stage.error_budget): reports only
+        for name, entry in budget["budget"]["models"].items():
+            if name in summary["models"]:
+                summary["models"][name]["error_budget"] = entry
+        summary["error_budget"] = {
+            "effects": budget["budget"]["effects"],
+            "unmodelled": budget["budget"]["unmodelled"],
+            "floor": budget.get("floor"),
+        }
+    for _, run in found.get("identification", []):
+        if "design" in run.attrs:
+            summary["identification_design"] = json.loads(run.attrs["design"])
+        summary["identification_poses"] = int((np.asarray(run["pose"].values) > 0).sum())
+    return summary

@@ -1,0 +1,1 @@
+"""The simulated hexapod: physics, laser tracker, C-887 emulation, workspace, error budget."""

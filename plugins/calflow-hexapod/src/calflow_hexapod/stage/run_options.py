@@ -1,0 +1,45 @@
+"""What a run adds to a hexapod campaign's rig options (the family's ``rig_options`` hook).
+
+``rig_options(campaign, factory, run_id, options, start_s)``: the simulated rig draws its
+noise from (seed, run id) and reads the room profile from the run's campaign time
+(``start_offset_s``), so every run of a campaign is reproducible to the byte and sees the
+room as it was when the run started; through the ``gcs`` rig the simulated tracker sensor
+gets the same seed, stream and start. Kept free of numerical imports.
+"""
+
+from __future__ import annotations
+
+SENSORS = ("simulated_tracker", "calflow_hexapod.stage.sensor:simulated_tracker")
+
+
+def simulated_physics(campaign: dict) -> dict | None:
+    """The :class:`~calflow_hexapod.stage.physics.HexapodTruth` overrides of a campaign whose
+    hexapod is simulated — the simulated rig's options, or the tracker sensor's options of a
+    ``gcs`` rig (an emulated controller) — without seed, stream and pivot; None for a real rig."""
+    rig = campaign.get("rig") or {}
+    options = dict(rig.get("options") or {})
+    if rig.get("factory", "simulated") != "simulated":
+        sensor = options.get("sensor") or {}
+        if sensor.get("factory") not in SENSORS:
+            return None
+        options = dict(sensor.get("options") or {})
+    return {k: v for k, v in options.items() if k not in ("seed", "stream", "pivot_um", "start_offset_s")}
+
+
+def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:
+    """Per-run options of the simulated hexapod, or of the tracker sensor of a ``gcs`` rig."""
+    if factory == "simulated":
+        options.setdefault("seed", c["seed"])
+        options["stream"] = run_id
+        options.setdefault("start_offset_s", float(start_s))
+    elif factory == "gcs":
+        sensor = dict(options.get("sensor") or {})
+        if sensor.get("factory") in SENSORS:
+            sensor["options"] = {
+                "seed": c["seed"],
+                "start_offset_s": float(start_s),
+                **(sensor.get("options") or {}),
+                "stream": run_id,
+            }
+            options["sensor"] = sensor
+    return options

@@ -1,0 +1,47 @@
+"""What the hexapod family answers calflow's core rules (:class:`calflow.family_workflow.FamilyWorkflow`).
+
+The hexapod's step graph: an identification run (random or designed poses, the core's
+``acquire`` rule) → each model of the ladder (``models``: nominal, offsets, geometric, scale,
+thermal; the core's ``identify`` rule) → held-out validation through each model's inverse on
+targets no identification saw (the core's ``validation_heldout`` rule) and, when the campaign
+has an ``iso9283`` section, the five ISO 9283 poses through each model (this package's
+``rules/hexapod.smk``) → the metrics of each (ISO 9283 AP/RP for position and orientation) →
+the summary and the report.
+"""
+
+from __future__ import annotations
+
+from calflow.family_workflow import FamilyWorkflow
+
+
+class HexapodWorkflow(FamilyWorkflow):
+    open_loop_runs = {"identification": "identification"}
+    metrics_runs = "validation_heldout_[A-Za-z0-9_]+|iso9283_[A-Za-z0-9_]+"
+
+    def models(self, c: dict) -> list[str]:
+        return list(c["models"])
+
+    def results_of(self, c: dict) -> list[str]:
+        base = f"results/{c['name']}"
+        models = self.models(c)
+        files = [f"{base}/models/{m}.nc" for m in models]
+        files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
+        if "iso9283" in c:
+            files += [f"{base}/metrics/iso9283_{m}.nc" for m in models]
+        files.append(f"{base}/runs/identification.nc")
+        return files
+
+    def budget_files(self, c: dict) -> list[str]:
+        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
+        if c["rig"]["factory"] != "simulated" or not c["validation"]["heldout"].get("error_budget"):
+            return []
+        return [f"results/{c['name']}/truth/hexapod_error_budget.json"]
+
+    def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
+        return {"run": f"results/{c['name']}/runs/identification.nc"}
+
+    def identify_sections(self, c: dict, model: str) -> list:
+        return [c["seed"], c["identification"], c["models"][model]]
+
+
+WORKFLOW = HexapodWorkflow()

@@ -1,0 +1,61 @@
+"""What the nanopositioning family answers the core Snakemake rules
+(:class:`calflow.family_workflow.FamilyWorkflow`).
+
+The nano step graph (Ch. 5): a training run → the stage's models (Sec. 5.2); a validation
+run through every model; on the 1-DoF stage a metrology-room run (intrinsic accuracy); a
+step-response run when enabled (ISO 9283 stabilisation). A replay campaign with
+recordings analyses the runs it has recordings of. The validation and step-response rules
+are in this family's ``rules/`` files.
+"""
+
+from __future__ import annotations
+
+from calflow.family_workflow import FamilyWorkflow, recorded_runs
+
+
+class NanoWorkflow(FamilyWorkflow):
+    open_loop_runs = {"training": "training", "metrology": "metrology"}
+    metrics_runs = "validation|training|metrology"
+
+    def models(self, c: dict) -> list[str]:
+        return ["single", "adaptive_kmz"] if c["robot"] == "stage1d" else ["two_dof"]
+
+    def results_of(self, c: dict) -> list[str]:
+        base = f"results/{c['name']}"
+        recorded = recorded_runs(c)
+
+        def has(run: str) -> bool:
+            return recorded is None or run in recorded
+
+        files = []
+        if has("training"):
+            files += [f"{base}/models/{m}.nc" for m in self.models(c)]
+            files += [f"{base}/metrics/training.nc", f"{base}/runs/training.nc"]
+        if has("validation"):
+            files.append(f"{base}/metrics/validation.nc")
+            files.append(
+                f"{base}/runs/validation.nc"
+            )  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
+        if c["robot"] == "stage1d" and has("metrology"):
+            files.append(f"{base}/metrics/metrology.nc")
+            if not has("training"):  # the ISO 230-2 figures then come from the metrology run
+                files.append(f"{base}/runs/metrology.nc")
+        if c["step_response"]["enabled"] and has("step_response"):  # ISO 9283 stabilisation time, overshoot
+            files.append(f"{base}/runs/step_response.nc")
+        return files
+
+    def summary_truth(self, c: dict) -> str | list[str]:
+        """The validation run's truth, when the campaign has a validation run."""
+        recorded = recorded_runs(c)
+        if recorded is not None and "validation" not in recorded:
+            return []
+        return f"results/{c['name']}/truth/validation.json"
+
+    def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
+        return {"run": f"results/{c['name']}/runs/training.nc"}
+
+    def identify_sections(self, c: dict, model: str) -> list:
+        return [c["model"]]
+
+
+WORKFLOW = NanoWorkflow()

@@ -1,0 +1,32 @@
+# Validation of the nano stages: one run commanding every model's test (Sec. 5.3.3, 5.4.2).
+
+
+rule acquire_validation_tests:
+    input:
+        models=lambda w: expand(
+            "results/{c}/models/{m}.nc",
+            c=w.campaign,
+            m=models_of(CAMPAIGN[w.campaign]),
+        ),
+    output:
+        run="results/{campaign}/runs/validation.nc",
+        truth="results/{campaign}/truth/validation.json",
+    log:
+        "results/{campaign}/logs/acquire_validation.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_validation.tsv"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=400,
+        runtime=2,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
+        digest=lambda w: digest(
+            [rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation"
+        " {params.models} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -1,0 +1,55 @@
+# XYΘ validation on the rig through each model's inverse kinematics on the reference
+# targets (the held-out targets are the core's rule), and the error budget's replays.
+
+
+ruleorder: acquire_validation_heldout > acquire_validation_model
+
+
+rule acquire_validation_model:
+    input:
+        model="results/{campaign}/models/{model}.nc",
+    output:
+        run="results/{campaign}/runs/validation_{model}.nc",
+        truth="results/{campaign}/truth/validation_{model}.json",
+    log:
+        "results/{campaign}/logs/acquire_validation_{model}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=400,
+        runtime=1,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [
+                rig_digest(f"validation_{w.model}")(w),
+                reference_validation(w),
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan validation"
+        " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
+
+
+rule error_budget:
+    output:
+        budget="results/{campaign}/truth/error_budget.json",
+    log:
+        "results/{campaign}/logs/error_budget.log",
+    benchmark:
+        "results/{campaign}/benchmarks/error_budget.tsv"
+    conda:
+        CONDA_ENV
+    threads: 2
+    resources:
+        mem_mb=900,
+        runtime=2,
+    params:
+        campaign=campaign_file,
+        digest=budget_digest,
+    shell:
+        "calflow error-budget --campaign {params.campaign} --jobs {threads}"
+        " --out {output.budget} > {log} 2>&1"

@@ -1,0 +1,26 @@
+# The metrics of a run (ISO 9283, ISO 230-2, the family's own): the runs each family's
+# FamilyWorkflow.metrics_runs names.
+
+
+rule metrics:
+    input:
+        run="results/{campaign}/runs/{name}.nc",
+    output:
+        metrics="results/{campaign}/metrics/{name}.nc",
+    log:
+        "results/{campaign}/logs/metrics_{name}.log",
+    benchmark:
+        "results/{campaign}/benchmarks/metrics_{name}.tsv"
+    wildcard_constraints:
+        name=METRICS_RUNS,
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=300,
+        runtime=1,
+    params:
+        campaign=campaign_file,
+        digest=section("metrics"),
+    shell:
+        "calflow metrics --campaign {params.campaign} --run {input.run}"
+        " --out {output.metrics} > {log} 2>&1"
