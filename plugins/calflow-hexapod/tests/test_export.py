@@ -137,3 +137,18 @@ def test_closed_loop_through_the_export_reaches_the_in_process_accuracy(tmp_path
     assert inproc.attrs["accuracy_um"] > 0.1  # a real accuracy, not a vacuous zero
     run = open_dataset(runs / "closed.nc", kind="run")
     assert run.attrs["bundle"] == str(tmp_path / "export")
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.1, 50.0), st.floats(-5.0, 5.0), st.floats(0.5, 20.0))
+def test_summary_entry_says_whether_the_export_reproduces_the_model(ap, shift, rp):
+    from calflow_hexapod.report.summary import NUMERICAL_UM, export_entry
+
+    def iso(a):
+        return {"accuracy_um": a, "repeatability_um": rp, **{f"accuracy_{x}_deg": 0.001 for x in "abc"}}
+
+    e = export_entry(iso(ap + shift), iso(ap), 0.0)
+    assert e["difference_um"] == pytest.approx(shift)
+    assert e["numerically_equal"] == (abs(shift) <= NUMERICAL_UM)
+    assert e["verified"] == (abs(shift) <= rp)
+    assert export_entry(iso(ap), iso(ap), 0.0)["numerically_equal"]
