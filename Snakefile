@@ -14,6 +14,7 @@ include: "workflow/rules/identify.smk"
 include: "workflow/rules/heldout.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/stages.smk"
 
 
 # Each installed robot family's own rules (calflow.family.Family.rules).
@@ -28,3 +29,5 @@ rule all:
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
         expand("reports/studies/{study}.html", study=STUDIES),
+        expand("reports/stages/{stage}/history.html", stage=STAGES),
+        expand("reports/stages/{stage}/history.pdf", stage=STAGES),

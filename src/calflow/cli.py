@@ -67,7 +67,8 @@ def cmd_index(args) -> None:
     from calflow.data.io import load_summary, write_text
     from calflow.report import render_index
 
-    write_text(render_index([load_summary(p) for p in args.summaries]), args.out)
+    histories = [load_summary(p) for p in args.histories or []]
+    write_text(render_index([load_summary(p) for p in args.summaries], histories), args.out)
 
 
 def cmd_import_csv(args) -> None:
@@ -119,9 +120,15 @@ def cmd_check_config(args) -> None:
     from calflow.config import check_campaign_name, load_campaign, load_workflow_config, load_yaml
 
     cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
+    from calflow.lifecycle.stages import stages_of
+
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
+    campaigns = {}
     for name in cfg["campaigns"]:
-        load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+        campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
+    stages_of(
+        campaigns, folder
+    )  # the campaigns of each stage agree (robot, distinct starts, interim references)
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -187,7 +194,22 @@ def parser() -> argparse.ArgumentParser:
 
     x = _sub(sub, "index", cmd_index, "render reports/index.html over all campaigns")
     x.add_argument("--summaries", nargs="+", required=True)
+    x.add_argument("--histories", nargs="*", help="stage histories (results/stages/<id>/history.json)")
     x.add_argument("--out", required=True)
+
+    from calflow.lifecycle.commands import history_arguments, report_arguments
+
+    history_arguments(
+        _sub(sub, "history", _run("calflow.lifecycle.commands:run_history"), "write a stage's history.json")
+    )
+    report_arguments(
+        _sub(
+            sub,
+            "history-report",
+            _run("calflow.lifecycle.commands:run_report"),
+            "render a stage's history report (HTML and PDF)",
+        )
+    )
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

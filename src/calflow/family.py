@@ -88,6 +88,9 @@ class Family:
       study file over a base campaign of the family (``config/studies``).
     * ``schemas``: the package whose ``schemas/`` folder holds ``campaign-<robot>.schema.yaml``
       (``None``: the core's ``workflow/schemas``); the common keys are merged in.
+    * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
+      {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
+      history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
     """
 
     name: str
@@ -113,6 +116,7 @@ class Family:
     workflow: str | None = None
     studies: str | None = None
     schemas: str | None = None
+    history_entry: str | None = None
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:

@@ -15,6 +15,7 @@ from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
+from calflow.lifecycle.stages import stages_of
 
 
 def selected_studies(config):
@@ -36,6 +37,7 @@ try:
         name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml", RIG_PLUGINS)
         for name in CAMPAIGNS
     }
+    STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)

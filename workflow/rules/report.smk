@@ -69,6 +69,7 @@ rule report:
 rule index:
     input:
         summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
+        histories=expand("results/stages/{stage}/history.json", stage=STAGES),
     output:
         report(
             "reports/index.html",
@@ -85,4 +86,5 @@ rule index:
     resources:
         mem_mb=1000,
     shell:
-        "calflow index --summaries {input.summaries} --out {output} > {log} 2>&1"
+        "calflow index --summaries {input.summaries} --histories {input.histories}"
+        " --out {output} > {log} 2>&1"

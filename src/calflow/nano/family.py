@@ -89,7 +89,9 @@ FAMILY = Family(
     summary_sections={"metrics": "metrics", "model": "models", "run": "runs"},
     rules=("calflow.nano", "rules/step_response.smk", "rules/validation.smk"),
     workflow="calflow.nano.plans.workflow:WORKFLOW",
+    history_entry="calflow.nano.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.nano.report.history"),
         "acquire": _CORE
         + _MODELS
         + (

@@ -220,11 +220,13 @@ def render_campaign_pages(
     return html, template.render(figures=printed, **context)
 
 
-def render_index(summaries: list[dict]) -> str:
-    """``reports/index.html``: every campaign's headline numbers beside the thesis's."""
+def render_index(summaries: list[dict], histories: list[dict] | None = None) -> str:
+    """``reports/index.html``: every campaign's headline numbers beside the thesis's, and
+    the stage histories (``results/stages/<id>/history.json``) with a link to each report."""
     template = environment().get_template("index.html.j2")
     return template.render(
         summaries=summaries,
+        histories=histories or [],
         versions=_versions(),
         machine=_machine(),
         css=(TEMPLATES / "style.css").read_text(),

@@ -10,6 +10,12 @@ from calflow.errors import ConfigError
 def check_campaign(campaign: dict, path: Path) -> None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
     _check_models(campaign["models"], path)
+    if campaign["rig"]["factory"] == "simulated":  # the stage as it has aged by the campaign's start
+        from calflow.xytheta.stage.aging import resolve
+        from calflow.xytheta.stage.physics import XYThetaTruth
+
+        options = campaign["rig"].get("options") or {}
+        campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
     _check_design(campaign, path)
     if any(spec.get("position_table") for spec in campaign["models"].values()):
         ident, char = campaign["identification"], campaign["characterisation"]

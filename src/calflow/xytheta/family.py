@@ -143,7 +143,9 @@ FAMILY = Family(
     },
     templates="calflow.xytheta.report",
     schemas="calflow.xytheta",
+    history_entry="calflow.xytheta.report.history:history_entry",
     modules={
+        "history": ("calflow.lifecycle", "calflow.report", "calflow.xytheta.report.history"),
         "acquire": _CORE
         + (
             "calflow.acquisition",

@@ -339,6 +339,11 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
     resolution, backlash, repeatability, rates), non-positive velocities, pitches, periods
     and ranges, switches that are not true/false."""
     known = {f.name: f.default for f in fields(XYThetaTruth)}
+    if "aging" in physics:  # checked here, resolved for the campaign's start by the loader (stage.aging)
+        from calflow.xytheta.stage.aging import check as check_aging
+
+        physics = dict(physics)
+        check_aging(physics.pop("aging"))
     for key in physics:
         if key not in known:
             raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(known))}")

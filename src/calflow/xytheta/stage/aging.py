@@ -1,0 +1,140 @@
+"""A simulated XYΘ stage that ages with the campaign's ``start``.
+
+``rig.options.aging`` (on by default, ``false`` turns it off) describes the stage's life
+since ``since`` (its commissioning; default the default campaign start, so a campaign that
+starts then sees the rig of :class:`calflow.xytheta.stage.physics.XYThetaTruth` unchanged).
+The campaign loader resolves it, for the campaign's ``start``, into the rig's physics
+options (:func:`resolve`); every consumer of the options (the rig, the oracle, the error
+budget's replays, the designed plans) then sees the same aged stage.
+
+Each effect, with where its rate comes from, and how it combines with the rig's options
+(an effect switched off in the options stays off: wear and the season scale it):
+
+* ``wear_per_year`` (default 0.05): relative growth per year of the lead-screw errors and
+  the backlash (``lead_fwd_um``, ``lead_bwd_um``, ``backlash_um``), linear in time at a
+  constant duty. *Assumed*: wear of a lead-screw nut raises its backlash and periodic error
+  with travel (ISO 3408-3 classifies lead deviations, it gives no ageing rate; PI quotes
+  none for the M-111); 5 %/year is an order-of-magnitude placeholder a lab replaces by
+  its own stage's record.
+* ``seasonal_degC`` (default 1.0) with ``seasonal_peak_day`` (default 196, mid-July): the
+  room's mean temperature follows a yearly sine of that amplitude (an air-conditioned lab
+  held within ±1 °C over the year, ISO 230-3 Annex A / ASME B5.54 Sec. 5); the aluminium
+  stage's scale moves by ``expansion_ppm_per_degC`` per °C of the difference to ``since``
+  (added to ``scale_ppm`` unless the scale error is off).
+* ``sensor_drift_um_per_year`` (default [0.5, 0.5]): creep of the microscope's mount,
+  moving the camera offsets ``camera_x_um``, ``camera_y_um``. *Assumed* order of
+  magnitude of long-term creep of a bolted optical mount (sub-µm per month).
+* ``events``: step changes at a date — a re-mount or a crash moving the geometry, e.g.
+  ``{date: "2026-07-01T00:00:00+00:00", alpha_deg: 0.02, x_R_um: 20}``; every field of
+  the geometry (``x_R_um``, ``y_R_um``, ``alpha_deg``, ``beta_deg``) may move; applied to
+  campaigns that start at or after the date.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+from calflow.errors import OptionError
+
+DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
+GEOMETRY = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
+DEFAULTS = {
+    "since": DEFAULT_SINCE,
+    "wear_per_year": 0.05,
+    "seasonal_degC": 1.0,
+    "seasonal_peak_day": 196,
+    "sensor_drift_um_per_year": [0.5, 0.5],
+    "events": [],
+}
+
+
+def _date(value, key: str) -> dt.datetime:
+    try:
+        return dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
+    except ValueError:
+        raise OptionError(key, "an ISO 8601 date and time with its offset", value) from None
+
+
+def _num(value, key: str, low: float | None = 0.0) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise OptionError(key, "a finite number" + (f" >= {low:g}" if low is not None else ""), value)
+    if low is not None and value < low:
+        raise OptionError(key, f"a finite number >= {low:g}", value)
+    return float(value)
+
+
+def check(aging) -> dict | None:
+    """The ``aging`` option checked, with its defaults; None when ageing is off."""
+    if aging is False:
+        return None
+    if aging is None or aging is True:
+        aging = {}
+    if not isinstance(aging, dict):
+        raise OptionError("aging", "false or a mapping (since, wear_per_year, seasonal_degC, ...)", aging)
+    unknown = sorted(set(aging) - set(DEFAULTS))
+    if unknown:
+        raise OptionError(f"aging.{unknown[0]}", f"one of {', '.join(DEFAULTS)}", unknown=True)
+    a = {**DEFAULTS, **aging}
+    _date(a["since"], "aging.since")
+    _num(a["wear_per_year"], "aging.wear_per_year")
+    _num(a["seasonal_degC"], "aging.seasonal_degC")
+    _num(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
+    drift = a["sensor_drift_um_per_year"]
+    if not isinstance(drift, (list, tuple)) or len(drift) != 2:
+        raise OptionError("aging.sensor_drift_um_per_year", "a list of 2 numbers (µm/year, x and y)", drift)
+    for v in drift:
+        _num(v, "aging.sensor_drift_um_per_year", None)
+    if not isinstance(a["events"], list):
+        raise OptionError(
+            "aging.events", "a list of {date, x_R_um, y_R_um, alpha_deg, beta_deg}", a["events"]
+        )
+    for i, e in enumerate(a["events"]):
+        if not isinstance(e, dict) or "date" not in e or set(e) - {"date", *GEOMETRY}:
+            raise OptionError(
+                f"aging.events.{i}", f"a mapping with 'date' and some of {', '.join(GEOMETRY)}", e
+            )
+        _date(e["date"], f"aging.events.{i}.date")
+        for k in GEOMETRY:
+            if k in e:
+                _num(e[k], f"aging.events.{i}.{k}", None)
+    return a
+
+
+def _season(day_of_year: float, peak: float) -> float:
+    return math.cos(2 * math.pi * (day_of_year - peak) / 365.25)
+
+
+def resolve(physics: dict, start: str, base=None) -> dict:
+    """The rig's physics options for a campaign starting at ``start``: ``physics`` without
+    ``aging``, with the aged values of the fields ageing moves (only those that differ).
+    ``base``: the rig's defaults (an :class:`~calflow.xytheta.stage.physics.XYThetaTruth`)."""
+    physics = dict(physics)
+    a = check(physics.pop("aging", None))
+    if a is None:
+        return physics
+    t, t0 = _date(start, "start"), _date(a["since"], "aging.since")
+    years = (t - t0).total_seconds() / (365.25 * 86400.0)
+    if base is None:
+        raise ValueError("aging.resolve: the rig's defaults (base) are needed")
+    get = lambda k: physics.get(k, getattr(base, k))  # noqa: E731
+    out = dict(physics)
+    growth = 1.0 + a["wear_per_year"] * max(years, 0.0)
+    if growth != 1.0:
+        for k in ("lead_fwd_um", "lead_bwd_um"):
+            out[k] = [v * growth for v in get(k)]
+        out["backlash_um"] = get("backlash_um") * growth
+    amp, peak = a["seasonal_degC"], a["seasonal_peak_day"]
+    dT = amp * (_season(t.timetuple().tm_yday, peak) - _season(t0.timetuple().tm_yday, peak))
+    if dT != 0.0 and get("expansion_ppm_per_degC") != 0.0 and any(get("scale_ppm")):
+        out["scale_ppm"] = [v + get("expansion_ppm_per_degC") * dT for v in get("scale_ppm")]
+    drift = a["sensor_drift_um_per_year"]
+    if years != 0.0 and any(drift):
+        out["camera_x_um"] = get("camera_x_um") + drift[0] * years
+        out["camera_y_um"] = get("camera_y_um") + drift[1] * years
+    for e in a["events"]:
+        if t >= _date(e["date"], "aging.events.date"):
+            for k in GEOMETRY:
+                if k in e:
+                    out[k] = out.get(k, get(k)) + e[k]
+    return out

@@ -1,0 +1,75 @@
+"""Stages in the configuration: refused before anything runs, one line naming file and key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from calflow.config import load_campaign
+from calflow.errors import ConfigError
+from calflow.lifecycle.stages import stages_of
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def campaign(name, robot="xytheta", stage="SN1", start="2026-01-05T08:00:00+00:00", **extra):
+    return name, {"name": name, "robot": robot, "stage": stage, "start": start, **extra}
+
+
+def test_groups_sorted_by_start():
+    cs = dict(
+        [
+            campaign("b", start="2026-06-01T00:00:00+00:00"),
+            campaign("a", start="2026-02-01T00:00:00Z"),
+            campaign("x", stage=None),
+        ]
+    )
+    assert stages_of(cs) == {"SN1": ["a", "b"]}
+
+
+def test_refuses_duplicated_start():
+    cs = dict([campaign("a"), campaign("b", start="2026-01-05T09:00:00+01:00")])  # the same instant
+    with pytest.raises(ConfigError, match=r"b\.yaml: key 'start'"):
+        stages_of(cs)
+
+
+def test_refuses_mixed_robots():
+    cs = dict([campaign("a"), campaign("b", robot="stage1d", start="2026-03-01T00:00:00Z")])
+    with pytest.raises(ConfigError, match=r"b\.yaml: key 'robot': expected 'xytheta'"):
+        stages_of(cs)
+
+
+@pytest.mark.parametrize(
+    "ref,stage,match", [("missing", "SN1", "not among"), ("other", "SN1", "of stage 'SN2'")]
+)
+def test_refuses_interim_reference(ref, stage, match):
+    cs = dict(
+        [
+            campaign("a"),
+            campaign("other", stage="SN2", start="2026-02-01T00:00:00Z"),
+            campaign("check", stage=stage, start="2026-03-01T00:00:00Z", interim_check={"reference": ref}),
+        ]
+    )
+    with pytest.raises(ConfigError, match=rf"check\.yaml: key 'interim_check.reference'.*{match}"):
+        stages_of(cs)
+
+
+@pytest.mark.parametrize("stage", ["../x", "a/b", "", ".hidden", "x" * 65])
+def test_stage_id_cannot_escape_results(tmp_path, stage):
+    data = yaml.safe_load((ROOT / "config/campaigns/xytheta-thesis.yaml").read_text())
+    data["stage"] = stage
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"c\.yaml: key 'stage'"):
+        load_campaign(path)
+
+
+def test_stage_and_tolerance_accepted(tmp_path):
+    data = yaml.safe_load((ROOT / "config/campaigns/xytheta-thesis.yaml").read_text())
+    data.update(stage="SN-0042", tolerance_um=5)
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(data))
+    c = load_campaign(path)
+    assert c["stage"] == "SN-0042" and c["tolerance_um"] == 5
