@@ -11,6 +11,8 @@ rule acquire:
         "results/{campaign}/logs/acquire_{run}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_{run}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:

@@ -13,6 +13,8 @@ rule acquire_validation_heldout:
         "results/{campaign}/logs/acquire_validation_heldout_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:

@@ -10,6 +10,8 @@ rule identify:
         "results/{campaign}/logs/identify_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/identify_{model}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:

@@ -13,6 +13,8 @@ rule metrics:
         "results/{campaign}/benchmarks/metrics_{name}.tsv"
     wildcard_constraints:
         name=METRICS_RUNS,
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:

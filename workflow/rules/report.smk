@@ -17,6 +17,8 @@ rule summarise:
         "results/{campaign}/logs/summarise.log",
     benchmark:
         "results/{campaign}/benchmarks/summarise.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
@@ -55,6 +57,8 @@ rule report:
         "results/{campaign}/logs/report.log",
     benchmark:
         "results/{campaign}/benchmarks/report.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:

@@ -9,6 +9,8 @@ rule acquire_step_response:
         "results/{campaign}/logs/acquire_step_response.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_step_response.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

@@ -15,6 +15,8 @@ rule acquire_validation_tests:
         "results/{campaign}/logs/acquire_validation.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

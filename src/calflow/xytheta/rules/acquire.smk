@@ -19,6 +19,8 @@ rule acquire_xy_test:
         "results/{campaign}/logs/acquire_{test}_{comp}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_{test}_{comp}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -47,6 +49,8 @@ rule acquire_angle_residuals:
         "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_angle_residuals_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

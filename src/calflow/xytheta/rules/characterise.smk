@@ -11,6 +11,8 @@ rule characterise:
         "results/{campaign}/logs/characterise.log",
     benchmark:
         "results/{campaign}/benchmarks/characterise.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -31,6 +33,8 @@ rule observability:
         "results/{campaign}/logs/observability.log",
     benchmark:
         "results/{campaign}/benchmarks/observability.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -50,6 +54,8 @@ rule design_study:
         "results/{campaign}/logs/design_study.log",
     benchmark:
         "results/{campaign}/benchmarks/design_study.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

@@ -16,6 +16,8 @@ rule export_models:
         "results/{campaign}/logs/export.log",
     benchmark:
         "results/{campaign}/benchmarks/export.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -40,6 +42,8 @@ rule acquire_validation_export:
         "results/{campaign}/logs/acquire_export_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -73,6 +77,8 @@ rule export_verify:
         "results/{campaign}/logs/export_verify_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/export_verify_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

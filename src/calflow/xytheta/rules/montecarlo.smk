@@ -19,6 +19,8 @@ rule mc_point:
         "results/studies/{study}/logs/point_{seeds}_{noise}_{poses}.log",
     benchmark:
         "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
+    group:
+        "study_points"
     conda:
         CONDA_ENV
     resources:
@@ -42,6 +44,8 @@ rule mc_aggregate:
         "results/studies/{study}/logs/aggregate.log",
     benchmark:
         "results/studies/{study}/benchmarks/aggregate.tsv"
+    group:
+        "study"
     conda:
         CONDA_ENV
     resources:
@@ -70,6 +74,8 @@ rule mc_report:
         "results/studies/{study}/logs/report.log",
     benchmark:
         "results/studies/{study}/benchmarks/report.tsv"
+    group:
+        "study"
     conda:
         CONDA_ENV
     resources:

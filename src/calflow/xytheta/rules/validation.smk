@@ -15,6 +15,8 @@ rule acquire_validation_model:
         "results/{campaign}/logs/acquire_validation_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -41,6 +43,8 @@ rule error_budget:
         "results/{campaign}/logs/error_budget.log",
     benchmark:
         "results/{campaign}/benchmarks/error_budget.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     threads: 2

@@ -15,6 +15,8 @@ rule acquire_hexapod_iso9283:
         "results/{campaign}/logs/acquire_iso9283_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_iso9283_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -41,6 +43,8 @@ rule hexapod_error_budget:
         "results/{campaign}/logs/hexapod_error_budget.log",
     benchmark:
         "results/{campaign}/benchmarks/hexapod_error_budget.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -73,6 +77,8 @@ rule hexapod_export:
         "results/{campaign}/logs/hexapod_export_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/hexapod_export_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
@@ -97,6 +103,8 @@ rule acquire_hexapod_closed_loop:
         "results/{campaign}/logs/acquire_closed_loop_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_closed_loop_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
