@@ -122,6 +122,7 @@ def test_workflow_passes_an_unchanged_stage_and_flags_a_remount(tmp_path):
     moved = json.loads((work / "results/moved/summary.json").read_text())["interim_check"]
     assert ok["decision"] == "within tolerance", ok
     assert moved["decision"] == "recalibrate", moved
+    assert ok["rms_um"] < ok["indifference_rms_um"] < moved["rms_um"]
     assert moved["rms_um"] > 2 * ok["rms_um"]  # the re-mount: ~20 µm at X = 3800 µm
     for k in (ok, moved):
         assert 0 < k["rig_time_s"] <= 0.05 * k["reference_rig_time_s"]
@@ -135,3 +136,19 @@ def test_workflow_passes_an_unchanged_stage_and_flags_a_remount(tmp_path):
     html = (work / "reports/moved/report.html").read_text()
     assert 'data-key="interim_check.decision"><strong>recalibrate' in html
     assert (work / "reports/ok/report.pdf").read_bytes()[:4] == b"%PDF"
+
+
+@settings(max_examples=50, deadline=None)
+@given(r0=st.floats(0.2, 5.0), ratio=st.floats(1.2, 10.0))
+def test_indifference_point_zeroes_the_expected_ratio(r0, ratio):
+    """At the indifference rms the mean log-likelihood ratio of a visit (errors N(0, σ² I₂),
+    |e|² averaging r²) is zero, and it lies between H0 and H1."""
+    from calflow.lifecycle.sprt import SPRT
+    from calflow.xytheta.report.interim import indifference_rms_um
+
+    r1 = r0 * ratio
+    r = indifference_rms_um(r0, r1)
+    test = SPRT(r0, r1)
+    e = np.array([[r, 0.0]])  # |e|² = r²: the llr is linear in |e|², so this is its mean
+    assert abs(test.llr(e)[0]) < 1e-9 * (1 + abs(test.llr(np.array([[r1, 0.0]]))[0]))
+    assert r0 < r < r1

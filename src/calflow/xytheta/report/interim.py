@@ -50,6 +50,13 @@ def visit_errors(run: xr.Dataset, mode: int | None = None) -> np.ndarray:
     return np.column_stack([x[keep] - run["target_x"].values[keep], y[keep] - run["target_y"].values[keep]])
 
 
+def indifference_rms_um(r0: float, r1: float) -> float:
+    """The rms error (µm) at which a visit's expected log-likelihood ratio is zero: the SPRT
+    drifts to "recalibrate" above it, to "within tolerance" below — √(ln(r1²/r0²) /
+    (1/r0² − 1/r1²)), from the per-visit ratio of :mod:`calflow.lifecycle.sprt`."""
+    return float(np.sqrt(np.log(r1**2 / r0**2) / (1 / r0**2 - 1 / r1**2)))
+
+
 def _open(path: str) -> xr.Dataset:
     from calflow.data.io import open_dataset
 
@@ -99,6 +106,7 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
         "repeatability_um": float(metrics.attrs["repeatability_um"]),
         **decision,
         "expected_visits": test.expected_visits(),
+        "indifference_rms_um": indifference_rms_um(r0, float(tol)),
         "target_choice": json.loads(run.attrs.get("target_choice", "{}")),
         "targets_um": np.column_stack(
             [metrics["target_x"].values, metrics["target_y"].values, metrics["target_theta"].values]
