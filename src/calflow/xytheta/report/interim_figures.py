@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.report.figures import COLORS, Figure, Inputs, finish, guarded, new_figure
+from calflow.report.figures import COLORS, Figure, Inputs, finish, guarded, legend_below, new_figure
 
 
 def decision_figure(summary: dict, inputs: Inputs) -> Figure | None:
@@ -33,7 +33,7 @@ def decision_figure(summary: dict, inputs: Inputs) -> Figure | None:
     a.set_aspect("equal", adjustable="datalim")
     a.set_xlabel("error x (µm)")
     a.set_ylabel("error y (µm)")
-    a.legend(fontsize=6, loc="upper right")
+    legend_below(fig, a, ncol=3)
     low, high = test.bounds
     b.plot(np.arange(1, path.size + 1), path, ".-", color=COLORS["forward"])
     b.axhline(high, ls="--", color="0.3", lw=0.8)
