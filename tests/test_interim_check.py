@@ -88,6 +88,7 @@ def test_targets_error_under_a_change_is_the_jacobian_prediction(dx, da):
             "interim_check.reference': expected a calibration of stage 'SN-9', got 'other' of stage 'SN-8'",
         ),
         (check(model="V"), "interim_check.model': expected one of the reference's models"),
+        ({**check(), "models": {"II": {"free": ["x_R"]}}}, "models': an interim check identifies no model"),
     ],
 )
 def test_refuses_a_bad_reference(tmp_path, spec, match):
@@ -152,3 +153,11 @@ def test_indifference_point_zeroes_the_expected_ratio(r0, ratio):
     e = np.array([[r, 0.0]])  # |e|² = r²: the llr is linear in |e|², so this is its mean
     assert abs(test.llr(e)[0]) < 1e-9 * (1 + abs(test.llr(np.array([[r1, 0.0]]))[0]))
     assert r0 < r < r1
+
+
+def test_a_calibration_without_models_is_refused(tmp_path):
+    c = reference()
+    del c["models"]
+    (tmp_path / "cal.yaml").write_text(yaml.safe_dump(c))
+    with pytest.raises(ConfigError, match=r"cal\.yaml: key 'models': missing"):
+        load_campaign(tmp_path / "cal.yaml")

@@ -18,6 +18,11 @@ def check_campaign(campaign: dict, path: Path) -> None:
     if "interim_check" in campaign:
         _check_interim(campaign, Path(path))
         return
+    if "models" not in campaign:
+        raise ConfigError(
+            f"{path}: key 'models': missing, it is required (the models to identify), unless the "
+            "campaign is an interim_check"
+        )
     _check_models(campaign["models"], path)
     _check_design(campaign, path)
     if any(spec.get("position_table") for spec in campaign["models"].values()):
