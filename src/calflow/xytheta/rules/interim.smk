@@ -3,12 +3,6 @@
 # the core's rules (the family's workflow names the files).
 
 
-def interim_export(w):
-    """The reference's export manifest: the bundle the stage runs."""
-    ref = CAMPAIGN[w.campaign]["interim_check"]["reference"]
-    return f"results/{ref}/export/manifest.json"
-
-
 rule acquire_interim_check:
     input:
         manifest=interim_export,
