@@ -12,7 +12,7 @@ LINTED := $(wildcard src tests benchmarks plugins)
 # `make lock LOCK_FLAGS=--upgrade`: every package to its newest release that fits
 LOCK_FLAGS ?=
 
-.PHONY: run test dry-run lint lock browser clean
+.PHONY: run test cluster-test cluster-study dry-run lint lock browser clean
 
 $(STAMP): pyproject.toml plugins/calflow-hexapod/pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,13 @@ run: $(STAMP)  ## run the default campaigns and write reports/
 test: $(STAMP) browser  ## run the test suite (calflow's, then the hexapod plug-in's own)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 	cd plugins/calflow-hexapod && $(abspath $(BIN))/python -m pytest -n $(CORES) --dist loadfile
+
+cluster-test: $(STAMP)  ## as root: a one-node SLURM cluster runs the workflow, compared with a local run
+	VENV=$(VENV) bash tests/cluster/run.sh
+
+cluster-study: $(STAMP)  ## as root: the 2048-point Monte-Carlo study through the one-node cluster and locally
+	VENV=$(VENV) bash tests/cluster/run.sh --studies montecarlo-xytheta-cluster --no-faults \
+		--target reports/studies/montecarlo-xytheta-cluster.html --max-slurm-jobs 100
 
 dry-run: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) -n

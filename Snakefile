@@ -15,6 +15,7 @@ include: "workflow/rules/heldout.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/stages.smk"
+include: "workflow/rules/cluster.smk"
 
 
 # Each installed robot family's own rules (calflow.family.Family.rules).

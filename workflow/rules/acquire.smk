@@ -11,10 +11,13 @@ rule acquire:
         "results/{campaign}/logs/acquire_{run}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_{run}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

@@ -178,3 +178,26 @@ def rig_slots(wildcards):
     A physical rig moves one plan at a time; simulators are independent per run.
     """
     return 0 if CAMPAIGN[wildcards.campaign]["rig"]["factory"] == "simulated" else 1
+
+
+# ---------------------------------------------------------------- stage histories
+def stage_campaign_files(w):
+    return [f"{CAMPAIGN_DIR}/{name}.yaml" for name in STAGES[w.stage]]
+
+
+def stage_settings(w):
+    import json
+
+    return json.dumps(config.get("stages", {}).get(w.stage, {}), sort_keys=True)
+
+
+def stage_digest(w):
+    names = STAGES[w.stage]
+    robot = CAMPAIGN[names[0]]["robot"]
+    return digest(
+        [code_digest("history", robot), stage_settings(w)]
+        + [
+            {k: CAMPAIGN[n].get(k) for k in ("stage", "start", "tolerance_um")}
+            for n in names
+        ]
+    )

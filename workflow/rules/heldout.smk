@@ -13,10 +13,13 @@ rule acquire_validation_heldout:
         "results/{campaign}/logs/acquire_validation_heldout_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

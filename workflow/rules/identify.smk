@@ -10,10 +10,13 @@ rule identify:
         "results/{campaign}/logs/identify_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/identify_{model}.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         args=identify_args,

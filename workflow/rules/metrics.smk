@@ -13,10 +13,13 @@ rule metrics:
         "results/{campaign}/benchmarks/metrics_{name}.tsv"
     wildcard_constraints:
         name=METRICS_RUNS,
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("metrics"),

@@ -17,10 +17,13 @@ rule summarise:
         "results/{campaign}/logs/summarise.log",
     benchmark:
         "results/{campaign}/benchmarks/summarise.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
@@ -54,10 +57,13 @@ rule report:
         "results/{campaign}/logs/report.log",
     benchmark:
         "results/{campaign}/benchmarks/report.tsv"
+    group:
+        "campaign"
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=600,
+        runtime=2,
     params:
         campaign=campaign_file,
         digest=lambda w: digest([code_digest("report", robot(w)), CAMPAIGN[w.campaign]]),
@@ -84,7 +90,8 @@ rule index:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=200,
+        runtime=1,
     shell:
         "calflow index --summaries {input.summaries} --histories {input.histories}"
         " --out {output} > {log} 2>&1"

@@ -5,28 +5,6 @@ wildcard_constraints:
     stage="[A-Za-z0-9][A-Za-z0-9_-]*",
 
 
-def stage_campaign_files(w):
-    return [f"{CAMPAIGN_DIR}/{name}.yaml" for name in STAGES[w.stage]]
-
-
-def stage_settings(w):
-    import json
-
-    return json.dumps(config.get("stages", {}).get(w.stage, {}), sort_keys=True)
-
-
-def stage_digest(w):
-    names = STAGES[w.stage]
-    robot = CAMPAIGN[names[0]]["robot"]
-    return digest(
-        [code_digest("history", robot), stage_settings(w)]
-        + [
-            {k: CAMPAIGN[n].get(k) for k in ("stage", "start", "tolerance_um")}
-            for n in names
-        ]
-    )
-
-
 rule stage_history:
     input:
         summaries=lambda w: [f"results/{n}/summary.json" for n in STAGES[w.stage]],

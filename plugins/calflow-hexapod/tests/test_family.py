@@ -81,3 +81,19 @@ def test_the_bound_before_beside_the_result_after():
     assert b["parameters"] == 2 and b["worst"] == "a"
     assert b["sigma_ratio_max"] == 2.0 and b["sigma_ratio_median"] == 1.25
     assert _bound(ds, None) is None
+
+
+def test_the_gcs_variant_is_the_demo_through_a_local_controller():
+    """hexapod-demo-gcs: the same campaign with rig: gcs on the loopback address, so its runs
+    compare with the demo's (plugins/calflow-hexapod/benchmarks/bench_gcs_campaign.py)."""
+    demo, gcs = load_campaign(DEMO), load_campaign(DEMO.with_name("hexapod-demo-gcs.yaml"))
+    assert gcs["rig"]["factory"] == "gcs" and gcs["rig"]["options"]["host"] == "127.0.0.1"
+    assert gcs["rig"]["options"]["sensor"]["factory"] == "simulated_tracker"
+    for key in ("seed", "identification", "models", "iso9283"):
+        assert gcs[key] == demo[key], key
+
+    def heldout(c):
+        return {k: v for k, v in c["validation"]["heldout"].items() if k != "error_budget"}
+
+    assert heldout(gcs) == heldout(demo)
+    assert WORKFLOW.budget_files(gcs) == []

@@ -22,6 +22,16 @@ def _budget_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True)
 
 
+def _export_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--model", required=True, help="an identified hexapod model (models/M.nc)")
+    p.add_argument("--out", required=True, help="the model's export folder (bundle.json is written last)")
+
+
+def _acquire_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--bundle", help="a hexapod model's export folder, for --plan validation_export")
+
+
 FAMILY = Family(
     name="hexapod",
     robots=("hexapod",),
@@ -38,9 +48,11 @@ FAMILY = Family(
             "identification": f"{_P}:identification",
             "validation_heldout": f"{_P}:validation_heldout",
             "iso9283": f"{_P}:iso9283",
+            "validation_export": "calflow_hexapod.export.verification:validation_export",
         }
     },
     rig_options="calflow_hexapod.stage.run_options:rig_options",
+    acquire_arguments=_acquire_arguments,
     steps={
         "identify": f"{_S}:identify",
         "metrics": f"{_S}:metrics",
@@ -54,6 +66,7 @@ FAMILY = Family(
         "model": "models",
         "metrics:validation_heldout": "heldout",
         "metrics:iso9283": "iso9283",
+        "metrics:validation_export": "export",
         "run:identification": "identification",
     },
     rules=("calflow_hexapod", "rules/hexapod.smk"),
@@ -66,9 +79,16 @@ FAMILY = Family(
         "metrics": _CORE + ("calflow.metrics",) + _ALL,
         "summarise": _CORE + ("calflow.metrics", "calflow.summary_routing") + _ALL,
         "report": _CORE + ("calflow.report",) + _ALL,
+        "export": _CORE + _ALL,
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.identification") + _ALL,
     },
     commands=(
+        Command(
+            "hexapod-export",
+            "a hexapod model's identified geometry as a bundle for users' code (bundle.json, geometry.nc)",
+            _export_arguments,
+            "calflow_hexapod.export.verification:export_command",
+        ),
         Command(
             "hexapod-error-budget",
             "replay a simulated hexapod's calibration with each rig effect off: the error budget",

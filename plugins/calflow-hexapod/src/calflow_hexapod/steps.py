@@ -137,4 +137,6 @@ def metrics(args) -> None:
         **{f"repeatability_{x}_deg": float(m["rp_orient"][:, i].max()) for i, x in enumerate("abc")},
         cycles=int(m["n"].min()),
     )
+    if "command_difference" in run.attrs:  # a run through an exported bundle (validation_export)
+        ds.attrs["command_difference"] = float(run.attrs["command_difference"])
     write_dataset(ds, args.out)

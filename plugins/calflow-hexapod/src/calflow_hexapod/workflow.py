@@ -5,8 +5,9 @@ The hexapod's step graph: an identification run (random or designed poses, the c
 thermal; the core's ``identify`` rule) → held-out validation through each model's inverse on
 targets no identification saw (the core's ``validation_heldout`` rule) and, when the campaign
 has an ``iso9283`` section, the five ISO 9283 poses through each model (this package's
-``rules/hexapod.smk``) → the metrics of each (ISO 9283 AP/RP for position and orientation) →
-the summary and the report.
+``rules/hexapod.smk``) → the metrics of each (ISO 9283 AP/RP for position and orientation);
+each model exported as a bundle and the held-out targets commanded again through the bundle's
+Compensator (``rules/hexapod.smk``, run ``closed_loop_<model>``) → the summary and the report.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from calflow.family_workflow import FamilyWorkflow
 
 class HexapodWorkflow(FamilyWorkflow):
     open_loop_runs = {"identification": "identification"}
-    metrics_runs = "validation_heldout_[A-Za-z0-9_]+|iso9283_[A-Za-z0-9_]+"
+    metrics_runs = "validation_heldout_[A-Za-z0-9_]+|iso9283_[A-Za-z0-9_]+|closed_loop_[A-Za-z0-9_]+"
 
     def models(self, c: dict) -> list[str]:
         return list(c["models"])
@@ -26,6 +27,7 @@ class HexapodWorkflow(FamilyWorkflow):
         models = self.models(c)
         files = [f"{base}/models/{m}.nc" for m in models]
         files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
+        files += [f"{base}/metrics/closed_loop_{m}.nc" for m in models]
         if "iso9283" in c:
             files += [f"{base}/metrics/iso9283_{m}.nc" for m in models]
         files.append(f"{base}/runs/identification.nc")

@@ -9,10 +9,13 @@ rule acquire_step_response:
         "results/{campaign}/logs/acquire_step_response.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_step_response.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

@@ -15,10 +15,13 @@ rule acquire_validation_tests:
         "results/{campaign}/logs/acquire_validation.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=2,
         rig=rig_slots,
     params:
         campaign=campaign_file,

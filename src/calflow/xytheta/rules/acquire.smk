@@ -19,10 +19,13 @@ rule acquire_xy_test:
         "results/{campaign}/logs/acquire_{test}_{comp}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_{test}_{comp}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -46,10 +49,13 @@ rule acquire_angle_residuals:
         "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_angle_residuals_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,

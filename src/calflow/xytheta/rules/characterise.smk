@@ -11,10 +11,13 @@ rule characterise:
         "results/{campaign}/logs/characterise.log",
     benchmark:
         "results/{campaign}/benchmarks/characterise.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("characterise"),
@@ -30,10 +33,13 @@ rule observability:
         "results/{campaign}/logs/observability.log",
     benchmark:
         "results/{campaign}/benchmarks/observability.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=200,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("identify", "seed", "identification", "observability"),
@@ -48,6 +54,8 @@ rule design_study:
         "results/{campaign}/logs/design_study.log",
     benchmark:
         "results/{campaign}/benchmarks/design_study.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:

@@ -16,10 +16,13 @@ rule export_models:
         "results/{campaign}/logs/export.log",
     benchmark:
         "results/{campaign}/benchmarks/export.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
     params:
         campaign=campaign_file,
         folder=lambda w, output: os.path.dirname(output.manifest),
@@ -39,10 +42,13 @@ rule acquire_validation_export:
         "results/{campaign}/logs/acquire_export_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -71,10 +77,13 @@ rule export_verify:
         "results/{campaign}/logs/export_verify_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/export_verify_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign=campaign_file,
         digest=section("export"),

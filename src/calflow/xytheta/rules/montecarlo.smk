@@ -19,10 +19,13 @@ rule mc_point:
         "results/studies/{study}/logs/point_{seeds}_{noise}_{poses}.log",
     benchmark:
         "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
+    group:
+        "study_points"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,
@@ -41,10 +44,13 @@ rule mc_aggregate:
         "results/studies/{study}/logs/aggregate.log",
     benchmark:
         "results/studies/{study}/benchmarks/aggregate.tsv"
+    group:
+        "study"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=2000,
+        mem_mb=200,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,
@@ -68,10 +74,13 @@ rule mc_report:
         "results/studies/{study}/logs/report.log",
     benchmark:
         "results/studies/{study}/benchmarks/report.tsv"
+    group:
+        "study"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=2000,
+        mem_mb=300,
+        runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],
         campaign_dir=CAMPAIGN_DIR,

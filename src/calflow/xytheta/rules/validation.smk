@@ -15,10 +15,13 @@ rule acquire_validation_model:
         "results/{campaign}/logs/acquire_validation_{model}.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=400,
+        runtime=1,
         rig=rig_slots,
     params:
         campaign=campaign_file,
@@ -40,11 +43,14 @@ rule error_budget:
         "results/{campaign}/logs/error_budget.log",
     benchmark:
         "results/{campaign}/benchmarks/error_budget.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     threads: 2
     resources:
-        mem_mb=2000,
+        mem_mb=900,
+        runtime=2,
     params:
         campaign=campaign_file,
         digest=budget_digest,

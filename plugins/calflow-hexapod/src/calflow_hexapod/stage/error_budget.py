@@ -152,13 +152,15 @@ def replay(c: dict, name: str) -> dict:
     }
 
 
-def floor(c: dict) -> dict:
+def floor(c: dict, noise_of: str = "truth") -> dict:
     """The rig's own floor at the held-out targets: validation through the true parameters on the
     campaign's rig (every effect as configured). ``accuracy_um``/``accuracy_deg``: max AP;
-    ``floor_um``/``floor_deg``: pooled within-target σ per reading and axis."""
+    ``floor_um``/``floor_deg``: pooled within-target σ per reading and axis. ``noise_of``: the
+    held-out run whose noise stream the validation draws — its own (``truth``), or a model's,
+    so that the floor and that model's held-out AP differ only by the model (common random numbers)."""
     t = truth_from_options({k: v for k, v in _options(c).items() if k not in ("seed", "stream")})
     phi = truth_parameters(t)
-    ap_um, ap_deg, scatter = _heldout(c, {}, lambda targets: command(phi, h811(), targets), "truth")
+    ap_um, ap_deg, scatter = _heldout(c, {}, lambda targets: command(phi, h811(), targets), noise_of)
     dof = max(len(scatter) - len(ap_um), 1)
     s = np.sqrt(np.sum(scatter**2, axis=0) / dof)
     return {

@@ -10,6 +10,18 @@ gets the same seed, stream and start. Kept free of numerical imports.
 from __future__ import annotations
 
 SENSORS = ("simulated_tracker", "calflow_hexapod.stage.sensor:simulated_tracker")
+#: Run ids of the closed-loop runs through an exported bundle, and of the held-out runs.
+CLOSED_LOOP, HELDOUT = "closed_loop_", "validation_heldout_"
+
+
+def noise_stream(run_id: str) -> str:
+    """The noise stream of a run on a simulated hexapod: a closed-loop run through a model's
+    exported bundle draws the noise of that model's held-out run (common random numbers: the
+    two differ only by what the export changes, :mod:`calflow_hexapod.export.verification`);
+    every other run draws its own, named by its id."""
+    if run_id.startswith(CLOSED_LOOP):
+        return HELDOUT + run_id[len(CLOSED_LOOP) :]
+    return run_id
 
 
 def simulated_physics(campaign: dict) -> dict | None:
@@ -30,7 +42,7 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
     """Per-run options of the simulated hexapod, or of the tracker sensor of a ``gcs`` rig."""
     if factory == "simulated":
         options.setdefault("seed", c["seed"])
-        options["stream"] = run_id
+        options["stream"] = noise_stream(run_id)
         options.setdefault("start_offset_s", float(start_s))
     elif factory == "gcs":
         sensor = dict(options.get("sensor") or {})
@@ -39,7 +51,7 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
                 "seed": c["seed"],
                 "start_offset_s": float(start_s),
                 **(sensor.get("options") or {}),
-                "stream": run_id,
+                "stream": noise_stream(run_id),
             }
             options["sensor"] = sensor
     return options

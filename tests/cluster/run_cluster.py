@@ -1,0 +1,351 @@
+"""The cluster test: the workflow through a one-node SLURM cluster, against a local run.
+
+Run by ``make cluster-test`` (tests/cluster/run.sh starts and stops the cluster). It runs the
+same project twice from the same commit, under the same ``SOURCE_DATE_EPOCH``: once with
+the local executor, once with ``--executor slurm`` and the project's profile
+(workflow/profiles/slurm), and compares every summary.json, study aggregate and netCDF
+file byte for byte. Then the faults: a SLURM job cancelled mid-run, slurmd killed and
+restarted mid-run (each rerun must end equal to the uninterrupted run, nothing
+incomplete left), a down node and a nonexistent partition (one line, non-zero exit).
+The last line printed is one JSON object (docs/cluster.md, "The cluster test").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+STATE = Path(os.environ.get("CALFLOW_SLURM_STATE", "/tmp/calflow-slurm"))
+CLUSTER = ["bash", str(ROOT / "tests" / "cluster" / "cluster.sh")]
+EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}
+# This test cluster has no accounting database: job states come from squeue (kept visible
+# MinJobAge = 300 s after a job ends), and no account is guessed through sacct. The first
+# status check comes 2 s after a submission instead of a site's 40 s.
+SLURM_ARGS = [
+    "--workflow-profile",
+    "workflow/profiles/slurm",
+    "--slurm-status-command",
+    "squeue",
+    "--slurm-no-account",
+    "--slurm-init-seconds-before-status-checks",
+    "2",
+    "--slurm-keep-successful-logs",
+]
+COMPARED = ("**/summary.json", "**/aggregate.json", "**/*.nc")
+
+
+CHILDREN: list[subprocess.Popen] = []  # Snakemake processes still to be ended if this one is
+
+
+def say(msg: str) -> None:
+    print(f"cluster-test: {msg}", file=sys.stderr, flush=True)
+
+
+def project(base: Path, name: str) -> Path:
+    """A fresh project folder with the repository's Snakefile, workflow/ and config/."""
+    work = base / name
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+    for folder in ("workflow", "config"):
+        shutil.copytree(ROOT / folder, work / folder)
+    return work
+
+
+def config_args(args) -> list[str]:
+    """``--config`` for the campaigns and studies chosen on the command line (default: those
+    of config/config.yaml)."""
+    chosen = [
+        f"{key}={json.dumps(getattr(args, key))}"
+        for key in ("campaigns", "studies")
+        if getattr(args, key) is not None
+    ]
+    return ["--config", *chosen] if chosen else []
+
+
+def snakemake(work: Path, *extra: str, background: bool = False, log: str = "run.log"):
+    """Snakemake in ``work`` (niced by CALFLOW_NICE), output to ``work/log``."""
+    cmd = [
+        "nice",
+        "-n",
+        os.environ.get("CALFLOW_NICE", "0"),
+        str(BIN / "snakemake"),
+        *extra,
+    ]
+    env = {**os.environ, **EPOCH, "PATH": f"{BIN}:{os.environ['PATH']}"}
+    out = (work / log).open("w")
+    proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=out, stderr=subprocess.STDOUT, text=True)
+    CHILDREN.append(proc)
+    return proc if background else proc.wait()
+
+
+def steps(work: Path, log: str = "run.log") -> int:
+    """Snakemake jobs of the run (its last "N of M steps" line)."""
+    found = re.findall(r"(\d+) of (\d+) steps", (work / log).read_text())
+    return int(found[-1][1]) if found else 0
+
+
+def submissions() -> int:
+    """Batch jobs slurmctld has accepted since it started (its log's submit lines)."""
+    return (STATE / "log" / "slurmctld.log").read_text().count("_slurm_rpc_submit_batch_job: JobId=")
+
+
+def squeue(*fields: str) -> list[list[str]]:
+    out = subprocess.run(["squeue", "-h", "-o", "|".join(fields)], capture_output=True, text=True).stdout
+    return [line.split("|") for line in out.splitlines() if line.strip()]
+
+
+def outputs(results: Path) -> dict[str, Path]:
+    return {p.relative_to(results).as_posix(): p for pattern in COMPARED for p in results.glob(pattern)}
+
+
+def differences(a: Path, b: Path, under: str = "") -> list[str]:
+    """Files compared (COMPARED under ``results/<under>``) missing or unequal between runs."""
+    fa, fb = outputs(a / "results" / under), outputs(b / "results" / under)
+    if not fa:
+        return [f"no output under {a / 'results' / under}"]
+    diff = sorted(set(fa) ^ set(fb))
+    diff += [k for k in sorted(set(fa) & set(fb)) if fa[k].read_bytes() != fb[k].read_bytes()]
+    return diff
+
+
+def leftovers(work: Path) -> list[str]:
+    """Half-written files: Snakemake's incomplete markers, calflow's temporary names."""
+    marks = work / ".snakemake" / "incomplete"
+    found = [f"incomplete marker {p.name}" for p in marks.rglob("*") if p.is_file()] if marks.exists() else []
+    temps = ("*.tmp", "*.partial", "*.part", ".*.tmp*")
+    return found + [str(p) for t in temps for p in (work / "results").rglob(t)]
+
+
+def wait_mid_run(work: Path, campaign: str, done: int, timeout: float = 600) -> str:
+    """The SLURM job id running ``campaign`` once ``done`` of its steps have finished."""
+    bench = work / "results" / campaign / "benchmarks"
+    start = time.time()
+    while time.time() - start < timeout:
+        running = [j for j, state in squeue("%i", "%T") if state == "RUNNING"]
+        if running and bench.exists() and len(list(bench.glob("*.tsv"))) >= done:
+            return running[0]
+        time.sleep(0.5)
+    raise AssertionError(f"no SLURM job of {campaign} ran {done} steps within {timeout} s")
+
+
+def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dict:
+    """Run one campaign through SLURM, call ``act(work)`` mid-run, rerun if it failed:
+    the result must equal ``reference``'s and leave nothing incomplete."""
+    work = project(base, name)
+    cfg = ["--config", f'campaigns=["{campaign}"]', "studies=[]"]
+    proc = snakemake(work, *SLURM_ARGS, "--retries", "0", *cfg, background=True, log="fault.log")
+    what = act(work)
+    first = proc.wait()
+    left_after_fault = leftovers(work)
+    rerun = snakemake(work, *SLURM_ARGS, *cfg, log="rerun.log") if first else None
+    noop = snakemake(work, "-n", "--cores", "1", *cfg, log="dryrun.log")
+    nothing = "Nothing to be done" in (work / "dryrun.log").read_text()
+    diff = differences(reference, work, campaign)
+    result = {
+        "fault": what,
+        "first_exit": first,
+        "rerun_exit": rerun,
+        "equal": not diff,
+        "incomplete_after_fault": len(left_after_fault),
+        "incomplete_after_rerun": len(leftovers(work)),
+        "rerun_left_nothing_to_do": noop == 0 and nothing,
+    }
+    say(f"{name}: {result}" + (f"; differing: {diff[:5]}" if diff else ""))
+    result["ok"] = (
+        rerun in (None, 0)
+        and not diff
+        and result["incomplete_after_rerun"] == 0
+        and result["rerun_left_nothing_to_do"]
+    )
+    return result
+
+
+def scancel_mid_run(campaign: str):
+    def act(work: Path) -> str:
+        job = wait_mid_run(work, campaign, done=3)
+        subprocess.run(["scancel", job], check=True)
+        return f"scancel of SLURM job {job} after 3 steps"
+
+    return act
+
+
+def slurmd_restart_mid_run(campaign: str):
+    def act(work: Path) -> str:
+        job = wait_mid_run(work, campaign, done=3)
+        subprocess.run([*CLUSTER, "kill-slurmd"], check=True)
+        time.sleep(5)
+        subprocess.run([*CLUSTER, "start-slurmd"], check=True)
+        return f"slurmd killed (SIGKILL) while SLURM job {job} ran, restarted 5 s later"
+
+    return act
+
+
+def one_line_failure(base: Path, name: str, campaign: str, expect: str, profile_edit=None) -> dict:
+    """A run that must stop before submitting: non-zero exit, one ``calflow: error:`` line."""
+    work = project(base, name)
+    if profile_edit:
+        conf = work / "workflow" / "profiles" / "slurm" / "config.yaml"
+        conf.write_text(profile_edit(conf.read_text()))
+    before = submissions()
+    start = time.time()
+    code = snakemake(work, *SLURM_ARGS, "--config", f'campaigns=["{campaign}"]', "studies=[]")
+    lines = [ln for ln in (work / "run.log").read_text().splitlines() if ln.startswith("calflow: error:")]
+    result = {
+        "exit": code,
+        "line": lines[0] if lines else None,
+        "seconds": round(time.time() - start, 1),
+        "submitted": submissions() - before,
+    }
+    result["ok"] = code != 0 and len(lines) == 1 and expect in lines[0] and result["submitted"] == 0
+    say(f"{name}: {result}")
+    return result
+
+
+def machine() -> str:
+    mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    cpu = next(
+        (
+            ln.split(":", 1)[1].strip()
+            for ln in Path("/proc/cpuinfo").read_text().splitlines()
+            if ln.startswith("model name")
+        ),
+        platform.processor(),
+    )
+    return (
+        f"{platform.node()}: {os.cpu_count()} CPUs ({cpu}), {mem:.0f} GiB, {platform.system()} "
+        f"{platform.release()}, load average {os.getloadavg()[0]:.1f} at start"
+    )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--work",
+        type=Path,
+        default=Path(os.environ.get("CALFLOW_CLUSTER_WORK", "/tmp/calflow-cluster-test")),
+    )
+    ap.add_argument("--campaigns", nargs="*", default=None, help="default: config/config.yaml's")
+    ap.add_argument("--studies", nargs="*", default=None, help="default: config/config.yaml's")
+    ap.add_argument("--cores", type=int, default=os.cpu_count())
+    ap.add_argument("--fault-campaign", default="nano1d-thesis")
+    ap.add_argument("--no-faults", action="store_true")
+    ap.add_argument("--target", nargs="*", default=[], help="Snakemake targets (default: all)")
+    ap.add_argument("--max-slurm-jobs", type=int, default=30)
+    ap.add_argument("--max-ratio", type=float, default=3.0, help="SLURM wall time / local wall time")
+    args = ap.parse_args(argv)
+    args.work.mkdir(parents=True, exist_ok=True)
+    report = {"machine": machine()}
+
+    local = project(args.work, "local")
+    say(f"local run ({args.cores} cores) in {local}")
+    t0 = time.time()
+    assert snakemake(local, "--cores", str(args.cores), *args.target, *config_args(args)) == 0, (
+        f"local run failed: {local}/run.log"
+    )
+    wall_local = time.time() - t0
+
+    slurm = project(args.work, "slurm")
+    say(f"SLURM run in {slurm}")
+    before, t0 = submissions(), time.time()
+    assert snakemake(slurm, *SLURM_ARGS, *args.target, *config_args(args)) == 0, (
+        f"SLURM run failed: {slurm}/run.log"
+    )
+    wall_slurm = time.time() - t0
+    diff = differences(local, slurm)
+    if diff:
+        say(f"outputs differing between the local and the SLURM run: {diff[:10]}")
+    report.update(
+        slurm_jobs=submissions() - before,
+        snakemake_jobs=steps(slurm),
+        snakemake_jobs_local=steps(local),
+        compared_files=len(outputs(slurm / "results")),
+        equal=not diff,
+    )
+
+    faults = {}
+    if not args.no_faults:
+        c = args.fault_campaign
+        faults["scancel"] = fault_run(args.work, "fault-scancel", c, local, scancel_mid_run(c))
+        faults["slurmd_restart"] = fault_run(args.work, "fault-slurmd", c, local, slurmd_restart_mid_run(c))
+        node = platform.node().split(".")[0]
+        subprocess.run(
+            [
+                "scontrol",
+                "update",
+                f"nodename={node}",
+                "state=down",
+                "reason=cluster-test",
+            ],
+            check=True,
+        )
+        try:
+            faults["node_down"] = one_line_failure(
+                args.work, "fault-node-down", c, "has no node that can run"
+            )
+        finally:
+            subprocess.run(["scontrol", "update", f"nodename={node}", "state=resume"], check=True)
+        faults["no_partition"] = one_line_failure(
+            args.work,
+            "fault-partition",
+            c,
+            "does not exist",
+            lambda text: text.replace('slurm_partition: "normal"', 'slurm_partition: "no-such-partition"'),
+        )
+    report.update(
+        wall_s_slurm=round(wall_slurm, 1),
+        wall_s_local=round(wall_local, 1),
+        faults_ok=all(f["ok"] for f in faults.values()) if faults else None,
+    )
+    report["within_limits"] = (
+        report["slurm_jobs"] <= args.max_slurm_jobs and wall_slurm <= args.max_ratio * wall_local
+    )
+    (args.work / "faults.json").write_text(json.dumps(faults, indent=1))
+    line = {
+        k: report[k]
+        for k in (
+            "slurm_jobs",
+            "snakemake_jobs",
+            "wall_s_slurm",
+            "wall_s_local",
+            "equal",
+            "faults_ok",
+            "within_limits",
+            "compared_files",
+            "machine",
+        )
+    }
+    ok = report["equal"] and report["faults_ok"] is not False and report["within_limits"]
+    print(json.dumps(line), flush=True)
+    return 0 if ok else 1
+
+
+def _end_children(*_) -> None:
+    """Stop the Snakemake runs this test started (a stopped test leaves no submitter
+    behind; tests/cluster/run.sh then cancels the jobs and stops the daemons)."""
+    for proc in CHILDREN:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    raise SystemExit(130)
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, _end_children)
+    try:
+        sys.exit(main())
+    finally:
+        for child in CHILDREN:
+            if child.poll() is None:
+                child.kill()

@@ -1,0 +1,24 @@
+# Before a SLURM run submits its first job: each partition its jobs name exists and has a
+# node that takes jobs, or one line says which does not (calflow.cluster, docs/cluster.md).
+from calflow.cluster import check_partitions
+
+
+# The index page (a second) runs where Snakemake runs (on a cluster, the login node)
+# instead of waiting in the queue as a SLURM job of its own.
+localrules:
+    index,
+
+
+onstart:
+    if (
+        workflow.executor_plugin is not None
+        and workflow.executor_plugin.name == "slurm"
+    ):
+        try:
+            check_partitions(
+                job.resources.get("slurm_partition")
+                for job in workflow.dag.needrun_jobs()
+            )
+        except ConfigError as exc:
+            sys.stderr.write(f"calflow: error: {exc}\n")
+            sys.exit(2)
