@@ -13,6 +13,8 @@ rule acquire_interim_check:
         "results/{campaign}/logs/acquire_interim_check.log",
     benchmark:
         "results/{campaign}/benchmarks/acquire_interim_check.tsv"
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
