@@ -129,6 +129,7 @@ def test_workflow_passes_an_unchanged_stage_and_flags_a_remount(tmp_path):
         assert 0 < k["rig_time_s"] <= 0.05 * k["reference_rig_time_s"]
         assert k["rig_time_ratio"] == pytest.approx(k["rig_time_s"] / k["reference_rig_time_s"])
         assert "identification" in k["reference_runs"] and "export_II" in k["reference_runs"]
+    assert not (work / "results/ok/runs/identification.nc").exists()  # a check identifies nothing
     h = json.loads((work / "results/stages/SN-9/history.json").read_text())
     kinds = {c["campaign"]: c["kind"] for c in h["campaigns"]}
     assert kinds == {"ref": "calibration", "ok": "interim", "moved": "interim"}

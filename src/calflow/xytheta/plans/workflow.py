@@ -85,7 +85,10 @@ class XYThetaWorkflow(FamilyWorkflow):
         return [f"results/{c['name']}/truth/error_budget.json"]
 
     def report_files(self, c: dict) -> list[str]:
-        """The summary's files and the identification poses (the report's pose figure)."""
+        """The summary's files and the identification poses (the report's pose figure); an
+        interim check has no identification."""
+        if "interim_check" in c:
+            return self.results_of(c)
         return self.results_of(c) + [f"results/{c['name']}/runs/identification.nc"]
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
