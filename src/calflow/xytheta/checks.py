@@ -9,13 +9,21 @@ from calflow.errors import ConfigError
 
 def check_campaign(campaign: dict, path: Path) -> None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
-    _check_models(campaign["models"], path)
     if campaign["rig"]["factory"] == "simulated":  # the stage as it has aged by the campaign's start
         from calflow.xytheta.stage.aging import resolve
         from calflow.xytheta.stage.physics import XYThetaTruth
 
         options = campaign["rig"].get("options") or {}
         campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
+    if "interim_check" in campaign:
+        _check_interim(campaign, Path(path))
+        return
+    if "models" not in campaign:
+        raise ConfigError(
+            f"{path}: key 'models': missing, it is required (the models to identify), unless the "
+            "campaign is an interim_check"
+        )
+    _check_models(campaign["models"], path)
     _check_design(campaign, path)
     if any(spec.get("position_table") for spec in campaign["models"].values()):
         ident, char = campaign["identification"], campaign["characterisation"]
@@ -78,3 +86,45 @@ def _check_design(campaign: dict, path: Path) -> None:
                 f"{path}: key 'identification.design.poses': expected at most design.candidates "
                 f"({d['candidates']}), got {d['poses']}"
             )
+
+
+def _check_interim(campaign: dict, path: Path) -> None:
+    """An interim check identifies nothing; its reference is a calibration of the same folder
+    that identifies ``interim_check.model``. Resolved here, as the rig's ageing is: the
+    reference's identification workspace (where the check's targets are chosen) and every run
+    of the reference (its rig time), in ``interim_check.resolved``."""
+    from calflow.config import load_campaign
+    from calflow.xytheta.plans.workflow import WORKFLOW
+
+    if campaign.get("models"):
+        raise ConfigError(f"{path}: key 'models': an interim check identifies no model; remove the key")
+    campaign["models"] = {}
+    check = campaign["interim_check"]
+    ref_path = path.parent / f"{check['reference']}.yaml"
+    if not ref_path.is_file():
+        raise ConfigError(
+            f"{path}: key 'interim_check.reference': expected a campaign of {path.parent}, "
+            f"got {check['reference']!r} (no {ref_path.name})"
+        )
+    ref = load_campaign(ref_path)
+    if "interim_check" in ref:
+        raise ConfigError(
+            f"{path}: key 'interim_check.reference': expected a calibration campaign, got "
+            f"{check['reference']!r}, itself an interim check"
+        )
+    if ref.get("stage") != campaign.get("stage"):
+        raise ConfigError(
+            f"{path}: key 'interim_check.reference': expected a calibration of stage "
+            f"{campaign.get('stage')!r}, got {check['reference']!r} of stage {ref.get('stage')!r}"
+        )
+    if check["model"] not in ref["models"]:
+        raise ConfigError(
+            f"{path}: key 'interim_check.model': expected one of the reference's models "
+            f"{sorted(ref['models'])}, got {check['model']!r}"
+        )
+    ident = ref["identification"]
+    check.setdefault("dwell_s", ref["validation"]["dwell_s"])  # visits settle as the reference's did
+    check["resolved"] = {
+        "workspace": {k: list(ident[k]) for k in ("x_um", "y_um", "theta_deg")},
+        "runs": WORKFLOW.all_runs(ref),
+    }

@@ -131,7 +131,10 @@ FAMILY = Family(
                 "random_points",
             )
         }
-        | {"validation_export": "calflow.xytheta.export.verification:validation_export"}
+        | {
+            "validation_export": "calflow.xytheta.export.verification:validation_export",
+            "interim_check": "calflow.xytheta.plans.interim:interim_check",
+        }
     },
     rig_options="calflow.xytheta.family:rig_options",
     steps={
@@ -209,6 +212,17 @@ FAMILY = Family(
             "calflow.xytheta.models.kinematics",
             "calflow.xytheta.export.verification",
             "calflow.xytheta.design.study",
+            "calflow.xytheta.report.interim",
+            "calflow.lifecycle.sprt",
+        ),
+        "interim": _CORE
+        + (
+            "calflow.xytheta.plans.interim",
+            "calflow.xytheta.export",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.tables.position",
+            "calflow.xytheta.tables.angle",
         ),
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
         "export": _CORE
@@ -314,6 +328,7 @@ FAMILY = Family(
         "rules/characterise.smk",
         "rules/validation.smk",
         "rules/export.smk",
+        "rules/interim.smk",
         "rules/montecarlo.smk",
     ),
     workflow="calflow.xytheta.plans.workflow:WORKFLOW",

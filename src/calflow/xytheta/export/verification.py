@@ -76,9 +76,13 @@ def path_commands(folder, path: str, x_T, y_T, theta_T) -> tuple[np.ndarray, np.
     return files["x"].command(NX, 0.0)[0], files["y"].command(NY, 0.0)[0]
 
 
-def export_plan(folder, targets: np.ndarray, cycles: int, dwell_s: float) -> tuple[Plan, tuple[str, ...]]:
-    """One segment per available export path: home, then ``cycles`` visits of the targets."""
-    paths = tuple(p for p in PATHS if p == "bundle" or controller_files(folder, p) is not None)
+def export_plan(
+    folder, targets: np.ndarray, cycles: int, dwell_s: float, paths: tuple[str, ...] | None = None
+) -> tuple[Plan, tuple[str, ...]]:
+    """One segment per export path (``paths``, default every available one): home, then
+    ``cycles`` visits of the targets."""
+    if paths is None:
+        paths = tuple(p for p in PATHS if p == "bundle" or controller_files(folder, p) is not None)
     m = len(targets)
     tt = np.tile(np.asarray(targets, dtype=float), (cycles, 1))
     cols = {k: [] for k in ("x", "y", "theta", "tx", "ty", "tt", "pose", "cycle", "mode")}

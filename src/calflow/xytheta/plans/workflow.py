@@ -6,6 +6,11 @@ base model; validation through each model on reference and held-out targets; the
 random-points tests with and without table compensation (Sec. 4.4.2); the export of each
 model and its closed-loop check. The rules of the steps the core does not have are in this
 family's ``rules/`` files.
+
+An interim-check campaign (key ``interim_check``) has another graph: its run through the
+reference calibration's exported bundle (``rules/interim.smk``) → its metrics → the summary
+with the SPRT decision (reading the reference's export check and runs) → the report; it
+identifies no model.
 """
 
 from __future__ import annotations
@@ -19,12 +24,26 @@ class XYThetaWorkflow(FamilyWorkflow):
         "characterisation_x": "characterisation",
         "characterisation_y": "characterisation",
     }
-    metrics_runs = "validation_[A-Za-z0-9_]+|(square|random_points)_(none|linear|cubic)"
+    metrics_runs = "validation_[A-Za-z0-9_]+|(square|random_points)_(none|linear|cubic)|interim_check"
 
     def models(self, c: dict) -> list[str]:
-        return list(c["models"])
+        return [] if "interim_check" in c else list(c["models"])
+
+    def all_runs(self, c: dict) -> list[str]:
+        """Every run a calibration acquires (its rig time): those of its summary, and the
+        reference-target validation and export runs of each model."""
+        base = f"results/{c['name']}"
+        runs = {f for f in self.results_of(c) if f.startswith(f"{base}/runs/")}
+        runs.update(f"{base}/runs/{k}_{m}.nc" for m in self.models(c) for k in ("validation", "export"))
+        tests = c["xy_tests"]["compensation"]
+        runs.update(f"{base}/runs/{t}_{k}.nc" for t in ("square", "random_points") for k in tests)
+        return sorted(runs)
 
     def results_of(self, c: dict) -> list[str]:
+        if "interim_check" in c:  # its run and metrics, and the reference's runs (resolved at load)
+            base = f"results/{c['name']}"
+            runs = c["interim_check"]["resolved"]["runs"]
+            return [f"{base}/runs/interim_check.nc", f"{base}/metrics/interim_check.nc", *runs]
         base = f"results/{c['name']}"
         models = self.models(c)
         files = [f"{base}/models/{m}.nc" for m in models]
@@ -53,16 +72,23 @@ class XYThetaWorkflow(FamilyWorkflow):
         return [f"results/{c['name']}/metrics/export_{m}.nc" for m in models]
 
     def summary_truth(self, c: dict) -> str:
+        if "interim_check" in c:
+            return f"results/{c['name']}/truth/interim_check.json"
         return f"results/{c['name']}/truth/identification.json"
 
     def budget_files(self, c: dict) -> list[str]:
         """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
-        if c["rig"]["factory"] != "simulated" or not c["validation"]["heldout"]["error_budget"]:
+        if "interim_check" in c or c["rig"]["factory"] != "simulated":
+            return []
+        if not c["validation"]["heldout"]["error_budget"]:
             return []
         return [f"results/{c['name']}/truth/error_budget.json"]
 
     def report_files(self, c: dict) -> list[str]:
-        """The summary's files and the identification poses (the report's pose figure)."""
+        """The summary's files and the identification poses (the report's pose figure); an
+        interim check has no identification."""
+        if "interim_check" in c:
+            return self.results_of(c)
         return self.results_of(c) + [f"results/{c['name']}/runs/identification.nc"]
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:

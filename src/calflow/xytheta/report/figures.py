@@ -293,6 +293,10 @@ def angle_errors(inputs: Inputs) -> Figure | None:
 
 def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
     """The report's figures in order, and notes on figures that could not be drawn."""
+    if "interim_check" in summary:
+        from calflow.xytheta.report import interim_figures
+
+        return interim_figures.build(summary, inputs)
     notes: list[str] = []
     luts = inputs.luts
     draw = guarded(notes)

@@ -197,6 +197,10 @@ def _iso230_2_of_sweep(run: xr.Dataset, axis: str) -> dict:
 
 def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dict:
     """Assemble the summary of an XYΘ campaign from its result files."""
+    if "interim_check" in campaign:  # a check through a calibration's bundle (report/interim.py)
+        from calflow.xytheta.report.interim import interim_summary
+
+        return interim_summary(campaign, files, truth)
     models, paths, ref, heldout, xy, luts, obs, iso, study = {}, {}, {}, {}, {}, None, None, {}, None
     found = route(files, FAMILY.summary_sections, "XYΘ family")
     for path, ds in found.get("models", []):

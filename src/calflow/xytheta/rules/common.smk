@@ -25,3 +25,9 @@ def budget_digest(w):
         + [c.get(k) for k in keys]
         + [v["heldout"], v["dwell_s"]]
     )
+
+
+def interim_export(w):
+    """The reference's export manifest: the bundle the stage runs."""
+    ref = CAMPAIGN[w.campaign]["interim_check"]["reference"]
+    return f"results/{ref}/export/manifest.json"

@@ -1,0 +1,38 @@
+# An interim check of a stage (docs/lifecycle.md): the targets commanded in closed loop
+# through the reference calibration's exported bundle. Its metrics, summary and report are
+# the core's rules (the family's workflow names the files).
+
+
+rule acquire_interim_check:
+    input:
+        manifest=interim_export,
+    output:
+        run="results/{campaign}/runs/interim_check.nc",
+        truth="results/{campaign}/truth/interim_check.json",
+    log:
+        "results/{campaign}/logs/acquire_interim_check.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_interim_check.tsv"
+    group:
+        "campaign"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1000,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, input: os.path.join(
+            os.path.dirname(input.manifest),
+            CAMPAIGN[w.campaign]["interim_check"]["model"],
+        ),
+        digest=lambda w: digest(
+            [
+                rig_digest("interim_check")(w),
+                code_digest("interim", "xytheta"),
+                CAMPAIGN[w.campaign]["interim_check"],
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan interim_check"
+        " --export {params.folder} --out {output.run} --truth {output.truth} > {log} 2>&1"
