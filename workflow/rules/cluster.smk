@@ -1,6 +1,9 @@
 # Before a SLURM run submits its first job: each partition its jobs name exists and has a
 # node that takes jobs, or one line says which does not (calflow.cluster, docs/cluster.md).
+import sys
+
 from calflow.cluster import check_partitions
+from calflow.errors import ConfigError
 
 
 # The index page (a second) runs where Snakemake runs (on a cluster, the login node)
