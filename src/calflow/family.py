@@ -1,12 +1,12 @@
 """Robot families: what each family of robots registers with the core.
 
 The core (config, data, acquisition, rigs, metrics, reports, the CLI) knows no robot. A
-family — :mod:`calflow.xytheta`, :mod:`calflow.nano`, or a third-party package — describes
+family — calflow's own XYΘ and nano families, or a third-party package — describes
 itself with one :class:`Family` and registers it as an entry point of the group
 ``calflow.families`` in its ``pyproject.toml``::
 
     [project.entry-points."calflow.families"]
-    xytheta = "calflow.xytheta.family:FAMILY"
+    mystage = "mylab_calflow.family:FAMILY"
 
 Everything heavy is named as ``"module:attribute"`` and imported only when a command
 needs it, so ``calflow --help`` loads no numerical library. The core asks the registry

@@ -16,7 +16,7 @@ from calflow import __version__
 
 def _files(module: str) -> list[Path]:
     """The source files of ``module``: a module, a package with its submodules and data, or
-    a folder of templates inside the package (``calflow.xytheta.report.templates``), of
+    a folder of templates inside the package (a family's ``report/templates``), of
     calflow or of a family's own installed package."""
     parts = module.split(".")
     if parts[0] == "calflow":

@@ -1,7 +1,7 @@
 """Serving a campaign's stages from a controller emulator until Ctrl-C or ``--duration``.
 
-The command-line side shared by the C-863 campaign emulator (:mod:`calflow.xytheta.stage.emulate`)
-and the E-727-class one (:mod:`calflow.nano.stage.emulate`), and ``calflow emulate gcs``, which
+The command-line side shared by the families' campaign emulators (the XYΘ family's C-863 one,
+the nano family's E-727-class one, a plug-in family's), and ``calflow emulate gcs``, which
 serves a campaign with the emulator of its robot family (:func:`emulate_command`):
 arguments ``--campaign``, ``--port``, ``--time-scale``, ``--duration``, checked in one line
 each; the emulator's address and the campaign ``rig:`` section that drives it are printed.

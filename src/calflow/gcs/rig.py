@@ -2,7 +2,7 @@
 
 Stages are driven with :class:`calflow.gcs.GCSController` (docs/gcs.md "Servo,
 referencing, motion"); readings come from a sensor plug-in
-(:mod:`calflow.xytheta.stage.vision_sensor`, docs/gcs.md "Sensor drivers") given the stages' actual
+(a family's, e.g. the XYΘ family's simulated vision sensor; docs/gcs.md "Sensor drivers") given the stages' actual
 ``POS?`` positions. At open: servo on, FRF for axes not referenced (``reference: true``).
 
 Resilience (docs/gcs.md "What the client does on errors", "Resilience of the gcs rig"):

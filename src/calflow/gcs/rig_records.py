@@ -1,7 +1,7 @@
 """Recorded moves of the ``gcs`` rig: a step response through the controller's data recorder.
 
 ``record_move(command, seconds, rate_hz)`` is the contract of the simulated nano rigs'
-(:mod:`calflow.nano.stage.records`) that :mod:`calflow.acquisition.recorded_moves` runs for
+(the nano family's stage records) that :mod:`calflow.acquisition.recorded_moves` runs for
 ISO 9283 stabilisation time and overshoot (clauses 7.5, 7.6): move, and record from the
 start of the move, point i at ``t0 + i / rate_hz``, for ``seconds``; chunks of numpy arrays
 with ``time`` (s, the rig's clock), every sensor and thermometer.

@@ -14,7 +14,7 @@ the singular values σ_k = √λ_k(M)). Continuous weights by the multiplicative
 (Titterington 1976 for D, Yu 2010's power 1/2 for A), each weight capped at one pose
 (a repeated pose repeats its error), rounded to the n largest, then polished by Fedorov
 exchange on the exact criterion. Shared by the families: XYΘ poses
-(:mod:`calflow.xytheta.design.criteria`) and the nano training positions (:mod:`calflow.nano.plans.design`).
+(the XYΘ family's design criteria) and the nano training positions (the nano family's plans).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ Profiles (all deterministic given ``seed``, vectorised over time):
   what the stage does with it is the thermal network's business.
 
 :class:`LinearBank` integrates any linear network driven by the room (the lumped thermal
-network of the nano rigs, :mod:`calflow.nano.stage.thermal_network`) exactly for a
+network of the nano family's rigs) exactly for a
 piecewise-linear input on a fixed grid, interpolated linearly between grid points;
 :class:`LagBank` is its special case of independent first-order lags. The grid is anchored in profile time (not rig time), so two rigs started at
 different offsets see the same structure temperatures at the same campaign time.
