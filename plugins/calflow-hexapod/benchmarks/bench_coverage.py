@@ -26,7 +26,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from calflow_hexapod import synthetic  # noqa: E402
+from calflow_hexapod.models import synthetic  # noqa: E402
 from calflow_hexapod.models.geometry import h811  # noqa: E402
 from calflow_hexapod.models.identification import identify  # noqa: E402
 from calflow_hexapod.models.ladder import LADDER, Parameters  # noqa: E402
