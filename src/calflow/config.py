@@ -21,6 +21,7 @@ import yaml
 
 from calflow.errors import ConfigError
 from calflow.family import family_of, missing_family, resolve, robots
+from calflow.rigs.plugin import check_rig
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -285,8 +286,6 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     campaign = validate(data, f"campaign-{robot}", path)
     _check_dwells(campaign, path)
     _check_strokes(campaign, path)
-    from calflow.rigs.plugin import check_rig
-
     check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
     check = family_of(robot).steps.get("check")
     if check:
