@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 from conftest import SMALL_XYTHETA, make_workdir, snakemake
 from hypothesis import given, settings
@@ -108,7 +109,7 @@ def test_workflow_passes_an_unchanged_stage_and_flags_a_remount(tmp_path):
     campaigns = {
         "ref": reference(),
         "ok": check(targets=4, tolerance_um=TOL),
-        "moved": check(start="2026-04-05T08:00:00+00:00", rig=remount, targets=4, tolerance_um=TOL),
+        "moved": check(start="2026-04-05T08:00:00+00:00", rig=remount, targets=4, cycles=6, tolerance_um=TOL),
     }
     work = make_workdir(tmp_path, campaigns)
     proc = snakemake(
@@ -125,6 +126,13 @@ def test_workflow_passes_an_unchanged_stage_and_flags_a_remount(tmp_path):
     assert moved["decision"] == "recalibrate", moved
     assert ok["rms_um"] < ok["indifference_rms_um"] < moved["rms_um"]
     assert moved["rms_um"] > 2 * ok["rms_um"]  # the re-mount: ~20 µm at X = 3800 µm
+    # acquired sequentially: the re-mount is plain at the first look (after two cycles of six),
+    # and the rig stopped there; the run holds the visits the decision used, and no more
+    assert (moved["cycles_acquired"], moved["visits"], moved["planned"]) == (2, 8, 24)
+    run = xr.open_dataset(work / "results/moved/runs/interim_check.nc")
+    assert run.sizes["sample"] == 1 + moved["visits"]
+    assert ok["planned"] == 4 * ok["cycles"] and ok["visits"] == 4 * ok["cycles_acquired"]
+    assert xr.open_dataset(work / "results/ok/runs/interim_check.nc").sizes["sample"] == 1 + ok["visits"]
     for k in (ok, moved):
         assert 0 < k["rig_time_s"] <= 0.05 * k["reference_rig_time_s"]
         assert k["rig_time_ratio"] == pytest.approx(k["rig_time_s"] / k["reference_rig_time_s"])

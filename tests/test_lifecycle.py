@@ -196,3 +196,34 @@ def test_due_date_offset_costs_a_degree_of_freedom():
     r = due.due_date(_dates([0, 90, 180, 270]), [2.0, 3.0, 2.5, 3.6], [0] * 4, 5.0, checks=[0, 1, 0, 1])
     assert r["date"] is None and r["fit"]["dof"] == 1
     assert "interim checks, given an offset of their own" in r["statement"]
+
+
+def test_group_sequential_sprt_looks_only_at_group_ends():
+    """Errors far beyond the tolerance from the first visit: the plain SPRT stops at once;
+    looking at the end of each cycle of 4 it stops at the 4th visit, with the same decision."""
+    test = SPRT(1.0, 3.0, alpha=0.05, beta=0.1)
+    e = np.full((12, 2), 6.0)
+    assert test.decide(e)["visits"] == 1
+    r = test.decide(e, groups=np.repeat([1, 1, 2], 4), planned=24)
+    assert (r["decision"], r["visits"], r["planned"]) == ("recalibrate", 8, 24)
+    quiet = test.decide(np.zeros((3, 2)), groups=[1, 1, 1], planned=8)  # stops at the group's end
+    assert (quiet["decision"], quiet["visits"]) == ("within tolerance", 3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), size=st.sampled_from([2, 3, 4]))
+def test_group_sequential_decision_is_one_the_plain_test_could_reach(seed, size):
+    """Looking less often never reverses a decision taken at a look: at the visit where the
+    grouped test stops, the running LLR is beyond the bound it names."""
+    rng = np.random.default_rng(seed)
+    test = SPRT(1.0, 2.0)
+    e = rng.normal(0, rng.uniform(0.5, 2.5), (24, 2)) / np.sqrt(2)
+    r = test.decide(e, groups=np.repeat(np.arange(24 // size), size))
+    llr = np.cumsum(test.llr(e))[r["visits"] - 1]
+    low, high = test.bounds
+    if r["decision"] == "recalibrate":
+        assert llr >= high and r["visits"] % size == 0
+    elif r["decision"] == "within tolerance":
+        assert llr <= low and r["visits"] % size == 0
+    else:
+        assert r["visits"] == 24 and low < llr < high

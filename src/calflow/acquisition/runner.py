@@ -104,8 +104,14 @@ def acquire(
     journal: Journal | None = None,
     progress: Callable[[int, int], None] | None = None,
     controller=None,
+    stop: Callable[[list[dict], Callable[[], xr.Dataset]], bool] | None = None,
 ) -> xr.Dataset:
-    """Visit every row of ``plan`` on ``rig`` and return the run dataset."""
+    """Visit every row of ``plan`` on ``rig`` and return the run dataset.
+
+    ``stop(readings, partial)``, when given, is asked after each reading (and once for the
+    readings a resumed journal holds); ``partial()`` is the run dataset so far. When it
+    answers true the run ends there: the dataset holds the rows visited (a sequential test
+    that has decided, e.g. an interim check)."""
     missing = [j for j in plan.commands if j not in rig.joints]
     if missing:
         raise RigError(
@@ -140,9 +146,15 @@ def acquire(
         journal.open(readings)
     # open loop on a rig that visits rows in bulk: the same readings, computed BATCH rows at a time
     bulk = type(controller) is OpenLoop and not runner.streams and hasattr(rig, "visit")
+    bulk = bulk and stop is None  # a stop rule looks after every reading
+
+    def partial() -> xr.Dataset:
+        return run_dataset(readings, plan, rig.sensors, rig.thermometers, meta)
+
     try:
         i = len(readings)
-        while i < len(plan):
+        done = bool(readings) and stop is not None and stop(readings, partial)
+        while i < len(plan) and not done:
             for reading in (
                 runner.visits(i, min(i + BATCH, len(plan))) if bulk else [runner.sample(i, controller)]
             ):
@@ -153,6 +165,7 @@ def acquire(
                 i += 1
             if progress is not None:
                 progress(i, len(plan))
+            done = stop is not None and i < len(plan) and stop(readings, partial)
     finally:
         if journal is not None:
             journal.close()

@@ -14,6 +14,11 @@ test stops at the first visit where the running sum leaves (ln B, ln A), A = (1�
 B = β/(1−α) (Wald 1945, *Ann. Math. Statist.* 16, 117–186; these bounds keep the error
 rates at most about α and β). At the last planned visit without a decision the test is
 truncated: "undecided", with the side the sum leans to.
+
+With ``groups`` (the cycle of each visit) the bounds are looked at only when a group is
+complete — a group-sequential SPRT, so that a check stopped early has visited every target
+equally often; looking less often keeps the error rates within Wald's bounds (the sum can
+only overshoot further) at the cost of a few visits.
 """
 
 from __future__ import annotations
@@ -59,13 +64,21 @@ class SPRT:
         sq = np.sum(e**2, axis=1)
         return self.dim * np.log(s0 / s1) + 0.5 * sq * (1 / s0**2 - 1 / s1**2)
 
-    def decide(self, errors_um) -> dict:
+    def decide(self, errors_um, groups=None, planned: int | None = None) -> dict:
         """``{decision, visits, planned, llr, bounds}``: "within tolerance", "recalibrate" or
-        "undecided" (truncated, ``leaning`` to one side) after the visits in order."""
+        "undecided" (truncated, ``leaning`` to one side) after the visits in order; with
+        ``groups`` (one label per visit) the bounds are looked at only at each group's last
+        visit. ``planned`` (default: the visits given) is the visits the check may make."""
         steps = np.cumsum(self.llr(errors_um))
         low, high = self.bounds
-        planned = int(steps.size)
+        planned = int(steps.size) if planned is None else int(planned)
+        looks = np.ones(steps.size, bool)
+        if groups is not None:
+            g = np.asarray(groups)
+            looks = np.r_[g[1:] != g[:-1], True] if g.size else looks
         for i, s in enumerate(steps):
+            if not looks[i]:
+                continue
             if s >= high:
                 return {
                     "decision": "recalibrate",
@@ -82,10 +95,10 @@ class SPRT:
                     "llr": float(s),
                     "bounds": [low, high],
                 }
-        last = float(steps[-1]) if planned else 0.0
+        last = float(steps[-1]) if steps.size else 0.0
         return {
             "decision": "undecided",
-            "visits": planned,
+            "visits": int(steps.size),
             "planned": planned,
             "llr": last,
             "bounds": [low, high],

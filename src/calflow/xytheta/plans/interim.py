@@ -18,12 +18,18 @@ greedily to maximise the smallest eigenvalue of Σ (J_i D)ᵀ(J_i D), D = diag(d
 E-optimal choice, so that no combination of the two drifts stays hidden (Pukelsheim,
 *Optimal Design of Experiments*, 1993, Sec. 6.4). Each target is the tool point the
 reference model predicts at its grid pose (Eq. 4.18 without the tables).
+
+Acquired sequentially (:func:`sequential`): at the end of each cycle from the second on,
+Wald's test on the visits so far (:func:`calflow.xytheta.report.interim.check_test`, H0 the
+reference's own closed-loop check ``results/<reference>/runs/export_<model>.nc``) decides,
+and the rig stops at the first decision — a clear check costs two cycles, not all of them.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import os
 
 import numpy as np
 
@@ -97,12 +103,35 @@ def sensitive_targets(params, count: int, x_um, y_um, theta_deg, drift=DRIFT) ->
     return np.column_stack([xs, ys, q[idx, 2]]), record
 
 
+def sequential(test, plan_cycle: np.ndarray):
+    """A runner (:class:`calflow.plan.Acquisition`) that stops the check at ``test``'s first
+    decision, looked at after each complete cycle (``plan_cycle``: the plan's cycle per row)."""
+    from calflow.acquisition.runner import acquire
+    from calflow.xytheta.report.interim import MIN_CYCLES, visit_errors, visit_groups
+
+    def stop(readings, partial) -> bool:
+        n = len(readings)
+        if n >= len(plan_cycle) or plan_cycle[n] == plan_cycle[n - 1]:
+            return False  # not at the end of a cycle
+        if plan_cycle[n - 1] - plan_cycle.min() + 1 < MIN_CYCLES:
+            return False  # before the first look
+        run = partial()
+        return test.decide(visit_errors(run), visit_groups(run))["decision"] != "undecided"
+
+    def run(plan, rig, meta, journal=None, progress=None, controller=None):
+        return acquire(plan, rig, meta, journal, progress, controller, stop=stop)
+
+    return run
+
+
 def interim_check(c: dict, args) -> Acquisition:
     """``calflow acquire --plan interim_check --export DIR``: the check's targets through the
     bundle of DIR (the reference's export of ``interim_check.model``)."""
+    from calflow.data.io import open_dataset
     from calflow.xytheta.export.compensator import Compensator
     from calflow.xytheta.export.verification import export_plan
     from calflow.xytheta.models.kinematics import Parameters
+    from calflow.xytheta.report.interim import check_test, reference_rms_um
 
     if not getattr(args, "export", None):
         raise CalflowError(
@@ -115,10 +144,18 @@ def interim_check(c: dict, args) -> Acquisition:
         params, check["targets"], ws["x_um"], ws["y_um"], ws["theta_deg"], check["drift"]
     )
     plan, _ = export_plan(args.export, targets, check["cycles"], check["dwell_s"], paths=("bundle",))
+    reference = f"results/{check['reference']}/runs/export_{check['model']}.nc"
+    if not os.path.exists(reference):
+        raise CalflowError(
+            f"calflow acquire --plan interim_check: {reference}: the reference's closed-loop check "
+            "(the sequential test's H0) is missing; run the reference campaign first"
+        )
+    r0 = reference_rms_um(open_dataset(reference, kind="run"))
     return Acquisition(
         dataclasses.replace(plan, name="interim_check"),
         "interim_check",
         check["model"],
+        runner=sequential(check_test(c, r0), plan.cycle),
         attrs={
             "interim_reference": check["reference"],
             "export_paths": "bundle",

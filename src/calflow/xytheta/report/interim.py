@@ -11,6 +11,10 @@ e (:class:`calflow.lifecycle.sprt.SPRT`) with
 at ``alpha`` (false "recalibrate") and ``beta`` (missed "recalibrate"). Beside it the check's
 ISO 9283 AP (max over its targets), which enters the stage's history as its accuracy.
 
+The check is acquired sequentially (:func:`calflow.xytheta.plans.interim.sequential`): the
+test looks at the end of each cycle from the second on (:data:`MIN_CYCLES`), and the rig
+stops at the first decision; the summary repeats the test on the run as acquired.
+
 Rig time: a run's rig time is the span of its time axis (last reading minus first, s of
 virtual rig time on a simulated rig); the check's is its run's, the full calibration's the sum
 over the reference campaign's runs. Their ratio is recorded against the 5 % budget.
@@ -50,6 +54,37 @@ def visit_errors(run: xr.Dataset, mode: int | None = None) -> np.ndarray:
     return np.column_stack([x[keep] - run["target_x"].values[keep], y[keep] - run["target_y"].values[keep]])
 
 
+#: Cycles before the sequential test first looks: ISO 9283's RP needs two visits of every target.
+MIN_CYCLES = 2
+
+
+def visit_groups(run: xr.Dataset) -> np.ndarray:
+    """The look of each visit (pose > 0) of a check run: its cycle, the first
+    :data:`MIN_CYCLES` cycles one look — the test looks at the end of each group."""
+    cycle = np.asarray(run["cycle"].values)[run["pose"].values > 0]
+    return np.maximum(cycle - (cycle.min() if cycle.size else 0), MIN_CYCLES - 1)
+
+
+def reference_rms_um(export_run: xr.Dataset) -> float:
+    """r0 (µm): the rms visit error of the reference's closed-loop check through its bundle."""
+    return float(np.sqrt(np.mean(np.sum(visit_errors(export_run, mode=0) ** 2, axis=1))))
+
+
+def check_test(campaign: dict, r0: float) -> SPRT:
+    """The interim check's SPRT: H0 rms ``r0``, H1 the tolerance, at the check's error rates."""
+    check, name = campaign["interim_check"], campaign["name"]
+    tol = check.get("tolerance_um", campaign.get("tolerance_um"))
+    if tol is None:
+        raise ConfigError(
+            f"campaign {name}: key 'interim_check.tolerance_um': expected a tolerance (µm), "
+            "here or as the campaign's tolerance_um"
+        )
+    try:
+        return SPRT(r0, float(tol), alpha=check["alpha"], beta=check["beta"])
+    except ValueError as exc:
+        raise ConfigError(f"campaign {name}: key 'interim_check.tolerance_um': {exc}") from None
+
+
 def indifference_rms_um(r0: float, r1: float) -> float:
     """The rms error (µm) at which a visit's expected log-likelihood ratio is zero: the SPRT
     drifts to "recalibrate" above it, to "within tolerance" below — √(ln(r1²/r0²) /
@@ -76,19 +111,12 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
         raise CalflowError(f"interim check {name}: --files lacks {missing[0]}")
     run, metrics = _open(own_run), _open(own_metrics)
     ref_runs = [f for f in files if f.startswith(f"results/{ref}/runs/")]
-    tol = check.get("tolerance_um", campaign.get("tolerance_um"))
-    if tol is None:
-        raise ConfigError(
-            f"campaign {name}: key 'interim_check.tolerance_um': expected a tolerance (µm), "
-            "here or as the campaign's tolerance_um"
-        )
-    r0 = float(np.sqrt(np.mean(np.sum(visit_errors(_open(export_run), mode=0) ** 2, axis=1))))
-    try:
-        test = SPRT(r0, float(tol), alpha=check["alpha"], beta=check["beta"])
-    except ValueError as exc:
-        raise ConfigError(f"campaign {name}: key 'interim_check.tolerance_um': {exc}") from None
+    r0 = reference_rms_um(_open(export_run))
+    test = check_test(campaign, r0)
+    tol = test.r1_um
     errors = visit_errors(run)
-    decision = test.decide(errors)
+    cycles = int(run.attrs.get("export_cycles", check["cycles"]))
+    decision = test.decide(errors, visit_groups(run), planned=int(metrics.sizes["target"]) * cycles)
     own_time = rig_time_s(run)
     ref_time = float(sum(rig_time_s(_open(f)) for f in ref_runs))
     ratio = own_time / ref_time if ref_time > 0 else None
@@ -96,7 +124,8 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
         "reference": ref,
         "model": model,
         "targets": int(metrics.sizes["target"]),
-        "cycles": int(run.attrs.get("export_cycles", check["cycles"])),
+        "cycles": cycles,
+        "cycles_acquired": int(np.unique(run["cycle"].values[run["pose"].values > 0]).size),
         "tolerance_um": float(tol),
         "alpha": float(check["alpha"]),
         "beta": float(check["beta"]),

@@ -31,3 +31,9 @@ def interim_export(w):
     """The reference's export manifest: the bundle the stage runs."""
     ref = CAMPAIGN[w.campaign]["interim_check"]["reference"]
     return f"results/{ref}/export/manifest.json"
+
+
+def interim_reference_run(w):
+    """The reference's closed-loop check of that bundle: the sequential test's H0."""
+    check = CAMPAIGN[w.campaign]["interim_check"]
+    return f"results/{check['reference']}/runs/export_{check['model']}.nc"

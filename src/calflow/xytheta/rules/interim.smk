@@ -6,6 +6,7 @@
 rule acquire_interim_check:
     input:
         manifest=interim_export,
+        reference_run=interim_reference_run,
     output:
         run="results/{campaign}/runs/interim_check.nc",
         truth="results/{campaign}/truth/interim_check.json",
