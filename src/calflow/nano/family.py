@@ -70,6 +70,7 @@ FAMILY = Family(
         "metrics": f"{_C}:metrics",
         "summarise": f"{_C}:summarise",
         "figures": "calflow.nano.report.figures:build",
+        "check": "calflow.nano.checks:check_campaign",
     },
     templates="calflow.nano.report",
     schemas="calflow.nano",
