@@ -8,12 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given
+from hypothesis import strategies as st
 
 from calflow.config import load_campaign
 from calflow.errors import ConfigError, OptionError
 from calflow.lifecycle import history
+from calflow.nano.checks import check_campaign
 from calflow.nano.models.geometric import GeometricModel
-from calflow.nano.stage.aging import DEFAULT_SINCE, check
+from calflow.nano.stage.aging import DEFAULT_SINCE, check, piezo_loss_pct
 from calflow.nano.stage.aging import resolve as _resolve
 from calflow.nano.stage.error_budget import rig_from_truth
 from calflow.nano.stage.options import _COMMON
@@ -68,6 +71,19 @@ def test_a_year_on_the_gain_is_lower_by_the_documented_ageing():
     assert (
         old.true_position(400.0, 0.0)["meas_y"] == young.true_position(400.0, 0.0)["meas_y"]
     )  # across: no gain
+
+
+@given(
+    rate=st.floats(0.0, 5.0),
+    poled=st.floats(1.0, 1e4),
+    days=st.floats(0.0, 1e5),
+    more=st.floats(0.0, 1e5),
+)
+def test_piezo_loss_is_logarithmic_since_poling(rate, poled, days, more):
+    assert piezo_loss_pct(0.0, rate, poled) == 0.0
+    assert piezo_loss_pct(9.0 * poled, rate, poled) == pytest.approx(rate, rel=1e-9, abs=1e-12)  # one decade
+    assert piezo_loss_pct(days + more, rate, poled) >= piezo_loss_pct(days, rate, poled) - 1e-12
+    assert piezo_loss_pct(-days, rate, poled) == 0.0  # before commissioning: the commissioned stage
 
 
 def test_sensor_drift_moves_the_on_axis_zero_by_its_rate():
@@ -197,6 +213,18 @@ def test_bad_ageing_refused_in_one_line_naming_the_field(tmp_path, aging, key):
         load_campaign(_campaign(tmp_path, {"aging": aging}))
     msg = str(err.value)
     assert "\n" not in msg and f"'{key}'" in msg and "stage1d-aged.yaml" in msg
+
+
+def test_the_world_behind_an_emulated_controller_ages_too(tmp_path):
+    sensor = {"factory": "simulated_interferometer", "options": {"aging": {"seasonal_degC": 0}}}
+    c = {"robot": "stage2d", "start": YEAR_LATER, "rig": {"factory": "gcs", "options": {"sensor": sensor}}}
+    check_campaign(c, tmp_path / "gcs.yaml")
+    aged = c["rig"]["options"]["sensor"]["options"]
+    assert aged == resolve({"aging": {"seasonal_degC": 0}}, YEAR_LATER, Nano2DRig) and aged["gain_pct"] < 0
+    bad = {"factory": "simulated_interferometer", "options": {"aging": {"since": "soon"}}}
+    c["rig"]["options"]["sensor"] = bad
+    with pytest.raises(ConfigError, match=r"gcs\.yaml: key 'rig\.options\.sensor\.options\.aging\.since'"):
+        check_campaign(c, tmp_path / "gcs.yaml")
 
 
 def test_ageing_per_run_refused(tmp_path):

@@ -7,7 +7,8 @@ resolves it, for the campaign's ``start``, into the rig's options (:func:`resolv
 by :func:`calflow.nano.checks.check_campaign`); every consumer of the options (the rig, the
 error budget's replays of the rig's truth, the designed plans) then sees the same aged
 stage. Ageing is constant within a campaign (a campaign lasts days, ageing takes months).
-Time Δt in days since ``since`` (an earlier campaign sees the commissioned stage).
+Time Δt in days since ``since`` (an earlier campaign sees the commissioned stage, in
+its season).
 
 Each effect, where its law and size come from, and the rig option it moves:
 
