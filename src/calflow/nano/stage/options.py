@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from calflow.errors import OptionError, UnknownOptionError
+from calflow.nano.stage.aging import check as check_aging
 from calflow.nano.stage.unseen.options import UNSEEN, UNSEEN_EFFECTS, UNSEEN_NON_NEGATIVE, UNSEEN_POSITIVE
 
 _DAY = 86400.0
@@ -48,6 +49,8 @@ _COMMON = {
     "step_natural_hz": 100.0,  # closed-loop step response: natural frequency (0: ideal step) ...
     "step_damping": 0.7,  # ... and damping ratio: ~4.6 % overshoot, within 2 % in ~9 ms (docs/rigs.md)
     "geometric_scale": 1.0,  # multiplies the geometric errors (Fig. 5.1)
+    "gain_pct": 0.0,  # change of the stage's gain along each axis (ageing: calflow.nano.stage.aging)
+    "offset_nm": (0.0, 0.0),  # shift of each sensor's zero (ageing: sensor drift, a re-mount)
     "stroke_margin_um": 5.0,  # commands may exceed the stroke by this much
     # thermal network (calflow.nano.stage.thermal_network) and expansion
     "stage_capacity_j_per_k": 270.0,  # ~0.3 kg of aluminium
@@ -112,7 +115,7 @@ _NON_NEGATIVE = (
 # nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials in the
 # position, linear in the thermocouples, an offset). docs/rigs.md has the sources.
 EFFECTS = {
-    "geometry": ("geometric_scale",),
+    "geometry": ("geometric_scale", "gain_pct", "offset_nm"),
     "coupling": ("coupling_y_nm", "coupling_scale"),
     "sensor_nonlinearity": ("sensor_linearity_pct",),
     "hysteresis": ("hysteresis_nm",),
@@ -252,7 +255,11 @@ def _coerce(rig, key, value, default):
 
 def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> dict:
     """The options of nano rig ``name`` (``defaults`` are its own), checked and converted;
-    raises :class:`~calflow.errors.OptionError` naming the option."""
+    raises :class:`~calflow.errors.OptionError` naming the option. ``aging`` is checked
+    and dropped: the campaign loader resolves it for the campaign's start (:mod:`.aging`)."""
+    if "aging" in options:
+        options = dict(options)
+        check_aging(options.pop("aging"))
     for key in options:
         if key not in defaults:
             raise UnknownOptionError(key, f"expected one of: {', '.join(sorted(defaults))}")
@@ -263,6 +270,10 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
         raise OptionError(
             "stage_coeff_um_per_c", f"{n_sensors} values, one per sensor", o["stage_coeff_um_per_c"]
         )
+    if len(o["offset_nm"]) != n_sensors:
+        raise OptionError("offset_nm", f"{n_sensors} values, one per sensor", o["offset_nm"])
+    if not o["gain_pct"] > -100.0:
+        raise OptionError("gain_pct", "a change of the gain > -100 %", o["gain_pct"])
     n_tc = len(o["thermocouple_tau_s"])
     for key in ("thermocouple_air_weight", "thermocouple_offset_c"):
         if len(o[key]) != n_tc:

@@ -35,6 +35,7 @@ from calflow.rigs.servo import closed_loop_step  # noqa: F401 (the closed loop's
 __all__ = [
     "PlayHysteresis",
     "closed_loop_step",
+    "gain_offset_um",
     "residual_creep_um",
     "sensor_nonlinearity_um",
     "loop_residual_pct",
@@ -102,3 +103,10 @@ def sensor_nonlinearity_um(s, stroke_um: float, linearity_pct: float):
     dev = 1.0 / (1.0 + s) - (1.0 - 0.5 * s)  # deviation from the chord, <= 0, peak at s = sqrt(2) - 1
     peak = 1.0 / (1.0 + (np.sqrt(2.0) - 1.0)) - (1.0 - 0.5 * (np.sqrt(2.0) - 1.0))
     return linearity_pct * 1e-2 * stroke_um * dev / abs(peak)
+
+
+def gain_offset_um(x, gain_pct: float, offset_nm: float):
+    """What an aged stage adds to a reading (um) at command ``x`` (um): its change of gain,
+    ``gain_pct`` % of the command, and the shift of its zero ``offset_nm``
+    (:mod:`calflow.nano.stage.aging`). ``x`` a float or an array; +0.0 for an unaged stage."""
+    return gain_pct * 1e-2 * x + offset_nm * 1e-3

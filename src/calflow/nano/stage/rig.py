@@ -41,6 +41,7 @@ from calflow.nano.stage.options import _COMMON, EFFECTS, NOISE, _Walk, check_opt
 from calflow.nano.stage.piezo import (
     PlayHysteresis,
     closed_loop_step,
+    gain_offset_um,
     loop_residual_pct,
     residual_creep_um,
     sensor_nonlinearity_um,
@@ -206,7 +207,8 @@ class _NanoRig(HighRateRecords, RigTruth):
             x = cmds[axis] if axis is not None else zero
             s = x / L
             on_axis = axis is not None
-            out["geometry"].append(geo["geometry"][k] + zero)
+            aged = gain_offset_um(x, o["gain_pct"], o["offset_nm"][k])  # +0.0 unaged
+            out["geometry"].append(geo["geometry"][k] + aged + zero)
             out["coupling"].append(geo["coupling"][k] + zero)
             out["sensor_nonlinearity"].append(
                 sensor_nonlinearity_um(s, L, o["sensor_linearity_pct"]) + zero if on_axis else zero

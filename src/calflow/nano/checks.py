@@ -1,0 +1,44 @@
+"""Checks of a nano campaign beyond its JSON Schema: the simulated stage as it has aged."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from calflow.errors import ConfigError, OptionError
+
+_SENSOR = "simulated_interferometer"  # the simulated world behind an emulated GCS controller
+
+
+def check_campaign(campaign: dict, path: Path) -> None:
+    """Resolve ``aging`` of a simulated stage (``rig.options``, or the options of a ``gcs``
+    rig's ``simulated_interferometer`` sensor) for the campaign's ``start`` into the rig's
+    options (:func:`calflow.nano.stage.aging.resolve`), once, here: the rig, the error
+    budget's replays and the designed plans all read these options. Raises
+    :class:`ConfigError` naming the file and key."""
+    rig = campaign["rig"]
+    for run, extra in (rig.get("runs") or {}).items():
+        if "aging" in (extra or {}):
+            raise ConfigError(
+                f"{path}: key 'rig.runs.{run}.aging': expected ageing in rig.options only "
+                "(a stage ages once per campaign, not per run)"
+            )
+    options = rig.get("options") or {}
+    sensor = options.get("sensor") if isinstance(options.get("sensor"), dict) else {}
+    if rig["factory"] == "simulated":
+        holder, key, where = rig, "options", "rig.options"
+    elif rig["factory"] == "gcs" and sensor.get("factory") == _SENSOR:
+        holder, key, where = sensor, "options", "rig.options.sensor.options"
+        options = sensor.get("options") or {}
+    else:
+        return
+    from calflow.nano.stage.aging import resolve
+    from calflow.nano.stage.options import _COMMON
+    from calflow.nano.stage.rig import Nano1DRig, Nano2DRig
+
+    cls = {"stage1d": Nano1DRig, "stage2d": Nano2DRig}[campaign["robot"]]
+    try:
+        aged = resolve(options, campaign["start"], {**_COMMON, **cls._EXTRA}, cls._AXIS)
+    except OptionError as exc:
+        raise ConfigError(exc.at(path, where)) from None
+    if aged != options:
+        holder[key] = aged
