@@ -12,9 +12,10 @@ import pytest
 import xarray as xr
 from markupsafe import escape
 
-from calflow import reference
+from calflow.nano.report.reference import STAGE1D, STAGE2D
 from calflow.report import render_campaign, render_index, write_pdf
 from calflow.report.render import num, render_campaign_pages, sig
+from calflow.xytheta.report.reference import XYTHETA
 
 EVIL = "Stage <script>alert('x')</script> & friends"
 ISO230_KEYS = ("A", "A_fwd", "A_bwd", "E", "E_fwd", "E_bwd", "R", "R_fwd", "R_bwd", "M", "B", "B_mean")
@@ -301,7 +302,7 @@ def xytheta_pages(tmp_path_factory, strict):
         "seed": 7,
         "rig": "simulated",
         "models": {name: _xy_model_entry(k, free) for k, (name, (free, _, _)) in enumerate(MODELS.items())},
-        "reference": copy.deepcopy(reference.of("xytheta")),
+        "reference": copy.deepcopy(XYTHETA),
         "inputs": _inputs(files),
         "characterisation": {
             "x_stage_angle": -2.31,
@@ -559,7 +560,7 @@ def _nano(tmp_path_factory, robot):
                 },
             ],
         },
-        "reference": copy.deepcopy(reference.of(robot)),
+        "reference": copy.deepcopy({"stage1d": STAGE1D, "stage2d": STAGE2D}[robot]),
         "inputs": _inputs(files),
         "tests": tests,
         "robustness": {
