@@ -174,6 +174,8 @@ def entry(results: Path, reports: Path, name: str, campaign_dir: Path | None = N
             summary = json.loads(summary_path.read_text())
         except (OSError, ValueError) as exc:
             summary, failed = None, (f"summary.json does not parse: {exc}", summary_time)
+        if summary is not None and not isinstance(summary, dict):
+            summary, failed = None, ("summary.json: expected a mapping of keys", summary_time)
         if summary is not None:
             row.update(summary=summary, robot=summary.get("robot"), rig=summary.get("rig"))
             row["stage"] = summary.get("stage") or row["stage"]
