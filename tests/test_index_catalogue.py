@@ -183,7 +183,7 @@ def test_only_a_campaign_that_declares_a_reference_shows_one_labelled_with_its_s
     assert 'class="ref"' not in mine and "num ref" not in mine and "Tan" not in mine and "350" not in mine
     assert STAGE1D["source"] in theirs and "≈ 350" in theirs and 'class="ref"' in theirs
     row = html[html.index('data-campaign="nano1d-thesis" data-status') :].split("</tr>")[0]
-    assert "350.000 nm in " + STAGE1D["source"] in row
+    assert STAGE1D["source"] + ": 350.000 nm" in row
     row = html[html.index('data-campaign="recorded-iso230" data-status') :].split("</tr>")[0]
     assert "Tan" not in row and 'class="ref"' not in row
 
@@ -217,3 +217,33 @@ def test_a_broken_summary_shows_as_failed(tmp_path, monkeypatch, bad):
     (tmp_path / "results" / "c" / "summary.json").write_text(bad)
     html = index(tmp_path, monkeypatch)
     assert rows(html) == [("c", "failed")] and "summary.json" in html
+
+
+def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(tmp_path):
+    """The workflow end to end on two recorded campaigns (seconds each): the second run's index
+    lists the first run's campaign too, a dry run after it has nothing to do, and a campaign
+    whose results are deleted leaves the index rebuilt by hand."""
+    import shutil
+    import subprocess
+
+    from conftest import BIN, ROOT, make_workdir, snakemake
+
+    names = ("recorded-iso230", "recorded-tracker")
+    work = make_workdir(
+        tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names}
+    )
+    shutil.copytree(ROOT / "tests" / "data" / "recordings", work / "tests" / "data" / "recordings")
+    for name in names:
+        proc = snakemake(work, "--config", f'campaigns=["{name}"]')
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    html = (work / "reports" / "index.html").read_text()
+    assert sorted(c for c, _ in rows(html)) == sorted(names) and all(s == "done" for _, s in rows(html))
+    assert "Tan," not in html and 'class="ref"' not in html  # a lab's own axes: no thesis beside them
+    for name in names:
+        report = (work / "reports" / name / "report.html").read_text()
+        assert 'class="num ref"' not in report and "Fig. 5.18, Table 5.2" not in report
+    dry = snakemake(work, "--config", f'campaigns=["{names[1]}"]', "-n")
+    assert "Nothing to be done" in dry.stdout + dry.stderr
+    shutil.rmtree(work / "results" / names[0])
+    subprocess.run([str(BIN / "calflow"), "index"], cwd=work, check=True, capture_output=True)
+    assert [c for c, _ in rows((work / "reports" / "index.html").read_text())] == [names[1]]

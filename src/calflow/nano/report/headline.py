@@ -5,6 +5,8 @@ or the training run's AP."""
 
 from __future__ import annotations
 
+from calflow.family import modes
+
 
 def headline(summary: dict) -> dict | None:
     """``{"label", "key", "unit"}`` of the campaign's headline, or None when it has none."""
@@ -17,7 +19,7 @@ def headline(summary: dict) -> dict | None:
     if calibrated:
         best = min(calibrated, key=calibrated.get)
         return {
-            "label": f"max AP, {best.replace('_', ' ')}",
+            "label": f"max AP, {modes().get(best, best.replace('_', ' '))}",
             "key": f"tests.{best}.max_accuracy_nm",
             "unit": "nm",
         }
