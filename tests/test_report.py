@@ -640,7 +640,16 @@ def _nano(tmp_path_factory, robot):
         }
         summary["iso230_2"] = {f"{k}_nm": 100.0 + j for j, k in enumerate(ISO230_KEYS)}
         summary["iso230_2"].update(cycles_forward=4, cycles_backward=4, excluded_targets_um=[])
-    html = render_campaign(summary, {"name": "t", "robot": robot}, CAMPAIGN_CMD, files)
+    html = render_campaign(
+        summary,
+        {
+            "name": "t",
+            "robot": robot,
+            "reference": {"stage1d": "thesis-sec5.3", "stage2d": "thesis-sec5.4"}[robot],
+        },
+        CAMPAIGN_CMD,
+        files,
+    )
     return summary, files, html
 
 

@@ -207,8 +207,10 @@ def render_campaign_pages(
     finally:
         RASTER.reset(token)
     template = environment().get_template(f"{summary['robot']}.html.j2")
+    declared = campaign.get("reference")
     context = dict(
         s=summary,
+        reference_name=declared if isinstance(declared, str) else None,  # a family's named set
         notes=notes,
         prov=_provenance(summary, campaign, command, files or []),
         css=(TEMPLATES / "style.css").read_text(),
