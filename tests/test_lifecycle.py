@@ -174,3 +174,25 @@ def test_sprt_error_rates(truth, limit):
 def test_sprt_refuses_tolerance_below_reference():
     with pytest.raises(ValueError, match="tolerance"):
         SPRT(r0_um=3.0, r1_um=2.0)
+
+
+def test_due_date_gives_interim_checks_their_own_offset():
+    """Checks read 1.5 µm above the held-out AP (their targets sit where errors are largest):
+    the fit recovers the offset and the slope, and predicts the held-out AP's crossing —
+    a fit that mixed the two would cross earlier."""
+    days = np.array([0, 45, 90, 135, 180, 225, 270])
+    checks = np.array([False, True, False, True, True, False, True])
+    ap = 2.0 + 0.01 * days + 1.5 * checks + np.array([0, 1e-3, -1e-3, 0, 1e-3, 0, -1e-3])
+    r = due.due_date(_dates(days), ap.tolist(), [0] * days.size, 6.0, checks=checks.tolist())
+    assert r["fit"]["checks"] == 4 and r["fit"]["dof"] == days.size - 3
+    assert r["fit"]["check_offset_um"] == pytest.approx(1.5, abs=0.01)
+    assert r["fit"]["slope_um_per_day"] == pytest.approx(0.01, rel=0.01)
+    assert 385 < (dt.date.fromisoformat(r["date"]) - dt.date(2026, 1, 1)).days <= 400  # true: day 400
+    mixed = due.due_date(_dates(days), ap.tolist(), [0] * days.size, 6.0)
+    assert dt.date.fromisoformat(mixed["date"]) < dt.date.fromisoformat(r["date"])
+
+
+def test_due_date_offset_costs_a_degree_of_freedom():
+    r = due.due_date(_dates([0, 90, 180, 270]), [2.0, 3.0, 2.5, 3.6], [0] * 4, 5.0, checks=[0, 1, 0, 1])
+    assert r["date"] is None and r["fit"]["dof"] == 1
+    assert "interim checks, given an offset of their own" in r["statement"]

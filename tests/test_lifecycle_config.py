@@ -73,3 +73,20 @@ def test_stage_and_tolerance_accepted(tmp_path):
     path.write_text(yaml.safe_dump(data))
     c = load_campaign(path)
     assert c["stage"] == "SN-0042" and c["tolerance_um"] == 5
+
+
+def test_routine_calibration_leaves_out_the_study_and_the_reference_targets():
+    """The stage demo's calibrations: observability.study false and validation.targets []
+    drop those files from the campaign (and their runs from its rig time); the defaults keep them."""
+    from calflow.xytheta.plans.workflow import WORKFLOW
+
+    routine = load_campaign(ROOT / "config/campaigns/demo-sn0042-2026-01.yaml")
+    files = WORKFLOW.results_of(routine)
+    assert not any(f.endswith("observability.nc") or "validation_III" in f for f in files)
+    assert any(f.endswith("validation_heldout_III.nc") for f in files)
+    assert not any("/runs/validation_III" in f for f in WORKFLOW.all_runs(routine))
+    full = load_campaign(ROOT / "config/campaigns/xytheta-thesis.yaml")
+    assert full["observability"]["study"] is True and "targets" not in full["validation"]
+    files = WORKFLOW.results_of(full)
+    assert any(f.endswith("observability.nc") for f in files)
+    assert any(f.endswith("metrics/validation_III.nc") for f in files)

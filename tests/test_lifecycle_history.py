@@ -75,6 +75,40 @@ def test_history_flags_the_remount_not_the_recalibration():
     json.dumps(h)  # plain JSON
 
 
+def check(name, start, decision, ap, reference="a"):
+    return (
+        camp(name, start),
+        {"interim_check": {"model": "II", "accuracy_um": ap, "decision": decision, "reference": reference}},
+    )
+
+
+def test_segment_starts_at_the_recalibrate_check_the_next_calibration_confirms():
+    """A re-mount seen first by an interim check: the new level starts at that check, not at
+    the calibration that confirmed it; the charts' limits are the calibrations' alone."""
+    pairs = [
+        (camp("a", "2026-01-05T08:00:00+00:00"), xy_summary(9572.9, 177.689, 2.0)),
+        check("a-apr", "2026-04-05T08:00:00+00:00", "within tolerance", 2.4),
+        check("a-jul", "2026-07-02T08:00:00+00:00", "recalibrate", 9.0),
+        (camp("c", "2026-07-05T08:00:00+00:00"), xy_summary(9592.9, 177.709, 2.6)),
+    ]
+    h = build("S1", pairs)
+    assert h["changes"][0]["models"]["II"]["significant"]
+    assert h["segments"] == [0, 0, 1, 1]
+    assert h["charts"]["accuracy_um"]["II"]["campaigns"] == ["a", "c"]
+
+
+def test_unconfirmed_recalibrate_check_stays_on_the_trend():
+    pairs = [
+        (camp("a", "2026-01-05T08:00:00+00:00"), xy_summary(9572.9, 177.689, 2.0)),
+        check("a-jul", "2026-07-02T08:00:00+00:00", "recalibrate", 5.0),
+        (camp("b", "2026-07-05T08:00:00+00:00"), xy_summary(9573.3, 177.6905, 2.1)),
+        check("b-oct", "2026-10-02T08:00:00+00:00", "recalibrate", 5.0, reference="b"),
+    ]
+    h = build("S1", pairs)
+    assert not h["changes"][0]["models"]["II"]["significant"]
+    assert h["segments"] == [0, 0, 0, 0]
+
+
 def test_history_report_ties_numbers_to_history(tmp_path):
     from calflow.data.io import jsonable
     from calflow.lifecycle.report import render

@@ -7,7 +7,10 @@ one-sided upper prediction bound of the next value, at the end-of-period reliabi
 target R, reaches the tolerance. The regression is ordinary least squares
 (``statsmodels`` OLS, ``get_prediction().summary_frame``), with one intercept per segment
 of the history between detected changes (a re-mount resets the level, the wear rate
-carries on) and one common slope in µm/day.
+carries on) and one common slope in µm/day. Interim checks measure AP on their own few
+targets (chosen where the drifts show most), not on the held-out targets: when the series
+holds both kinds, the fit gives the checks one offset of their own (a column that is 1 for
+a check), and the prediction is of the held-out AP, the quantity the tolerance is stated for.
 
 The prediction interval needs residual degrees of freedom: with fewer than
 ``min_dof`` (2) after the segment intercepts and the slope, there is "not enough history",
@@ -39,43 +42,62 @@ def due_date(
     reliability: float = 0.95,
     horizon_days: float = 3 * 365.0,
     min_dof: int = 2,
+    checks: list[bool] | None = None,
 ) -> dict:
-    """``{date, days_after_last, statement, fit: {slope_um_per_day, dof, n}}`` for the series
-    (ISO dates, AP in µm, segment index per point, increasing); the prediction is for the
-    last segment. ``date`` is None with the reason in ``statement`` when it cannot be told."""
+    """``{date, days_after_last, statement, fit: {slope_um_per_day, dof, n, checks}}`` for the
+    series (ISO dates, AP in µm, segment index per point, increasing; ``checks`` marks the
+    interim checks' values); the prediction is of a calibration's held-out AP in the last
+    segment. ``date`` is None with the reason in ``statement`` when it cannot be told."""
     import statsmodels.api as sm
 
     t0 = parse(min(starts, key=parse))
     days = np.array([(parse(s) - t0).total_seconds() / 86400.0 for s in starts])
     y = np.asarray(ap_um, float)
     seg = np.asarray(segments, int)
+    chk = np.zeros(len(y), bool) if checks is None else np.asarray(checks, bool)
     order = np.argsort(days, kind="stable")
-    days, y, seg = days[order], y[order], seg[order]
+    days, y, seg, chk = days[order], y[order], seg[order], chk[order]
     labels = sorted(set(seg.tolist()))
     last = labels[-1] if labels else 0
-    dof = len(y) - len(labels) - 1
+    offset = bool(chk.any() and (~chk).any())  # both kinds: the checks' own offset
+    dof = len(y) - len(labels) - 1 - offset
     base = {
         "date": None,
         "days_after_last": None,
         "reliability": reliability,
-        "fit": {"n": int(len(y)), "segments": len(labels), "dof": int(max(dof, 0)), "slope_um_per_day": None},
+        "fit": {
+            "n": int(len(y)),
+            "checks": int(chk.sum()),
+            "segments": len(labels),
+            "dof": int(max(dof, 0)),
+            "slope_um_per_day": None,
+        },
     }
     if dof < min_dof:
+        kinds = f" ({int(chk.sum())} of them interim checks, given an offset of their own)" if offset else ""
         return {
             **base,
             "statement": (
-                f"not enough history: {len(y)} values in {len(labels)} segment(s) leave "
+                f"not enough history: {len(y)} values{kinds} in {len(labels)} segment(s) leave "
                 f"{max(dof, 0)} residual degrees of freedom, at least {min_dof} are needed "
                 "for a prediction interval"
             ),
         }
-    X = np.column_stack([(seg == k).astype(float) for k in labels] + [days])
+    X = np.column_stack(
+        [(seg == k).astype(float) for k in labels] + ([chk.astype(float)] if offset else []) + [days]
+    )
     fit = sm.OLS(y, X).fit()
+    if offset:
+        base["fit"]["check_offset_um"] = float(fit.params[-2])
     slope = float(fit.params[-1])
     base["fit"]["slope_um_per_day"] = slope
     base["fit"]["slope_std"] = float(fit.bse[-1])
     grid = days[-1] + np.arange(0.0, horizon_days + 1.0, 1.0)
-    Xg = np.column_stack([np.full_like(grid, 1.0 if k == last else 0.0) for k in labels] + [grid])
+    Xg = np.column_stack(
+        [np.full_like(grid, 1.0 if k == last else 0.0) for k in labels]
+        + ([np.zeros_like(grid)] if offset else [])
+        + [grid]
+    )
     frame = fit.get_prediction(Xg).summary_frame(alpha=2 * (1 - reliability))
     upper = frame["obs_ci_upper"].to_numpy()
     hit = np.flatnonzero(upper >= tolerance_um)

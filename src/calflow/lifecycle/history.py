@@ -58,12 +58,27 @@ def estimate(model: dict) -> change.Estimate:
 
 
 def _segments(entries: list[dict], changes: list[dict]) -> list[int]:
-    """Segment index of every entry: it increases at each calibration flagged as changed."""
+    """Segment index of every entry: a new segment starts where a detected change shows first.
+
+    A change is detected at a calibration flagged by the change test; it shows first at the
+    earliest interim check since the calibration before that decided "recalibrate" (the
+    check saw the step the calibration confirmed), else at the flagged calibration itself. A
+    "recalibrate" check that no flagged calibration confirms (the stage drifted, or no
+    calibration came yet) starts nothing: its value stays on the segment's trend.
+    """
     flagged = {c["to"] for c in changes if any(m["significant"] for m in c["models"].values())}
+    starts: set[int] = set()
+    first_alarm = None  # the earliest "recalibrate" check since the last calibration
+    for i, e in enumerate(entries):
+        if e["kind"] == "calibration":
+            if e["campaign"] in flagged:
+                starts.add(first_alarm if first_alarm is not None else i)
+            first_alarm = None
+        elif e.get("decision") == "recalibrate" and first_alarm is None:
+            first_alarm = i
     seg, out = 0, []
-    for e in entries:
-        if e["kind"] == "calibration" and e["campaign"] in flagged:
-            seg += 1
+    for i in range(len(entries)):
+        seg += i in starts
         out.append(seg)
     return out
 
@@ -110,8 +125,12 @@ def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = No
 def _charts(entries: list[dict]) -> dict:
     acc: dict = {}
     models = sorted({m for e in entries for m in e["models"]})
-    for m in models:
-        pts = [(e["campaign"], e["models"][m].get("accuracy_um")) for e in entries if m in e["models"]]
+    for m in models:  # the calibrations' held-out AP: an interim check's AP is on its own targets
+        pts = [
+            (e["campaign"], e["models"][m].get("accuracy_um"))
+            for e in entries
+            if m in e["models"] and e["kind"] == "calibration"
+        ]
         pts = [(c, a) for c, a in pts if isinstance(a, (int, float)) and np.isfinite(a)]
         acc[m] = {
             "campaigns": [c for c, _ in pts],
@@ -146,7 +165,7 @@ def _due(entries, segments, model, tol, s) -> dict:
             "statement": "no tolerance stated (tolerance_um in the stage's settings or a campaign)",
         }
     pts = [
-        (e["start"], e["models"][model].get("accuracy_um"), g)
+        (e["start"], e["models"][model].get("accuracy_um"), g, e["kind"] == "interim")
         for e, g in zip(entries, segments)
         if model in e["models"]
     ]
@@ -154,6 +173,11 @@ def _due(entries, segments, model, tol, s) -> dict:
     if not pts:
         return {**out, "statement": f"not enough history: no accuracy of model {model}"}
     res = due.due_date(
-        [p[0] for p in pts], [p[1] for p in pts], [p[2] for p in pts], tol, reliability=s["reliability"]
+        [p[0] for p in pts],
+        [p[1] for p in pts],
+        [p[2] for p in pts],
+        tol,
+        reliability=s["reliability"],
+        checks=[p[3] for p in pts],
     )
     return {**out, **res}

@@ -28,6 +28,10 @@ def _label(p: str) -> str:
     return p.replace("_", " ")
 
 
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v
+
+
 def _dates(history: dict, names: list[str]) -> list:
     start = {c["campaign"]: parse(c["start"]) for c in history["campaigns"]}
     return [start[n] for n in names]
@@ -41,26 +45,28 @@ def accuracy_figure(history: dict) -> common.Figure:
     charts = history["charts"]["accuracy_um"]
     due = history["due"]
     for i, (m, ch) in enumerate(sorted(charts.items())):
-        dates = _dates(history, ch["campaigns"])
-        vals = [
-            next(c["models"][m]["accuracy_um"] for c in history["campaigns"] if c["campaign"] == n)
-            for n in ch["campaigns"]
-        ]
-        kinds = [next(c["kind"] for c in history["campaigns"] if c["campaign"] == n) for n in ch["campaigns"]]
         color = common.COLORS.get(m, COLORS[i % len(COLORS)])
-        ax.plot(dates, vals, "-", color=color, lw=0.8, label=f"model {m}")
+        cal = [c for c in history["campaigns"] if c["campaign"] in ch["campaigns"]]
         ax.plot(
-            [d for d, k in zip(dates, kinds) if k == "calibration"],
-            [v for v, k in zip(vals, kinds) if k == "calibration"],
-            "o",
+            [parse(c["start"]) for c in cal],
+            [c["models"][m]["accuracy_um"] for c in cal],
+            "o-",
             color=color,
+            lw=0.8,
+            label=f"model {m}",
         )
+        checks = [
+            c
+            for c in history["campaigns"]
+            if c["kind"] == "interim" and _number(c["models"].get(m, {}).get("accuracy_um"))
+        ]
         ax.plot(
-            [d for d, k in zip(dates, kinds) if k == "interim"],
-            [v for v, k in zip(vals, kinds) if k == "interim"],
+            [parse(c["start"]) for c in checks],
+            [c["models"][m]["accuracy_um"] for c in checks],
             "s",
             mfc="none",
             color=color,
+            label=f"model {m}, interim checks" if checks else None,
         )
         if m == due.get("model") and ch["individuals"]["ucl"] is not None:
             ax.axhline(ch["individuals"]["ucl"], color=color, ls=":", lw=0.8, label=f"model {m} UCL")
@@ -89,9 +95,11 @@ def accuracy_figure(history: dict) -> common.Figure:
         fig,
         "fig-accuracy",
         "history",
-        "Held-out accuracy AP of each model at each calibration (filled) and interim check "
-        "(open), the due model's upper Shewhart limit, its trend with the upper prediction bound, "
-        "the tolerance and the due date.",
+        "Held-out accuracy AP of each model at each calibration (filled, joined) and the AP of each "
+        "interim check on its own targets (open squares, not joined: another set of targets), the "
+        "due model's upper Shewhart limit from the calibrations, its trend with the upper "
+        "prediction bound (the checks fitted with an offset of their own), the tolerance and the "
+        "due date.",
         "",
     )
 

@@ -34,7 +34,8 @@ class XYThetaWorkflow(FamilyWorkflow):
         reference-target validation and export runs of each model."""
         base = f"results/{c['name']}"
         runs = {f for f in self.results_of(c) if f.startswith(f"{base}/runs/")}
-        runs.update(f"{base}/runs/{k}_{m}.nc" for m in self.models(c) for k in ("validation", "export"))
+        kinds = ("export",) if c["validation"].get("targets") == [] else ("validation", "export")
+        runs.update(f"{base}/runs/{k}_{m}.nc" for m in self.models(c) for k in kinds)
         tests = c["xy_tests"]["compensation"]
         runs.update(f"{base}/runs/{t}_{k}.nc" for t in ("square", "random_points") for k in tests)
         return sorted(runs)
@@ -47,12 +48,14 @@ class XYThetaWorkflow(FamilyWorkflow):
         base = f"results/{c['name']}"
         models = self.models(c)
         files = [f"{base}/models/{m}.nc" for m in models]
-        files += [f"{base}/metrics/validation_{m}.nc" for m in models]
+        if c["validation"].get("targets") != []:  # [] : held-out validation only
+            files += [f"{base}/metrics/validation_{m}.nc" for m in models]
         files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
         files += [f"{base}/runs/validation_heldout_{m}.nc" for m in models]
         files.append(f"{base}/runs/identification.nc")
         files += [f"{base}/runs/angle_residuals_{s['base']}.nc" for s in c["models"].values() if "base" in s]
-        files.append(f"{base}/metrics/observability.nc")
+        if c["observability"]["study"]:
+            files.append(f"{base}/metrics/observability.nc")
         if "design_study" in c:  # opt-in
             files.append(f"{base}/metrics/design_study.nc")
         tests = c["xy_tests"]["compensation"]
