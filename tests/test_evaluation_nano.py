@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from calflow import reference
 from calflow.errors import DataError
 from calflow.metrics import iso230_2
 from calflow.nano.evaluation import (
@@ -19,6 +18,7 @@ from calflow.nano.evaluation import (
     pose_metrics_2d,
     temperature_range,
 )
+from calflow.nano.report.reference import STAGE1D
 from calflow.nano.report.summary import stage1d_summary, stage2d_summary
 from calflow.nano.robustness import robustness_by_mode
 
@@ -268,7 +268,9 @@ def test_pose_metrics_2d_and_summary(tmp_path):
         {"name": "t2"}, m, {"single": {"a_1x": np.float64(1.0)}}, None, [], training_metrics=m.isel(test=[0])
     )
     json.dumps(s, allow_nan=False)
-    assert s["reference"] == reference.of("stage2d") and s["robot"] == "stage2d"
+    # a campaign that declares no reference carries none, and no sentence compares it with the thesis
+    assert s["reference"] == {} and s["robot"] == "stage2d"
+    assert "thesis" not in s["ordering"]["statement"] and s["ordering"]["agrees"] is None
     assert s["tests"]["no_calibration"]["max_accuracy_nm"] == pytest.approx(float(m["ap_max"][[0, 2]].max()))
     assert s["tests"]["single"]["max_accuracy_nm"] < 200
     assert s["training"]["accuracy_nm"] == pytest.approx(float(m["ap_max"][0]))
@@ -289,7 +291,7 @@ def test_stage1d_summary_keys_by_day_and_json(validation, tmp_path):
     from calflow.uncertainty import interferometer_budget
 
     s = stage1d_summary(
-        {"name": "t", "seed": 1},
+        {"name": "t", "seed": 1, "robot": "stage1d", "reference": "thesis-sec5.3"},
         metro,
         m,
         {"single": {"a_1": np.float32(2.454e-8), "lam": np.nan}},
@@ -316,7 +318,8 @@ def test_stage1d_summary_keys_by_day_and_json(validation, tmp_path):
     by_day = s["tests"]["no_calibration"]["max_accuracy_nm_by_day"]  # run ends at 51.8 h: days 0, 1, 2
     assert by_day[:2] == pytest.approx([float(m["ap_max"][0]), float(m["ap_max"][3])]) and by_day[2] is None
     assert s["tests"]["single"]["series"]["time_h"] == pytest.approx([21.583333, 47.583333])
-    assert s["reference"] == reference.of("stage1d")
+    assert s["reference"] == STAGE1D  # the set it declares, with its source
+    assert s["reference"]["source"].startswith("Tan,")
     assert s["models"]["single"]["lam"] is None and isinstance(s["models"]["single"]["a_1"], float)
     assert s["budget"]["combined_nm"] == pytest.approx(interferometer_budget().combined_nm)
     assert len(s["budget"]["rows"]) == 9

@@ -12,9 +12,10 @@ import pytest
 import xarray as xr
 from markupsafe import escape
 
-from calflow import reference
+from calflow.nano.report.reference import STAGE1D, STAGE2D
 from calflow.report import render_campaign, render_index, write_pdf
 from calflow.report.render import num, render_campaign_pages, sig
+from calflow.xytheta.report.reference import XYTHETA
 
 EVIL = "Stage <script>alert('x')</script> & friends"
 ISO230_KEYS = ("A", "A_fwd", "A_bwd", "E", "E_fwd", "E_bwd", "R", "R_fwd", "R_bwd", "M", "B", "B_mean")
@@ -301,7 +302,7 @@ def xytheta_pages(tmp_path_factory, strict):
         "seed": 7,
         "rig": "simulated",
         "models": {name: _xy_model_entry(k, free) for k, (name, (free, _, _)) in enumerate(MODELS.items())},
-        "reference": copy.deepcopy(reference.of("xytheta")),
+        "reference": copy.deepcopy(XYTHETA),
         "inputs": _inputs(files),
         "characterisation": {
             "x_stage_angle": -2.31,
@@ -559,7 +560,7 @@ def _nano(tmp_path_factory, robot):
                 },
             ],
         },
-        "reference": copy.deepcopy(reference.of(robot)),
+        "reference": copy.deepcopy({"stage1d": STAGE1D, "stage2d": STAGE2D}[robot]),
         "inputs": _inputs(files),
         "tests": tests,
         "robustness": {
@@ -639,7 +640,16 @@ def _nano(tmp_path_factory, robot):
         }
         summary["iso230_2"] = {f"{k}_nm": 100.0 + j for j, k in enumerate(ISO230_KEYS)}
         summary["iso230_2"].update(cycles_forward=4, cycles_backward=4, excluded_targets_um=[])
-    html = render_campaign(summary, {"name": "t", "robot": robot}, CAMPAIGN_CMD, files)
+    html = render_campaign(
+        summary,
+        {
+            "name": "t",
+            "robot": robot,
+            "reference": {"stage1d": "thesis-sec5.3", "stage2d": "thesis-sec5.4"}[robot],
+        },
+        CAMPAIGN_CMD,
+        files,
+    )
     return summary, files, html
 
 
@@ -740,3 +750,42 @@ def test_number_formats():
     assert num(None) == "—" and num(float("nan")) == "—" and num(1.23456) == "1.235"
     assert sig(2.663e-08, 4) == "2.663 × 10⁻⁸" and sig(1067.5, 3) == "1068" and sig(0.0451, 3) == "0.0451"
     assert sig(None) == "—" and sig(0.0) == "0"
+
+
+def _thesis_phrases(html: str) -> list[str]:
+    """Every phrase of a page's text around the word "thesis" (tags stripped)."""
+    text = re.sub(r"<style.*?</style>|<svg.*?</svg>", " ", html, flags=re.S)
+    text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", text))
+    return [text[max(0, m.start() - 60) : m.end() + 40] for m in re.finditer(r"thesis", text)]
+
+
+def test_a_campaign_without_reference_has_no_reference_column_and_no_comparing_sentence(
+    xytheta, stage1d, stage2d
+):
+    """A lab's own stage (no ``reference`` key): no grey column, no sentence setting it beside the
+    thesis; the thesis is still cited for the method (figure, section and equation numbers)."""
+    for summary, files, with_ref in (xytheta, stage1d, stage2d):
+        own = copy.deepcopy(summary)
+        own["reference"] = {}
+        html = render_campaign(own, {"name": "t", "robot": own["robot"]}, CAMPAIGN_CMD, files)
+        assert 'class="ref"' not in html and 'class="num ref"' not in html, own["robot"]
+        assert 'class="num ref"' in with_ref  # the same summary with its reference has the column
+        for phrase in _thesis_phrases(html):
+            assert not re.search(
+                r"beside|thesis values|thesis's (order|maxima|Table)|thesis reports|thesis AP|thesis R_|dashed",
+                phrase,
+                re.I,
+            ), (own["robot"], phrase)
+        assert (
+            "40.600" not in html and ">40.6<" not in html
+        )  # the thesis's interferometer figure is no fallback
+
+
+def test_a_reference_is_labelled_with_its_source(stage1d):
+    summary, files, _ = stage1d
+    mine = copy.deepcopy(summary)
+    mine["reference"] = {"source": "Smith 2024, Table 3", "intrinsic": {"accuracy_nm": 123.0}}
+    html = render_campaign(mine, {"name": "t", "robot": "stage1d"}, CAMPAIGN_CMD, files)
+    assert "Smith 2024, Table 3" in html and "≈ 123" in html
+    index = render_index([mine])
+    assert "Smith 2024, Table 3" in index and 'class="num ref"' in index

@@ -64,11 +64,16 @@ def cmd_report(args) -> None:
 
 
 def cmd_index(args) -> None:
-    from calflow.data.io import load_summary, write_text
+    from calflow.data.io import write_text
     from calflow.report import render_index
+    from calflow.report.catalogue import catalogue
 
-    histories = [load_summary(p) for p in args.histories or []]
-    write_text(render_index([load_summary(p) for p in args.summaries], histories), args.out)
+    out = Path(args.out or Path(args.reports) / "index.html")
+    found = catalogue(args.results, args.reports, args.campaign_dir)
+    write_text(render_index(found), out)
+    done = sum(c["status"] == "done" for g in found["groups"] for c in g["campaigns"])
+    failed = sum(c["status"] == "failed" for g in found["groups"] for c in g["campaigns"])
+    print(f"{out}: {done} campaigns, {failed} failed")
 
 
 def cmd_import_csv(args) -> None:
@@ -192,10 +197,15 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--html", required=True)
     r.add_argument("--pdf")
 
-    x = _sub(sub, "index", cmd_index, "render reports/index.html over all campaigns")
-    x.add_argument("--summaries", nargs="+", required=True)
-    x.add_argument("--histories", nargs="*", help="stage histories (results/stages/<id>/history.json)")
-    x.add_argument("--out", required=True)
+    x = _sub(sub, "index", cmd_index, "render reports/index.html over every campaign on disk (reruns none)")
+    x.add_argument("--results", default="results", help="the results folder (default: results)")
+    x.add_argument("--reports", default="reports", help="the reports folder (default: reports)")
+    x.add_argument(
+        "--campaign-dir",
+        default="config/campaigns",
+        help="campaign files, to tell whether a report is current (default: config/campaigns)",
+    )
+    x.add_argument("--out", help="default: <reports>/index.html")
 
     from calflow.lifecycle.commands import history_arguments, report_arguments
 

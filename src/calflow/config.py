@@ -21,6 +21,7 @@ import yaml
 
 from calflow.errors import ConfigError
 from calflow.family import family_of, missing_family, resolve, robots
+from calflow.reference import check as check_reference
 from calflow.rigs.plugin import check_rig
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
@@ -287,6 +288,7 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     _check_dwells(campaign, path)
     _check_strokes(campaign, path)
     check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
+    check_reference(campaign, path)
     check = family_of(robot).steps.get("check")
     if check:
         resolve(check)(campaign, path)
@@ -305,5 +307,6 @@ def digest(obj: Any) -> str:
 
 
 def campaign_digest(campaign: dict) -> str:
-    """The ``config_sha256`` attribute of every file a campaign writes."""
-    return digest(campaign)
+    """The ``config_sha256`` attribute of every file a campaign writes: the campaign without its
+    ``reference`` (the published values a report puts beside the results change no data file)."""
+    return digest({k: v for k, v in campaign.items() if k != "reference"})

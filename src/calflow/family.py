@@ -10,8 +10,8 @@ itself with one :class:`Family` and registers it as an entry point of the group
 
 Everything heavy is named as ``"module:attribute"`` and imported only when a command
 needs it, so ``calflow --help`` loads no numerical library. The core asks the registry
-for everything that differs between robots — the joints a run records, the published
-values a summary sits beside, the report's labels, the index row, which result file feeds
+for everything that differs between robots — the joints a run records, the named sets of
+published values a campaign may declare, the report's labels, the index row, which result file feeds
 which summary section, and the family's own Snakemake rules — so no core module and no
 core rule names a robot (docs/families.md).
 """
@@ -71,8 +71,13 @@ class Family:
       robot has ``cmd_<joint>`` and ``meas_<joint>`` (validation, import and replay read it).
     * ``axes``: axis name → ``(units, long_name)`` for joints the core does not define
       (the core knows ``x``, ``y``, ``z`` in µm and ``theta`` in degree).
-    * ``reference``: per robot, ``"module:attribute"`` of the published values (a dict with
-      a ``source``) that the summary puts beside calflow's (``summary["reference"]``).
+    * ``reference``: the named reference sets the family provides, name → ``"module:attribute"``
+      of the published values (a dict with a ``source``); a campaign that reproduces one
+      declares it (``reference: <name>``) and its summary puts them beside calflow's
+      (``summary["reference"]``, :mod:`calflow.reference`).
+    * ``headline``: ``"module:function"``, ``function(summary) -> {"label", "key", "unit"}``
+      or None: the one figure the cross-campaign index lists for a campaign (``key``
+      dotted into the summary).
     * ``modes``: report label of each name of a test mode or model (``adaptive_kmz`` →
       "adaptive model (KMZ)"), the report's ``mode`` filter.
     * ``index_row``: template in ``templates/`` drawing a campaign's headline rows in the
@@ -117,6 +122,7 @@ class Family:
     studies: str | None = None
     schemas: str | None = None
     history_entry: str | None = None
+    headline: str | None = None
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:
@@ -135,11 +141,6 @@ class Family:
     def joints_of(self, robot: str) -> tuple[str, ...]:
         """The joints of ``robot``'s runs, in order (empty when the family does not say)."""
         return tuple(self.joints.get(robot, ()))
-
-    def reference_of(self, robot: str) -> dict:
-        """The published values beside which ``robot``'s summaries are put (``{}`` when none)."""
-        target = self.reference.get(robot)
-        return resolve(target) if target else {}
 
     def hooks(self) -> Any:
         """The family's :class:`calflow.family_workflow.FamilyWorkflow` (the core's defaults when none)."""

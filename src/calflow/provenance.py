@@ -53,3 +53,15 @@ def code_digest(step: str, robot: str) -> str:
             h.update(path.name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()
+
+
+@cache
+def module_digest(*modules: str) -> str:
+    """SHA-256 over calflow's version and the source of ``modules`` (a step no family lists,
+    such as the cross-campaign index: ``module_digest("calflow.report")``)."""
+    h = hashlib.sha256(__version__.encode())
+    for module in modules:
+        for path in _files(module):
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()

@@ -1,11 +1,16 @@
 # Campaign summary, per-campaign report (HTML and PDF) and the cross-campaign index.
 
+from calflow.reference import files as reference_files
+from calflow.provenance import module_digest
+from calflow.report.catalogue import listing_digest
+
 
 rule summarise:
     input:
         files=lambda w: results_of(w.campaign),
         truth=summary_truth,
         budget=lambda w: budget_file(w.campaign),
+        reference=lambda w: reference_files(CAMPAIGN[w.campaign]),
     output:
         summary=report(
             "results/{campaign}/summary.json",
@@ -29,7 +34,13 @@ rule summarise:
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
         digest=section(
-            "summarise", "description", "robot", "seed", "rig", "uncertainty"
+            "summarise",
+            "description",
+            "robot",
+            "seed",
+            "rig",
+            "uncertainty",
+            "reference",
         ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"
@@ -75,6 +86,7 @@ rule report:
 rule index:
     input:
         summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
+        reports=expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         histories=expand("results/stages/{stage}/history.json", stage=STAGES),
     output:
         report(
@@ -92,6 +104,15 @@ rule index:
     resources:
         mem_mb=200,
         runtime=1,
+    params:
+        # the other campaigns on disk (another run's, deleted, failed): a change reruns the index
+        on_disk=lambda w: digest(
+            [
+                module_digest("calflow.report"),
+                listing_digest("results", tuple(CAMPAIGNS)),
+            ]
+        ),
+        campaign_dir=CAMPAIGN_DIR,
     shell:
-        "calflow index --summaries {input.summaries} --histories {input.histories}"
-        " --out {output} > {log} 2>&1"
+        "calflow index --results results --reports reports"
+        " --campaign-dir {params.campaign_dir} --out {output} > {log} 2>&1"

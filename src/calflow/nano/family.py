@@ -78,9 +78,10 @@ FAMILY = Family(
     emulator="calflow.nano.stage.emulate:main",
     joints={"stage1d": ("x",), "stage2d": ("x", "y")},
     reference={
-        "stage1d": "calflow.nano.report.reference:STAGE1D",
-        "stage2d": "calflow.nano.report.reference:STAGE2D",
+        "thesis-sec5.3": "calflow.nano.report.reference:STAGE1D",
+        "thesis-sec5.4": "calflow.nano.report.reference:STAGE2D",
     },
+    headline="calflow.nano.report.headline:headline",
     modes={
         "no_calibration": "no calibration",
         "adaptive_kmz": "adaptive model (KMZ)",

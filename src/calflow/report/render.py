@@ -207,8 +207,10 @@ def render_campaign_pages(
     finally:
         RASTER.reset(token)
     template = environment().get_template(f"{summary['robot']}.html.j2")
+    declared = campaign.get("reference")
     context = dict(
         s=summary,
+        reference_name=declared if isinstance(declared, str) else None,  # a family's named set
         notes=notes,
         prov=_provenance(summary, campaign, command, files or []),
         css=(TEMPLATES / "style.css").read_text(),
@@ -220,13 +222,37 @@ def render_campaign_pages(
     return html, template.render(figures=printed, **context)
 
 
-def render_index(summaries: list[dict], histories: list[dict] | None = None) -> str:
-    """``reports/index.html``: every campaign's headline numbers beside the thesis's, and
-    the stage histories (``results/stages/<id>/history.json``) with a link to each report."""
+def render_index(catalogue: dict | list[dict], histories: list[dict] | None = None) -> str:
+    """``reports/index.html``: every campaign on disk (:func:`calflow.report.catalogue.catalogue`)
+    grouped by stage, newest first, with its headline beside the published values it declares,
+    and the stage histories (``results/stages/<id>/history.json``) with a link to each report.
+    A list of summaries renders them as done campaigns of no stage, in the order given."""
+    if isinstance(catalogue, list):
+        rows = [
+            {
+                "campaign": s["campaign"],
+                "robot": s.get("robot"),
+                "rig": s.get("rig"),
+                "summary": s,
+                "status": "done",
+                "date": "—",
+                "error": None,
+                "stale": [],
+                "current": None,
+                "report": True,
+                "headline": None,
+            }
+            for s in catalogue
+        ]
+        catalogue = {
+            "groups": [{"stage": None, "history": False, "campaigns": rows}] if rows else [],
+            "histories": histories or [],
+        }
     template = environment().get_template("index.html.j2")
     return template.render(
-        summaries=summaries,
-        histories=histories or [],
+        groups=catalogue["groups"],
+        rows=[c for g in catalogue["groups"] for c in g["campaigns"]],
+        histories=histories if histories is not None else catalogue.get("histories") or [],
         versions=_versions(),
         machine=_machine(),
         css=(TEMPLATES / "style.css").read_text(),

@@ -303,7 +303,8 @@ FAMILY = Family(
     sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
     emulator="calflow.xytheta.stage.emulate:emulate_main",
     joints={"xytheta": ("x", "y", "theta")},
-    reference={"xytheta": "calflow.xytheta.report.reference:XYTHETA"},
+    reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},
+    headline="calflow.xytheta.report.headline:headline",
     index_row="xytheta_index_row.html.j2",
     summary_sections={
         "model": "models",

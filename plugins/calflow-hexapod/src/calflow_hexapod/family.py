@@ -13,7 +13,14 @@ from calflow.family import Command, Family
 
 _P = "calflow_hexapod.plans.campaign"
 _S = "calflow_hexapod.steps"
-_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
+_CORE = (
+    "calflow.data",
+    "calflow.config",
+    "calflow.commands",
+    "calflow.plan",
+    "calflow.family",
+    "calflow.reference",
+)
 _ALL = ("calflow_hexapod",)  # a small package: any change to it reruns its steps
 
 
@@ -62,6 +69,7 @@ FAMILY = Family(
     templates="calflow_hexapod.report",
     schemas="calflow_hexapod",
     index_row="hexapod_index_row.html.j2",
+    headline="calflow_hexapod.report.headline:headline",
     summary_sections={
         "model": "models",
         "metrics:validation_heldout": "heldout",

@@ -251,7 +251,7 @@ def max_per_test(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
         a.set_ylabel(what)
         a.set_ylim(bottom=0)
     legend_below(fig, ax[0, 0], ncol=4)
-    ax[0, 0].set_title("(a) accuracy; dashed: thesis values")
+    ax[0, 0].set_title("(a) accuracy; dashed: reference values" if ref else "(a) accuracy")
     ax[0, 1].set_title("(b) repeatability")
     return finish(
         fig,
@@ -259,8 +259,8 @@ def max_per_test(summary: dict, run: xr.Dataset | None = None) -> Figure | None:
         "validation",
         "Maximum accuracy and repeatability over the poses of every test"
         + (", training phase and validation" if two_dof else "")
-        + ". Dashed lines: the thesis's maxima for each test type. Time 0 = end of training = start of "
-        "validation.",
+        + (". Dashed lines: the reference's maxima for each test type" if ref else "")
+        + ". Time 0 = end of training = start of validation.",
         "Fig. 5.23" if two_dof else "Fig. 5.18",
     )
 

@@ -54,9 +54,10 @@ def _rss(budget: dict, names) -> float:
     return sum((budget.get(e) or 0.0) ** 2 for e in names) ** 0.5
 
 
-def ordering_block(tests: dict, robustness: dict, reference: dict) -> dict:
+def ordering_block(tests: dict, robustness: dict, reference: dict, whose: str = "The thesis's") -> dict:
     """``{"order", "thesis_order", "agrees", "statement"}``: test types from best (smallest max AP)
-    to worst on the rig and in the thesis, and the paragraph that explains the rig's from its
+    to worst on the rig and in the campaign's declared reference (``whose``: how the statement
+    names it; no reference, no comparison), and the paragraph that explains the rig's from its
     error budgets (``tests.<t>.error_budget_nm``, when present)."""
     ap = {k: t.get("max_accuracy_nm") for k, t in tests.items()}
     order = _order(ap)
@@ -69,7 +70,7 @@ def ordering_block(tests: dict, robustness: dict, reference: dict) -> dict:
     ]
     if thesis:
         parts.append(
-            "The thesis's order: "
+            f"{whose} order: "
             + ", ".join(f"{_LABEL.get(k, k)} (about {ref[k]:.0f} nm)" for k in thesis)
             + (" — the same." if thesis == order else " — a different one.")
         )

@@ -24,4 +24,3 @@ STAGE2D = {
     "source": "Tan, Calibration of micro and nanorobotic systems, Sec. 5.4.2",
     "tests": {"no_calibration": {"max_accuracy_nm": 1400.0}, "single": {"max_accuracy_nm": 200.0}},
 }
-BY_ROBOT = {"stage1d": STAGE1D, "stage2d": STAGE2D}

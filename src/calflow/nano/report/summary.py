@@ -25,8 +25,8 @@ from calflow.data.io import (
 )
 from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
-from calflow.nano.report.reference import BY_ROBOT
 from calflow.nano.robustness import robustness_by_mode
+from calflow.reference import declared
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 
@@ -235,7 +235,7 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
         "rig": (campaign.get("rig") or {}).get("factory"),
         "models": models,
         "budget": _budget(budget),
-        "reference": BY_ROBOT[robot],
+        "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in inputs},
     }
 
@@ -273,8 +273,8 @@ def stage1d_summary(
     with ``space`` (Eq. 5.8, µm), ``time`` (Eq. 5.9, µm/h) and ``units``; ``training``
     (training-run AP/RP, Fig. 5.13) when ``training_metrics`` is given; ``iso230_2`` as
     given (:func:`calflow.nano.evaluation.iso230_2_of_run` of the training run);
-    ``models`` coefficient tables and ``budget`` rows as given; ``reference`` = the thesis
-    values (``calflow.nano.report.reference.STAGE1D``); ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
+    ``models`` coefficient tables and ``budget`` rows as given; ``reference`` = the published
+    values the campaign declares (``reference: thesis-sec5.3``: Tan, Sec. 5.3.3), or ``{}``; ``inputs`` {path: sha256}; ``iso9283`` (vAP, AD,
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
     the ``validation_run`` is given (stabilisation time and overshoot from ``step_response_run``).
     """
@@ -290,7 +290,7 @@ def stage1d_summary(
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run, step_response_run)
-    _physics_blocks(summary, error_budget)
+    _physics_blocks(summary, error_budget, campaign)
     return jsonable(summary)
 
 
@@ -309,7 +309,7 @@ def stage2d_summary(
 ) -> dict:
     """Summary of a 2-DoF nano campaign (docs/architecture.md, thesis Sec. 5.4.2): ``tests.<no_calibration|
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
-    ``training`` (training-run AP/RP) when given, ``reference`` = ``calflow.nano.report.reference.STAGE2D``,
+    ``training`` (training-run AP/RP) when given, ``reference`` = the declared values (``thesis-sec5.4``), or ``{}``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
     tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage2d", models, budget, inputs)
@@ -321,11 +321,11 @@ def stage2d_summary(
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run, step_response_run)
-    _physics_blocks(summary, error_budget)
+    _physics_blocks(summary, error_budget, campaign)
     return jsonable(summary)
 
 
-def _physics_blocks(summary: dict, error_budget: dict | None) -> None:
+def _physics_blocks(summary: dict, error_budget: dict | None, campaign: dict) -> None:
     """The rig physics' blocks: ``tests.<t>.error_budget_nm`` (simulated rigs: the summary step's budget after
     calibration, :mod:`calflow.nano.stage.error_budget`), ``validation.error_budget_method`` and the
     ``ordering`` paragraph (:mod:`calflow.nano.report.ordering`)."""
@@ -336,4 +336,7 @@ def _physics_blocks(summary: dict, error_budget: dict | None) -> None:
             if mode in error_budget:
                 t["error_budget_nm"] = error_budget[mode]
         summary["validation"]["error_budget_method"] = error_budget.get("method")
-    summary["ordering"] = ordering_block(summary["tests"], summary.get("robustness"), summary["reference"])
+    whose = "The thesis's" if isinstance(campaign.get("reference"), str) else "The reference's"
+    summary["ordering"] = ordering_block(
+        summary["tests"], summary.get("robustness"), summary["reference"], whose
+    )

@@ -121,7 +121,7 @@ def _compensation(
     a.set_ylabel("accuracy AP (µm, log scale)")
     legend_below(fig, a, ncol=3)
     ref = (summary.get("reference", {}).get("lut_compensation_um") or {}).get(plan)
-    note = f" The thesis reports {ref[0]:g} µm → {ref[1]:g} µm." if ref else ""
+    note = f" The reference reports {ref[0]:g} µm → {ref[1]:g} µm." if ref else ""
     return finish(
         fig,
         key,
@@ -186,7 +186,7 @@ def observability(summary: dict) -> Figure | None:
         f"poses (mean of repeats). Dotted: where O2 stops improving here ({obs.get('O2_plateau_poses')} poses)"
     )
     if ref.get("O2_plateau"):
-        caption += f"; dashed: the thesis's ≈ {ref['O2_plateau']} poses (it used {ref.get('used')})"
+        caption += f"; dashed: the reference's ≈ {ref['O2_plateau']} poses (it used {ref.get('used')})"
     return finish(fig, "fig-observability", "identification", caption + ".", "Fig. 4.21")
 
 

@@ -31,7 +31,7 @@ import xarray as xr
 from calflow import __version__
 from calflow.errors import CalflowError, ConfigError
 from calflow.lifecycle.sprt import SPRT
-from calflow.xytheta.report.reference import XYTHETA
+from calflow.reference import declared
 
 BUDGET = 0.05  # the check's rig time, at most this fraction of a full calibration's
 
@@ -163,7 +163,7 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
         "start": campaign["start"],
         "stage": campaign.get("stage"),
         "models": {},
-        "reference": XYTHETA,
+        "reference": declared(campaign),  # a lab's own stage: none unless the campaign declares one
         "interim_check": block,
     }
     if truth and truth.get("available", True) and "x_R_um" in truth:

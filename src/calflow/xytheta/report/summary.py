@@ -14,11 +14,11 @@ import xarray as xr
 
 from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
+from calflow.reference import declared
 from calflow.summary_routing import route
 from calflow.xytheta.family import FAMILY
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS
 from calflow.xytheta.report.heldout import adequacy, disjointness, repeatability_floor
-from calflow.xytheta.report.reference import XYTHETA
 
 _SUFFIX = {"um": "um", "degree": "deg"}
 
@@ -49,7 +49,9 @@ def _model_entry(
     ref: xr.Dataset | None,
     floor: dict,
     angle: dict | None,
+    published: dict,
 ) -> dict:
+    """One model's block; ``published``: the campaign's declared reference values ({} when none)."""
     corr = model["correlation"].values
     main = heldout if heldout is not None else ref
     entry = {
@@ -103,7 +105,7 @@ def _model_entry(
         entry["reference_targets"] = {
             "accuracy_um": jsonable(float(ref.attrs["accuracy_um"])),
             "repeatability_um": jsonable(float(ref.attrs["repeatability_um"])),
-            "thesis_accuracy_um": XYTHETA["models"].get(name, {}).get("accuracy_um"),
+            "thesis_accuracy_um": ((published.get("models") or {}).get(name) or {}).get("accuracy_um"),
             "per_target": _per_target(ref),
         }
     if angle is not None:
@@ -225,6 +227,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     training_runs = [ds for _, ds in found.get("training_runs", [])]
     order = [name for name in campaign["models"] if name in models]
     floor = repeatability_floor(list(heldout.values()) + list(ref.values()))
+    reference = declared(campaign)
     summary = {
         "campaign": campaign["name"],
         "robot": campaign["robot"],
@@ -240,11 +243,12 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
                 ref.get(name),
                 floor,
                 _angle_info(paths[name], models[name]),
+                reference,
             )
             for name in order
         },
         "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
-        "reference": XYTHETA,
+        "reference": reference,  # the published values it declares (calflow.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     if exported:

@@ -17,6 +17,7 @@ import numpy as np
 
 from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
+from calflow.reference import declared
 from calflow.summary_routing import route
 from calflow_hexapod.family import FAMILY
 
@@ -181,7 +182,7 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         "rig": campaign.get("rig", {}).get("factory"),
         "models": {name: models[name] for name in order},
         "model_order": order,  # the ladder's order (the summary's keys are written sorted)
-        "reference": {},
+        "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     budget = (truth or {}).get("error_budget")
