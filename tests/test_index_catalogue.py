@@ -247,3 +247,21 @@ def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(
     shutil.rmtree(work / "results" / names[0])
     subprocess.run([str(BIN / "calflow"), "index"], cwd=work, check=True, capture_output=True)
     assert [c for c, _ in rows((work / "reports" / "index.html").read_text())] == [names[1]]
+
+
+def test_a_stage_reads_in_the_order_of_its_campaigns_starts(tmp_path, monkeypatch):
+    """Rows are dated by the campaign's start on the rig, newest first, whatever order the
+    results were written in (a lab reruns an old calibration's report, a demo year is
+    simulated in one afternoon); a campaign without a start is dated by its results."""
+    for name, start, written in (
+        ("jan", "2026-01-05T08:00:00+00:00", T0 + 300),
+        ("jul", "2026-07-05T08:00:00+00:00", T0),
+        ("apr", "2026-04-05T08:00:00Z", T0 + 600),
+    ):
+        s = put(tmp_path, name, written)
+        s.update(start=start, stage="SN-1")
+        (tmp_path / "results" / name / "summary.json").write_text(json.dumps(s))
+        _touch(tmp_path / "results" / name / "summary.json", written)
+    html = index(tmp_path, monkeypatch)
+    assert [c for c, _ in rows(html)] == ["jul", "apr", "jan"]
+    assert ">2026-04-05</td>" in html

@@ -186,17 +186,34 @@ def entry(results: Path, reports: Path, name: str, campaign_dir: Path | None = N
     row["status"] = "failed" if failed else "done"
     row["error"] = failed[0] if failed else None
     row["time"] = failed[1] if failed else summary_time
-    row["date"] = _when(row["time"])
+    row["written"] = _when(row["time"])
+    start = (row["summary"] or {}).get("start") or spec.get("start")
+    row["start"] = _start(start)
+    # the campaign's date is its start on the rig (a stage's life in order); else when its results were written
+    row["date"] = (
+        dt.datetime.fromtimestamp(row["start"], dt.UTC).date().isoformat() if row["start"] else row["written"]
+    )
     row["current"] = not failed and not row["stale"]
     row["report"] = (reports / name / "report.html").is_file()
     return row
+
+
+def _start(value) -> float | None:
+    """A campaign's ``start`` (ISO 8601) as POSIX seconds; None when absent or unreadable."""
+    if value is None:
+        return None
+    try:
+        when = dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return (when if when.tzinfo else when.replace(tzinfo=dt.UTC)).timestamp()
 
 
 def catalogue(
     results: str | Path = "results", reports: str | Path = "reports", campaign_dir: str | Path | None = None
 ) -> dict:
     """``{"groups": [{"stage", "history", "campaigns"}], "histories"}``: every campaign on disk,
-    newest first, grouped by the stage it names (a stage's history on disk, or the campaign's
+    newest first (by its ``start``, else when its results were written), grouped by the stage it names (a stage's history on disk, or the campaign's
     ``stage`` key); campaigns of no stage last, in a group whose ``stage`` is None."""
     results, reports = Path(results), Path(reports)
     folder = Path(campaign_dir) if campaign_dir else None
@@ -210,7 +227,7 @@ def catalogue(
     of_stage = {c["campaign"]: h["stage"] for h in hist for c in h.get("campaigns") or []}
     for r in rows:
         r["stage"] = of_stage.get(r["campaign"], r["stage"])
-    rows.sort(key=lambda r: (-r["time"], r["campaign"]))
+    rows.sort(key=lambda r: (-(r["start"] or r["time"] or 0.0), r["campaign"]))
     groups: dict = {}
     for r in rows:
         groups.setdefault(r["stage"], []).append(r)
