@@ -227,3 +227,16 @@ def test_group_sequential_decision_is_one_the_plain_test_could_reach(seed, size)
         assert llr <= low and r["visits"] % size == 0
     else:
         assert r["visits"] == 24 and low < llr < high
+
+
+def test_inflation_recovers_the_between_campaign_factor_from_kept_pairs():
+    """Wald statistics of unchanged pairs with σ² off by a factor c (above or below 1): the
+    truncation-corrected pooled Birge ratio recovers c, where the plain mean of the kept
+    pairs (those below the χ² quantile) is biased low."""
+    rng = np.random.default_rng(11)
+    for c in (0.5, 1.0, 2.0):
+        prior = [(float(c * rng.chisquare(4)), 4) for _ in range(4000)]
+        k2, dof = change.inflation(prior, min_pairs=3, alpha=0.05)
+        assert k2 == pytest.approx(c, rel=0.05) and 0 < dof <= 4 * 4000
+        kept = [w for w, p in prior if w / k2 <= 9.488]  # χ²₄ 95 %
+        assert np.mean(kept) / 4 < 0.93 * k2

@@ -8,12 +8,16 @@ covariances Σ₁, Σ₂. With d = θ₂ − θ₁ the Wald statistic
 is χ² with p = dim θ degrees of freedom when the stage did not change and the σ are
 honest (Wald 1943; ISO/IEC Guide 98-3 for the covariance of two independent results).
 Within-campaign σ are not the whole story: plans, seeds and unmodelled errors make two
-calibrations of an unchanged stage differ more than their σ say. Once the stage has
-``min_pairs`` earlier pairs judged unchanged, their pooled Birge ratio (W/p, Birge 1932)
-estimates that between-campaign inflation k² (never below 1: it only widens σ), and the
-scaled statistic is referred to p·F(p, p·m) — the F distribution accounts for the
-inflation being estimated from m pairs (the same argument as a pooled reproducibility
-standard deviation, ISO 5725-2). Until then the test uses within-campaign σ and says so.
+calibrations of an unchanged stage differ more (or less) than their σ say. Once the stage
+has ``min_pairs`` earlier pairs judged unchanged, their pooled Birge ratio (W/p, Birge 1932)
+estimates that between-campaign factor k², and the scaled statistic is referred to
+p·F(p, Σp) — the F distribution accounts for k² being estimated from the earlier pairs' Σp
+degrees of freedom (the same argument as a pooled reproducibility standard deviation, ISO
+5725-2). The pairs kept are those below the χ² quantile, so their mean W is that of a
+truncated χ²: E[χ²_p | χ²_p ≤ q] = p·F_{p+2}(q)/F_p(q) (the χ² density's recurrence), by which
+the pooled ratio is divided — else k² would be biased low and the test would flag too often.
+k² is not floored at 1: σ that overstate the spread would make the test blind, a floor only
+trades α for that. Until then the test uses within-campaign σ and says so.
 
 The models of a campaign are tested together: their p-values are corrected with Holm's
 step-down method (Holm 1979) so that the chance of flagging any model of an unchanged
@@ -59,38 +63,42 @@ def wald(a: Estimate, b: Estimate) -> tuple[float, int]:
 
 
 def inflation(prior: list[tuple[float, int]], min_pairs: int = 3, alpha: float = 0.05) -> tuple[float, int]:
-    """(k², m): the between-campaign inflation of the σ from the Wald statistics of the
-    earlier pairs judged unchanged, and how many pairs it rests on; (1, 0) below ``min_pairs``.
+    """(k², m): the between-campaign factor of the σ² from the Wald statistics of the
+    earlier pairs judged unchanged, and the degrees of freedom it rests on (Σp over those
+    pairs); (1, 0) below ``min_pairs`` pairs.
 
-    k² = Σ W / Σ p over those pairs (the pooled Birge ratio), floored at 1. A pair is
-    judged unchanged when its W/k² stays below the χ² quantile 1 − α: the pairs and k² are
-    found together, starting from every earlier pair and dropping the changed ones until
-    nothing moves (a pair flagged before the stage's reproducibility was known may be
-    re-admitted, a re-mount is left out).
+    k² = Σ W / Σ p·F_{p+2}(q_p)/F_p(q_p) over those pairs, q_p the χ²_p quantile 1 − α: the
+    pooled Birge ratio, corrected for the pairs being those below q_p. A pair is judged
+    unchanged when its W/k² ≤ q_p: the pairs and k² are found together, starting from every
+    earlier pair and dropping the changed ones until nothing moves (a pair flagged before the
+    stage's reproducibility was known may be re-admitted, a re-mount is left out).
     """
     usable = [(w, p) for w, p in prior if p > 0 and np.isfinite(w)]
     keep = usable
     k2 = 1.0
-    for _ in range(10):
+    for _ in range(20):
         if len(keep) < min_pairs:
             return 1.0, 0
-        k2 = max(1.0, sum(w for w, _ in keep) / sum(p for _, p in keep))
+        q = [stats.chi2.ppf(1 - alpha, p) for _, p in keep]
+        kept_mean = [p * stats.chi2.cdf(qi, p + 2) / stats.chi2.cdf(qi, p) for (_, p), qi in zip(keep, q)]
+        k2 = sum(w for w, _ in keep) / sum(kept_mean)
         now = [(w, p) for w, p in usable if w / k2 <= stats.chi2.ppf(1 - alpha, p)]
         if now == keep:
             break
         keep = now
     if len(keep) < min_pairs:
         return 1.0, 0
-    return k2, len(keep)
+    return k2, sum(p for _, p in keep)
 
 
-def p_value(w: float, dof: int, k2: float, pairs: int) -> tuple[float, str]:
-    """The p-value of W (already divided by k²) and its reference distribution."""
+def p_value(w: float, dof: int, k2: float, k2_dof: int) -> tuple[float, str]:
+    """The p-value of W (already divided by k²) and its reference distribution: χ²(p) with
+    the within-campaign σ (``k2_dof`` 0), p·F(p, ``k2_dof``) with the estimated k²."""
     if dof == 0 or not np.isfinite(w):
         return float("nan"), "none"
-    if pairs == 0 or k2 <= 1.0:
+    if k2_dof == 0:
         return float(stats.chi2.sf(w, dof)), f"chi2({dof})"
-    return float(stats.f.sf(w / dof, dof, dof * pairs)), f"{dof}·F({dof}, {dof * pairs})"
+    return float(stats.f.sf(w / dof, dof, k2_dof)), f"{dof}·F({dof}, {k2_dof})"
 
 
 def holm(p_values: dict[str, float], alpha: float) -> dict[str, bool]:
@@ -122,8 +130,8 @@ def changes(series: list[dict[str, Estimate]], alpha: float = 0.05, min_pairs: i
         raw, res = {}, {}
         for m in [m for m in a if m in b]:
             w, dof = wald(a[m], b[m])
-            k2, pairs = inflation(history.get(m, []), min_pairs, alpha)
-            pv, ref = p_value(w / k2, dof, k2, pairs)
+            k2, k2_dof = inflation(history.get(m, []), min_pairs, alpha)
+            pv, ref = p_value(w / k2, dof, k2, k2_dof)
             raw[m] = (w, dof)
             res[m] = {
                 "statistic": w / k2,
@@ -131,7 +139,7 @@ def changes(series: list[dict[str, Estimate]], alpha: float = 0.05, min_pairs: i
                 "p_value": pv,
                 "reference": ref,
                 "inflation": k2,
-                "pairs": pairs,
+                "inflation_dof": k2_dof,
             }
         flags = holm({m: r["p_value"] for m, r in res.items()}, alpha)
         for m, r in res.items():
