@@ -236,6 +236,7 @@ def render_index(catalogue: dict | list[dict], histories: list[dict] | None = No
                 "summary": s,
                 "status": "done",
                 "date": "—",
+                "written": "—",
                 "error": None,
                 "stale": [],
                 "current": None,
