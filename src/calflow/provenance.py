@@ -47,12 +47,7 @@ def code_digest(step: str, robot: str) -> str:
     modules = family_of(robot).modules.get(step)
     if modules is None:
         raise ValueError(f"provenance: the family of robot {robot!r} lists no modules for step {step!r}")
-    h = hashlib.sha256(__version__.encode())
-    for module in modules:
-        for path in _files(module):
-            h.update(path.name.encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()
+    return module_digest(*modules)
 
 
 @cache

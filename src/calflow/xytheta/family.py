@@ -159,6 +159,7 @@ FAMILY = Family(
             "calflow.xytheta.plans.sweeps",
             "calflow.xytheta.stage.rig",
             "calflow.xytheta.stage.physics",
+            "calflow.xytheta.stage.aging",
             "calflow.xytheta.stage.vision_sensor",
             "calflow.xytheta.models.kinematics",
             "calflow.xytheta.tables.position",
@@ -207,6 +208,7 @@ FAMILY = Family(
             "calflow.xytheta.stage.oracle",
             "calflow.xytheta.stage.rig",
             "calflow.xytheta.stage.physics",
+            "calflow.xytheta.stage.aging",
             "calflow.acquisition",
             "calflow.xytheta.tables.characterisation",
             "calflow.xytheta.models.kinematics",
@@ -217,6 +219,12 @@ FAMILY = Family(
         ),
         "interim": _CORE
         + (
+            "calflow.acquisition",  # the runner stops the check at the test's decision
+            "calflow.rigs",
+            "calflow.lifecycle.sprt",
+            "calflow.xytheta.report.interim",
+            "calflow.xytheta.evaluation",
+            "calflow.xytheta.stage",
             "calflow.xytheta.plans.interim",
             "calflow.xytheta.export",
             "calflow.xytheta.models.kinematics",

@@ -50,10 +50,11 @@ Each effect, where its law and size come from, and the rig option it moves:
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 
 from calflow.errors import OptionError
+from calflow.rigs.aging import YEAR_D, date, events, number, season
+from calflow.rigs.aging import options as with_defaults
 
 DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
 #: what an event may move, and the rig option it adds to
@@ -69,68 +70,25 @@ DEFAULTS = {
     "seasonal_peak_day": 196,
     "events": [],
 }
-_YEAR_D = 365.25
-_MONTH_D = _YEAR_D / 12.0
-
-
-def _date(value, key: str) -> dt.datetime:
-    try:
-        t = dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
-    except ValueError:
-        raise OptionError(key, "an ISO 8601 date and time with its offset", value) from None
-    if t.tzinfo is None:
-        raise OptionError(key, "an ISO 8601 date and time with its offset", value)
-    return t
-
-
-def _num(value, key: str, low: float | None = 0.0, high: float | None = None) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-    ok = ok and (low is None or value >= low) and (high is None or value <= high)
-    if not ok:
-        bounds = (f" >= {low:g}" if low is not None else "") + (
-            f" and <= {high:g}" if high is not None else ""
-        )
-        raise OptionError(key, "a finite number" + bounds, value)
-    return float(value)
+_MONTH_D = YEAR_D / 12.0
 
 
 def check(aging) -> dict | None:
     """The ``aging`` option checked, with its defaults; None when ageing is off. Raises
     :class:`~calflow.errors.OptionError` naming the field (``aging.<field>``)."""
-    if aging is False:
+    a = with_defaults(aging, DEFAULTS)
+    if a is None:
         return None
-    if aging is None or aging is True:
-        aging = {}
-    if not isinstance(aging, dict):
-        raise OptionError("aging", f"false or a mapping ({', '.join(DEFAULTS)})", aging)
-    unknown = sorted(set(aging) - set(DEFAULTS))
-    if unknown:
-        raise OptionError(f"aging.{unknown[0]}", f"one of {', '.join(DEFAULTS)}", unknown=True)
-    a = {**DEFAULTS, **aging}
-    _date(a["since"], "aging.since")
+    date(a["since"], "aging.since")
     for key in ("piezo_pct_per_decade", "depolarisation_pct_per_year", "seasonal_degC"):
-        _num(a[key], f"aging.{key}")
-    if _num(a["poled_days_before"], "aging.poled_days_before") <= 0:
+        number(a[key], f"aging.{key}")
+    if number(a["poled_days_before"], "aging.poled_days_before") <= 0:
         raise OptionError("aging.poled_days_before", "a finite number > 0", a["poled_days_before"])
-    _num(a["gain_seen"], "aging.gain_seen", 0.0, 1.0)
-    _num(a["sensor_drift_nm_per_month"], "aging.sensor_drift_nm_per_month", None)
-    _num(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
-    if not isinstance(a["events"], list):
-        raise OptionError("aging.events", f"a list of {{date, {', '.join(EVENT_KEYS)}}}", a["events"])
-    for i, e in enumerate(a["events"]):
-        if not isinstance(e, dict) or "date" not in e or set(e) - {"date", *EVENT_KEYS}:
-            raise OptionError(
-                f"aging.events.{i}", f"a mapping with 'date' and some of {', '.join(EVENT_KEYS)}", e
-            )
-        _date(e["date"], f"aging.events.{i}.date")
-        for k in EVENT_KEYS:
-            if k in e:
-                _num(e[k], f"aging.events.{i}.{k}", None)
+    number(a["gain_seen"], "aging.gain_seen", 0.0, 1.0)
+    number(a["sensor_drift_nm_per_month"], "aging.sensor_drift_nm_per_month", None)
+    number(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
+    events(a["events"], EVENT_KEYS)
     return a
-
-
-def _season(day_of_year: float, peak: float) -> float:
-    return math.cos(2 * math.pi * (day_of_year - peak) / _YEAR_D)
 
 
 def piezo_loss_pct(days: float, rate_pct_per_decade: float, poled_days_before: float) -> float:
@@ -143,14 +101,14 @@ def effects(aging: dict, start: str) -> dict:
     """Each effect of a checked ``aging`` at ``start``: ``piezo_pct``, ``depolarisation_pct``
     (losses, %), ``events_gain_pct``, ``gain_pct`` (what the stage's gain changes by, %),
     ``drift_nm``, ``events_offset_nm``, ``room_degC`` and the installation's steps."""
-    t, t0 = _date(start, "start"), _date(aging["since"], "aging.since")
+    t, t0 = date(start, "start"), date(aging["since"], "aging.since")
     days = max((t - t0).total_seconds() / 86400.0, 0.0)
     piezo = piezo_loss_pct(days, aging["piezo_pct_per_decade"], aging["poled_days_before"])
-    depol = aging["depolarisation_pct_per_year"] * days / _YEAR_D
-    past = [e for e in aging["events"] if t >= _date(e["date"], "aging.events.date")]
+    depol = aging["depolarisation_pct_per_year"] * days / YEAR_D
+    past = [e for e in aging["events"] if t >= date(e["date"], "aging.events.date")]
     steps = {k: sum(e.get(k, 0.0) for e in past) for k in EVENT_KEYS}
     peak = aging["seasonal_peak_day"]
-    season = _season(t.timetuple().tm_yday, peak) - _season(t0.timetuple().tm_yday, peak)
+    swing = season(t.timetuple().tm_yday, peak) - season(t0.timetuple().tm_yday, peak)
     return {
         "days": days,
         "piezo_pct": piezo,
@@ -159,7 +117,7 @@ def effects(aging: dict, start: str) -> dict:
         "gain_pct": aging["gain_seen"] * (steps["gain_pct"] - piezo - depol),
         "drift_nm": aging["sensor_drift_nm_per_month"] * days / _MONTH_D,
         "events_offset_nm": steps["offset_nm"],
-        "room_degC": aging["seasonal_degC"] * season,
+        "room_degC": aging["seasonal_degC"] * swing,
         "cosine_deg": steps["cosine_deg"],
         "abbe_offset_mm": steps["abbe_offset_mm"],
     }

@@ -32,10 +32,9 @@ Each effect, with where its rate comes from, and how it combines with the rig's 
 
 from __future__ import annotations
 
-import datetime as dt
-import math
-
 from calflow.errors import OptionError
+from calflow.rigs.aging import YEAR_D, date, events, number, season
+from calflow.rigs.aging import options as with_defaults
 
 DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
 GEOMETRY = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
@@ -49,60 +48,22 @@ DEFAULTS = {
 }
 
 
-def _date(value, key: str) -> dt.datetime:
-    try:
-        return dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
-    except ValueError:
-        raise OptionError(key, "an ISO 8601 date and time with its offset", value) from None
-
-
-def _num(value, key: str, low: float | None = 0.0) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise OptionError(key, "a finite number" + (f" >= {low:g}" if low is not None else ""), value)
-    if low is not None and value < low:
-        raise OptionError(key, f"a finite number >= {low:g}", value)
-    return float(value)
-
-
 def check(aging) -> dict | None:
     """The ``aging`` option checked, with its defaults; None when ageing is off."""
-    if aging is False:
+    a = with_defaults(aging, DEFAULTS)
+    if a is None:
         return None
-    if aging is None or aging is True:
-        aging = {}
-    if not isinstance(aging, dict):
-        raise OptionError("aging", "false or a mapping (since, wear_per_year, seasonal_degC, ...)", aging)
-    unknown = sorted(set(aging) - set(DEFAULTS))
-    if unknown:
-        raise OptionError(f"aging.{unknown[0]}", f"one of {', '.join(DEFAULTS)}", unknown=True)
-    a = {**DEFAULTS, **aging}
-    _date(a["since"], "aging.since")
-    _num(a["wear_per_year"], "aging.wear_per_year")
-    _num(a["seasonal_degC"], "aging.seasonal_degC")
-    _num(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
+    date(a["since"], "aging.since")
+    number(a["wear_per_year"], "aging.wear_per_year")
+    number(a["seasonal_degC"], "aging.seasonal_degC")
+    number(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
     drift = a["sensor_drift_um_per_year"]
     if not isinstance(drift, (list, tuple)) or len(drift) != 2:
         raise OptionError("aging.sensor_drift_um_per_year", "a list of 2 numbers (µm/year, x and y)", drift)
     for v in drift:
-        _num(v, "aging.sensor_drift_um_per_year", None)
-    if not isinstance(a["events"], list):
-        raise OptionError(
-            "aging.events", "a list of {date, x_R_um, y_R_um, alpha_deg, beta_deg}", a["events"]
-        )
-    for i, e in enumerate(a["events"]):
-        if not isinstance(e, dict) or "date" not in e or set(e) - {"date", *GEOMETRY}:
-            raise OptionError(
-                f"aging.events.{i}", f"a mapping with 'date' and some of {', '.join(GEOMETRY)}", e
-            )
-        _date(e["date"], f"aging.events.{i}.date")
-        for k in GEOMETRY:
-            if k in e:
-                _num(e[k], f"aging.events.{i}.{k}", None)
+        number(v, "aging.sensor_drift_um_per_year", None)
+    events(a["events"], GEOMETRY)
     return a
-
-
-def _season(day_of_year: float, peak: float) -> float:
-    return math.cos(2 * math.pi * (day_of_year - peak) / 365.25)
 
 
 def resolve(physics: dict, start: str, base=None) -> dict:
@@ -113,8 +74,8 @@ def resolve(physics: dict, start: str, base=None) -> dict:
     a = check(physics.pop("aging", None))
     if a is None:
         return physics
-    t, t0 = _date(start, "start"), _date(a["since"], "aging.since")
-    years = (t - t0).total_seconds() / (365.25 * 86400.0)
+    t, t0 = date(start, "start"), date(a["since"], "aging.since")
+    years = (t - t0).total_seconds() / (YEAR_D * 86400.0)
     if base is None:
         raise ValueError("aging.resolve: the rig's defaults (base) are needed")
     get = lambda k: physics.get(k, getattr(base, k))  # noqa: E731
@@ -125,7 +86,7 @@ def resolve(physics: dict, start: str, base=None) -> dict:
             out[k] = [v * growth for v in get(k)]
         out["backlash_um"] = get("backlash_um") * growth
     amp, peak = a["seasonal_degC"], a["seasonal_peak_day"]
-    dT = amp * (_season(t.timetuple().tm_yday, peak) - _season(t0.timetuple().tm_yday, peak))
+    dT = amp * (season(t.timetuple().tm_yday, peak) - season(t0.timetuple().tm_yday, peak))
     if dT != 0.0 and get("expansion_ppm_per_degC") != 0.0 and any(get("scale_ppm")):
         out["scale_ppm"] = [v + get("expansion_ppm_per_degC") * dT for v in get("scale_ppm")]
     drift = a["sensor_drift_um_per_year"]
@@ -133,7 +94,7 @@ def resolve(physics: dict, start: str, base=None) -> dict:
         out["camera_x_um"] = get("camera_x_um") + drift[0] * years
         out["camera_y_um"] = get("camera_y_um") + drift[1] * years
     for e in a["events"]:
-        if t >= _date(e["date"], "aging.events.date"):
+        if t >= date(e["date"], "aging.events.date"):
             for k in GEOMETRY:
                 if k in e:
                     out[k] = out.get(k, get(k)) + e[k]

@@ -1,0 +1,73 @@
+"""What the ``rig.options.aging`` option of every simulated stage shares.
+
+Each family's simulated stage says what ages and how fast (its ``stage/aging.py``); the
+checks of the option's shape, its dates and numbers, the dated events and the yearly season
+are the same for all of them and live here. Errors are
+:class:`~calflow.errors.OptionError` naming the field (``aging.<field>``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+from calflow.errors import OptionError
+
+YEAR_D = 365.25  # days in a year (Julian year)
+
+
+def options(aging, defaults: dict) -> dict | None:
+    """The ``aging`` option with its ``defaults``: None when it is ``false`` (ageing off);
+    ``true`` or absent give the defaults; unknown fields are refused."""
+    if aging is False:
+        return None
+    if aging is None or aging is True:
+        aging = {}
+    if not isinstance(aging, dict):
+        raise OptionError("aging", f"false or a mapping ({', '.join(defaults)})", aging)
+    unknown = sorted(set(aging) - set(defaults))
+    if unknown:
+        raise OptionError(f"aging.{unknown[0]}", f"one of {', '.join(defaults)}", unknown=True)
+    return {**defaults, **aging}
+
+
+def date(value, key: str) -> dt.datetime:
+    """An ISO 8601 date and time with its UTC offset (naive times are refused: the stage's
+    age is a difference of two instants)."""
+    try:
+        t = dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
+    except ValueError:
+        raise OptionError(key, "an ISO 8601 date and time with its offset", value) from None
+    if t.tzinfo is None:
+        raise OptionError(key, "an ISO 8601 date and time with its offset", value)
+    return t
+
+
+def number(value, key: str, low: float | None = 0.0, high: float | None = None) -> float:
+    """A finite number within [low, high] (either bound None: open)."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+    ok = ok and (low is None or value >= low) and (high is None or value <= high)
+    if not ok:
+        bounds = (f" >= {low:g}" if low is not None else "") + (
+            f" and <= {high:g}" if high is not None else ""
+        )
+        raise OptionError(key, "a finite number" + bounds, value)
+    return float(value)
+
+
+def events(items, keys: tuple[str, ...]) -> None:
+    """``aging.events``: a list of mappings with a ``date`` and some of ``keys`` (numbers)."""
+    if not isinstance(items, list):
+        raise OptionError("aging.events", f"a list of {{date, {', '.join(keys)}}}", items)
+    for i, e in enumerate(items):
+        if not isinstance(e, dict) or "date" not in e or set(e) - {"date", *keys}:
+            raise OptionError(f"aging.events.{i}", f"a mapping with 'date' and some of {', '.join(keys)}", e)
+        date(e["date"], f"aging.events.{i}.date")
+        for k in keys:
+            if k in e:
+                number(e[k], f"aging.events.{i}.{k}", None)
+
+
+def season(day_of_year: float, peak_day: float) -> float:
+    """The yearly season, cos(2π (day − peak)/year): 1 on the peak day, −1 half a year on."""
+    return math.cos(2 * math.pi * (day_of_year - peak_day) / YEAR_D)
