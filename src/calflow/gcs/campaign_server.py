@@ -30,6 +30,64 @@ def load_campaign_arg(campaign: Mapping[str, Any] | str | Path) -> dict:
     return dict(campaign)
 
 
+def link_options(
+    address: tuple[str, int],
+    axes: Mapping[str, Any],
+    sensor: Mapping[str, Any],
+    *,
+    time_scale: float,
+    timeout: float,
+    tries: int,
+    backoff_s: float,
+    scale: Mapping[str, float] | None = None,
+    reference: bool = True,
+    poll_s: float | None = None,
+    recorder: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Options of the ``gcs`` rig (:mod:`calflow.gcs.rig`) that drive the controller at
+    ``address``: its joint ↔ axis map, the link's timeout and reconnection, the emulator's
+    ``time_scale`` (so dwell and reported times are in simulation seconds), the sensor that
+    reads the stage; ``scale``, ``poll_s`` and ``recorder`` when the family needs them."""
+    out: dict[str, Any] = {
+        "axes": dict(axes),
+        "host": address[0],
+        "port": int(address[1]),
+        "timeout": timeout,
+    }
+    if scale is not None:
+        out["scale"] = dict(scale)
+    out.update(time_scale=time_scale, reference=reference)
+    if poll_s is not None:
+        out["poll_s"] = poll_s
+    out["reconnect"] = {"tries": tries, "backoff_s": backoff_s}
+    if recorder is not None:
+        out["recorder"] = dict(recorder)
+    out["sensor"] = dict(sensor)
+    return out
+
+
+def start_emulated(
+    campaign: Mapping[str, Any] | str | Path,
+    start: Callable[..., GCSEmulator],
+    rig_options: Callable[..., dict[str, Any]],
+    *,
+    port: int,
+    time_scale: float,
+    timeout: float,
+    tries: int,
+    backoff_s: float,
+    faults=None,
+) -> tuple[GCSEmulator, dict[str, Any]]:
+    """A family's campaign emulator started (``start(campaign, port=, time_scale=, faults=)``)
+    and the ``gcs`` rig options that drive it (``rig_options(address, campaign, ...)``) with
+    the emulator's time scale. For tests: the caller stops it (``emu.stop()``)."""
+    c = load_campaign_arg(campaign)
+    emu = start(c, port=port, time_scale=time_scale, faults=faults).start()
+    return emu, rig_options(
+        emu.address, c, time_scale=time_scale, timeout=timeout, tries=tries, backoff_s=backoff_s
+    )
+
+
 def _parser(prog: str, description: str) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description=description)
     p.add_argument("--campaign", required=True, help="config/campaigns/<name>.yaml")

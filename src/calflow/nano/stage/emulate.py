@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
+from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
 from calflow.gcs.emulator import Faults, GCSEmulator
 from calflow.gcs.piezo import PiezoAxisConfig, piezo_emulator
 
@@ -110,21 +110,19 @@ def rig_options(
     backoff_s: float = 0.2,
 ) -> dict[str, Any]:
     """Options of the ``gcs`` rig that drives a nano campaign emulator at ``address``."""
-    stage = stage_of(campaign)
-    joints = ("x",) if stage == "nano1d" else ("x", "y")
-
-    return {
-        "axes": {j: JOINT_AXES[j] for j in joints},
-        "host": address[0],
-        "port": int(address[1]),
-        "timeout": timeout,
-        "time_scale": time_scale,
-        "reference": False,
-        "poll_s": 0.002,
-        "reconnect": {"tries": tries, "backoff_s": backoff_s},
-        "recorder": {"rate_hz": RATE_HZ},
-        "sensor": _sensor(campaign),
-    }
+    joints = ("x",) if stage_of(campaign) == "nano1d" else ("x", "y")
+    return link_options(
+        address,
+        {j: JOINT_AXES[j] for j in joints},
+        _sensor(campaign),
+        reference=False,
+        poll_s=0.002,
+        recorder={"rate_hz": RATE_HZ},
+        time_scale=time_scale,
+        timeout=timeout,
+        tries=tries,
+        backoff_s=backoff_s,
+    )
 
 
 def _sensor(campaign: Mapping[str, Any], run: str | None = None) -> dict[str, Any]:
@@ -157,10 +155,16 @@ def emulated_rig_options(
 ) -> tuple[GCSEmulator, dict[str, Any]]:
     """Start a nano campaign emulator; return it and the ``gcs`` rig options (for a campaign
     file: :func:`campaign_rig`). The caller stops it."""
-    c = _load(campaign)
-    emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
-    return emu, rig_options(
-        emu.address, c, time_scale=time_scale, timeout=timeout, tries=tries, backoff_s=backoff_s
+    return start_emulated(
+        campaign,
+        campaign_emulator,
+        rig_options,
+        port=port,
+        time_scale=time_scale,
+        timeout=timeout,
+        tries=tries,
+        backoff_s=backoff_s,
+        faults=faults,
     )
 
 

@@ -33,7 +33,7 @@ from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.gcs.axis import AxisConfig
-from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
+from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
 from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
 from calflow.xytheta.stage.rig import XYThetaTruth
 from calflow.xytheta.stage.vision_sensor import truth_from_options
@@ -117,20 +117,20 @@ def rig_options(
     backoff_s: float = 0.2,
 ) -> dict[str, Any]:
     """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
-    return {
-        "axes": dict(JOINT_AXES),
-        "host": address[0],
-        "port": int(address[1]),
-        "timeout": timeout,
-        "scale": dict(SCALE),
-        "time_scale": time_scale,
-        "reference": True,
-        "reconnect": {"tries": tries, "backoff_s": backoff_s},
-        "sensor": {
-            "factory": "simulated_vision",
-            "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
-        },
+    sensor = {
+        "factory": "simulated_vision",
+        "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
     }
+    return link_options(
+        address,
+        JOINT_AXES,
+        sensor,
+        scale=SCALE,
+        time_scale=time_scale,
+        timeout=timeout,
+        tries=tries,
+        backoff_s=backoff_s,
+    )
 
 
 def emulated_rig_options(
@@ -148,10 +148,16 @@ def emulated_rig_options(
     For tests: the caller stops it (``emu.stop()``). The rig's ``time_scale`` equals the
     emulator's, so dwell and reported times are in simulation seconds.
     """
-    c = _load(campaign)
-    emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
-    return emu, rig_options(
-        emu.address, c, time_scale=time_scale, timeout=timeout, tries=tries, backoff_s=backoff_s
+    return start_emulated(
+        campaign,
+        campaign_emulator,
+        rig_options,
+        port=port,
+        time_scale=time_scale,
+        timeout=timeout,
+        tries=tries,
+        backoff_s=backoff_s,
+        faults=faults,
     )
 
 

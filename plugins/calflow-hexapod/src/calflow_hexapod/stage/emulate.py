@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.campaign_server import load_campaign_arg, serve_campaign
+from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
 from calflow.gcs.emulator import Faults, GCSEmulator
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.stage.c887 import AXIS_IDS, SCALE, HexapodController
@@ -72,24 +72,20 @@ def rig_options(
     backoff_s: float = 0.2,
 ) -> dict[str, Any]:
     """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
-    return {
-        "axes": dict(JOINT_AXES),
-        "host": address[0],
-        "port": int(address[1]),
-        "timeout": timeout,
-        "scale": dict(SCALE),
-        "time_scale": time_scale,
-        "reference": True,
-        "reconnect": {"tries": tries, "backoff_s": backoff_s},
-        "sensor": {
-            "factory": SENSOR,
-            "options": {
-                "seed": int(campaign.get("seed", 0)),
-                "stream": "gcs",
-                **physics_options(campaign),
-            },
-        },
+    sensor = {
+        "factory": SENSOR,
+        "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
     }
+    return link_options(
+        address,
+        JOINT_AXES,
+        sensor,
+        scale=SCALE,
+        time_scale=time_scale,
+        timeout=timeout,
+        tries=tries,
+        backoff_s=backoff_s,
+    )
 
 
 def emulated_rig_options(
@@ -104,15 +100,16 @@ def emulated_rig_options(
 ) -> tuple[GCSEmulator, dict[str, Any]]:
     """Start a campaign emulator; return it and the ``gcs`` rig options that drive it (for
     tests: the caller stops it). The rig's ``time_scale`` equals the emulator's."""
-    c = load_campaign_arg(campaign)
-    emu = campaign_emulator(c, port=port, time_scale=time_scale, faults=faults).start()
-    return emu, rig_options(
-        emu.address,
-        c,
+    return start_emulated(
+        campaign,
+        campaign_emulator,
+        rig_options,
+        port=port,
         time_scale=time_scale,
         timeout=timeout,
         tries=tries,
         backoff_s=backoff_s,
+        faults=faults,
     )
 
 
