@@ -11,6 +11,7 @@ import argparse
 import json
 import os
 import sys
+from functools import cache
 from pathlib import Path
 
 from calflow import __version__
@@ -145,6 +146,7 @@ def _run(target: str):
 
         return resolve(target)(args)
 
+    run.target = target
     return run
 
 
@@ -280,6 +282,26 @@ def parser() -> argparse.ArgumentParser:
         for command in family.commands:
             command.arguments(_sub(sub, command.name, _run(command.run), command.help))
     return p
+
+
+@cache
+def entry_points() -> dict[str, str]:
+    """Subcommand → the ``"module:function"`` it runs (what its rerun digest covers,
+    :func:`calflow.provenance.code_digest`)."""
+    sub = next(a for a in parser()._actions if isinstance(a, argparse._SubParsersAction))
+    found = {}
+    for name, p in sub.choices.items():
+        func = p.get_default("func")
+        found[name] = getattr(func, "target", None) or f"{func.__module__}:{func.__qualname__}"
+    return found
+
+
+def entry_point(command: str) -> str:
+    """``"module:function"`` that ``calflow <command>`` runs."""
+    found = entry_points()
+    if command not in found:
+        raise CalflowError(f"calflow: no subcommand {command!r}; expected one of {', '.join(found)}")
+    return found[command]
 
 
 def _error(message: str) -> int:

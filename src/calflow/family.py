@@ -59,8 +59,6 @@ class Family:
       (``function(campaign, files, truth) -> dict``) and ``figures`` (``function(summary,
       inputs) -> (figures, notes)``).
     * ``templates``: the package whose ``templates/`` folder holds ``<robot>.html.j2``.
-    * ``modules``: per step, the modules whose code decides that step's outputs, so a
-      change to them reruns the step's jobs (:mod:`calflow.provenance`).
     * ``acquire_arguments``, ``identify_arguments``: options the family's plans read from
       ``calflow acquire``, and its identification from ``calflow identify``.
     * ``commands``: the family's own subcommands.
@@ -105,7 +103,6 @@ class Family:
     rig_options: str
     steps: Mapping[str, str]
     templates: str
-    modules: Mapping[str, tuple[str, ...]]
     acquire_arguments: Callable[[argparse.ArgumentParser], None] | None = None
     identify_arguments: Callable[[argparse.ArgumentParser], None] | None = None
     commands: tuple[Command, ...] = ()

@@ -1,7 +1,6 @@
 # Campaign summary, per-campaign report (HTML and PDF) and the cross-campaign index.
 
 from calflow.reference import files as reference_files
-from calflow.provenance import module_digest
 from calflow.report.catalogue import listing_digest
 
 
@@ -108,7 +107,7 @@ rule index:
         # the other campaigns on disk (another run's, deleted, failed): a change reruns the index
         on_disk=lambda w: digest(
             [
-                module_digest("calflow.report"),
+                code_digest("index"),
                 listing_digest("results", tuple(CAMPAIGNS)),
             ]
         ),

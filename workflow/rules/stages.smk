@@ -43,7 +43,7 @@ rule stage_report:
         mem_mb=2000,
     params:
         digest=lambda w: digest(
-            [code_digest("history", CAMPAIGN[STAGES[w.stage][0]]["robot"])]
+            [code_digest("history-report", CAMPAIGN[STAGES[w.stage][0]]["robot"])]
         ),
     shell:
         "calflow history-report --history {input} --html {output.html}"

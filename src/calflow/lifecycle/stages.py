@@ -37,7 +37,7 @@ def _check_family(campaign: dict, file: Path) -> None:
     from calflow.family import family_of
 
     family = family_of(campaign["robot"])
-    if not family.history_entry or "history" not in family.modules:
+    if not family.history_entry:
         raise ConfigError(
             f"{file}: key 'stage': the {family.name} family does not take part in stage histories "
             "(no history_entry); remove the key"

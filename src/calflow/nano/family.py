@@ -34,16 +34,6 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
     return options
 
 
-_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
-_MODELS = (
-    "calflow.nano.models.geometric",
-    "calflow.nano.models.terms",
-    "calflow.nano.models.registry",
-    "calflow.nano.models.thermal",
-    "calflow.nano.models.kmz",
-    "calflow.stepwise",
-)
-
 FAMILY = Family(
     name="nano",
     robots=("stage1d", "stage2d"),
@@ -92,66 +82,4 @@ FAMILY = Family(
     rules=("calflow.nano", "rules/step_response.smk", "rules/validation.smk"),
     workflow="calflow.nano.plans.workflow:WORKFLOW",
     history_entry="calflow.nano.report.history:history_entry",
-    modules={
-        "history": ("calflow.lifecycle", "calflow.report", "calflow.nano.report.history"),
-        "acquire": _CORE
-        + _MODELS
-        + (
-            "calflow.acquisition",
-            "calflow.rigs",
-            "calflow.gcs",
-            "calflow.nano.plans.sequences",
-            "calflow.nano.plans.campaign",
-            "calflow.identification.design",
-            "calflow.nano.plans.design",
-            "calflow.nano.plans.designed",
-            "calflow.nano.stage.rig",
-            "calflow.nano.stage.options",
-            "calflow.nano.stage.records",
-            "calflow.nano.stage.piezo",
-            "calflow.nano.stage.interferometer",
-            "calflow.nano.stage.thermal_network",
-            "calflow.nano.stage.truth",
-            "calflow.nano.stage.unseen",
-            "calflow.nano.stage.aging",
-            "calflow.nano.checks",
-            "calflow.nano.models.controllers",
-            "calflow.nano.family",
-            "calflow.nano.stage.interferometer_sensor",
-        ),
-        "identify": _CORE + _MODELS + ("calflow.nano.steps",),
-        "metrics": _CORE + ("calflow.metrics", "calflow.nano.evaluation", "calflow.nano.steps"),
-        "summarise": _CORE
-        + _MODELS
-        + (
-            "calflow.summary_routing",
-            "calflow.nano.report.reference",
-            "calflow.uncertainty",
-            "calflow.metrics",
-            "calflow.nano.evaluation",
-            "calflow.nano.robustness",
-            "calflow.nano.report.summary",
-            "calflow.nano.steps",
-            "calflow.nano.stage.error_budget",
-            "calflow.nano.report.ordering",
-            "calflow.nano.stage.rig",
-            "calflow.nano.stage.records",
-            "calflow.nano.report.stabilisation",
-            "calflow.nano.report.iso9283",
-            "calflow.identification.design",
-            "calflow.nano.plans.design",
-            "calflow.nano.plans.designed",
-            "calflow.nano.plans.sequences",
-            "calflow.nano.stage.options",
-            "calflow.nano.stage.piezo",
-            "calflow.nano.stage.interferometer",
-            "calflow.nano.stage.thermal_network",
-            "calflow.nano.stage.truth",
-            "calflow.nano.stage.unseen",
-            "calflow.nano.stage.aging",
-            "calflow.nano.report.extrapolation",
-            "calflow.rigs",
-        ),
-        "report": _CORE + ("calflow.report", "calflow.nano.report.figures", "calflow.nano.report.templates"),
-    },
 )

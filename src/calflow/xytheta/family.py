@@ -111,8 +111,6 @@ def _page_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True)
 
 
-_CORE = ("calflow.data", "calflow.config", "calflow.commands", "calflow.plan", "calflow.family")
-
 FAMILY = Family(
     name="xytheta",
     robots=("xytheta",),
@@ -147,114 +145,6 @@ FAMILY = Family(
     templates="calflow.xytheta.report",
     schemas="calflow.xytheta",
     history_entry="calflow.xytheta.report.history:history_entry",
-    modules={
-        "history": ("calflow.lifecycle", "calflow.report", "calflow.xytheta.report.history"),
-        "acquire": _CORE
-        + (
-            "calflow.acquisition",
-            "calflow.rigs",
-            "calflow.gcs",
-            "calflow.xytheta.plans.campaign",
-            "calflow.xytheta.plans.poses",
-            "calflow.xytheta.plans.sweeps",
-            "calflow.xytheta.stage.rig",
-            "calflow.xytheta.stage.physics",
-            "calflow.xytheta.stage.aging",
-            "calflow.xytheta.stage.vision_sensor",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.tables.position",
-            "calflow.xytheta.tables.angle_residuals",
-            "calflow.identification.design",
-            "calflow.xytheta.design.criteria",
-            "calflow.xytheta.design.plan",
-            "calflow.xytheta.tables.pose",
-            "calflow.xytheta.models.ladder",
-            "calflow.xytheta.tables.angle",
-            "calflow.xytheta.family",
-        ),
-        "characterise": _CORE + ("calflow.xytheta.tables.characterisation", "calflow.xytheta.steps"),
-        "identify": _CORE
-        + (
-            "calflow.identification",
-            "calflow.xytheta.models.identification",
-            "calflow.xytheta.models.resampling",
-            "calflow.xytheta.models.cost",
-            "calflow.xytheta.models.ladder",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.tables.position",
-            "calflow.xytheta.tables.angle_residuals",
-            "calflow.xytheta.tables.pose",
-            "calflow.xytheta.tables.angle",
-            "calflow.xytheta.steps",
-            "calflow.xytheta.design.criteria",
-            "calflow.xytheta.design.plan",
-            "calflow.xytheta.design.study",
-        ),
-        "metrics": _CORE
-        + (
-            "calflow.metrics",
-            "calflow.xytheta.evaluation",
-            "calflow.xytheta.tables.characterisation",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.steps",
-        ),
-        "summarise": _CORE
-        + (
-            "calflow.summary_routing",
-            "calflow.xytheta.report.reference",
-            "calflow.metrics",
-            "calflow.xytheta.report.summary",
-            "calflow.xytheta.report.heldout",
-            "calflow.xytheta.stage.oracle",
-            "calflow.xytheta.stage.rig",
-            "calflow.xytheta.stage.physics",
-            "calflow.xytheta.stage.aging",
-            "calflow.acquisition",
-            "calflow.xytheta.tables.characterisation",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.export.verification",
-            "calflow.xytheta.design.study",
-            "calflow.xytheta.report.interim",
-            "calflow.lifecycle.sprt",
-        ),
-        "interim": _CORE
-        + (
-            "calflow.acquisition",  # the runner stops the check at the test's decision
-            "calflow.rigs",
-            "calflow.lifecycle.sprt",
-            "calflow.xytheta.report.interim",
-            "calflow.xytheta.evaluation",
-            "calflow.xytheta.stage",
-            "calflow.xytheta.plans.interim",
-            "calflow.xytheta.export",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.models.ladder",
-            "calflow.xytheta.tables.position",
-            "calflow.xytheta.tables.angle",
-        ),
-        "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
-        "export": _CORE
-        + (
-            "calflow.xytheta.export",
-            "calflow.xytheta.models.ladder",
-            "calflow.xytheta.tables.position",
-            "calflow.xytheta.tables.angle_residuals",
-            "calflow.xytheta.tables.pose",
-            "calflow.xytheta.tables.angle",
-            "calflow.xytheta.models.kinematics",
-            "calflow.xytheta.evaluation",
-            "calflow.xytheta.plans.campaign",
-            "calflow.xytheta.plans.poses",
-        ),
-        "report": _CORE
-        + (
-            "calflow.report",
-            "calflow.xytheta.report.figures",
-            "calflow.xytheta.report.templates",
-            "calflow.xytheta.models.ladder",
-            "calflow.xytheta.design.study",
-        ),
-    },
     acquire_arguments=_acquire_arguments,
     identify_arguments=_identify_arguments,
     commands=(

@@ -13,15 +13,6 @@ from calflow.family import Command, Family
 
 _P = "calflow_hexapod.plans.campaign"
 _S = "calflow_hexapod.steps"
-_CORE = (
-    "calflow.data",
-    "calflow.config",
-    "calflow.commands",
-    "calflow.plan",
-    "calflow.family",
-    "calflow.reference",
-)
-_ALL = ("calflow_hexapod",)  # a small package: any change to it reruns its steps
 
 
 def _budget_arguments(p: argparse.ArgumentParser) -> None:
@@ -79,17 +70,6 @@ FAMILY = Family(
     },
     rules=("calflow_hexapod", "rules/hexapod.smk"),
     workflow="calflow_hexapod.workflow:WORKFLOW",
-    modules={
-        "acquire": _CORE
-        + ("calflow.acquisition", "calflow.rigs", "calflow.gcs", "calflow.identification")
-        + _ALL,
-        "identify": _CORE + ("calflow.identification",) + _ALL,
-        "metrics": _CORE + ("calflow.metrics",) + _ALL,
-        "summarise": _CORE + ("calflow.metrics", "calflow.summary_routing") + _ALL,
-        "report": _CORE + ("calflow.report",) + _ALL,
-        "export": _CORE + _ALL,
-        "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.identification") + _ALL,
-    },
     commands=(
         Command(
             "hexapod-export",

@@ -42,7 +42,7 @@ rule observability:
         runtime=1,
     params:
         campaign=campaign_file,
-        digest=section("identify", "seed", "identification", "observability"),
+        digest=section("observability", "seed", "identification", "observability"),
     shell:
         "calflow observability --campaign {params.campaign} --out {output} > {log} 2>&1"
 
@@ -63,7 +63,7 @@ rule design_study:
     params:
         campaign=campaign_file,
         digest=section(
-            "identify", "seed", "rig", "identification", "models", "design_study"
+            "design-study", "seed", "rig", "identification", "models", "design_study"
         ),
     shell:
         "calflow design-study --campaign {params.campaign} --out {output} > {log} 2>&1"

@@ -21,7 +21,7 @@ def budget_digest(w):
     )
     v = c["validation"]
     return digest(
-        [code_digest("error_budget", "xytheta")]
+        [code_digest("error-budget", "xytheta")]
         + [c.get(k) for k in keys]
         + [v["heldout"], v["dwell_s"]]
     )

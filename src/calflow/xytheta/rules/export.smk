@@ -56,7 +56,6 @@ rule acquire_validation_export:
         digest=lambda w: digest(
             [
                 rig_digest(f"export_{w.model}")(w),
-                code_digest("export", "xytheta"),
                 CAMPAIGN[w.campaign]["validation"]["heldout"],
                 CAMPAIGN[w.campaign]["validation"]["dwell_s"],
                 CAMPAIGN[w.campaign]["identification"],

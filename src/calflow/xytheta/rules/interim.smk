@@ -30,7 +30,6 @@ rule acquire_interim_check:
         digest=lambda w: digest(
             [
                 rig_digest("interim_check")(w),
-                code_digest("interim", "xytheta"),
                 CAMPAIGN[w.campaign]["interim_check"],
             ]
         ),

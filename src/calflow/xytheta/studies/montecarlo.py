@@ -21,7 +21,6 @@ The code keeps three parts apart:
 from __future__ import annotations
 
 import math
-from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -35,15 +34,6 @@ PARAMETERS = (
     ("alpha", "alpha_deg", "degree"),
     ("beta", "beta_deg", "degree"),
 )
-#: calflow modules of a study besides the workflow steps' own (for the rerun digests).
-MODULES = {
-    "point": ("calflow.xytheta.studies.montecarlo",),
-    "report": (
-        "calflow.xytheta.studies.montecarlo",
-        "calflow.xytheta.studies.aggregate",
-        "calflow.xytheta.studies.page",
-    ),
-}
 
 
 # ---------------------------------------------------------------------------- study files
@@ -132,20 +122,14 @@ def jobs(study: dict) -> list[tuple[str, str, int]]:
     ]
 
 
-@cache
 def code_digest(part: str = "point") -> str:
-    """Digest of the code of a study's ``point`` jobs (the acquire, identify and metrics steps
-    and this module) or of its ``report`` (aggregate and page)."""
-    import hashlib
-    import importlib.util
+    """Digest of the code of a study's ``point`` jobs (``calflow mc-point``) or of its
+    ``report`` (``calflow mc-aggregate`` and ``calflow mc-report``):
+    :func:`calflow.provenance.code_digest`."""
+    from calflow.provenance import code_digest as command_digest
 
-    from calflow.provenance import code_digest as step_digest
-
-    steps = ("acquire", "identify", "metrics") if part == "point" else ()
-    h = hashlib.sha256("".join(step_digest(s, "xytheta") for s in steps).encode())
-    for module in MODULES[part]:
-        h.update(Path(importlib.util.find_spec(module).origin).read_bytes())
-    return h.hexdigest()
+    commands = ("mc-point",) if part == "point" else ("mc-aggregate", "mc-report")
+    return "".join(command_digest(c, "xytheta") for c in commands)
 
 
 def point_digest(study: dict) -> str:

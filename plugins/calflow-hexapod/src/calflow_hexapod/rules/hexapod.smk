@@ -52,7 +52,7 @@ rule hexapod_error_budget:
     params:
         campaign=campaign_file,
         digest=section(
-            "error_budget",
+            "hexapod-error-budget",
             "seed",
             "start",
             "rig",
@@ -86,7 +86,7 @@ rule hexapod_export:
     params:
         campaign=campaign_file,
         folder=lambda w, output: os.path.dirname(output.bundle),
-        digest=section("export"),
+        digest=section("hexapod-export"),
     shell:
         "calflow hexapod-export --campaign {params.campaign} --model {input.model}"
         " --out {params.folder} > {log} 2>&1"
