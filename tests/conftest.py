@@ -106,6 +106,15 @@ def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subproce
     )
 
 
+def module_log(work: Path) -> dict:
+    """Environment under which each ``calflow`` job of a run in ``work`` records the calflow
+    and family modules it imported, in ``work/module-log`` (tests/module_log, read by
+    tests/test_provenance.py)."""
+    (work / "module-log").mkdir(exist_ok=True)
+    paths = [str(ROOT / "tests" / "module_log"), str(ROOT / "tests"), os.environ.get("PYTHONPATH")]
+    return {"CALFLOW_MODULE_LOG": str(work / "module-log"), "PYTHONPATH": os.pathsep.join(filter(None, paths))}
+
+
 @pytest.fixture
 def small_campaign() -> dict:
     return yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA))
@@ -172,7 +181,7 @@ def thesis_run(tmp_path_factory, worker_id) -> Path:
             shutil.copy(ROOT / "Snakefile", work / "Snakefile")
             shutil.copytree(ROOT / "workflow", work / "workflow")
             shutil.copytree(ROOT / "config", work / "config")
-            proc = snakemake(work, "--config", "studies=[]")
+            proc = snakemake(work, "--config", "studies=[]", env_extra=module_log(work))
             assert proc.returncode == 0, proc.stderr[-3000:]
             done.touch()
     return work
@@ -184,6 +193,6 @@ def reduced_run(tmp_path_factory) -> Path:
     work = make_workdir(
         tmp_path_factory.mktemp("reduced"), {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))}
     )
-    proc = snakemake(work, env_extra=SOURCE_DATE_EPOCH)
+    proc = snakemake(work, env_extra={**SOURCE_DATE_EPOCH, **module_log(work)})
     assert proc.returncode == 0, proc.stderr[-3000:]
     return work

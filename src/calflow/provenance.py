@@ -25,7 +25,6 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
-from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -60,13 +59,13 @@ DATA_SUFFIXES = (".j2", ".css", ".yaml", ".yml", ".json")
 
 @dataclass(frozen=True)
 class Source:
-    """One module's normalised source digest and the modules it may import."""
+    """One module's normalised source digest, and per top-level function or class (``""``:
+    what runs on import) what it may import and the names it refers to."""
 
     path: Path
     package: bool
     digest: str
-    imports: frozenset[str]
-    functions: dict  # top-level function or class name → (imports, names it refers to)
+    functions: dict[str, tuple[tuple[tuple[str, str | None], ...], frozenset[str]]]
 
 
 # ---------------------------------------------------------------------------- packages
@@ -141,48 +140,78 @@ def _module_name(node: ast.ImportFrom, here: str) -> str:
 
 
 def _scan(tree: ast.Module, module: str, package: bool, strings: bool) -> dict[str, tuple[list, list]]:
-    """One pass over ``tree``: per top-level function or class (``""``: the rest of the
-    module), the candidate modules it may import and the names it refers to; the
-    docstrings (string statements) are removed on the way, since they document and do
-    not run."""
+    """One pass over ``tree``: per top-level function or class (``""``: what runs when the
+    module is imported: its other statements, decorators, default values, base classes
+    and class-level statements), what it may import — ``[module, name]`` for ``from
+    module import name`` or a ``"module:name"`` look-up, ``[module, None]`` for a whole
+    module — and the names it refers to. Docstrings (string statements) are removed on
+    the way: they document, they do not run."""
     here = module if package else module.rpartition(".")[0]
     scanned: dict[str, tuple[list, list]] = {}
     tree.body = [s for s in tree.body if not _is_doc(s)] or [ast.Pass()]
     for stmt in tree.body:
-        named = isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
-        imports, names = scanned.setdefault(stmt.name if named else "", ([], []))
-        stack = [stmt]
-        while stack:
-            node = stack.pop()
-            kind = type(node)
-            if kind in _BODIES:  # before its statements are read: a docstring names no import
-                node.body = [s for s in node.body if not _is_doc(s)] or [ast.Pass()]
-            stack.extend(ast.iter_child_nodes(node))
-            if kind is ast.Name:
-                if named:
-                    names.append(node.id)
-            elif kind is ast.Constant:
-                value = node.value
-                if strings and type(value) is str and ":" in value:
-                    target, _, attr = value.partition(":")
-                    if attr.isidentifier() and all(p.isidentifier() for p in target.split(".")):
-                        imports.append(target)
-            elif kind is ast.Import:
-                imports.extend(alias.name for alias in node.names)
-            elif kind is ast.ImportFrom:
-                base = _module_name(node, here)
-                imports.append(base)
-                imports.extend(f"{base}.{alias.name}" for alias in node.names if alias.name != "*")
-            elif kind is ast.Call:
-                func, args = node.func, node.args
-                if (
-                    args
-                    and getattr(func, "attr", getattr(func, "id", None)) == "import_module"
-                    and isinstance(args[0], ast.Constant)
-                    and isinstance(args[0].value, str)
-                ):
-                    imports.append(args[0].value)
+        if isinstance(stmt, _BODIES):
+            parts = [(stmt.name, [stmt]), ("", _on_import(stmt))]
+        else:
+            parts = [("", [stmt])]
+        for key, nodes in parts:
+            imports, names = scanned.setdefault(key, ([], []))
+            looked_up = imports
+            if not key and isinstance(stmt, (ast.Assign, ast.AnnAssign)):
+                # a table of "module:name" strings is looked up by the code that reads it
+                targets = stmt.targets if isinstance(stmt, ast.Assign) else [stmt.target]
+                if len(targets) == 1 and isinstance(targets[0], ast.Name):
+                    looked_up = scanned.setdefault(targets[0].id, ([], []))[0]
+            _visit(nodes, here, strings, imports, names, looked_up)
     return scanned
+
+
+def _on_import(stmt: ast.stmt) -> list[ast.AST]:
+    """The parts of a function or class definition that run when its module is imported."""
+    found: list[ast.AST] = list(stmt.decorator_list)
+    if isinstance(stmt, ast.ClassDef):
+        found += stmt.bases + stmt.keywords
+        found += [s for s in stmt.body if not isinstance(s, _BODIES)]
+        for s in stmt.body:
+            if isinstance(s, _BODIES):
+                found += _on_import(s)
+    else:
+        found += stmt.args.defaults + [d for d in stmt.args.kw_defaults if d is not None]
+    return found
+
+
+def _visit(
+    nodes: list[ast.AST], here: str, strings: bool, imports: list, names: list, looked_up: list
+) -> None:
+    stack = list(nodes)
+    while stack:
+        node = stack.pop()
+        kind = type(node)
+        if kind in _BODIES:  # before its statements are read: a docstring names no import
+            node.body = [s for s in node.body if not _is_doc(s)] or [ast.Pass()]
+        stack.extend(ast.iter_child_nodes(node))
+        if kind is ast.Name:
+            names.append(node.id)
+        elif kind is ast.Constant:
+            value = node.value
+            if strings and type(value) is str and ":" in value:
+                target, _, attr = value.partition(":")
+                if attr.isidentifier() and all(p.isidentifier() for p in target.split(".")):
+                    looked_up.append([target, attr])
+        elif kind is ast.Import:
+            imports.extend([alias.name, None] for alias in node.names)
+        elif kind is ast.ImportFrom:
+            base = _module_name(node, here)
+            imports.extend([base, None if alias.name == "*" else alias.name] for alias in node.names)
+        elif kind is ast.Call:
+            func, args = node.func, node.args
+            if (
+                args
+                and getattr(func, "attr", getattr(func, "id", None)) == "import_module"
+                and isinstance(args[0], ast.Constant)
+                and isinstance(args[0].value, str)
+            ):
+                imports.append([args[0].value, None])
 
 
 _BODIES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
@@ -209,7 +238,7 @@ def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
 
     raw = path.read_bytes()
     key = hashlib.sha256(
-        f"v1 {sys.version_info[:2]} {module} {package} {strings}\n".encode() + raw
+        f"v3 {sys.version_info[:2]} {module} {package} {strings}\n".encode() + raw
     ).hexdigest()
     folder = _cache_dir()
     cached = folder / f"{key}.json" if folder else None
@@ -222,7 +251,9 @@ def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
     scanned = _scan(tree, module, package, strings)
     found = {
         "digest": hashlib.sha256(ast.dump(tree).encode()).hexdigest(),
-        "functions": {k: [sorted(set(i)), sorted(set(n))] for k, (i, n) in scanned.items()},
+        "functions": {
+            k: [sorted({tuple(x) for x in i}, key=str), sorted(set(n))] for k, (i, n) in scanned.items()
+        },
     }
     if cached is not None:
         try:
@@ -245,15 +276,14 @@ def source(module: str) -> Source:
     # The families' declarations name their hooks as strings; those are followed only
     # where the core resolves them (FAMILY_HOOKS), not as imports of the declaration.
     found = _normalised(module, path, package, strings=module not in registrations())
-    functions = {k: (frozenset(i), frozenset(n)) for k, (i, n) in found["functions"].items()}
-    functions.setdefault("", (frozenset(), frozenset()))
-    imports = frozenset().union(*(i for i, _ in functions.values()))
+    functions = {k: (tuple(map(tuple, i)), frozenset(n)) for k, (i, n) in found["functions"].items()}
+    functions.setdefault("", ((), frozenset()))
     h = hashlib.sha256(found["digest"].encode())
     if package:  # the package's data: its folders that are no packages, recursively
         for data in _data_files(path.parent):
             h.update(data.relative_to(path.parent).as_posix().encode())
             h.update(data.read_bytes())
-    return Source(path, package, h.hexdigest(), imports, functions)
+    return Source(path, package, h.hexdigest(), functions)
 
 
 def _data_files(folder: Path) -> list[Path]:
@@ -270,23 +300,29 @@ def _data_files(folder: Path) -> list[Path]:
 
 
 @cache
-def _known(name: str) -> tuple[str, ...]:
-    """``name`` and its parent packages (importing a module runs its packages'
-    ``__init__``), if it is a calflow or family module; else nothing."""
-    if find(name) is None:
-        return ()
+def _parents(name: str) -> tuple[str, ...]:
+    """The packages above module ``name`` that are calflow or family packages (importing
+    a module runs their ``__init__``)."""
     parts = name.split(".")
-    return tuple(m for m in (".".join(parts[:i]) for i in range(1, len(parts) + 1)) if find(m) is not None)
+    return tuple(m for m in (".".join(parts[:i]) for i in range(1, len(parts))) if find(m) is not None)
 
 
-def _modules(names: Iterable[str]) -> set[str]:
-    return {m for name in names for m in _known(name)}
+def _target(module: str, name: str | None) -> tuple[str, str]:
+    """What ``from module import name`` (``name`` None: ``import module``) enters:
+    ``(module, function or class)``, ``(module, "")`` for another name (only the
+    module's import-time code) or ``(submodule, "*")`` for all of a submodule."""
+    if name is None:
+        return module, "*"
+    if find(f"{module}.{name}") is not None:
+        return f"{module}.{name}", "*"
+    return module, name
 
 
 @cache
-def hook_targets(hooks: tuple[str, ...], robot: str | None) -> frozenset[str]:
-    """The modules the families declare for ``hooks`` (:data:`FAMILY_HOOKS`), for
-    ``robot``'s family (every family when ``robot`` is None)."""
+def hook_targets(hooks: tuple[str, ...], robot: str | None) -> tuple[tuple[str, str], ...]:
+    """``(module, attribute)`` of what the families declare for ``hooks``
+    (:data:`FAMILY_HOOKS`), for ``robot``'s family (every family when ``robot`` is None);
+    a package (templates, schemas) with attribute ``""``."""
     from calflow.family import families, family_of
 
     found: set[str] = set()
@@ -300,75 +336,61 @@ def hook_targets(hooks: tuple[str, ...], robot: str | None) -> frozenset[str]:
                 value = [t for r, named in value.items() if robot in (None, r) for t in named.values()]
             elif isinstance(value, dict):
                 value = list(value.values())
-            found.update(t.partition(":")[0] for t in ([value] if isinstance(value, str) else value or ()))
-    return frozenset(_modules(found))
-
-
-@cache
-def _edges(module: str, robot: str | None) -> frozenset[str]:
-    """The calflow or family modules ``module`` may import (all of its code), and those of
-    the family hooks it resolves."""
-    return frozenset(_modules(source(module).imports)) | hook_targets(FAMILY_HOOKS.get(module, ()), robot)
-
-
-def _entry(target: str, robot: str | None) -> set[str]:
-    """The modules an entry point ``module:function`` imports first: its module's top level
-    and the functions of its module it calls (its own closure is walked from there); the
-    command line that dispatches to it (``calflow.cli:main``, which builds the parser of
-    every subcommand but runs only this one); every family's declaration (each command
-    loads them all)."""
-    from calflow.cli import entry_points
-
-    module, _, function = target.partition(":")
-    found = {module, *registrations()}
-    if not function:
-        return _modules(found) | _edges(module, robot)
-    found |= _functions(
-        "calflow.cli",
-        "main",
-        robot,
-        exclude={t.partition(":")[2] for t in entry_points().values() if t.startswith("calflow.cli:")},
-    )
-    return _modules(found | _functions(module, function, robot))
-
-
-def _functions(
-    module: str, function: str, robot: str | None, exclude: frozenset | set = frozenset()
-) -> set[str]:
-    """What ``function`` of ``module`` and the functions of that module it names import
-    (the module's top level too), and the family hooks they resolve."""
-    found: set[str] = set()
-    functions = source(module).functions
-    todo, seen = [function, ""], set(exclude)
-    while todo:
-        name = todo.pop()
-        if name in seen or name not in functions:
-            continue
-        seen.add(name)
-        imports, names = functions[name]
-        found |= imports
-        todo.extend(names)
-        found |= hook_targets(FAMILY_HOOKS.get(f"{module}:{name}", ()), robot)
-    return _modules(found)
+            found.update([value] if isinstance(value, str) else value or ())
+    return tuple(sorted(tuple(t.partition(":")[::2]) for t in found))
 
 
 @cache
 def closure(target: str, robot: str | None = None) -> tuple[str, ...]:
-    """Every calflow or family module entry point ``target`` (``"module:function"``, or a
-    module) reaches through imports, for campaigns of ``robot``, sorted. The entry point's
-    module is included whole; of it, only the functions the entry point calls bring their
-    imports."""
-    module = target.partition(":")[0]
-    # The entry point's module, and the command line, are followed from the functions that
-    # run (the command line's ``main`` builds every subcommand's parser, runs only one).
-    seen = {module, "calflow.cli"}
-    todo = list(_entry(target, robot) - seen)
+    """Every calflow or family module that entry point ``target`` (``"module:function"``)
+    reaches through imports, for campaigns of ``robot``, sorted.
+
+    Followed from the functions that run: a module's import-time code always, and of its
+    functions and classes those imported (``from m import f``), looked up
+    (``"m:f"``, a family hook) or named by code already reached; a whole module where it
+    is imported as one (``import m``, ``from package import module``). The command line's
+    ``main`` builds every subcommand's parser and runs only the one of ``target``; every
+    family's declaration is loaded by each command. A module reached at all counts whole
+    in the digest."""
+    from calflow.cli import entry_points
+
+    others = {tuple(t.partition(":")[::2]) for t in entry_points().values() if t != target}
+    start = [tuple(target.partition(":")[::2]), ("calflow.cli", "main")] + [(m, "") for m in registrations()]
+    seen: set[tuple[str, str]] = set()
+    entered: set[str] = set()
+    todo = list(start)
     while todo:
-        name = todo.pop()
-        if name not in seen:
-            seen.add(name)
-            todo.extend(_edges(name, robot) - seen)
-    return tuple(sorted(seen))
+        item = todo.pop()
+        if item in seen:
+            continue
+        seen.add(item)
+        module, key = item
+        if find(module) is None:
+            continue
+        nxt = list(_next(module, key))
+        if module not in entered:
+            entered.add(module)
+            nxt += hook_targets(FAMILY_HOOKS.get(module, ()), robot)
+        nxt += hook_targets(FAMILY_HOOKS.get(f"{module}:{key}", ()), robot)
+        if module == "calflow.cli":  # the other subcommands: dispatched to, not run
+            nxt = [i for i in nxt if i not in others]
+        todo += [i for i in nxt if i not in seen]
+    return tuple(sorted(entered))
+
+
+@cache
+def _next(module: str, key: str) -> tuple[tuple[str, str], ...]:
+    """What entering ``key`` of ``module`` enters next (family hooks aside): the module's
+    import-time code and its packages', and what ``key`` imports or names."""
+    functions = source(module).functions
+    found = [(p, "") for p in _parents(module)] + [(module, "")]
+    if key == "*":
+        found += [(module, k) for k in functions]
+    elif key in functions:  # else a name bound on import (a constant, a re-export)
+        imports, names = functions[key]
+        found += [_target(m, n) for m, n in imports]
+        found += [(module, n) for n in names if n in functions]
+    return tuple(found)
 
 
 @cache
