@@ -112,7 +112,10 @@ def module_log(work: Path) -> dict:
     tests/test_provenance.py)."""
     (work / "module-log").mkdir(exist_ok=True)
     paths = [str(ROOT / "tests" / "module_log"), str(ROOT / "tests"), os.environ.get("PYTHONPATH")]
-    return {"CALFLOW_MODULE_LOG": str(work / "module-log"), "PYTHONPATH": os.pathsep.join(filter(None, paths))}
+    return {
+        "CALFLOW_MODULE_LOG": str(work / "module-log"),
+        "PYTHONPATH": os.pathsep.join(filter(None, paths)),
+    }
 
 
 @pytest.fixture
