@@ -25,6 +25,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
+import os
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -72,21 +73,6 @@ class Source:
 
 
 @cache
-def family_packages() -> tuple[str, ...]:
-    """The top-level packages whose modules count: calflow and every installed family's."""
-    from importlib.metadata import entry_points
-
-    from calflow.family import GROUP
-
-    found = ["calflow"]
-    for ep in entry_points(group=GROUP):
-        top = ep.value.partition(":")[0].split(".")[0]
-        if top not in found:
-            found.append(top)
-    return tuple(found)
-
-
-@cache
 def registrations() -> tuple[str, ...]:
     """The modules the families' entry points name: every command loads them all."""
     from importlib.metadata import entry_points
@@ -97,28 +83,37 @@ def registrations() -> tuple[str, ...]:
 
 
 @cache
-def _root(top: str) -> Path | None:
-    spec = importlib.util.find_spec(top)  # a top-level package: found, not imported
-    if spec is None or not spec.submodule_search_locations:
-        return None
-    return Path(list(spec.submodule_search_locations)[0]).resolve()
+def family_packages() -> tuple[str, ...]:
+    """The top-level packages whose modules count: calflow and every installed family's."""
+    return tuple(dict.fromkeys(["calflow", *(m.split(".")[0] for m in registrations())]))
 
 
 @cache
+def _modules() -> dict[str, tuple[Path, bool]]:
+    """Every module of :func:`family_packages` → ``(file, is_package)``, from one walk of
+    each package's folders (packages: folders with an ``__init__.py``)."""
+    found: dict[str, tuple[Path, bool]] = {}
+    for top in family_packages():
+        spec = importlib.util.find_spec(top)  # a top-level package: found, not imported
+        if spec is None or not spec.submodule_search_locations:
+            continue
+        root = list(spec.submodule_search_locations)[0]
+        for folder, subfolders, files in os.walk(root):
+            if "__init__.py" not in files:
+                subfolders[:] = []
+                continue
+            rel = os.path.relpath(folder, root)
+            package = top if rel == "." else f"{top}.{rel.replace(os.sep, '.')}"
+            found[package] = (Path(folder, "__init__.py"), True)
+            for name in files:
+                if name.endswith(".py") and name != "__init__.py":
+                    found[f"{package}.{name[:-3]}"] = (Path(folder, name), False)
+    return found
+
+
 def find(module: str) -> tuple[Path, bool] | None:
     """``(file, is_package)`` of a calflow or family module, or None (not one, or absent)."""
-    parts = module.split(".")
-    if parts[0] not in family_packages():
-        return None
-    root = _root(parts[0])
-    if root is None:
-        return None
-    base = root.joinpath(*parts[1:])
-    if (base / "__init__.py").is_file():
-        return base / "__init__.py", True
-    if len(parts) > 1 and base.with_suffix(".py").is_file():
-        return base.with_suffix(".py"), False
-    return None
+    return _modules().get(module)
 
 
 # ---------------------------------------------------------------------------- one module
@@ -217,12 +212,11 @@ def _visit(
 _BODIES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
 
 
+@cache
 def _cache_dir() -> Path | None:
     """Where normalised digests are kept between processes (content-addressed, so never
     stale): ``$CALFLOW_CACHE_DIR``, else ``$XDG_CACHE_HOME/calflow`` or ``~/.cache/calflow``;
     empty ``CALFLOW_CACHE_DIR``: none."""
-    import os
-
     folder = os.environ.get("CALFLOW_CACHE_DIR")
     if folder is None:
         folder = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "calflow")
@@ -233,7 +227,6 @@ def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
     """``{"digest", "functions"}`` of a module's source: computed, or read from the cache
     by the hash of the source itself."""
     import json
-    import os
     import sys
 
     raw = path.read_bytes()
@@ -352,13 +345,35 @@ def closure(target: str, robot: str | None = None) -> tuple[str, ...]:
     ``main`` builds every subcommand's parser and runs only the one of ``target``; every
     family's declaration is loaded by each command. A module reached at all counts whole
     in the digest."""
+    pair = tuple(target.partition(":")[::2])
+    seen, entered = _base(robot)
+    seen, entered = set(seen), set(entered)
+    _walk([pair], robot, _targets() - {pair}, seen, entered)
+    return tuple(sorted(entered))
+
+
+@cache
+def _targets() -> frozenset[tuple[str, str]]:
+    """``(module, function)`` of every subcommand's entry point."""
     from calflow.cli import entry_points
 
-    others = {tuple(t.partition(":")[::2]) for t in entry_points().values() if t != target}
-    start = [tuple(target.partition(":")[::2]), ("calflow.cli", "main")] + [(m, "") for m in registrations()]
+    return frozenset(tuple(t.partition(":")[::2]) for t in entry_points().values())
+
+
+@cache
+def _base(robot: str | None) -> tuple[frozenset, frozenset]:
+    """What every command reaches (seen ``(module, key)``, modules): the command line's
+    ``main`` and every family's declaration, no subcommand's own function."""
+    start = [("calflow.cli", "main")] + [(m, "") for m in registrations()]
     seen: set[tuple[str, str]] = set()
     entered: set[str] = set()
-    todo = list(start)
+    _walk(start, robot, _targets(), seen, entered)
+    return frozenset(seen), frozenset(entered)
+
+
+def _walk(todo: list, robot: str | None, others: frozenset, seen: set, entered: set) -> None:
+    """Enter everything reachable from ``todo`` (``(module, key)``), adding to ``seen``
+    and ``entered``; the command line does not dispatch to ``others``."""
     while todo:
         item = todo.pop()
         if item in seen:
@@ -375,7 +390,6 @@ def closure(target: str, robot: str | None = None) -> tuple[str, ...]:
         if module == "calflow.cli":  # the other subcommands: dispatched to, not run
             nxt = [i for i in nxt if i not in others]
         todo += [i for i in nxt if i not in seen]
-    return tuple(sorted(entered))
 
 
 @cache
