@@ -330,7 +330,8 @@ def hook_targets(hooks: tuple[str, ...], robot: str | None) -> tuple[tuple[str, 
             elif isinstance(value, dict):
                 value = list(value.values())
             found.update([value] if isinstance(value, str) else value or ())
-    return tuple(sorted(tuple(t.partition(":")[::2]) for t in found))
+    pairs = {tuple(t.partition(":")[::2]) for t in found}
+    return tuple(sorted(p for p in pairs if find(p[0]) is not None))
 
 
 @cache
@@ -346,6 +347,8 @@ def closure(target: str, robot: str | None = None) -> tuple[str, ...]:
     family's declaration is loaded by each command. A module reached at all counts whole
     in the digest."""
     pair = tuple(target.partition(":")[::2])
+    if find(pair[0]) is None:
+        raise ValueError(f"provenance: entry point {target!r} is not in a calflow or family module")
     seen, entered = _base(robot)
     seen, entered = set(seen), set(entered)
     _walk([pair], robot, _targets() - {pair}, seen, entered)
@@ -380,8 +383,6 @@ def _walk(todo: list, robot: str | None, others: frozenset, seen: set, entered: 
             continue
         seen.add(item)
         module, key = item
-        if find(module) is None:
-            continue
         nxt = list(_next(module, key))
         if module not in entered:
             entered.add(module)
@@ -404,7 +405,7 @@ def _next(module: str, key: str) -> tuple[tuple[str, str], ...]:
         imports, names = functions[key]
         found += [_target(m, n) for m, n in imports]
         found += [(module, n) for n in names if n in functions]
-    return tuple(found)
+    return tuple(i for i in found if find(i[0]) is not None)
 
 
 @cache
