@@ -19,7 +19,8 @@ from conftest import ROOT, snakemake
 
 from calflow.cli import entry_point, entry_points
 from calflow.family import families
-from calflow.provenance import FAMILY_HOOKS, _scan, closure, family_packages
+from calflow.provenance import FAMILY_HOOKS, closure
+from calflow.provenance.modules import family_packages, scan
 
 
 def _commands() -> list[tuple[str, str | None]]:
@@ -58,7 +59,7 @@ def f():
 def g(x=DEFAULT):
     return helper()
 '''
-    scanned = _scan(ast.parse(code), "calflow.pkg.mod", False, True)
+    scanned = scan(ast.parse(code), "calflow.pkg.mod", False, True)
     top, _ = scanned[""]
     assert ["calflow.a.b", None] in top and ["calflow.pkg", "sibling"] in top and ["calflow", "uncle"] in top
     assert ["calflow.pkg.sub", "name"] in top and ["calflow.top", None] in top
@@ -86,8 +87,12 @@ def test_every_core_look_up_of_a_family_hook_is_declared():
         if module.split(".")[1:2] in (["xytheta"], ["nano"]) or not lookups.search(path.read_text()):
             continue
         found.add(module)
-    # calflow.family resolves what it is given; calflow.provenance only names the function
-    declared = {k.partition(":")[0] for k in FAMILY_HOOKS} | {"calflow.family", "calflow.provenance"}
+    # calflow.family resolves what it is given; calflow.provenance only names the look-ups
+    declared = {k.partition(":")[0] for k in FAMILY_HOOKS} | {
+        "calflow.family",
+        "calflow.provenance",
+        "calflow.provenance.modules",
+    }
     assert found - declared == set()
 
 
