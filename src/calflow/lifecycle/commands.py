@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from calflow import layout
 from calflow.errors import ConfigError
 
 
@@ -59,7 +60,7 @@ def run_report(args) -> None:
     from calflow.report.render import write_pdf
 
     history = json.loads(Path(args.history).read_text())
-    command = f"snakemake --cores 2 reports/stages/{history['stage']}/history.html"
+    command = f"snakemake --cores 2 {layout.stage_history(history['stage'])}"
     html, printed = render(history, command, pdf=bool(args.pdf))
     write_text(html, args.html)
     if args.pdf:

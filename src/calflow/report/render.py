@@ -19,7 +19,7 @@ from pathlib import Path
 import jinja2
 import yaml
 
-from calflow import __version__
+from calflow import __version__, layout
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = (
@@ -156,9 +156,9 @@ def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -
             extra[str(f)] = sha256_file(f)
     name = summary.get("campaign", campaign.get("name", "campaign"))
     report_cmd = (
-        f"calflow report --campaign config/campaigns/{name}.yaml --summary results/{name}/summary.json"
+        f"calflow report --campaign config/campaigns/{name}.yaml --summary {layout.summary(name)}"
         + (" --files " + " ".join(shlex.quote(str(f)) for f in files) if files else "")
-        + f" --html reports/{name}/report.html --pdf reports/{name}/report.pdf"
+        + f" --html {layout.report(name)} --pdf {layout.report(name, 'pdf')}"
     )
     return {
         "versions": _versions(),

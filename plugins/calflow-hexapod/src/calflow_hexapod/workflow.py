@@ -12,6 +12,7 @@ Compensator (``rules/hexapod.smk``, run ``closed_loop_<model>``) → the summary
 
 from __future__ import annotations
 
+from calflow import layout
 from calflow.family_workflow import FamilyWorkflow
 
 
@@ -23,24 +24,23 @@ class HexapodWorkflow(FamilyWorkflow):
         return list(c["models"])
 
     def results_of(self, c: dict) -> list[str]:
-        base = f"results/{c['name']}"
-        models = self.models(c)
-        files = [f"{base}/models/{m}.nc" for m in models]
-        files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
-        files += [f"{base}/metrics/closed_loop_{m}.nc" for m in models]
+        name, models = c["name"], self.models(c)
+        files = [layout.model(name, m) for m in models]
+        files += [layout.metrics(name, f"validation_heldout_{m}") for m in models]
+        files += [layout.metrics(name, f"closed_loop_{m}") for m in models]
         if "iso9283" in c:
-            files += [f"{base}/metrics/iso9283_{m}.nc" for m in models]
-        files.append(f"{base}/runs/identification.nc")
+            files += [layout.metrics(name, f"iso9283_{m}") for m in models]
+        files.append(layout.run(name, "identification"))
         return files
 
     def budget_files(self, c: dict) -> list[str]:
         """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
         if c["rig"]["factory"] != "simulated" or not c["validation"]["heldout"].get("error_budget"):
             return []
-        return [f"results/{c['name']}/truth/hexapod_error_budget.json"]
+        return [layout.truth(c["name"], "hexapod_error_budget")]
 
     def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
-        return {"run": f"results/{c['name']}/runs/identification.nc"}
+        return {"run": layout.run(c["name"], "identification")}
 
     def identify_sections(self, c: dict, model: str) -> list:
         return [c["seed"], c["identification"], c["models"][model]]

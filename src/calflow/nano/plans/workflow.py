@@ -10,6 +10,7 @@ are in this family's ``rules/`` files.
 
 from __future__ import annotations
 
+from calflow import layout
 from calflow.family_workflow import FamilyWorkflow, recorded_runs
 
 
@@ -21,7 +22,7 @@ class NanoWorkflow(FamilyWorkflow):
         return ["single", "adaptive_kmz"] if c["robot"] == "stage1d" else ["two_dof"]
 
     def results_of(self, c: dict) -> list[str]:
-        base = f"results/{c['name']}"
+        name = c["name"]
         recorded = recorded_runs(c)
 
         def has(run: str) -> bool:
@@ -29,19 +30,19 @@ class NanoWorkflow(FamilyWorkflow):
 
         files = []
         if has("training"):
-            files += [f"{base}/models/{m}.nc" for m in self.models(c)]
-            files += [f"{base}/metrics/training.nc", f"{base}/runs/training.nc"]
+            files += [layout.model(name, m) for m in self.models(c)]
+            files += [layout.metrics(name, "training"), layout.run(name, "training")]
         if has("validation"):
-            files.append(f"{base}/metrics/validation.nc")
+            files.append(layout.metrics(name, "validation"))
             files.append(
-                f"{base}/runs/validation.nc"
+                layout.run(name, "validation")
             )  # ISO 9283 vAP, AD/RD, drift; the error budget replays it
         if c["robot"] == "stage1d" and has("metrology"):
-            files.append(f"{base}/metrics/metrology.nc")
+            files.append(layout.metrics(name, "metrology"))
             if not has("training"):  # the ISO 230-2 figures then come from the metrology run
-                files.append(f"{base}/runs/metrology.nc")
+                files.append(layout.run(name, "metrology"))
         if c["step_response"]["enabled"] and has("step_response"):  # ISO 9283 stabilisation time, overshoot
-            files.append(f"{base}/runs/step_response.nc")
+            files.append(layout.run(name, "step_response"))
         return files
 
     def summary_truth(self, c: dict) -> str | list[str]:
@@ -49,10 +50,10 @@ class NanoWorkflow(FamilyWorkflow):
         recorded = recorded_runs(c)
         if recorded is not None and "validation" not in recorded:
             return []
-        return f"results/{c['name']}/truth/validation.json"
+        return layout.truth(c["name"], "validation")
 
     def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
-        return {"run": f"results/{c['name']}/runs/training.nc"}
+        return {"run": layout.run(c["name"], "training")}
 
     def identify_sections(self, c: dict, model: str) -> list:
         return [c["model"]]

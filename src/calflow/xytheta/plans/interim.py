@@ -33,6 +33,7 @@ import os
 
 import numpy as np
 
+from calflow import layout
 from calflow.errors import CalflowError
 from calflow.plan import Acquisition
 
@@ -144,7 +145,7 @@ def interim_check(c: dict, args) -> Acquisition:
         params, check["targets"], ws["x_um"], ws["y_um"], ws["theta_deg"], check["drift"]
     )
     plan, _ = export_plan(args.export, targets, check["cycles"], check["dwell_s"], paths=("bundle",))
-    reference = f"results/{check['reference']}/runs/export_{check['model']}.nc"
+    reference = layout.run(check["reference"], f"export_{check['model']}")
     if not os.path.exists(reference):
         raise CalflowError(
             f"calflow acquire --plan interim_check: {reference}: the reference's closed-loop check "

@@ -15,6 +15,7 @@ identifies no model.
 
 from __future__ import annotations
 
+from calflow import layout
 from calflow.family_workflow import FamilyWorkflow, replayed_runs
 
 
@@ -32,37 +33,37 @@ class XYThetaWorkflow(FamilyWorkflow):
     def all_runs(self, c: dict) -> list[str]:
         """Every run a calibration acquires (its rig time): those of its summary, and the
         reference-target validation and export runs of each model."""
-        base = f"results/{c['name']}"
-        runs = {f for f in self.results_of(c) if f.startswith(f"{base}/runs/")}
+        name = c["name"]
+        runs = {f for f in self.results_of(c) if f.startswith(layout.campaign(name, "runs") + "/")}
         kinds = ("export",) if c["validation"].get("targets") == [] else ("validation", "export")
-        runs.update(f"{base}/runs/{k}_{m}.nc" for m in self.models(c) for k in kinds)
+        runs.update(layout.run(name, f"{k}_{m}") for m in self.models(c) for k in kinds)
         tests = c["xy_tests"]["compensation"]
-        runs.update(f"{base}/runs/{t}_{k}.nc" for t in ("square", "random_points") for k in tests)
+        runs.update(layout.run(name, f"{t}_{k}") for t in ("square", "random_points") for k in tests)
         return sorted(runs)
 
     def results_of(self, c: dict) -> list[str]:
         if "interim_check" in c:  # its run and metrics, and the reference's runs (resolved at load)
-            base = f"results/{c['name']}"
-            runs = c["interim_check"]["resolved"]["runs"]
-            return [f"{base}/runs/interim_check.nc", f"{base}/metrics/interim_check.nc", *runs]
-        base = f"results/{c['name']}"
-        models = self.models(c)
-        files = [f"{base}/models/{m}.nc" for m in models]
+            name, runs = c["name"], c["interim_check"]["resolved"]["runs"]
+            return [layout.run(name, "interim_check"), layout.metrics(name, "interim_check"), *runs]
+        name, models = c["name"], self.models(c)
+        files = [layout.model(name, m) for m in models]
         if c["validation"].get("targets") != []:  # [] : held-out validation only
-            files += [f"{base}/metrics/validation_{m}.nc" for m in models]
-        files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
-        files += [f"{base}/runs/validation_heldout_{m}.nc" for m in models]
-        files.append(f"{base}/runs/identification.nc")
-        files += [f"{base}/runs/angle_residuals_{s['base']}.nc" for s in c["models"].values() if "base" in s]
+            files += [layout.metrics(name, f"validation_{m}") for m in models]
+        files += [layout.metrics(name, f"validation_heldout_{m}") for m in models]
+        files += [layout.run(name, f"validation_heldout_{m}") for m in models]
+        files.append(layout.run(name, "identification"))
+        files += [
+            layout.run(name, f"angle_residuals_{s['base']}") for s in c["models"].values() if "base" in s
+        ]
         if c["observability"]["study"]:
-            files.append(f"{base}/metrics/observability.nc")
+            files.append(layout.metrics(name, "observability"))
         if "design_study" in c:  # opt-in
-            files.append(f"{base}/metrics/design_study.nc")
+            files.append(layout.metrics(name, "design_study"))
         tests = c["xy_tests"]["compensation"]
         if tests or any(spec.get("position_table") for spec in c["models"].values()):
-            files.append(f"{base}/luts/position.nc")
-            files += [f"{base}/runs/characterisation_{a}.nc" for a in "xy"]  # ISO 230-2
-        files += [f"{base}/metrics/{t}_{k}.nc" for t in ("square", "random_points") for k in tests]
+            files.append(layout.luts(name))
+            files += [layout.run(name, f"characterisation_{a}") for a in "xy"]  # ISO 230-2
+        files += [layout.metrics(name, f"{t}_{k}") for t in ("square", "random_points") for k in tests]
         return files + self.export_results(c)
 
     def export_results(self, c: dict) -> list[str]:
@@ -72,12 +73,12 @@ class XYThetaWorkflow(FamilyWorkflow):
         if c["rig"]["factory"] == "replay":
             recorded = replayed_runs(c)
             models = [m for m in models if f"export_{m}" in recorded]
-        return [f"results/{c['name']}/metrics/export_{m}.nc" for m in models]
+        return [layout.metrics(c["name"], f"export_{m}") for m in models]
 
     def summary_truth(self, c: dict) -> str:
         if "interim_check" in c:
-            return f"results/{c['name']}/truth/interim_check.json"
-        return f"results/{c['name']}/truth/identification.json"
+            return layout.truth(c["name"], "interim_check")
+        return layout.truth(c["name"], "identification")
 
     def budget_files(self, c: dict) -> list[str]:
         """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
@@ -85,14 +86,14 @@ class XYThetaWorkflow(FamilyWorkflow):
             return []
         if not c["validation"]["heldout"]["error_budget"]:
             return []
-        return [f"results/{c['name']}/truth/error_budget.json"]
+        return [layout.truth(c["name"], "error_budget")]
 
     def report_files(self, c: dict) -> list[str]:
         """The summary's files and the identification poses (the report's pose figure); an
         interim check has no identification."""
         if "interim_check" in c:
             return self.results_of(c)
-        return self.results_of(c) + [f"results/{c['name']}/runs/identification.nc"]
+        return self.results_of(c) + [layout.run(c["name"], "identification")]
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
         """The XY tables a designed identification plan reads for its discrepancy kernel."""
@@ -104,20 +105,19 @@ class XYThetaWorkflow(FamilyWorkflow):
             return {}
         if given.get("amplitude_um") is not None and given.get("length") is not None:
             return {}
-        return {"luts": f"results/{c['name']}/luts/position.nc"}
+        return {"luts": layout.luts(c["name"])}
 
     def identify_inputs(self, c: dict, model: str) -> dict[str, str]:
-        base = f"results/{c['name']}"
-        spec = c["models"][model]
+        name, spec = c["name"], c["models"][model]
         if "base" in spec:
             return {
-                "base": f"{base}/models/{spec['base']}.nc",
-                "residuals": f"{base}/runs/angle_residuals_{spec['base']}.nc",
-                "run": f"{base}/runs/identification.nc",
+                "base": layout.model(name, spec["base"]),
+                "residuals": layout.run(name, f"angle_residuals_{spec['base']}"),
+                "run": layout.run(name, "identification"),
             }
-        inputs = {"run": f"{base}/runs/identification.nc"}
+        inputs = {"run": layout.run(name, "identification")}
         if spec.get("position_table"):
-            inputs["luts"] = f"{base}/luts/position.nc"
+            inputs["luts"] = layout.luts(name)
         return inputs
 
     def identify_sections(self, c: dict, model: str) -> list:

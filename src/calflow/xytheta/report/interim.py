@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from calflow import __version__
+from calflow import __version__, layout
 from calflow.errors import CalflowError, ConfigError
 from calflow.lifecycle.sprt import SPRT
 from calflow.reference import declared
@@ -103,14 +103,14 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
     summary and runs (every file named by the family's workflow)."""
     check = campaign["interim_check"]
     ref, model, name = check["reference"], check["model"], campaign["name"]
-    own_run = f"results/{name}/runs/interim_check.nc"
-    own_metrics = f"results/{name}/metrics/interim_check.nc"
-    export_run = f"results/{ref}/runs/export_{model}.nc"
+    own_run = layout.run(name, "interim_check")
+    own_metrics = layout.metrics(name, "interim_check")
+    export_run = layout.run(ref, f"export_{model}")
     missing = [f for f in (own_run, own_metrics, export_run) if f not in files]
     if missing:
         raise CalflowError(f"interim check {name}: --files lacks {missing[0]}")
     run, metrics = _open(own_run), _open(own_metrics)
-    ref_runs = [f for f in files if f.startswith(f"results/{ref}/runs/")]
+    ref_runs = [f for f in files if f.startswith(layout.campaign(ref, "runs") + "/")]
     r0 = reference_rms_um(_open(export_run))
     test = check_test(campaign, r0)
     tol = test.r1_um

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calflow import layout
 from calflow.errors import ConfigError
 
 #: Parameters of Eq. (4.18): (model name, summary key, units).
@@ -166,7 +167,7 @@ def study_digest(study: dict) -> str:
 
 def point_files(study: dict) -> list[str]:
     """The point files of a study's jobs, ``results/studies/<name>/points/<seeds>_<noise>_<poses>.json``."""
-    return [f"results/studies/{study['name']}/points/{s}_{n}_{p}.json" for s, n, p in jobs(study)]
+    return [layout.study_point(study["name"], s, n, p) for s, n, p in jobs(study)]
 
 
 def point_seed(campaign: dict, seed: int) -> int:
