@@ -9,15 +9,16 @@ with ``y`` a submodule, ``importlib.import_module("...")`` and ``"module:attribu
 strings (the core's own look-ups, such as its built-in rigs). Where the core looks a hook
 up in the campaign's family (``family.step("identify")``, the family's plans, rigs,
 reference sets...), :data:`FAMILY_HOOKS` names the hook, and the modules the family
-declares for it join the closure. Third-party libraries are not followed (their version
-is the environment's, ``workflow/envs``).
+declares for it join the closure. Imports are followed from the functions that run
+(:func:`closure`). Third-party libraries are not followed (their version is the
+environment's, ``workflow/envs``).
 
-Each module is read statically (:mod:`ast`; nothing is imported but the families'
-declarations) and counted by its normalised source: the syntax tree without docstrings
-and comments, so a comment or a docstring changes no digest and reruns nothing, while any
-change to the code does. A package brings its data files (templates, stylesheets,
-schemas) too. Everything is cached per process: the workflow asks for many digests when
-it reads the Snakefile.
+Each module is read statically (:mod:`calflow.provenance.modules`; nothing is imported but
+the families' declarations) and counted by its normalised source: the syntax tree without
+docstrings and comments, so a comment or a docstring changes no digest and reruns nothing,
+while any change to the code does. A package brings its data files (templates,
+stylesheets, schemas) too. Everything is cached per process (the workflow asks for many
+digests when it reads the Snakefile), normalised sources also between processes.
 """
 
 from __future__ import annotations
