@@ -134,6 +134,7 @@ FAMILY = Family(
         | {
             "validation_export": "calflow.xytheta.export.verification:validation_export",
             "interim_check": "calflow.xytheta.plans.interim:interim_check",
+            "as_found": "calflow.xytheta.plans.as_found:as_found",
         }
     },
     rig_options="calflow.xytheta.family:rig_options",
@@ -215,7 +216,23 @@ FAMILY = Family(
             "calflow.xytheta.export.verification",
             "calflow.xytheta.design.study",
             "calflow.xytheta.report.interim",
+            "calflow.xytheta.report.as_found",
             "calflow.lifecycle.sprt",
+        ),
+        "as_found": _CORE
+        + (
+            "calflow.acquisition",
+            "calflow.rigs",
+            "calflow.xytheta.evaluation",
+            "calflow.xytheta.stage",
+            "calflow.xytheta.plans.as_found",
+            "calflow.xytheta.plans.campaign",
+            "calflow.xytheta.plans.poses",
+            "calflow.xytheta.export",
+            "calflow.xytheta.models.kinematics",
+            "calflow.xytheta.models.ladder",
+            "calflow.xytheta.tables.position",
+            "calflow.xytheta.tables.angle",
         ),
         "interim": _CORE
         + (
@@ -323,6 +340,8 @@ FAMILY = Family(
         "metrics:observability": "observability",
         "metrics:design_study": "design_study",
         "metrics:validation_export": "export",
+        "metrics:as_found": "as_found",
+        "run:as_found": "as_found_runs",
         "luts": "characterisation",
         "run:characterisation_x": "iso230_2",
         "run:characterisation_y": "iso230_2",
@@ -338,6 +357,7 @@ FAMILY = Family(
         "rules/validation.smk",
         "rules/export.smk",
         "rules/interim.smk",
+        "rules/as_found.smk",
         "rules/montecarlo.smk",
     ),
     workflow="calflow.xytheta.plans.workflow:WORKFLOW",
