@@ -45,23 +45,45 @@ from calflow.lifecycle import as_found
 T0 = dt.datetime(2026, 1, 5, 8, tzinfo=dt.UTC)
 
 
-def history(rng, n_intervals: int, level: float, rate: float, sigma: float) -> tuple[list[dict], dict]:
-    """History entries (as :mod:`calflow.lifecycle.history` builds them) of one stage."""
-    entries, t = [], T0
-    prev = None
-    for k in range(n_intervals + 1):
-        if k:
-            t = t + dt.timedelta(days=float(rng.uniform(60, 180)))
-        start = t.isoformat()
-        model = {"as_left": {"accuracy_um": level + rng.normal(0, sigma), "date": start}}
-        if prev is not None:
-            days = (t - prev[1]).total_seconds() / 86400
-            found = level + rate * days + rng.normal(0, sigma)
-            model["as_found"] = {"accuracy_um": found, "date": start, "reference": prev[0]}
-        name = f"c{k}"
-        entries.append({"campaign": name, "start": start, "kind": "calibration", "models": {"III": model}})
-        prev = (name, t)
-    return entries, {"last": prev[1]}
+def calibrate(
+    rng, entries: list[dict], t: dt.datetime, level: float, rate: float, sigma: float
+) -> float | None:
+    """Append one calibration at ``t`` to ``entries`` (as :mod:`calflow.lifecycle.history`
+    builds them): its as-found value through the previous one's compensation, its as-left
+    value. Returns the as-found AP (None for the first calibration)."""
+    start = t.isoformat()
+    model = {"as_left": {"accuracy_um": level + rng.normal(0, sigma), "date": start}}
+    found = None
+    if entries:
+        prev = entries[-1]
+        days = (t - dt.datetime.fromisoformat(prev["start"])).total_seconds() / 86400
+        found = level + rate * days + rng.normal(0, sigma)
+        model["as_found"] = {"accuracy_um": found, "date": start, "reference": prev["campaign"]}
+    entries.append(
+        {"campaign": f"c{len(entries)}", "start": start, "kind": "calibration", "models": {"III": model}}
+    )
+    return found
+
+
+def interval_of(entries: list[dict], tol: float, reliability: float) -> dict:
+    """The workflow's own interval (history.json's ``interval``) of the history so far."""
+    return as_found.from_history(entries, [0] * len(entries), "III", tol, reliability)
+
+
+def summary(realised: list[bool], ratio: list[float], target: float, skipped: int) -> dict:
+    r, q = np.asarray(realised, float), np.asarray(ratio, float)
+    n = r.size
+    rate_in = float(r.mean()) if n else float("nan")
+    return {
+        "dated": int(n),
+        "no_date": int(skipped),
+        "realised_in_tolerance": rate_in,
+        "realised_mc_std": float(np.sqrt(rate_in * (1 - rate_in) / n)) if n else None,
+        "within_2pct_of_target": bool(abs(rate_in - target) <= 0.02),
+        "date_within_20pct_of_true_crossing": float(np.mean(np.abs(q - 1) <= 0.2)) if n else None,
+        "median_date_over_true_crossing": float(np.median(q)) if n else None,
+        "ratio_p05_p95": [float(np.quantile(q, 0.05)), float(np.quantile(q, 0.95))] if n else None,
+    }
 
 
 def suncal_reliability(iv: dict) -> float | None:
@@ -103,49 +125,62 @@ def main(argv=None):
     rng = np.random.default_rng(a.seed)
     z = stats.norm.ppf(a.reliability)
     t_start = time.perf_counter()
-    realised, ratio, a_realised, a_dated, no_date, suncal_diff = [], [], [], 0, 0, []
+    fixed = {"realised": [], "ratio": [], "skipped": 0}
+    due = {"realised": [], "ratio": [], "skipped": 0}
+    a_realised, a_dated, suncal_diff = [], 0, []
     for i in range(a.histories):
         level = rng.uniform(1.2, 1.8)  # the stage's as-left AP (µm)
-        crossing = np.exp(rng.uniform(np.log(120), np.log(720)))  # days to the tolerance, in truth
+        crossing = np.exp(rng.uniform(np.log(120), np.log(720)))  # days to the target, in truth
         rate = (a.tolerance_um - level - z * a.sigma_um) / crossing
-        entries, _ = history(rng, a.intervals, level, rate, a.sigma_um)
-        iv = as_found.from_history(entries, [0] * len(entries), "III", a.tolerance_um, a.reliability)
+        # (1) intervals a lab chose (60-180 days), then one due date from the whole history
+        entries, t = [], T0
+        for k in range(a.intervals + 1):
+            t = t + dt.timedelta(days=float(rng.uniform(60, 180))) if k else t
+            calibrate(rng, entries, t, level, rate, a.sigma_um)
+        iv = interval_of(entries, a.tolerance_um, a.reliability)
         days = iv["interval_days"]
         if days is None:
-            no_date += 1
-            continue
-        found = level + rate * days + rng.normal(0, a.sigma_um)
-        realised.append(found <= a.tolerance_um)
-        ratio.append(days / crossing)
-        if i < 50:
-            s = suncal_reliability(iv) if days > 0 else None
-            if s is not None:
-                suncal_diff.append(s - a.reliability)
+            fixed["skipped"] += 1
+        else:
+            fixed["realised"].append(level + rate * days + rng.normal(0, a.sigma_um) <= a.tolerance_um)
+            fixed["ratio"].append(days / crossing)
+            if i < 50 and days > 0:
+                s = suncal_reliability(iv)
+                if s is not None:
+                    suncal_diff.append(s - a.reliability)
         att = iv["attributes"]["interval_days"]
         if att:
             a_dated += 1
             a_realised.append(level + rate * att + rng.normal(0, a.sigma_um) <= a.tolerance_um)
-    realised, ratio = np.asarray(realised, float), np.asarray(ratio)
-    n = realised.size
-    rate_in = float(realised.mean()) if n else float("nan")
+        # (2) recalibrated at the due date: three intervals a lab chose, then each next
+        # calibration on the date the history so far gives (its as-found value is the test)
+        entries, t = [], T0
+        for k in range(a.intervals + 1):
+            if k <= 3:
+                step = float(rng.uniform(60, 180)) if k else 0.0
+            else:
+                step = interval_of(entries, a.tolerance_um, a.reliability)["interval_days"]
+                if step is None or step < 1.0:  # no date (beyond the horizon) or "now": not the method's date
+                    due["skipped"] += 1
+                    step = float(rng.uniform(60, 180)) if step is None else 1.0
+                else:
+                    due["ratio"].append(step / crossing)
+            t = t + dt.timedelta(days=step)
+            found = calibrate(rng, entries, t, level, rate, a.sigma_um)
+            if k > 3 and len(due["ratio"]) > len(due["realised"]):
+                due["realised"].append(found <= a.tolerance_um)
     out = {
         "histories": a.histories,
         "intervals_per_history": a.intervals,
         "reliability_target": a.reliability,
         "tolerance_um": a.tolerance_um,
         "sigma_um": a.sigma_um,
-        "variables_v1": {
-            "dated": n,
-            "no_date": no_date,
-            "realised_in_tolerance": rate_in,
-            "realised_mc_std": float(np.sqrt(rate_in * (1 - rate_in) / n)) if n else None,
-            "within_2pct_of_target": bool(abs(rate_in - a.reliability) <= 0.02),
-            "date_within_20pct_of_true_crossing": float(np.mean(np.abs(ratio - 1) <= 0.2)) if n else None,
-            "median_date_over_true_crossing": float(np.median(ratio)) if n else None,
-            "ratio_p05_p95": [float(np.quantile(ratio, 0.05)), float(np.quantile(ratio, 0.95))]
-            if n
-            else None,
-        },
+        "variables_v1_one_date_after_chosen_intervals": summary(
+            fixed["realised"], fixed["ratio"], a.reliability, fixed["skipped"]
+        ),
+        "variables_v1_recalibrated_at_due_date": summary(
+            due["realised"], due["ratio"], a.reliability, due["skipped"]
+        ),
         "attributes_exponential": {
             "dated": a_dated,
             "realised_in_tolerance": float(np.mean(a_realised)) if a_realised else None,
