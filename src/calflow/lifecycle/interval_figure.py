@@ -53,7 +53,7 @@ def interval_figure(history: dict) -> common.Figure | None:
         ax.axvline(iv["interval_days"], color="#c0392b", lw=1.0, label="interval")
     ax.axhline(0.0, color="#bbbbbb", lw=0.6)
     ax.set_xlabel("days since the adjustment")
-    ax.set_ylabel(f"AP found − AP left (µm), model {iv.get('model')}")
+    ax.set_ylabel(f"found − left, AP {iv.get('model')} (µm)")
     common.legend_below(fig, ax, ncol=3)
     return common.finish(
         fig,
