@@ -58,6 +58,8 @@ def test_demo_recalibration_measures_as_found_through_january():
             "an interim check",
         ),
         ({"reference": "demo-sn0042-2026-01"}, "as_found", "model"),
+        ({"reference": "../demo-sn0042-2026-01", "model": "III"}, "as_found.reference", "expected"),
+        ({"reference": "demo-sn0042-2026-01", "model": "../III"}, "as_found.model", "expected"),
     ],
 )
 def test_refuses_an_as_found_step_that_cannot_run(tmp_path, section, key, match):
