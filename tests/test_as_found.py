@@ -128,3 +128,21 @@ def test_summary_blocks_as_left_for_every_model_as_found_for_the_model_in_use():
     models = {"V": {"accuracy_um": 2.0}}
     carry_as_found(models, other)
     assert models["III"]["as_found"]["reference"] == "jan" and "as_left" in models["V"]
+
+
+def test_acquisition_refuses_a_missing_bundle(tmp_path):
+    """Run outside the workflow without the reference's export: one line naming the folder."""
+    from types import SimpleNamespace
+
+    from calflow.errors import CalflowError
+    from calflow.xytheta.plans.as_found import as_found, heldout_target_rows
+
+    c = load_campaign(DEMO / "demo-sn0042-2026-07.yaml")
+    with pytest.raises(
+        CalflowError, match=r"nowhere/III: no exported bundle of model III of demo-sn0042-2026-01"
+    ):
+        as_found(c, SimpleNamespace(export=str(tmp_path / "nowhere/III")))
+    with pytest.raises(CalflowError, match="--export DIR"):
+        as_found(c, SimpleNamespace(export=None))
+    rows = heldout_target_rows(c)
+    assert rows.shape == (c["validation"]["heldout"]["targets"], 3)

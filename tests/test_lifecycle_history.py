@@ -166,6 +166,12 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
     assert left["accuracy_um"] == s1["models"]["II"]["accuracy_um"]
     runs = work / "results/c1/runs"
     assert (runs / "as_found.nc").stat().st_mtime <= (runs / "identification.nc").stat().st_mtime
+    from calflow.data.io import open_dataset
+
+    found_m = open_dataset(work / "results/c1/metrics/as_found.nc")
+    left_m = open_dataset(work / "results/c1/metrics/validation_heldout_II.nc")
+    for k in ("target_x", "target_y", "target_theta"):  # the same held-out targets, in the same order
+        np.testing.assert_array_equal(found_m[k].values, left_m[k].values)
     iv = h["interval"]
     assert iv["inputs"]["campaign"] == ["c1", "c2"] and iv["inputs"]["level"] == [0, 1]
     assert iv["inputs"]["days_since_adjustment"] == pytest.approx([90, 91], abs=0.01)
