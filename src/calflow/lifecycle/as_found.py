@@ -31,9 +31,10 @@ def _number(v) -> bool:
 
 def as_found_values(entries: list[dict], segments: list[int], model: str) -> list[dict]:
     """Every value of ``model`` found through an earlier adjustment, in time order:
-    ``{campaign, reference, interim_check, days, as_found_um, as_left_um, level, in_tolerance}``
-    (``in_tolerance`` None until a tolerance is applied). A value whose reference has no
-    as-left value of the model is left out (nothing to subtract)."""
+    ``{campaign, reference, interim_check, days, as_found_um, as_left_um, level, decision}``
+    (``level``: the segment of the value when a detected change lies between its adjustment
+    and it, else 0; ``decision``: an interim check's). A value whose reference has no dated
+    as-left value of the model is left out (nothing to subtract from)."""
     by_name = {e["campaign"]: i for i, e in enumerate(entries)}
     out = []
     for i, e in enumerate(entries):
@@ -42,7 +43,7 @@ def as_found_values(entries: list[dict], segments: list[int], model: str) -> lis
             continue
         j = by_name.get(found.get("reference"))
         left = (entries[j]["models"].get(model) or {}).get("as_left") if j is not None else None
-        if not left or not _number(left.get("accuracy_um")):
+        if not left or not _number(left.get("accuracy_um")) or not left.get("date") or not found.get("date"):
             continue
         days = _days(left["date"], found["date"])
         if days <= 0:
@@ -81,6 +82,7 @@ def from_history(
         for e in entries
         if e["kind"] == "calibration"
         and _number(((e["models"].get(model) or {}).get("as_left") or {}).get("accuracy_um"))
+        and e["models"][model]["as_left"].get("date")
     ]
     inputs = {
         "days_since_adjustment": [v["days"] for v in values],
