@@ -147,6 +147,8 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
         c["rig"]["options"] = (
             {"aging": False} if i < 2 else {"aging": False, "alpha_deg": 177.989, "x_R_um": 9672.9}
         )
+        if i:  # a recalibration measures the stage through the compensation in use first
+            c["as_found"] = {"reference": f"c{i - 1}", "model": "II"}
         campaigns[f"c{i}"] = c
     work = make_workdir(tmp_path, campaigns)
     proc = snakemake(work, "reports/index.html", "reports/stages/SN-7/history.pdf")
@@ -157,6 +159,26 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
     assert h["due"]["tolerance_um"] == 50.0 and h["due"]["method"]
     assert np.isfinite(h["campaigns"][0]["models"]["II"]["accuracy_um"])
     assert (work / "reports/stages/SN-7/history.pdf").read_bytes()[:4] == b"%PDF"
+    # as found, then as left: c1 through c0's bundle, c2 (re-mounted) through c1's
+    s1 = json.loads((work / "results/c1/summary.json").read_text())
+    found, left = s1["models"]["II"]["as_found"], s1["models"]["II"]["as_left"]
+    assert found["reference"] == "c0" and found["date"] < left["date"]
+    assert left["accuracy_um"] == s1["models"]["II"]["accuracy_um"]
+    runs = work / "results/c1/runs"
+    assert (runs / "as_found.nc").stat().st_mtime <= (runs / "identification.nc").stat().st_mtime
+    from calflow.data.io import open_dataset
+
+    found_m = open_dataset(work / "results/c1/metrics/as_found.nc")
+    left_m = open_dataset(work / "results/c1/metrics/validation_heldout_II.nc")
+    for k in ("target_x", "target_y", "target_theta"):  # the same held-out targets, in the same order
+        np.testing.assert_array_equal(found_m[k].values, left_m[k].values)
+    iv = h["interval"]
+    assert iv["inputs"]["campaign"] == ["c1", "c2"] and iv["inputs"]["level"] == [0, 1]
+    assert iv["inputs"]["days_since_adjustment"] == pytest.approx([90, 91], abs=0.01)
+    # the re-mount (0.3°, 100 µm) shows as found through c1's compensation, far beyond c1's as found
+    assert iv["inputs"]["as_found_minus_as_left"][1] > 10 * abs(iv["inputs"]["as_found_minus_as_left"][0])
+    assert "not enough history" in h["due"]["statement"]
+    assert "As found, as left" in (work / "reports/stages/SN-7/history.html").read_text()
     assert "stages/SN-7/history.html" in (work / "reports/index.html").read_text()
     yaml.safe_dump(h)
 

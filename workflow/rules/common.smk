@@ -145,8 +145,11 @@ def plan_section(w):
 
 
 def acquire_inputs(w):
-    """Files an open-loop run's plan reads, by option of ``calflow acquire``."""
-    return hooks_of(w.campaign).acquire_inputs(CAMPAIGN[w.campaign], w.run)
+    """Files an open-loop run's plan reads, by option of ``calflow acquire``; ``after_*``
+    names a run acquired first, for the order on the rig only (never newer than ours).
+    """
+    files = hooks_of(w.campaign).acquire_inputs(CAMPAIGN[w.campaign], w.run)
+    return {k: ancient(v) if k.startswith("after_") else v for k, v in files.items()}
 
 
 def identify_inputs(w):
@@ -155,7 +158,9 @@ def identify_inputs(w):
 
 def input_args(w, input):
     """The named inputs as options: ``--name path``."""
-    return " ".join(f"--{k} {v}" for k, v in input.items())
+    return " ".join(
+        f"--{k} {v}" for k, v in input.items() if not k.startswith("after_")
+    )
 
 
 identify_args = input_args

@@ -41,6 +41,14 @@ def run_history(args) -> None:
         raise ConfigError(
             f"calflow history: --settings: expected JSON, got {args.settings!r} ({exc})"
         ) from None
+    from calflow.lifecycle.interval import check_settings
+
+    if not isinstance(settings, dict):
+        raise ConfigError(f"calflow history: --settings: expected a JSON object, got {args.settings!r}")
+    try:  # before anything is read: a reliability outside (0, 1), a tolerance <= 0
+        check_settings(settings.get("reliability", 0.95), settings.get("tolerance_um"), "stage settings")
+    except ValueError as exc:
+        raise ConfigError(f"calflow history: --settings: {exc}") from None
     campaigns = [load_campaign(f) for f in args.campaigns]
     folder = Path(args.campaigns[0]).parent
     groups = stages_of({c["name"]: c for c in campaigns}, folder)
@@ -51,7 +59,11 @@ def run_history(args) -> None:
             f"{args.stage!r}, the stage whose history is asked for"
         )
     pairs = [(c, load_summary(s)) for c, s in zip(campaigns, args.summaries)]
-    write_json(jsonable(build(args.stage, pairs, settings)), args.out)
+    try:
+        history = build(args.stage, pairs, settings)
+    except ValueError as exc:  # a campaign's tolerance_um the schema would have refused
+        raise ConfigError(f"calflow history: {exc}") from None
+    write_json(jsonable(history), args.out)
 
 
 def run_report(args) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 
 from calflow.errors import CalflowError
 from calflow.family import family_of, resolve
-from calflow.lifecycle import change, charts, due
+from calflow.lifecycle import as_found, change, charts, due, interval
 
 DEFAULTS = {"alpha": 0.05, "reliability": 0.95, "min_pairs": 3, "model": None, "tolerance_um": None}
 
@@ -29,12 +29,13 @@ def entry(campaign: dict, summary: dict) -> dict:
         base["tolerance_um"] = campaign["tolerance_um"]
     if "interim_check" in summary:
         check = summary["interim_check"]
+        found = as_found.interim_as_found(campaign, check)
         return {
             **base,
             "kind": "interim",
             "reference": check.get("reference"),
             "decision": check.get("decision"),
-            "models": {check["model"]: {"accuracy_um": check.get("accuracy_um")}},
+            "models": {check["model"]: {"accuracy_um": check.get("accuracy_um"), "as_found": found}},
         }
     family = family_of(campaign["robot"])
     target = getattr(family, "history_entry", None)
@@ -43,7 +44,9 @@ def entry(campaign: dict, summary: dict) -> dict:
             f"stage history: the {family.name} family does not describe its campaigns for a "
             f"history (no history_entry); campaign {campaign['name']!r} cannot enter one"
         )
-    return {**base, "kind": "calibration", "models": resolve(target)(summary)}
+    models = resolve(target)(summary)
+    as_found.carry_as_found(models, summary)
+    return {**base, "kind": "calibration", "models": models}
 
 
 def estimate(model: dict) -> change.Estimate:
@@ -108,6 +111,8 @@ def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = No
     if tol is None:
         tols = [e.get("tolerance_um") for e in entries if e.get("tolerance_um") is not None]
         tol = tols[-1] if tols else None
+    interval.check_settings(s["reliability"], tol, "stage settings")
+    found = as_found.from_history(entries, segments, model, tol, s["reliability"])
     return {
         "stage": stage,
         "robot": entries[0]["robot"] if entries else None,
@@ -117,7 +122,8 @@ def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = No
         "changes": changes,
         "segments": segments,
         "charts": _charts(entries),
-        "due": _due(entries, segments, model, tol, s),
+        "due": as_found.due(found) or _due(entries, segments, model, tol, s),
+        "interval": found,
         "settings": s,
     }
 

@@ -188,7 +188,12 @@ def parameter_figure(history: dict, model: str) -> common.Figure | None:
 
 
 def figures(history: dict) -> list[common.Figure]:
+    from calflow.lifecycle.interval_figure import interval_figure
+
     out = [accuracy_figure(history)]
+    drift = interval_figure(history)
+    if drift:
+        out.append(drift)
     if history["changes"]:
         out.append(change_figure(history))
     model = history["due"].get("model")

@@ -4,7 +4,8 @@ A campaign may name its stage (``stage: <id>``, the stage's serial number). Refu
 with one line naming the campaign file and the key: a stage whose campaigns are of
 different robots; two campaigns of one stage with the same ``start`` (dates out of order
 are fine: histories are sorted); an interim check whose reference campaign is not in the
-configuration, is not a calibration, or belongs to another stage.
+configuration, is not a calibration, or belongs to another stage; an as-found step whose
+reference is not in the configuration.
 """
 
 from __future__ import annotations
@@ -72,6 +73,13 @@ def stages_of(campaigns: dict[str, dict], folder: str | Path = "config/campaigns
             raise ConfigError(
                 f"{file}: key 'interim_check.reference': expected a calibration of stage "
                 f"{c.get('stage')!r}, got {ref!r} of stage {campaigns[ref].get('stage')!r}"
+            )
+    for name, c in campaigns.items():
+        ref = (c.get("as_found") or {}).get("reference")
+        if ref is not None and ref not in campaigns:
+            raise ConfigError(
+                f"{Path(folder) / f'{name}.yaml'}: key 'as_found.reference': expected a calibration "
+                f"campaign of this run, got {ref!r} (not among the configuration's campaigns)"
             )
     for stage, names in groups.items():
         _check_family(campaigns[names[0]], Path(folder) / f"{names[0]}.yaml")

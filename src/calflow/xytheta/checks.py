@@ -15,6 +15,10 @@ def check_campaign(campaign: dict, path: Path) -> None:
 
         options = campaign["rig"].get("options") or {}
         campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
+    if "as_found" in campaign:  # the compensation in use, measured before the recalibration
+        from calflow.xytheta.plans.as_found import check
+
+        check(campaign, Path(path))
     if "interim_check" in campaign:
         _check_interim(campaign, Path(path))
         return

@@ -132,6 +132,7 @@ FAMILY = Family(
         | {
             "validation_export": "calflow.xytheta.export.verification:validation_export",
             "interim_check": "calflow.xytheta.plans.interim:interim_check",
+            "as_found": "calflow.xytheta.plans.as_found:as_found",
         }
     },
     rig_options="calflow.xytheta.family:rig_options",
@@ -213,6 +214,8 @@ FAMILY = Family(
         "metrics:observability": "observability",
         "metrics:design_study": "design_study",
         "metrics:validation_export": "export",
+        "metrics:as_found": "as_found",
+        "run:as_found": "as_found_runs",
         "luts": "characterisation",
         "run:characterisation_x": "iso230_2",
         "run:characterisation_y": "iso230_2",
@@ -228,6 +231,7 @@ FAMILY = Family(
         "rules/validation.smk",
         "rules/export.smk",
         "rules/interim.smk",
+        "rules/as_found.smk",
         "rules/montecarlo.smk",
     ),
     workflow="calflow.xytheta.plans.workflow:WORKFLOW",

@@ -221,7 +221,7 @@ def metrics(args) -> None:
     c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
     m = meta(c, run.attrs["source"], run.attrs["plan"], run.attrs.get("model"))
-    if run.attrs["plan"] in ("validation", "validation_heldout", "interim_check"):
+    if run.attrs["plan"] in ("validation", "validation_heldout", "interim_check", "as_found"):
         ds = xytheta_validation_metrics(run, m)
     else:
         ds = xy_positioning_metrics(run, m)

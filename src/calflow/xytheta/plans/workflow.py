@@ -25,7 +25,9 @@ class XYThetaWorkflow(FamilyWorkflow):
         "characterisation_x": "characterisation",
         "characterisation_y": "characterisation",
     }
-    metrics_runs = "validation_[A-Za-z0-9_]+|(square|random_points)_(none|linear|cubic)|interim_check"
+    metrics_runs = (
+        "validation_[A-Za-z0-9_]+|(square|random_points)_(none|linear|cubic)|interim_check|as_found"
+    )
 
     def models(self, c: dict) -> list[str]:
         return [] if "interim_check" in c else list(c["models"])
@@ -64,6 +66,8 @@ class XYThetaWorkflow(FamilyWorkflow):
             files.append(layout.luts(name))
             files += [layout.run(name, f"characterisation_{a}") for a in "xy"]  # ISO 230-2
         files += [layout.metrics(name, f"{t}_{k}") for t in ("square", "random_points") for k in tests]
+        if c.get("as_found"):  # the compensation in use, before the recalibration (plans/as_found.py)
+            files += [layout.run(name, "as_found"), layout.metrics(name, "as_found")]
         return files + self.export_results(c)
 
     def export_results(self, c: dict) -> list[str]:
@@ -96,7 +100,13 @@ class XYThetaWorkflow(FamilyWorkflow):
         return self.results_of(c) + [layout.run(c["name"], "identification")]
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
-        """The XY tables a designed identification plan reads for its discrepancy kernel."""
+        """The XY tables a designed identification plan reads for its discrepancy kernel; the
+        as-found run, which the open-loop runs wait for (``after_*``: order only)."""
+        if c.get("as_found") and run in self.open_loop_runs:
+            return {"after_as_found": layout.run(c["name"], "as_found"), **self._luts(c, run)}
+        return self._luts(c, run)
+
+    def _luts(self, c: dict, run: str) -> dict[str, str]:
         if run != "identification":
             return {}
         d = c["identification"].get("design") or {}

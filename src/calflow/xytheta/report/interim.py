@@ -153,6 +153,12 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
             "reference campaign's runs' spans"
         ),
     }
+    block["as_found"] = {  # through the bundle in use: an as-found value (docs/lifecycle.md)
+        "accuracy_um": block["accuracy_um"],
+        "repeatability_um": block["repeatability_um"],
+        "date": campaign["start"],
+        "reference": ref,
+    }
     summary = {
         "campaign": name,
         "robot": campaign["robot"],

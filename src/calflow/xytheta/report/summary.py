@@ -257,6 +257,9 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         for name, ds in exported.items():
             if name in summary["models"]:
                 summary["models"][name]["export"] = summary_entry(ds)
+    from calflow.xytheta.report.as_found import add as add_as_found
+
+    add_as_found(summary, campaign, found)  # models.<M>.as_left, .as_found (docs/lifecycle.md)
     _crlb_block(summary, campaign, training_runs)
     if study is not None:
         summary["design_study"] = study

@@ -37,3 +37,10 @@ def interim_reference_run(w):
     """The reference's closed-loop check of that bundle: the sequential test's H0."""
     check = CAMPAIGN[w.campaign]["interim_check"]
     return f"results/{check['reference']}/runs/export_{check['model']}.nc"
+
+
+def as_found_export(w):
+    """The export manifest of the calibration whose compensation the stage ran."""
+    return (
+        f"results/{CAMPAIGN[w.campaign]['as_found']['reference']}/export/manifest.json"
+    )

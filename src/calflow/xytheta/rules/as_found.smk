@@ -1,0 +1,41 @@
+# The as-found run of a recalibration (docs/lifecycle.md, "As found, as left"): the
+# campaign's held-out targets commanded in closed loop through the earlier calibration's
+# exported bundle of the model in use, before anything is adjusted. Its metrics are the
+# core's rule; the open-loop runs of the campaign wait for it (acquire_inputs).
+
+
+rule acquire_as_found:
+    input:
+        manifest=as_found_export,
+    output:
+        run="results/{campaign}/runs/as_found.nc",
+        truth="results/{campaign}/truth/as_found.json",
+    log:
+        "results/{campaign}/logs/acquire_as_found.log",
+    benchmark:
+        "results/{campaign}/benchmarks/acquire_as_found.tsv"
+    group:
+        "campaign"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=400,
+        runtime=1,
+        rig=rig_slots,
+    params:
+        campaign=campaign_file,
+        folder=lambda w, input: os.path.join(
+            os.path.dirname(input.manifest), CAMPAIGN[w.campaign]["as_found"]["model"]
+        ),
+        digest=lambda w: digest(
+            [
+                rig_digest("as_found")(w),
+                CAMPAIGN[w.campaign]["as_found"],
+                CAMPAIGN[w.campaign]["validation"]["heldout"],
+                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
+                CAMPAIGN[w.campaign]["identification"],
+            ]
+        ),
+    shell:
+        "calflow acquire --campaign {params.campaign} --plan as_found"
+        " --export {params.folder} --out {output.run} --truth {output.truth} > {log} 2>&1"
