@@ -4,6 +4,7 @@ be read, and what to change; the cluster itself is exercised by ``make cluster-t
 (tests/cluster), not here."""
 
 import asyncio
+import getpass
 import signal
 import time
 from types import SimpleNamespace
@@ -202,6 +203,8 @@ def test_squeue_asked_for_where_it_would_lose_jobs_goes_back_to_sacct():
 class _Executor:
     """What end_promptly_on_sigterm uses of Snakemake's remote executor."""
 
+    run_uuid = "3f1c0d2e-run"
+
     def __init__(self, gap):
         self.wait, self.next_seconds_between_status_checks = True, gap
 
@@ -209,7 +212,9 @@ class _Executor:
         await asyncio.sleep(self.next_seconds_between_status_checks)
 
 
-def test_sigterm_interrupts_and_the_wait_ends_when_the_executor_stops():
+def test_sigterm_cancels_the_run_interrupts_and_the_wait_ends_when_the_executor_stops(tmp_path, monkeypatch):
+    calls = tmp_path / "scancel.args"
+    _fake_commands(tmp_path, monkeypatch, scancel=f'echo "$*" >> {calls}')
     before = signal.getsignal(signal.SIGTERM)
     executor = _Executor(gap=180)
     try:
@@ -217,6 +222,8 @@ def test_sigterm_interrupts_and_the_wait_ends_when_the_executor_stops():
         with pytest.raises(KeyboardInterrupt):
             signal.raise_signal(signal.SIGTERM)
         assert signal.getsignal(signal.SIGTERM) == signal.SIG_IGN  # a repeat waits for the clean-up
+        # every job named after the run, those the plugin lost track of too
+        assert calls.read_text().split() == ["--name=3f1c0d2e-run", f"--user={getpass.getuser()}"]
 
         async def stop_soon():
             await asyncio.sleep(0.2)

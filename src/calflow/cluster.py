@@ -30,6 +30,7 @@ and makes the plugin's wait between two looks end within a second once it is tol
 from __future__ import annotations
 
 import asyncio
+import getpass
 import shutil
 import signal
 import subprocess
@@ -256,17 +257,35 @@ def choose_status_command(settings) -> str | None:
     return note
 
 
-def _interrupt(signum, frame):
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the clean-up runs once, to its end
-    raise KeyboardInterrupt
+def cancel_run(job_name: str) -> None:
+    """Cancel every SLURM job of this user named ``job_name`` (the plugin names each job of
+    a run after the run's id), also those whose state the plugin has lost; errors ignored:
+    Snakemake's own cancel follows."""
+    try:
+        subprocess.run(
+            ["scancel", f"--name={job_name}", f"--user={getpass.getuser()}"],
+            capture_output=True,
+            timeout=30,
+        )
+    except (FileNotFoundError, subprocess.TimeoutExpired):
+        pass
 
 
 def end_promptly_on_sigterm(executor=None) -> None:
-    """Make SIGTERM act as Ctrl-C (Snakemake cancels the run's SLURM jobs and stops), and
-    ``executor``'s wait between two looks at its jobs (a remote executor's ``sleep``, up to
-    180 s for the SLURM plugin) end within a second once the executor is shut down, so the
+    """Make SIGTERM act as Ctrl-C (Snakemake cancels the run's SLURM jobs and stops) after
+    cancelling every job named after the run (``executor.run_uuid``, see :func:`cancel_run`),
+    and ``executor``'s wait between two looks at its jobs (a remote executor's ``sleep``, up
+    to 180 s for the SLURM plugin) end within a second once the executor is shut down, so the
     run ends within seconds. Call in the main thread, after Snakemake set its own handler."""
-    signal.signal(signal.SIGTERM, _interrupt)
+    run_name = getattr(executor, "run_uuid", None)
+
+    def interrupt(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the clean-up runs once, to its end
+        if run_name:
+            cancel_run(run_name)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
     if executor is None or not hasattr(executor, "wait") or not hasattr(executor, "sleep"):
         return
 
