@@ -214,6 +214,8 @@ def sigterm_mid_run(campaign: str):
             pass
         seconds = round(time.time() - start, 1)
         ended = proc.poll() is not None
+        if not ended:  # the test goes on (and fails): the run is ended as it was before
+            proc.kill()
         left = [j for j, state in squeue("%i", "%T") if state in ("PENDING", "RUNNING") and j == job]
         locks = (
             list((work / ".snakemake" / "locks").glob("*"))
