@@ -29,19 +29,22 @@ BIN = Path(sys.executable).parent
 STATE = Path(os.environ.get("CALFLOW_SLURM_STATE", "/tmp/calflow-slurm"))
 CLUSTER = ["bash", str(ROOT / "tests" / "cluster" / "cluster.sh")]
 EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}
-# This test cluster has no accounting database: job states come from squeue (kept visible
-# MinJobAge = 300 s after a job ends), and no account is guessed through sacct. The first
-# status check comes 2 s after a submission instead of a site's 40 s.
+# docs/cluster.md's step 3, as a site runs it. This test cluster has no accounting database
+# (sacct answers "Slurm accounting storage is disabled"): the pre-flight must find it and
+# have job states read with squeue (kept visible MinJobAge = 300 s after a job ends), with no
+# flag given (its note, NO_ACCOUNTING, is in each run's log).
+DOCUMENTED = ["--workflow-profile", "workflow/profiles/slurm"]
+NO_ACCOUNTING = "job states are read with squeue"
+# The first status check 2 s after a submission instead of a site's 40 s (speed only), and
+# the SLURM logs of successful jobs kept for a look after the test.
 SLURM_ARGS = [
-    "--workflow-profile",
-    "workflow/profiles/slurm",
-    "--slurm-status-command",
-    "squeue",
-    "--slurm-no-account",
+    *DOCUMENTED,
     "--slurm-init-seconds-before-status-checks",
     "2",
     "--slurm-keep-successful-logs",
 ]
+#: a SIGTERM'd run must end within this many seconds
+SIGTERM_LIMIT_S = 60
 COMPARED = ("**/summary.json", "**/aggregate.json", "**/*.nc")
 
 
@@ -140,13 +143,17 @@ def wait_mid_run(work: Path, campaign: str, done: int, timeout: float = 600) -> 
     raise AssertionError(f"no SLURM job of {campaign} ran {done} steps within {timeout} s")
 
 
-def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dict:
-    """Run one campaign through SLURM, call ``act(work)`` mid-run, rerun if it failed:
-    the result must equal ``reference``'s and leave nothing incomplete."""
+def fault_run(base: Path, name: str, campaign: str, reference: Path, act, first_args=None) -> dict:
+    """Run one campaign through SLURM (``first_args``, default SLURM_ARGS without retries),
+    call ``act(work, proc)`` mid-run, rerun if it failed: the result must equal
+    ``reference``'s and leave nothing incomplete. ``act`` returns a description, or a dict
+    with one (``fault``) and its own ``ok``."""
     work = project(base, name)
     cfg = ["--config", f'campaigns=["{campaign}"]', "studies=[]"]
-    proc = snakemake(work, *SLURM_ARGS, "--retries", "0", *cfg, background=True, log="fault.log")
-    what = act(work)
+    first_args = [*SLURM_ARGS, "--retries", "0"] if first_args is None else first_args
+    proc = snakemake(work, *first_args, *cfg, background=True, log="fault.log")
+    acted = act(work, proc)
+    acted = acted if isinstance(acted, dict) else {"fault": acted}
     first = proc.wait()
     left_after_fault = leftovers(work)
     rerun = snakemake(work, *SLURM_ARGS, *cfg, log="rerun.log") if first else None
@@ -154,7 +161,7 @@ def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dic
     nothing = "Nothing to be done" in (work / "dryrun.log").read_text()
     diff = differences(reference, work, campaign)
     result = {
-        "fault": what,
+        **{k: v for k, v in acted.items() if k != "ok"},
         "first_exit": first,
         "rerun_exit": rerun,
         "equal": not diff,
@@ -164,7 +171,8 @@ def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dic
     }
     say(f"{name}: {result}" + (f"; differing: {diff[:5]}" if diff else ""))
     result["ok"] = (
-        rerun in (None, 0)
+        acted.get("ok", True)
+        and rerun in (None, 0)
         and not diff
         and result["incomplete_after_rerun"] == 0
         and result["rerun_left_nothing_to_do"]
@@ -173,7 +181,7 @@ def fault_run(base: Path, name: str, campaign: str, reference: Path, act) -> dic
 
 
 def scancel_mid_run(campaign: str):
-    def act(work: Path) -> str:
+    def act(work: Path, proc) -> str:
         job = wait_mid_run(work, campaign, done=3)
         subprocess.run(["scancel", job], check=True)
         return f"scancel of SLURM job {job} after 3 steps"
@@ -182,7 +190,7 @@ def scancel_mid_run(campaign: str):
 
 
 def slurmd_restart_mid_run(campaign: str):
-    def act(work: Path) -> str:
+    def act(work: Path, proc) -> str:
         job = wait_mid_run(work, campaign, done=3)
         subprocess.run([*CLUSTER, "kill-slurmd"], check=True)
         time.sleep(5)
@@ -192,23 +200,89 @@ def slurmd_restart_mid_run(campaign: str):
     return act
 
 
-def one_line_failure(base: Path, name: str, campaign: str, expect: str, profile_edit=None) -> dict:
-    """A run that must stop before submitting: non-zero exit, one ``calflow: error:`` line."""
-    work = project(base, name)
+def sigterm_mid_run(campaign: str):
+    """SIGTERM to Snakemake (documented steps, no flag) while its SLURM job runs: the run must
+    end within SIGTERM_LIMIT_S, cancel its job and release its lock."""
+
+    def act(work: Path, proc) -> dict:
+        job = wait_mid_run(work, campaign, done=2)
+        start = time.time()
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout=3 * SIGTERM_LIMIT_S)
+        except subprocess.TimeoutExpired:
+            pass
+        seconds = round(time.time() - start, 1)
+        ended = proc.poll() is not None
+        if not ended:  # the test goes on (and fails): the run is ended as it was before
+            proc.kill()
+        left = [j for j, state in squeue("%i", "%T") if state in ("PENDING", "RUNNING") and j == job]
+        locks = (
+            list((work / ".snakemake" / "locks").glob("*"))
+            if (work / ".snakemake" / "locks").exists()
+            else []
+        )
+        accounting_off = NO_ACCOUNTING in (work / "fault.log").read_text()
+        return {
+            "fault": f"SIGTERM to Snakemake while SLURM job {job} ran",
+            "end_s": seconds,
+            "job_left": bool(left),
+            "locks_left": len(locks),
+            "ok": ended and seconds <= SIGTERM_LIMIT_S and not left and not locks and accounting_off,
+        }
+
+    return act
+
+
+def snapshot(work: Path) -> dict[str, bytes]:
+    """Every file of a run's results and reports, by path."""
+    return {
+        p.relative_to(work).as_posix(): p.read_bytes()
+        for folder in ("results", "reports")
+        for p in sorted((work / folder).rglob("*"))
+        if p.is_file()
+    }
+
+
+def one_line_failure(work: Path, name: str, campaign: str, expect: str, profile_edit=None, extra=()) -> dict:
+    """A run in ``work`` (a finished run's folder) that must stop before submitting:
+    non-zero exit, one ``calflow: error:`` line, every earlier result and report as it was."""
+    conf = work / "workflow" / "profiles" / "slurm" / "config.yaml"
+    profile = conf.read_text()
     if profile_edit:
-        conf = work / "workflow" / "profiles" / "slurm" / "config.yaml"
-        conf.write_text(profile_edit(conf.read_text()))
-    before = submissions()
+        conf.write_text(profile_edit(profile))
+    before, earlier = submissions(), snapshot(work)
     start = time.time()
-    code = snakemake(work, *SLURM_ARGS, "--config", f'campaigns=["{campaign}"]', "studies=[]")
-    lines = [ln for ln in (work / "run.log").read_text().splitlines() if ln.startswith("calflow: error:")]
+    log = f"{name}.log"
+    try:
+        # --forceall: the campaign's jobs would all run, were they not refused
+        code = snakemake(
+            work,
+            *SLURM_ARGS,
+            *extra,
+            "--forceall",
+            "--config",
+            f'campaigns=["{campaign}"]',
+            "studies=[]",
+            log=log,
+        )
+    finally:
+        conf.write_text(profile)
+    lines = [ln for ln in (work / log).read_text().splitlines() if ln.startswith("calflow: error:")]
     result = {
         "exit": code,
         "line": lines[0] if lines else None,
         "seconds": round(time.time() - start, 1),
         "submitted": submissions() - before,
+        "earlier_results_kept": snapshot(work) == earlier,
     }
-    result["ok"] = code != 0 and len(lines) == 1 and expect in lines[0] and result["submitted"] == 0
+    result["ok"] = (
+        code != 0
+        and len(lines) == 1
+        and expect in lines[0]
+        and result["submitted"] == 0
+        and result["earlier_results_kept"]
+    )
     say(f"{name}: {result}")
     return result
 
@@ -272,6 +346,8 @@ def main(argv=None) -> int:
         snakemake_jobs_local=steps(local),
         compared_files=len(outputs(slurm / "results")),
         equal=not diff,
+        # no accounting database here: the documented steps, no flag, and job states from squeue
+        squeue_without_accounting=NO_ACCOUNTING in (slurm / "run.log").read_text(),
     )
 
     faults = {}
@@ -279,6 +355,10 @@ def main(argv=None) -> int:
         c = args.fault_campaign
         faults["scancel"] = fault_run(args.work, "fault-scancel", c, local, scancel_mid_run(c))
         faults["slurmd_restart"] = fault_run(args.work, "fault-slurmd", c, local, slurmd_restart_mid_run(c))
+        # docs/cluster.md's step 3 exactly (the first look at 40 s, as on a site)
+        faults["sigterm"] = fault_run(args.work, "fault-sigterm", c, local, sigterm_mid_run(c), DOCUMENTED)
+        # the refusals run where the scancel case left the campaign's results: they must stay
+        done = args.work / "fault-scancel"
         node = platform.node().split(".")[0]
         subprocess.run(
             [
@@ -291,22 +371,30 @@ def main(argv=None) -> int:
             check=True,
         )
         try:
-            faults["node_down"] = one_line_failure(
-                args.work, "fault-node-down", c, "has no node that can run"
-            )
+            faults["node_down"] = one_line_failure(done, "fault-node-down", c, "has no node that can run")
         finally:
             subprocess.run(["scontrol", "update", f"nodename={node}", "state=resume"], check=True)
         faults["no_partition"] = one_line_failure(
-            args.work,
+            done,
             "fault-partition",
             c,
             "does not exist",
             lambda text: text.replace('slurm_partition: "normal"', 'slurm_partition: "no-such-partition"'),
         )
+        # no accounting, and a first look so late that the plugin would go back to sacct
+        # (MinJobAge 300 s < 3 x 120 s): the flag to pass, in one line
+        faults["late_first_look"] = one_line_failure(
+            done,
+            "fault-late-first-look",
+            c,
+            "pass --slurm-init-seconds-before-status-checks 100",
+            extra=["--slurm-init-seconds-before-status-checks", "120"],
+        )
     report.update(
         wall_s_slurm=round(wall_slurm, 1),
         wall_s_local=round(wall_local, 1),
         faults_ok=all(f["ok"] for f in faults.values()) if faults else None,
+        sigterm_end_s=faults["sigterm"]["end_s"] if "sigterm" in faults else None,
     )
     # The SLURM job count is the test's (deterministic); the wall-time ratio is a figure, which
     # a loaded machine moves: reported against --max-ratio, never a reason to fail.
@@ -321,14 +409,21 @@ def main(argv=None) -> int:
             "wall_s_slurm",
             "wall_s_local",
             "equal",
+            "squeue_without_accounting",
             "faults_ok",
+            "sigterm_end_s",
             "within_limits",
             "ratio_ok",
             "compared_files",
             "machine",
         )
     }
-    ok = report["equal"] and report["faults_ok"] is not False and report["within_limits"]
+    ok = (
+        report["equal"]
+        and report["squeue_without_accounting"]
+        and report["faults_ok"] is not False
+        and report["within_limits"]
+    )
     print(json.dumps(line), flush=True)
     return 0 if ok else 1
 
