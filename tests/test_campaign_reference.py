@@ -61,7 +61,7 @@ def test_the_reference_is_no_part_of_the_data_files_digest(tmp_path, small_campa
     "content, match",
     [
         (None, r"ref\.yaml: reference file: cannot be read"),
-        ("a: [1, 2\n", r"ref\.yaml: reference file: expected YAML, it does not parse at line"),
+        ("a: [1, 2\n", r"ref\.yaml: reference file: line 2: not valid YAML"),
         ("- 1\n", r"ref\.yaml: <top level>: expected a mapping with 'source'"),
         (
             "models: {I: {accuracy_um: 1}}\n",

@@ -19,8 +19,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import yaml
-
+from calflow import yamlfile
 from calflow.errors import ConfigError
 
 
@@ -52,14 +51,7 @@ def _check_values(data, path: str, where: str = "") -> None:
 def load_file(path: str | Path) -> dict:
     """The reference values of a file (YAML): ``source`` (required, text) and the values."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{path}: reference file: cannot be read ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}: reference file: expected YAML, it does not parse{at}") from None
+    data = yamlfile.load(path, "reference file")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: <top level>: expected a mapping with 'source' and the values")
     source = data.get("source")
