@@ -51,9 +51,11 @@ try:
         config["stages"],
         CAMPAIGN,
         CAMPAIGN_DIR,
-        "--config stages"
-        if "stages" in (workflow.config_settings.overwrite_config or {})
-        else (workflow.configfiles or ["config/config.yaml"])[-1],
+        (
+            "--config stages"
+            if "stages" in (workflow.config_settings.overwrite_config or {})
+            else (workflow.configfiles or ["config/config.yaml"])[-1]
+        ),
     )
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
