@@ -40,5 +40,17 @@ def check_campaign(campaign: dict, path: Path) -> None:
         aged = resolve(options, campaign["start"], {**_COMMON, **cls._EXTRA}, cls._AXIS)
     except OptionError as exc:
         raise ConfigError(exc.at(path, where)) from None
+    if "aging" in options:  # the stage as aged by the campaign's start is a stage the rig can be
+        from calflow.nano.stage.rig import nano1d, nano2d
+
+        factory = {"stage1d": nano1d, "stage2d": nano2d}[campaign["robot"]]
+        try:
+            factory.check_options(**aged)
+        except OptionError as exc:
+            raise ConfigError(
+                f"{path}: key '{where}.aging': expected ageing that leaves a stage the rig can be at "
+                f"the campaign's start ({campaign['start']}); aged, option {exc.option!r}: expected "
+                f"{exc.expected}, got {exc.value!r}"
+            ) from None
     if aged != options:
         holder[key] = aged
