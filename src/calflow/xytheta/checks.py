@@ -20,7 +20,7 @@ def check_campaign(campaign: dict, path: Path) -> None:
             raise ConfigError(exc.at(path, "rig.options")) from None
     if "interim_check" in campaign:
         _check_interim(campaign, Path(path))
-        from calflow.xytheta.interim_plan import check_rig_time, check_tolerance
+        from calflow.xytheta.plans.interim_load import check_rig_time, check_tolerance
 
         check_tolerance(campaign, Path(path))
         check_rig_time(campaign, Path(path))

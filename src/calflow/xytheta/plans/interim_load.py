@@ -7,7 +7,7 @@
   reference's closed-loop check is on disk, else by the check's acquisition before the rig
   moves (:func:`calflow.xytheta.plans.interim.interim_check`).
 * **Its rig time.** A check is worth running when it costs a small fraction of a
-  calibration (:data:`calflow.xytheta.report.interim.BUDGET`, 5 %). The sequential test
+  calibration (:data:`BUDGET`, 5 %). The sequential test
   may stop after two cycles, but the plan asks for up to ``targets × cycles`` visits, each
   at least ``dwell_s``: that worst case, dwell alone, is checked against the budget of the
   reference's rig time — the span of its recorded runs when they are all on disk, else an
@@ -20,12 +20,43 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from calflow.errors import ConfigError
 
+if TYPE_CHECKING:
+    import xarray as xr
+
+#: An interim check's rig time, at most this fraction of a full calibration's.
+BUDGET = 0.05
 #: Upper estimate of one move of an XYΘ stage between two visits (s): the whole 9.45 mm X
 #: travel at 1 mm/s, Θ's 5° at 1°/s, with settling, take well under a minute.
 MOVE_S = 60.0
+
+
+def rig_time_s(run: xr.Dataset) -> float:
+    """Span of the run's time axis (s): its last reading minus its first."""
+    t = np.asarray(run["time"].values, dtype=float)
+    return float(np.nanmax(t) - np.nanmin(t)) if t.size else 0.0
+
+
+def visit_errors(run: xr.Dataset, mode: int | None = None) -> np.ndarray:
+    """(n, 2) errors (µm) of the visits (pose > 0) of a closed-loop run, world frame (Eq. 4.27);
+    only segment ``mode`` (``test_mode``) when given."""
+    from calflow.xytheta.evaluation import attained_points
+
+    if mode is not None and "test_mode" in run:
+        run = run.isel(sample=run["test_mode"].values == mode)
+    x, y = attained_points(run)
+    keep = run["pose"].values > 0
+    return np.column_stack([x[keep] - run["target_x"].values[keep], y[keep] - run["target_y"].values[keep]])
+
+
+def reference_rms_um(export_run: xr.Dataset) -> float:
+    """r0 (µm): the rms visit error of the reference's closed-loop check through its bundle."""
+    return float(np.sqrt(np.mean(np.sum(visit_errors(export_run, mode=0) ** 2, axis=1))))
 
 
 def check_tolerance(campaign: dict, path: Path) -> None:
@@ -41,7 +72,6 @@ def check_tolerance(campaign: dict, path: Path) -> None:
     if not os.path.exists(reference):
         return
     from calflow.data.io import open_dataset
-    from calflow.xytheta.report.interim import reference_rms_um
 
     r0 = reference_rms_um(open_dataset(reference, kind="run"))
     if not tol > r0:
@@ -54,7 +84,6 @@ def check_tolerance(campaign: dict, path: Path) -> None:
 
 def _span_s(run: str) -> float:
     from calflow.data.io import open_dataset
-    from calflow.xytheta.report.interim import rig_time_s
 
     return rig_time_s(open_dataset(run, kind="run"))
 
@@ -89,7 +118,6 @@ def planned_visits(ref: dict) -> list[tuple[int, float]]:
 def check_rig_time(campaign: dict, path: Path) -> None:
     """The check's worst case, dwell alone, within the budget of the reference's rig time."""
     from calflow.config import load_campaign
-    from calflow.xytheta.report.interim import BUDGET
 
     check = campaign["interim_check"]
     asked = check["targets"] * check["cycles"] * float(check["dwell_s"])
