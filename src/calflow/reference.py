@@ -64,6 +64,44 @@ def load_file(path: str | Path) -> dict:
     return {"source": source, **values}
 
 
+def _merged(a: dict, b: dict) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merged(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def template(robot: str) -> dict:
+    """The keys a reference of ``robot`` may hold: the family's named sets merged (``{}`` when
+    the family names none — then nothing tells a key from a typo)."""
+    from calflow.family import resolve
+
+    out: dict = {}
+    for target in _named(robot).values():
+        out = _merged(out, {k: v for k, v in resolve(target).items() if k != "source"})
+    return out
+
+
+def _check_keys(values: dict, tmpl: dict, path: str, robot: str, where: str = "") -> None:
+    """Each key of ``values`` is one the reports read (a key of ``tmpl``); where every entry of
+    ``tmpl`` is a mapping (models, tests by name), the names are free and their keys checked."""
+    named = bool(tmpl) and all(isinstance(v, dict) for v in tmpl.values())
+    entry = {}
+    if named:
+        for v in tmpl.values():
+            entry = _merged(entry, v)
+    for key, value in values.items():
+        at = f"{where}.{key}" if where else key
+        sub = entry if named else tmpl.get(key)
+        if sub is None:
+            raise ConfigError(
+                f"{path}: unknown key '{at}' (expected one of: {', '.join(sorted(tmpl))} — the "
+                f"values a {robot} campaign's report puts beside its own)"
+            )
+        if isinstance(value, dict) and isinstance(sub, dict) and sub:
+            _check_keys(value, sub, path, robot, at)
+
+
 def files(campaign: dict) -> list[str]:
     """The reference file a campaign declares (``[]`` when it names a set or none)."""
     declared = campaign.get("reference")
@@ -71,7 +109,8 @@ def files(campaign: dict) -> list[str]:
 
 
 def check(campaign: dict, path: str | Path) -> None:
-    """A campaign's ``reference`` names a set of its family, or a valid file of values."""
+    """A campaign's ``reference`` names a set of its family, or a valid file of values whose
+    keys are those the family's reports read (:func:`template`)."""
     declared = campaign.get("reference")
     if declared is None:
         return
@@ -83,7 +122,12 @@ def check(campaign: dict, path: str | Path) -> None:
                 f"{campaign['robot']} campaign {sorted(known)} or {{file: <values.yaml>}}, got {declared!r}"
             )
         return
-    load_file(declared["file"])
+    values = load_file(declared["file"])
+    tmpl = template(campaign["robot"])
+    if tmpl:
+        _check_keys(
+            {k: v for k, v in values.items() if k != "source"}, tmpl, declared["file"], campaign["robot"]
+        )
 
 
 def declared(campaign: dict) -> dict:
