@@ -83,9 +83,11 @@ def template(robot: str) -> dict:
 
 
 def _check_keys(values: dict, tmpl: dict, path: str, robot: str, where: str = "") -> None:
-    """Each key of ``values`` is one the reports read (a key of ``tmpl``); where every entry of
-    ``tmpl`` is a mapping (models, tests by name), the names are free and their keys checked."""
-    named = bool(tmpl) and all(isinstance(v, dict) for v in tmpl.values())
+    """Each key of ``values`` is one the reports read (a key of ``tmpl``); where the entries of
+    ``tmpl`` are mappings with the same keys (models, tests by name), the names are free and
+    their keys checked."""
+    shapes = {tuple(sorted(v)) if isinstance(v, dict) else None for v in tmpl.values()}
+    named = len(tmpl) > 1 and len(shapes) == 1 and None not in shapes  # entries alike: names
     entry = {}
     if named:
         for v in tmpl.values():

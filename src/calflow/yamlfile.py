@@ -80,7 +80,7 @@ def _expected(ch: str, key: bool) -> str:
     if _invisible(ch):
         return "expected ordinary spaces (U+0020) and visible characters"
     if key:
-        return "expected a key of plain ASCII letters, digits and '_' (a look-alike letter?)"
+        return "expected a key of plain ASCII characters (a look-alike?)"
     return f"expected one script within a word, not Latin mixed with {_script(ch).title()} (a look-alike letter?)"
 
 
