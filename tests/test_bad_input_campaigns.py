@@ -261,6 +261,14 @@ CAMPAIGNS = [
         "key 'rig.options.lights_off_h'",
         "after lights_on_h",
     ),
+    case(
+        "nano more designed positions than candidates",
+        "nano1d-thesis",
+        "training: {start_um: 0,",
+        "training: {plan: optimal, design: {positions: 800, candidate_step_um: 1.0}, start_um: 0,",
+        "key 'training.design.positions'",
+        "at most the 481 candidate positions",
+    ),
     # ---- the hexapod plug-in
     case(
         "hexapod tracker without error",

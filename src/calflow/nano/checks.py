@@ -15,6 +15,7 @@ def check_campaign(campaign: dict, path: Path) -> None:
     options (:func:`calflow.nano.stage.aging.resolve`), once, here: the rig, the error
     budget's replays and the designed plans all read these options. Raises
     :class:`ConfigError` naming the file and key."""
+    _check_design(campaign, path)
     rig = campaign["rig"]
     for run, extra in (rig.get("runs") or {}).items():
         if "aging" in (extra or {}):
@@ -54,3 +55,21 @@ def check_campaign(campaign: dict, path: Path) -> None:
             ) from None
     if aged != options:
         holder[key] = aged
+
+
+def _check_design(campaign: dict, path: Path) -> None:
+    """A designed training plan picks at most as many positions as its candidate grid holds."""
+    t = campaign["training"]
+    if t.get("plan") != "optimal" or not t["design"].get("positions"):
+        return
+    from calflow.nano.plans.design import candidates
+    from calflow.nano.plans.designed import _stroke
+
+    lo, hi = _stroke(campaign)
+    n, pool = t["design"]["positions"], len(candidates(lo, hi, float(t["design"]["candidate_step_um"])))
+    if n > pool:
+        raise ConfigError(
+            f"{path}: key 'training.design.positions': expected at most the {pool} candidate positions "
+            f"of training.design.candidate_step_um ({t['design']['candidate_step_um']:g} µm) over the "
+            f"stroke, got {n}"
+        )
