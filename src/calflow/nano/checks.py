@@ -42,11 +42,12 @@ def check_campaign(campaign: dict, path: Path) -> None:
     except OptionError as exc:
         raise ConfigError(exc.at(path, where)) from None
     if "aging" in options:  # the stage as aged by the campaign's start is a stage the rig can be
-        from calflow.nano.stage.rig import nano1d, nano2d
+        from calflow.nano.stage.interferometer_sensor import check_sensor_options
+        from calflow.nano.stage.rig import check_nano1d, check_nano2d
 
-        factory = {"stage1d": nano1d, "stage2d": nano2d}[campaign["robot"]]
+        check = {"stage1d": check_nano1d, "stage2d": check_nano2d}[campaign["robot"]]
         try:
-            factory.check_options(**aged)
+            (check if rig["factory"] == "simulated" else check_sensor_options)(**aged)
         except OptionError as exc:
             raise ConfigError(
                 f"{path}: key '{where}.aging': expected ageing that leaves a stage the rig can be at "
@@ -59,8 +60,8 @@ def check_campaign(campaign: dict, path: Path) -> None:
 
 def _check_design(campaign: dict, path: Path) -> None:
     """A designed training plan picks at most as many positions as its candidate grid holds."""
-    t = campaign["training"]
-    if t.get("plan") != "optimal" or not t["design"].get("positions"):
+    t = campaign.get("training") or {}
+    if t.get("plan") != "optimal" or not (t.get("design") or {}).get("positions"):
         return
     from calflow.nano.plans.design import candidates
     from calflow.nano.plans.designed import _stroke
