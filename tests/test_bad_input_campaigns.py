@@ -499,6 +499,20 @@ def test_an_interim_tolerance_above_the_reference_error_is_accepted(tmp_path, mo
     assert load_campaign(path, [])["interim_check"]["tolerance_um"] == float(tolerance)
 
 
+def test_a_check_that_ran_is_not_checked_against_files_at_load(tmp_path, monkeypatch):
+    """Once the check's own run is on disk, loading reads no netCDF file (no-op runs stay
+    cheap); a rerun's acquisition checks the tolerance again before the rig moves."""
+    import sys
+
+    folder = _project(tmp_path, monkeypatch)
+    _export_run(tmp_path / "results" / CALIBRATION / "runs" / "export_III.nc", 2.0)
+    path = write_case(folder, CHECK, "tolerance_um: 3.5", "tolerance_um: 0.5", {})
+    (tmp_path / "results" / "bad" / "runs").mkdir(parents=True)
+    (tmp_path / "results" / "bad" / "runs" / "interim_check.nc").write_bytes(b"")
+    monkeypatch.setitem(sys.modules, "calflow.data.io", None)  # importing it would raise
+    assert load_campaign(path, [])["interim_check"]["tolerance_um"] == 0.5
+
+
 def test_the_default_campaigns_and_free_text_still_load(tmp_path, monkeypatch):
     folder = _project(tmp_path, monkeypatch)
     shutil.copytree(ROOT / "tests" / "data", tmp_path / "tests" / "data")
