@@ -41,7 +41,11 @@ def test_a_labs_own_campaigns_carry_no_reference(name):
 
 
 def test_a_file_of_reference_values_with_its_source(tmp_path, small_campaign):
-    values = {"source": "Smith 2024, Table 3", "models": {"II": {"accuracy_um": 30.5}}, "lut": [22, 3.5]}
+    values = {
+        "source": "Smith 2024, Table 3",
+        "models": {"II": {"accuracy_um": 30.5}},
+        "lut_compensation_um": {"square": [22, 3.5]},
+    }
     (tmp_path / "ref.yaml").write_text(yaml.safe_dump(values))
     small_campaign["reference"] = {"file": str(tmp_path / "ref.yaml")}
     c = load_campaign(_write(tmp_path, small_campaign))
@@ -61,7 +65,7 @@ def test_the_reference_is_no_part_of_the_data_files_digest(tmp_path, small_campa
     "content, match",
     [
         (None, r"ref\.yaml: reference file: cannot be read"),
-        ("a: [1, 2\n", r"ref\.yaml: reference file: expected YAML, it does not parse at line"),
+        ("a: [1, 2\n", r"ref\.yaml: reference file: line 2: not valid YAML"),
         ("- 1\n", r"ref\.yaml: <top level>: expected a mapping with 'source'"),
         (
             "models: {I: {accuracy_um: 1}}\n",
@@ -72,7 +76,10 @@ def test_the_reference_is_no_part_of_the_data_files_digest(tmp_path, small_campa
             "source: S\nmodels: {I: {accuracy_um: big}}\n",
             r"ref\.yaml: key 'models\.I\.accuracy_um': expected a finite number",
         ),
-        ("source: S\nlut: [1, .nan]\n", r"ref\.yaml: key 'lut': expected a finite number"),
+        (
+            "source: S\nparameters: {x_R_um: [1, .nan]}\n",
+            r"ref\.yaml: key 'parameters.x_R_um': expected a finite number",
+        ),
     ],
 )
 def test_a_bad_reference_file_is_one_line_naming_file_key_and_expectation(

@@ -123,10 +123,12 @@ def cmd_validate(args) -> int:
 
 
 def cmd_check_config(args) -> None:
-    from calflow.config import check_campaign_name, load_campaign, load_workflow_config, load_yaml
-
-    cfg = load_workflow_config(load_yaml(args.config) or {}, args.config)
+    from calflow.config import check_campaign_name, load_campaign, load_yaml
+    from calflow.lifecycle.settings import check_stage_settings
     from calflow.lifecycle.stages import stages_of
+    from calflow.workflow_config import load as load_config
+
+    cfg = load_config(load_yaml(args.config) or {}, [args.config])
 
     folder = Path(args.campaign_dir or cfg["campaign_dir"])
     campaigns = {}
@@ -135,6 +137,7 @@ def cmd_check_config(args) -> None:
     stages_of(
         campaigns, folder
     )  # the campaigns of each stage agree (robot, distinct starts, interim references)
+    check_stage_settings(cfg["stages"], campaigns, folder, args.config)
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 

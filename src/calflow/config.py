@@ -1,7 +1,8 @@
 """Loading and validating configuration files against the JSON Schemas.
 
 Every problem is reported as one line naming the file, the key and what was expected.
-YAML is loaded with PyYAML's safe loader (libyaml's when available); nothing from a configuration is evaluated.
+YAML is loaded by :mod:`calflow.yamlfile` (PyYAML's safe loader, libyaml's when available; aliases
+bounded, duplicate keys and look-alike characters refused); nothing from a configuration is evaluated.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Any
 import jsonschema
 import yaml
 
+from calflow import yamlfile
 from calflow.errors import ConfigError
 from calflow.family import family_of, missing_family, resolve, robots
 from calflow.reference import check as check_reference
@@ -43,7 +45,9 @@ _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def safe_yaml(text: str) -> Any:
-    """``yaml.safe_load(text)``, through libyaml when available."""
+    """``yaml.safe_load(text)``, through libyaml when available: for calflow's own files (the
+    schemas) and text that is not a configuration file; configuration files go through
+    :func:`load_yaml`."""
     return yaml.load(text, Loader=_SAFE_LOADER)
 
 
@@ -80,6 +84,30 @@ def _key(path) -> str:
     return ".".join(str(p) for p in path) or "<top level>"
 
 
+#: How a pattern of the schemas reads in an error ("expected ...").
+_PATTERNS = {
+    CAMPAIGN_NAME.pattern: "letters, digits, '-' or '_' (at most 64), starting with a letter or digit",
+}
+
+
+def _pattern_expected(s: dict) -> str:
+    return _PATTERNS.get(s["pattern"]) or s.get("description") or f"text matching {s['pattern']}"
+
+
+def _offending(s: dict, value: object) -> str:
+    """``, which contains '/'`` (or ``U+2011 NON-BREAKING HYPHEN``): the first character of
+    ``value`` outside the last character class of the pattern, or ``""``."""
+    classes = re.findall(r"\[(?:\\.|[^\]])+\]", s["pattern"])
+    if not isinstance(value, str) or not classes:
+        return ""
+    allowed = re.compile(classes[-1])
+    for ch in value:
+        if not allowed.fullmatch(ch):
+            named = repr(ch) if " " < ch <= "~" else yamlfile.char_name(ch)
+            return f", which contains {named}"
+    return ""
+
+
 def _describe(error: jsonschema.ValidationError, file: str) -> str:
     key = _key(error.absolute_path)
     v, s = error.validator, error.schema
@@ -100,13 +128,13 @@ def _describe(error: jsonschema.ValidationError, file: str) -> str:
             f"{file}: key '{key}': expected {_TYPE_NAMES.get(s['type'], s['type'])}, got {error.instance!r}"
         )
     if v == "enum":
-        return f"{file}: key '{key}': expected one of {s['enum']}, got {error.instance!r}"
+        odd = yamlfile.describe_odd(error.instance) if isinstance(error.instance, str) else ""
+        return f"{file}: key '{key}': expected one of {s['enum']}, got {error.instance!r}{odd}"
     if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
         op = {"minimum": ">=", "maximum": "<=", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}[v]
         return f"{file}: key '{key}': expected a value {op} {s[v]}, got {error.instance!r}"
     if v == "pattern":
-        desc = s.get("description", f"text matching {s['pattern']}")
-        return f"{file}: key '{key}': expected {desc}, got {error.instance!r}"
+        return f"{file}: key '{key}': expected {_pattern_expected(s)}, got {error.instance!r}{_offending(s, error.instance)}"
     if v == "range":
         return f"{file}: key '{key}': {error.message}, got {error.instance!r}"
     if v == "format":
@@ -173,17 +201,10 @@ def _real_date_time(value: object) -> bool:
 
 
 def load_yaml(path: str | Path) -> Any:
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot be read ({exc.strerror})") from None
-    try:
-        return safe_yaml(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}: not valid YAML{where} ({getattr(exc, 'problem', exc)})") from None
+    """A configuration file's data, through the one loader of configuration files
+    (:func:`calflow.yamlfile.load`: safe, aliases bounded, duplicate keys and look-alike
+    characters refused in one line)."""
+    return yamlfile.load(path)
 
 
 def check_finite(node: Any, file: str | Path, path: tuple = ()) -> None:
@@ -252,7 +273,8 @@ def check_campaign_name(name: str) -> str:
     """Return ``name`` if it is a safe campaign name (it names folders under results/ and reports/)."""
     if not isinstance(name, str) or not CAMPAIGN_NAME.fullmatch(name):  # "$" alone lets "x\n" in
         raise ConfigError(
-            f"campaign name {name!r}: expected letters, digits, '-' or '_' (at most 64), starting with a letter or digit"
+            f"campaign name {name!r}: expected letters, digits, '-' or '_' (at most 64), starting with a "
+            f"letter or digit{_offending({'pattern': CAMPAIGN_NAME.pattern}, name)}"
         )
     return name
 

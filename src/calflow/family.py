@@ -91,6 +91,12 @@ class Family:
       study file over a base campaign of the family (``config/studies``).
     * ``schemas``: the package whose ``schemas/`` folder holds ``campaign-<robot>.schema.yaml``
       (``None``: the core's ``workflow/schemas``); the common keys are merged in.
+    * ``options``: the option check of each rig and sensor factory the family provides,
+      factory ``"module:callable"`` → ``"module:function"``: ``function(**options)`` checks the
+      options without building anything and raises :class:`~calflow.errors.OptionError`
+      naming the option; the config check runs it when a campaign is loaded
+      (:func:`calflow.rigs.plugin.check_rig`, and for a ``gcs`` rig's sensor
+      :func:`calflow.gcs.rig_options.check_options`).
     * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
       {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
       history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
@@ -120,6 +126,7 @@ class Family:
     schemas: str | None = None
     history_entry: str | None = None
     headline: str | None = None
+    options: Mapping[str, str] = field(default_factory=dict)
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:
@@ -192,6 +199,15 @@ def missing_family(robot: str, distribution: str | None = None) -> str:
             f"(pip install {distribution}); installed robots: {known}"
         )
     return f"robot {robot!r}: no installed calflow family serves it; expected one of {known}"
+
+
+def option_check(factory: str) -> Callable[..., Any] | None:
+    """The option check a family declares for rig or sensor ``factory`` (``"module:callable"``,
+    :attr:`Family.options`), or None."""
+    for fam in families():
+        if factory in fam.options:
+            return resolve(fam.options[factory])
+    return None
 
 
 def robots() -> tuple[str, ...]:

@@ -19,8 +19,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import yaml
-
+from calflow import yamlfile
 from calflow.errors import ConfigError
 
 
@@ -52,14 +51,7 @@ def _check_values(data, path: str, where: str = "") -> None:
 def load_file(path: str | Path) -> dict:
     """The reference values of a file (YAML): ``source`` (required, text) and the values."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{path}: reference file: cannot be read ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}: reference file: expected YAML, it does not parse{at}") from None
+    data = yamlfile.load(path, "reference file")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: <top level>: expected a mapping with 'source' and the values")
     source = data.get("source")
@@ -72,6 +64,46 @@ def load_file(path: str | Path) -> dict:
     return {"source": source, **values}
 
 
+def _merged(a: dict, b: dict) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merged(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def template(robot: str) -> dict:
+    """The keys a reference of ``robot`` may hold: the family's named sets merged (``{}`` when
+    the family names none — then nothing tells a key from a typo)."""
+    from calflow.family import resolve
+
+    out: dict = {}
+    for target in _named(robot).values():
+        out = _merged(out, {k: v for k, v in resolve(target).items() if k != "source"})
+    return out
+
+
+def _check_keys(values: dict, tmpl: dict, path: str, robot: str, where: str = "") -> None:
+    """Each key of ``values`` is one the reports read (a key of ``tmpl``); where the entries of
+    ``tmpl`` are mappings with the same keys (models, tests by name), the names are free and
+    their keys checked."""
+    shapes = {tuple(sorted(v)) if isinstance(v, dict) else None for v in tmpl.values()}
+    named = len(tmpl) > 1 and len(shapes) == 1 and None not in shapes  # entries alike: names
+    entry = {}
+    if named:
+        for v in tmpl.values():
+            entry = _merged(entry, v)
+    for key, value in values.items():
+        at = f"{where}.{key}" if where else key
+        sub = entry if named else tmpl.get(key)
+        if sub is None:
+            raise ConfigError(
+                f"{path}: unknown key '{at}' (expected one of: {', '.join(sorted(tmpl))} — the "
+                f"values a {robot} campaign's report puts beside its own)"
+            )
+        if isinstance(value, dict) and isinstance(sub, dict) and sub:
+            _check_keys(value, sub, path, robot, at)
+
+
 def files(campaign: dict) -> list[str]:
     """The reference file a campaign declares (``[]`` when it names a set or none)."""
     declared = campaign.get("reference")
@@ -79,7 +111,8 @@ def files(campaign: dict) -> list[str]:
 
 
 def check(campaign: dict, path: str | Path) -> None:
-    """A campaign's ``reference`` names a set of its family, or a valid file of values."""
+    """A campaign's ``reference`` names a set of its family, or a valid file of values whose
+    keys are those the family's reports read (:func:`template`)."""
     declared = campaign.get("reference")
     if declared is None:
         return
@@ -91,7 +124,12 @@ def check(campaign: dict, path: str | Path) -> None:
                 f"{campaign['robot']} campaign {sorted(known)} or {{file: <values.yaml>}}, got {declared!r}"
             )
         return
-    load_file(declared["file"])
+    values = load_file(declared["file"])
+    tmpl = template(campaign["robot"])
+    if tmpl:
+        _check_keys(
+            {k: v for k, v in values.items() if k != "source"}, tmpl, declared["file"], campaign["robot"]
+        )
 
 
 def declared(campaign: dict) -> dict:

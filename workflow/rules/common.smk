@@ -9,13 +9,14 @@ from calflow.config import (
     check_campaign_name,
     digest,
     load_campaign,
-    load_workflow_config,
 )
 from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
+from calflow.lifecycle.settings import check_stage_settings
 from calflow.lifecycle.stages import stages_of
+from calflow.workflow_config import load as load_checked_config
 
 
 def selected_studies(config):
@@ -29,7 +30,15 @@ def selected_studies(config):
 
 
 try:
-    config.update(load_workflow_config(config))
+    # the configuration files read again by calflow's loader, --config values typed (Snakemake
+    # passes nested ones as text), then validated
+    config.update(
+        load_checked_config(
+            config,
+            [*workflow.configfiles, *(workflow.overwrite_configfiles or ())],
+            workflow.config_settings.overwrite_config,
+        )
+    )
     CAMPAIGN_DIR = config["campaign_dir"]
     CAMPAIGNS = [check_campaign_name(name) for name in config["campaigns"]]
     RIG_PLUGINS = config["rig_plugins"]
@@ -38,6 +47,16 @@ try:
         for name in CAMPAIGNS
     }
     STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
+    check_stage_settings(
+        config["stages"],
+        CAMPAIGN,
+        CAMPAIGN_DIR,
+        (
+            "--config stages"
+            if "stages" in (workflow.config_settings.overwrite_config or {})
+            else (workflow.configfiles or ["config/config.yaml"])[-1]
+        ),
+    )
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)

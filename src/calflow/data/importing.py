@@ -33,12 +33,11 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-import yaml
 
-from calflow.config import safe_yaml
+from calflow import yamlfile
 from calflow.data.conventions import robot_joints, robots, run_variables
 from calflow.data.runs import RunMetadata, run_dataset
-from calflow.errors import DataError
+from calflow.errors import ConfigError, DataError
 from calflow.plan import Plan
 
 TOP_KEYS = ("robot", "plan", "model", "dwell_s", "delimiter", "description", "columns")
@@ -162,12 +161,9 @@ def load_mapping(path: str | os.PathLike) -> dict:
     except OSError as exc:
         raise DataError(f"{path}: cannot read the mapping file ({exc.strerror or exc})") from None
     try:
-        raw = safe_yaml(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f"line {mark.line + 1}: " if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise DataError(f"{path}: {line}not valid YAML ({problem})") from None
+        raw = yamlfile.parse(text, path)
+    except ConfigError as exc:  # the same one line, as the data error of an import
+        raise DataError(str(exc)) from None
     return check_mapping(raw, str(path))
 
 

@@ -2,7 +2,8 @@
 
 :func:`check_options` is what ``calflow check-config`` and ``snakemake -n`` run
 (:func:`calflow.rigs.plugin.check_rig`): every option's type and range, without opening a
-connection or importing a sensor plug-in. It raises :class:`OptionError` naming the option
+connection or importing a sensor plug-in; a family's sensor has its options checked by its
+family (:attr:`calflow.family.Family.options`). It raises :class:`OptionError` naming the option
 (``axes.x.port``, ``reconnect.tries``, ...), which the config check turns into one line
 naming the file and the key.
 """
@@ -176,4 +177,25 @@ def check_options(**options: Any) -> dict[str, Any]:
         raise UnknownOptionError(f"sensor.{unknown[0]}", "expected factory, options")
     if sensor.get("options") is not None:
         _mapping("sensor.options", sensor["options"])
+    _sensor_options(sensor["factory"], dict(sensor.get("options") or {}))
     return dict(options)
+
+
+def _sensor_options(name: str, options: dict) -> None:
+    """The sensor's options, checked by the family that provides it (a registered short name
+    or its ``module:callable``; :attr:`calflow.family.Family.options`); a plug-in sensor no
+    family declares is checked when the rig opens."""
+    from calflow.family import option_check
+    from calflow.gcs.sensors import builtin_sensors
+
+    check = option_check(builtin_sensors().get(name, name))
+    if check is None:
+        return
+    try:
+        check(**options)
+    except OptionError as exc:
+        raise OptionError(
+            f"sensor.options.{exc.option}", exc.expected, exc.value, unknown=exc.unknown
+        ) from None
+    except (TypeError, ValueError) as exc:
+        raise OptionError("sensor.options", f"options the {name!r} sensor accepts ({exc})", options) from None

@@ -15,6 +15,7 @@ def check_campaign(campaign: dict, path: Path) -> None:
     options (:func:`calflow.nano.stage.aging.resolve`), once, here: the rig, the error
     budget's replays and the designed plans all read these options. Raises
     :class:`ConfigError` naming the file and key."""
+    _check_design(campaign, path)
     rig = campaign["rig"]
     for run, extra in (rig.get("runs") or {}).items():
         if "aging" in (extra or {}):
@@ -40,5 +41,36 @@ def check_campaign(campaign: dict, path: Path) -> None:
         aged = resolve(options, campaign["start"], {**_COMMON, **cls._EXTRA}, cls._AXIS)
     except OptionError as exc:
         raise ConfigError(exc.at(path, where)) from None
+    if "aging" in options:  # the stage as aged by the campaign's start is a stage the rig can be
+        from calflow.nano.stage.interferometer_sensor import check_sensor_options
+        from calflow.nano.stage.rig import check_nano1d, check_nano2d
+
+        check = {"stage1d": check_nano1d, "stage2d": check_nano2d}[campaign["robot"]]
+        try:
+            (check if rig["factory"] == "simulated" else check_sensor_options)(**aged)
+        except OptionError as exc:
+            raise ConfigError(
+                f"{path}: key '{where}.aging': expected ageing that leaves a stage the rig can be at "
+                f"the campaign's start ({campaign['start']}); aged, option {exc.option!r}: expected "
+                f"{exc.expected}, got {exc.value!r}"
+            ) from None
     if aged != options:
         holder[key] = aged
+
+
+def _check_design(campaign: dict, path: Path) -> None:
+    """A designed training plan picks at most as many positions as its candidate grid holds."""
+    t = campaign.get("training") or {}
+    if t.get("plan") != "optimal" or not (t.get("design") or {}).get("positions"):
+        return
+    from calflow.nano.plans.design import candidates
+    from calflow.nano.plans.designed import _stroke
+
+    lo, hi = _stroke(campaign)
+    n, pool = t["design"]["positions"], len(candidates(lo, hi, float(t["design"]["candidate_step_um"])))
+    if n > pool:
+        raise ConfigError(
+            f"{path}: key 'training.design.positions': expected at most the {pool} candidate positions "
+            f"of training.design.candidate_step_um ({t['design']['candidate_step_um']:g} µm) over the "
+            f"stroke, got {n}"
+        )

@@ -65,6 +65,13 @@ FAMILY = Family(
     templates="calflow.nano.report",
     schemas="calflow.nano",
     sensors={"simulated_interferometer": "calflow.nano.stage.interferometer_sensor:simulated_interferometer"},
+    options={
+        "calflow.nano.stage.rig:nano1d": "calflow.nano.stage.rig:check_nano1d",
+        "calflow.nano.stage.rig:nano2d": "calflow.nano.stage.rig:check_nano2d",
+        "calflow.nano.stage.interferometer_sensor:simulated_interferometer": (
+            "calflow.nano.stage.interferometer_sensor:check_sensor_options"
+        ),
+    },
     emulator="calflow.nano.stage.emulate:main",
     joints={"stage1d": ("x",), "stage2d": ("x", "y")},
     reference={

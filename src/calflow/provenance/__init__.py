@@ -46,6 +46,7 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.report.render": ("*templates", "steps:figures"),
     "calflow.report.catalogue": ("headline",),
     "calflow.lifecycle.history": ("history_entry",),
+    "calflow.family:option_check": ("*options",),
     "calflow.cli:cmd_identify": ("steps:identify",),
     "calflow.cli:cmd_metrics": ("steps:metrics",),
     "calflow.cli:cmd_summarise": ("steps:summarise",),

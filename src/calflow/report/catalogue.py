@@ -17,9 +17,7 @@ import datetime as dt
 import json
 from pathlib import Path
 
-import yaml
-
-from calflow import __version__
+from calflow import __version__, yamlfile
 from calflow.errors import CalflowError
 
 RESERVED = frozenset({"stages", "studies", "logs", "benchmarks"})  # results/ folders that are no campaign
@@ -129,8 +127,8 @@ def _campaign_yaml(campaign_dir: Path | None, name: str) -> tuple[Path | None, d
     if not path.is_file():
         return None, {}
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError):
+        data = yamlfile.load(path)
+    except CalflowError:  # the index lists what it can read; the config check names the fault
         data = None
     return path, data if isinstance(data, dict) else {}
 

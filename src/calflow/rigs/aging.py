@@ -68,6 +68,29 @@ def events(items, keys: tuple[str, ...]) -> None:
                 number(e[k], f"aging.events.{i}.{k}", None)
 
 
+def lifetime(aging: dict, given, start) -> None:
+    """The dates of a checked ``aging`` against the campaign's ``start``: a ``since`` the
+    campaign gives (the stage's commissioning) lies at or before ``start`` — else the stage
+    would age backwards — and every event lies at or after ``since`` (an event before the
+    commissioning would be applied to every campaign of the stage)."""
+    t0, t = date(aging["since"], "aging.since"), date(start, "start")
+    if isinstance(given, dict) and "since" in given and t0 > t:
+        raise OptionError(
+            "aging.since",
+            f"the stage's commissioning at or before the campaign's start ({start})",
+            given["since"],
+        )
+    for i, e in enumerate(aging["events"]):
+        if date(e["date"], f"aging.events.{i}.date") < t0:
+            given_since = isinstance(given, dict) and "since" in given
+            raise OptionError(
+                f"aging.events.{i}.date",
+                f"a date at or after the stage's commissioning (aging.since, {aging['since']}"
+                f"{'' if given_since else ', its default'})",
+                e["date"],
+            )
+
+
 def season(day_of_year: float, peak_day: float) -> float:
     """The yearly season, cos(2π (day − peak)/year): 1 on the peak day, −1 half a year on."""
     return math.cos(2 * math.pi * (day_of_year - peak_day) / YEAR_D)

@@ -154,8 +154,9 @@ def check_rig(
     ``path`` and the key.
 
     The factory must be built in, registered, or (with ``plugins``) an allowed, importable
-    callable. A factory with a ``check_options(**options)`` attribute (the simulated rigs)
-    has its options checked for every run (``rig.options`` merged with ``rig.runs.<run>``)
+    callable. The option check its family declares (:attr:`calflow.family.Family.options`), else
+    a ``check_options(**options)`` attribute of the factory (a third-party plug-in's), has its
+    options checked for every run (``rig.options`` merged with ``rig.runs.<run>``)
     without building the rig. With ``plugins=False``, a ``module:callable`` factory is left
     alone: no plug-in module is imported (commands that do not open the rig).
     """
@@ -165,10 +166,13 @@ def check_rig(
         return
     try:
         factory, _ = resolve_factory(name, robot, allowed)
+        target, _ = target_of(name, robot, allowed)
     except RigError as exc:
         detail = str(exc).removeprefix("rig.factory: ")
         raise ConfigError(f"{path}: key 'rig.factory': {detail}") from None
-    check = getattr(factory, "check_options", None)
+    from calflow.family import option_check
+
+    check = option_check(target) or getattr(factory, "check_options", None)
     if check is None:
         return
     options = dict(rig.get("options") or {})

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calflow.errors import ConfigError
+from calflow.errors import ConfigError, OptionError
 
 
 def check_campaign(campaign: dict, path: Path) -> None:
@@ -14,13 +14,20 @@ def check_campaign(campaign: dict, path: Path) -> None:
         from calflow.xytheta.stage.physics import XYThetaTruth
 
         options = campaign["rig"].get("options") or {}
-        campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
+        try:
+            campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
+        except OptionError as exc:
+            raise ConfigError(exc.at(path, "rig.options")) from None
     if "as_found" in campaign:  # the compensation in use, measured before the recalibration
         from calflow.xytheta.plans.as_found import check
 
         check(campaign, Path(path))
     if "interim_check" in campaign:
         _check_interim(campaign, Path(path))
+        from calflow.xytheta.plans.interim_load import check_rig_time, check_tolerance
+
+        check_tolerance(campaign, Path(path))
+        check_rig_time(campaign, Path(path))
         return
     if "models" not in campaign:
         raise ConfigError(

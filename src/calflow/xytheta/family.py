@@ -200,6 +200,10 @@ FAMILY = Family(
         Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
     ),
     sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
+    options={
+        "calflow.xytheta.stage.rig:simulated_xytheta": "calflow.xytheta.stage.physics:check_options",
+        "calflow.xytheta.stage.vision_sensor:simulated_vision": "calflow.xytheta.stage.physics:check_options",
+    },
     emulator="calflow.xytheta.stage.emulate:emulate_main",
     joints={"xytheta": ("x", "y", "theta")},
     reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},

@@ -52,6 +52,7 @@ FAMILY = Family(
     rig_options="calflow_hexapod.stage.run_options:rig_options",
     acquire_arguments=_acquire_arguments,
     steps={
+        "check": "calflow_hexapod.checks:check_campaign",
         "identify": f"{_S}:identify",
         "metrics": f"{_S}:metrics",
         "summarise": "calflow_hexapod.report.summary:hexapod_summary",
@@ -85,5 +86,9 @@ FAMILY = Family(
         ),
     ),
     sensors={"simulated_tracker": "calflow_hexapod.stage.sensor:simulated_tracker"},
+    options={
+        "calflow_hexapod.stage.rig:simulated_hexapod": "calflow_hexapod.stage.physics:check_options",
+        "calflow_hexapod.stage.sensor:simulated_tracker": "calflow_hexapod.stage.sensor:check_tracker_options",
+    },
     emulator="calflow_hexapod.stage.emulate:emulate_main",
 )

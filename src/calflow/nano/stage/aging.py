@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 
 from calflow.errors import OptionError
-from calflow.rigs.aging import YEAR_D, date, events, number, season
+from calflow.rigs.aging import YEAR_D, date, events, lifetime, number, season
 from calflow.rigs.aging import options as with_defaults
 
 DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
@@ -129,9 +129,11 @@ def resolve(options: dict, start: str, defaults: dict, axes: tuple) -> dict:
     unaged rig). ``defaults``: the rig's own option defaults; ``axes``: the joint each sensor
     measures along (None: across; the drift and a re-mount's offset move the on-axis ones)."""
     options = dict(options)
-    a = check(options.pop("aging", None))
+    given = options.pop("aging", None)
+    a = check(given)
     if a is None:
         return options
+    lifetime(a, given, start)
     e = effects(a, start)
     get = lambda k: options.get(k, defaults[k])  # noqa: E731
     out = dict(options)

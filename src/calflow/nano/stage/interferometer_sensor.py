@@ -90,6 +90,16 @@ class SimulatedInterferometer:
         self.rig.close()
 
 
+def check_sensor_options(stage: str = "nano1d", **options: Any) -> dict:
+    """The sensor's options checked as its stage's (the family's option check), no rig built."""
+    from calflow.errors import OptionError
+    from calflow.nano.stage import rig as nano_rig
+
+    if stage not in STAGES:
+        raise OptionError("stage", f"one of {', '.join(STAGES)}", stage)
+    return getattr(nano_rig, f"check_{stage}")(**options)
+
+
 def simulated_interferometer(stage: str = "nano1d", **options: Any) -> SimulatedInterferometer:
     """Built-in sensor ``simulated_interferometer``: ``stage`` (nano1d | nano2d) and the
     simulated rig's options (seed, world_seed, start_offset_s, physics)."""

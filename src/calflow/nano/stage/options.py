@@ -306,6 +306,15 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
             )
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise OptionError("profile_params", "finite numbers", {key: value})
+    for key in ("lights_on_h", "lights_off_h"):  # hours of the day (daily_window)
+        if key in o and not 0.0 <= o[key] <= 24.0:
+            raise OptionError(key, "an hour of the day, 0-24", o[key])
+    if "lights_on_h" in o and not o["lights_on_h"] < o["lights_off_h"]:
+        raise OptionError(
+            "lights_off_h", f"an hour after lights_on_h ({o['lights_on_h']:g})", o["lights_off_h"]
+        )
+    if "people_visits_h" in o and not all(0.0 <= v < 24.0 for v in o["people_visits_h"]):
+        raise OptionError("people_visits_h", "hours of the day, 0-24", list(o["people_visits_h"]))
     if not 0.0 < o["step_damping"] < 1.0:
         raise OptionError(
             "step_damping", "a damping ratio in (0, 1) (an underdamped closed loop)", o["step_damping"]

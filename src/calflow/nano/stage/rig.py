@@ -399,6 +399,15 @@ def nano2d(**options) -> Nano2DRig:
     return Nano2DRig(**options)
 
 
-# The config check calls these (calflow.rigs.plugin.check_rig): options checked, no rig built.
-nano1d.check_options = lambda **o: check_options("nano1d", {**_COMMON, **Nano1DRig._EXTRA}, 2, o)
-nano2d.check_options = lambda **o: check_options("nano2d", {**_COMMON, **Nano2DRig._EXTRA}, 2, o)
+def check_nano1d(**options) -> dict:
+    """The 1-DoF stage's options checked, no rig built (the family's option check)."""
+    return check_options("nano1d", {**_COMMON, **Nano1DRig._EXTRA}, 2, options)
+
+
+def check_nano2d(**options) -> dict:
+    """The 2-DoF stage's options checked, no rig built (the family's option check)."""
+    return check_options("nano2d", {**_COMMON, **Nano2DRig._EXTRA}, 2, options)
+
+
+nano1d.check_options = check_nano1d  # the options with the rig's defaults (designed plans read them)
+nano2d.check_options = check_nano2d

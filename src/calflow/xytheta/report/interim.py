@@ -33,26 +33,8 @@ from calflow.errors import CalflowError, ConfigError
 from calflow.lifecycle.sprt import SPRT
 from calflow.reference import declared
 
-BUDGET = 0.05  # the check's rig time, at most this fraction of a full calibration's
-
-
-def rig_time_s(run: xr.Dataset) -> float:
-    """Span of the run's time axis (s): its last reading minus its first."""
-    t = np.asarray(run["time"].values, dtype=float)
-    return float(np.nanmax(t) - np.nanmin(t)) if t.size else 0.0
-
-
-def visit_errors(run: xr.Dataset, mode: int | None = None) -> np.ndarray:
-    """(n, 2) errors (µm) of the visits (pose > 0) of a closed-loop run, world frame (Eq. 4.27);
-    only segment ``mode`` (``test_mode``) when given."""
-    from calflow.xytheta.evaluation import attained_points
-
-    if mode is not None and "test_mode" in run:
-        run = run.isel(sample=run["test_mode"].values == mode)
-    x, y = attained_points(run)
-    keep = run["pose"].values > 0
-    return np.column_stack([x[keep] - run["target_x"].values[keep], y[keep] - run["target_y"].values[keep]])
-
+# the check's rig time budget, a run's rig time and H0, defined beside the check at load
+from calflow.xytheta.plans.interim_load import BUDGET, reference_rms_um, rig_time_s, visit_errors  # noqa: F401
 
 #: Cycles before the sequential test first looks: ISO 9283's RP needs two visits of every target.
 MIN_CYCLES = 2
@@ -63,11 +45,6 @@ def visit_groups(run: xr.Dataset) -> np.ndarray:
     :data:`MIN_CYCLES` cycles one look — the test looks at the end of each group."""
     cycle = np.asarray(run["cycle"].values)[run["pose"].values > 0]
     return np.maximum(cycle - (cycle.min() if cycle.size else 0), MIN_CYCLES - 1)
-
-
-def reference_rms_um(export_run: xr.Dataset) -> float:
-    """r0 (µm): the rms visit error of the reference's closed-loop check through its bundle."""
-    return float(np.sqrt(np.mean(np.sum(visit_errors(export_run, mode=0) ** 2, axis=1))))
 
 
 def check_test(campaign: dict, r0: float) -> SPRT:

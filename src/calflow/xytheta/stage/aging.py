@@ -33,7 +33,7 @@ Each effect, with where its rate comes from, and how it combines with the rig's 
 from __future__ import annotations
 
 from calflow.errors import OptionError
-from calflow.rigs.aging import YEAR_D, date, events, number, season
+from calflow.rigs.aging import YEAR_D, date, events, lifetime, number, season
 from calflow.rigs.aging import options as with_defaults
 
 DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
@@ -71,9 +71,11 @@ def resolve(physics: dict, start: str, base=None) -> dict:
     ``aging``, with the aged values of the fields ageing moves (only those that differ).
     ``base``: the rig's defaults (an :class:`~calflow.xytheta.stage.physics.XYThetaTruth`)."""
     physics = dict(physics)
-    a = check(physics.pop("aging", None))
+    given = physics.pop("aging", None)
+    a = check(given)
     if a is None:
         return physics
+    lifetime(a, given, start)
     t, t0 = date(start, "start"), date(a["since"], "aging.since")
     years = (t - t0).total_seconds() / (YEAR_D * 86400.0)
     if base is None:

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from calflow.config import safe_yaml
+from calflow.config import load_yaml
 from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
 
 EXTRA = {"lost_motion": {"lost_motion": False}, "gross_errors": {"gross_error_rate": 0.0}}  # beyond EFFECTS
@@ -70,7 +70,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     from calflow.data.io import open_dataset, write_dataset
     from calflow.xytheta import steps as commands
 
-    raw = safe_yaml(Path(campaign_path).read_text())
+    raw = load_yaml(campaign_path)
     raw.setdefault("rig", {})
     raw["rig"]["options"] = {**(raw["rig"].get("options") or {}), **rig_options}
     work.mkdir(parents=True, exist_ok=True)

@@ -26,6 +26,7 @@ from calflow_hexapod.models.identification import identifiable
 from calflow_hexapod.models.kinematics import inverse
 from calflow_hexapod.models.ladder import LADDER, NAMES, OFFSET, Parameters
 from calflow_hexapod.models.loop import closure
+from calflow_hexapod.plans.noise import noise_model
 from calflow_hexapod.plans.poses import target_of, workspace_poses
 
 
@@ -33,33 +34,6 @@ def nominal_parameters(campaign: dict) -> Parameters:
     """The campaign's nominal model: the H-811-class geometry with ``identification.initial``'s frames."""
     init = campaign["identification"].get("initial") or {}
     return Parameters.nominal(frame=init.get("frame"), tool=init.get("tool"))
-
-
-def noise_model(campaign: dict) -> dict | None:
-    """σ of a reading: ``position_um`` and ``angle_deg`` per axis of the instrument, ``leg_um`` of
-    the legs. ``identification.design.noise`` when given, else the simulated rig's tracker
-    (MPE/4 at the station's distance, :mod:`calflow_hexapod.stage.tracker`) and leg repeatability,
-    also when the simulated hexapod is served by the C-887 emulator (``rig: gcs`` with the
-    tracker sensor); None for another rig that declares none."""
-    given = (campaign["identification"].get("design") or {}).get("noise") or {}
-    if {"position_um", "angle_deg", "leg_um"} <= set(given):
-        return {k: float(given[k]) for k in ("position_um", "angle_deg", "leg_um")}
-    from calflow_hexapod.stage.run_options import simulated_physics
-
-    physics = simulated_physics(campaign)
-    if physics is None:
-        return None
-    from calflow_hexapod.stage import tracker
-    from calflow_hexapod.stage.physics import truth_from_options
-
-    t = truth_from_options(physics)
-    p = tracker.probe_pose(t, np.zeros((1, 6)))[0]
-    s_r, s_t, s_a = tracker.sigmas(t, p)
-    return {
-        "position_um": float(np.sqrt((s_r[0] ** 2 + 2 * s_t[0] ** 2) / 3)),
-        "angle_deg": float(s_a),
-        "leg_um": float(t.leg_repeatability_um),
-    }
 
 
 def jacobians(q: np.ndarray, phi: Parameters, free, noise: dict) -> np.ndarray:
@@ -75,9 +49,10 @@ def jacobians(q: np.ndarray, phi: Parameters, free, noise: dict) -> np.ndarray:
 
 
 def model_free(campaign: dict, model: str) -> tuple[str, ...]:
-    """The free parameters of a campaign's model: its ``free`` list, else its rung of :data:`LADDER`."""
+    """The free parameters of a campaign's model: its ``free`` list, else its rung of :data:`LADDER`
+    (``models.<name>.rung``, the name when absent)."""
     spec = (campaign.get("models") or {}).get(model) or {}
-    free = spec.get("free") or LADDER.get(model)
+    free = spec.get("free") or LADDER.get(spec.get("rung", model))
     if free is None:
         raise ValueError(
             f"models.{model}: expected a 'free' list or a model of the ladder ({', '.join(LADDER)})"

@@ -16,7 +16,6 @@ import numpy as np
 
 from calflow.identification.design import latin_hypercube
 from calflow.plan import Plan
-from calflow_hexapod.models.calibration import predict
 from calflow_hexapod.models.geometry import AXES, H811_TRAVEL, Geometry, h811
 from calflow_hexapod.models.ladder import Parameters
 from calflow_hexapod.stage.workspace import reachable
@@ -66,6 +65,8 @@ def identification(n_poses: int, fraction: float, seed: int, dwell_s: float = 1.
 
 def target_of(commands, nominal: Parameters, controller: Geometry | None = None) -> np.ndarray:
     """Targets (n, 6): the readings the ``nominal`` parameters predict for commands (n, 6)."""
+    from calflow_hexapod.models.calibration import predict  # xarray: not at the campaign's load
+
     return predict(nominal, h811() if controller is None else controller, np.atleast_2d(commands))
 
 

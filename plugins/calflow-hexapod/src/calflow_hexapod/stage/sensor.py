@@ -20,7 +20,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from calflow.errors import RigError
+from calflow.errors import OptionError, RigError
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.models.kinematics import inverse
 from calflow_hexapod.stage import tracker
@@ -105,13 +105,24 @@ class SimulatedTracker:
         return {"sensor": "simulated_tracker", **self.truth_model.as_dict()}
 
 
+def check_tracker_options(seed: int = 0, stream: str = "", pivot_um=(0.0, 0.0, 0.0), **physics) -> dict:
+    """The tracker sensor's options checked (the family's option check, run at load): the
+    simulated rig's (:func:`~calflow_hexapod.stage.physics.check_options`) and ``pivot_um``,
+    3 finite numbers (µm). Raises :class:`~calflow.errors.OptionError` naming the option."""
+    o = check_options(seed, stream, **physics)
+    ok = isinstance(pivot_um, (list, tuple)) and len(pivot_um) == 3
+    ok = ok and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in pivot_um
+    )
+    if not ok:
+        raise OptionError("pivot_um", "3 finite numbers (µm: R, S, T)", pivot_um)
+    return {**o, "pivot_um": tuple(float(v) for v in pivot_um)}
+
+
 def simulated_tracker(
     seed: int = 0, stream: str = "", pivot_um=(0.0, 0.0, 0.0), **physics
 ) -> SimulatedTracker:
     """Factory of the simulated tracker sensor; ``physics`` overrides :class:`HexapodTruth` fields."""
-    o = check_options(seed, stream, **physics)
-    seed, stream = o.pop("seed"), o.pop("stream")
-    pivot = np.asarray(pivot_um, dtype=float)
-    if pivot.shape != (3,) or not np.all(np.isfinite(pivot)):
-        raise ValueError(f"pivot_um: expected 3 finite numbers (µm), got {pivot_um!r}")
+    o = check_tracker_options(seed, stream, pivot_um, **physics)
+    seed, stream, pivot = o.pop("seed"), o.pop("stream"), np.asarray(o.pop("pivot_um"))
     return SimulatedTracker(HexapodTruth(**o), seed=seed, stream=stream, pivot_um=pivot)
