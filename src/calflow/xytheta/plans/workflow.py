@@ -40,6 +40,16 @@ class XYThetaWorkflow(FamilyWorkflow):
         runs.update(f"{base}/runs/{t}_{k}.nc" for t in ("square", "random_points") for k in tests)
         return sorted(runs)
 
+    def needs(self, c: dict) -> list[tuple[str, str, list[str]]]:
+        """An interim check reads its reference's export (the bundle it runs), the export's
+        closed-loop check (its H0) and the reference's runs (its rig time)."""
+        if "interim_check" not in c:
+            return []
+        check = c["interim_check"]
+        ref = check["reference"]
+        files = [interim_export(c), interim_reference_run(c), *check["resolved"]["runs"]]
+        return [("interim_check.reference", ref, list(dict.fromkeys(files)))]
+
     def results_of(self, c: dict) -> list[str]:
         if "interim_check" in c:  # its run and metrics, and the reference's runs (resolved at load)
             base = f"results/{c['name']}"
@@ -126,6 +136,17 @@ class XYThetaWorkflow(FamilyWorkflow):
         if "base" in spec:
             sections.append(c["angle_residuals"])
         return sections
+
+
+def interim_export(c: dict) -> str:
+    """An interim check's bundle: its reference's export manifest."""
+    return f"results/{c['interim_check']['reference']}/export/manifest.json"
+
+
+def interim_reference_run(c: dict) -> str:
+    """An interim check's H0: the reference's closed-loop check of the model's bundle."""
+    check = c["interim_check"]
+    return f"results/{check['reference']}/runs/export_{check['model']}.nc"
 
 
 WORKFLOW = XYThetaWorkflow()
