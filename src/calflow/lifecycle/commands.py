@@ -64,9 +64,23 @@ def run_history(args) -> None:
         _campaign(Path(f), Path(s), args.stage, results, earlier) for f, s in zip(files, args.summaries)
     ]
     _same_robot(campaigns, args.stage)
-    pairs = [(c, load_summary(s)) for c, s in zip(campaigns, args.summaries)]
+    pairs = [(c, _summary(s, load_summary)) for c, s in zip(campaigns, args.summaries)]
     gone = departed(args.stage, [c["name"] for c in campaigns], results, Path(files[0]).parent, earlier)
     write_json(jsonable(build(args.stage, pairs, settings, gone)), args.out)
+
+
+def _summary(path: str, load) -> dict:
+    """A member's summary.json, or one line naming it: the job fails and the workflow keeps the
+    earlier history (its outputs are updated in place) rather than one without the campaign."""
+    try:
+        data = load(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: expected a campaign's summary (JSON), got {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{path}: expected a campaign's summary (a JSON mapping), got {type(data).__name__}"
+        )
+    return data
 
 
 def _campaign(file: Path, summary: Path, stage: str, results: Path, earlier: dict) -> dict:

@@ -68,7 +68,7 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
     campaign of the same folder, not itself one that reads another (a chain, or a cycle of
     references, is refused here rather than loaded without end), of the same robot and stage,
     and starting before ``campaign`` (a check verifies a calibration made earlier)."""
-    from calflow.config import load_yaml
+    from calflow.config import CAMPAIGN_NAME, load_yaml
 
     file = Path(file)
     if name == file.stem:
@@ -76,8 +76,13 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
             f"{file}: key '{key}': expected another campaign (a calibration of the stage), got "
             f"{name!r}, this campaign itself"
         )
+    if not isinstance(name, str) or not CAMPAIGN_NAME.fullmatch(name):
+        raise ConfigError(
+            f"{file}: key '{key}': expected a campaign of {file.parent} (letters, digits, '-' or '_'), "
+            f"got {name!r}"
+        )
     path = file.parent / f"{name}.yaml"
-    if not isinstance(name, str) or not STAGE_ID.fullmatch(name) or not path.is_file():
+    if not path.is_file():
         raise ConfigError(
             f"{file}: key '{key}': expected a campaign of {file.parent}, got {name!r} (no {path.name})"
         )
