@@ -198,3 +198,17 @@ def test_the_stage_rules_cover_the_campaigns_on_disk(lab):
         stages_of(run, "config/campaigns", disk)
     run["n"]["start"] = "2027-01-05T08:00:00+00:00"
     assert stages_of(run, "config/campaigns", disk) == {STAGE: ["n"]}
+
+
+def test_the_page_says_whence_a_campaign_came_and_why_one_left(lab):
+    history("a", "b", "c")
+    Path("config/campaigns/a.yaml").unlink()
+    Path("results/b/summary.json").unlink()
+    h = history("a", "c")
+    assert (
+        main(["history-report", "--history", "results/stages/SN-1/history.json", "--html", "page.html"]) == 0
+    )
+    page = Path("page.html").read_text()
+    assert 'id="departed"' in page and h["departed"][0]["reason"] in page
+    assert "a: no campaign file config/campaigns/a.yaml: its start and stage are those of the stage" in page
+    assert "whichever run made them" in page
