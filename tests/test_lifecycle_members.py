@@ -212,3 +212,24 @@ def test_the_page_says_whence_a_campaign_came_and_why_one_left(lab):
     assert 'id="departed"' in page and h["departed"][0]["reason"] in page
     assert "a: no campaign file config/campaigns/a.yaml: its start and stage are those of the stage" in page
     assert "whichever run made them" in page
+
+
+def test_a_stage_whose_campaigns_all_went_keeps_its_history_and_says_why(lab):
+    """Every run keeps every stage's history current, as the index: the stages of campaigns
+    on disk and of histories on disk; a history with no campaign left lists them as gone."""
+    from calflow.lifecycle.members import histories_on_disk
+
+    history("a", "b", "c")
+    assert histories_on_disk("results", on_disk("results", "config/campaigns")) == {STAGE: "xytheta"}
+    for name in ("a", "b", "c"):
+        Path(f"results/{name}/summary.json").unlink()
+    assert on_disk("results", "config/campaigns") == {}
+    assert histories_on_disk("results", {}) == {STAGE: "xytheta"}  # from its history
+    assert (
+        main(["history", "--stage", STAGE, "--summaries", "--out", "results/stages/SN-1/history.json"]) == 0
+    )
+    h = json.loads(Path("results/stages/SN-1/history.json").read_text())
+    assert h["campaigns"] == [] and h["robot"] == "xytheta"
+    assert [d["campaign"] for d in h["departed"]] == ["a", "c", "b"]
+    assert main(["history-report", "--history", "results/stages/SN-1/history.json", "--html", "p.html"]) == 0
+    assert "no longer on disk" in Path("p.html").read_text()

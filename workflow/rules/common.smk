@@ -16,7 +16,7 @@ from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
-from calflow.lifecycle.members import on_disk
+from calflow.lifecycle.members import histories_on_disk, on_disk
 from calflow.lifecycle.stages import check_needs, stages_of
 
 
@@ -44,6 +44,10 @@ try:
     ON_DISK = on_disk("results", CAMPAIGN_DIR, tuple(CAMPAIGNS))
     STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR, ON_DISK)
     check_needs(CAMPAIGN, CAMPAIGN_DIR, lambda c: hooks(c).needs(c))
+    # every stage's history is kept current, as the index is: the run's stages, and those
+    # of the campaigns and histories on disk (rebuilt only when what they read changed)
+    DISK_STAGES = histories_on_disk("results", ON_DISK)
+    HISTORIES = sorted(set(STAGES) | set(DISK_STAGES))
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)
@@ -204,15 +208,15 @@ def stage_summaries(w):
 
 
 def stage_robot(stage):
+    """The robot of the stage's campaigns: the run's, else those on disk, else its history's."""
     names = STAGES.get(stage) or []
     if names:
         return CAMPAIGN[names[0]]["robot"]
-    disk = [ON_DISK[n]["robot"] for n in stage_members(stage)]
-    if not disk or not disk[0]:
+    if stage not in DISK_STAGES:
         raise CalflowError(
-            f"stage {stage!r}: no campaign of this stage in the run or on disk"
+            f"results/stages/{stage}: expected a stage with campaigns in the run or on disk"
         )
-    return disk[0]
+    return DISK_STAGES[stage]
 
 
 def stage_settings(w):

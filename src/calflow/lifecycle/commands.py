@@ -13,9 +13,10 @@ def history_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", required=True, help="the stage's id (campaign key 'stage')")
     p.add_argument(
         "--summaries",
-        nargs="+",
-        required=True,
-        help="the summary.json of every campaign of the stage on disk (results/<campaign>/summary.json)",
+        nargs="*",
+        default=[],
+        help="the summary.json of every campaign of the stage on disk (results/<campaign>/summary.json); "
+        "none when every campaign of the stage has gone",
     )
     p.add_argument(
         "--campaigns",
@@ -65,8 +66,11 @@ def run_history(args) -> None:
     ]
     _same_robot(campaigns, args.stage)
     pairs = [(c, _summary(s, load_summary)) for c, s in zip(campaigns, args.summaries)]
-    gone = departed(args.stage, [c["name"] for c in campaigns], results, Path(files[0]).parent, earlier)
-    write_json(jsonable(build(args.stage, pairs, settings, gone)), args.out)
+    gone = departed(args.stage, [c["name"] for c in campaigns], results, Path(args.campaign_dir), earlier)
+    history = build(args.stage, pairs, settings, gone)
+    if history["robot"] is None:  # every campaign gone: the stage's robot is still the history's
+        history["robot"] = earlier.get("robot")
+    write_json(jsonable(history), args.out)
 
 
 def _summary(path: str, load) -> dict:
@@ -114,7 +118,9 @@ def _campaign(file: Path, summary: Path, stage: str, results: Path, earlier: dic
             "the stage's earlier history listing it, or a summary recording stage and start), found none"
         )
     check_stage_id(known["stage"], file)
-    robot = known.get("robot") or json.loads(summary.read_text()).get("robot")
+    robot = known.get("robot") or _summary(str(summary), lambda p: json.loads(Path(p).read_text())).get(
+        "robot"
+    )
     return {
         "name": name,
         "stage": stage,

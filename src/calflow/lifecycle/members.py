@@ -23,6 +23,7 @@ import json
 from pathlib import Path
 
 from calflow.errors import CalflowError
+from calflow.lifecycle.stages import STAGE_ID, takes_part
 
 RESERVED = frozenset({"stages", "studies", "logs", "benchmarks"})  # results/ folders that are no campaign
 
@@ -114,9 +115,26 @@ def on_disk(
         if p.name in RESERVED or p.name in exclude or not (p / "summary.json").is_file():
             continue
         d = describe(p.name, results, campaign_dir, histories)
-        if d is not None and isinstance(d.get("stage"), str):
-            out[p.name] = d
+        if d is not None and isinstance(d.get("stage"), str) and STAGE_ID.fullmatch(d["stage"]):
+            out[p.name] = d  # (a stage id that is no safe folder name: its own load refuses it)
     return out
+
+
+def histories_on_disk(results: str | Path, disk: dict[str, dict]) -> dict[str, str]:
+    """Stage id → robot of every stage a run keeps current besides its own: the stages of the
+    campaigns on disk (``disk``, :func:`on_disk`) and those with a history on disk — whose
+    campaigns may all have gone — when their robot's family takes part in histories."""
+    robots: dict[str, str] = {}
+    for d in disk.values():
+        if d.get("robot"):
+            robots.setdefault(d["stage"], d["robot"])
+    folder = Path(results) / "stages"
+    if folder.is_dir():
+        for p in sorted(folder.iterdir()):
+            robot = previous(p / "history.json").get("robot")
+            if STAGE_ID.fullmatch(p.name) and isinstance(robot, str):
+                robots.setdefault(p.name, robot)
+    return {stage: robot for stage, robot in sorted(robots.items()) if takes_part(robot)}
 
 
 def departed(

@@ -62,6 +62,19 @@ def _check_family(campaign: dict, file: Path) -> None:
         )
 
 
+def takes_part(robot: str) -> bool:
+    """Whether campaigns of ``robot`` can enter a stage's history (an installed family that
+    describes its campaigns for one)."""
+    from calflow.errors import CalflowError
+    from calflow.family import family_of
+
+    try:
+        family = family_of(robot)
+    except CalflowError:
+        return False
+    return bool(family.history_entry) and "history" in family.modules
+
+
 def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> dict:
     """The raw configuration of campaign ``name``, which ``campaign`` (file ``file``) reads the
     results of through ``key`` (``interim_check.reference``), checked family-neutrally: another
