@@ -24,8 +24,7 @@ from pathlib import Path
 
 from calflow.errors import CalflowError
 from calflow.lifecycle.stages import STAGE_ID, takes_part
-
-RESERVED = frozenset({"stages", "studies", "logs", "benchmarks"})  # results/ folders that are no campaign
+from calflow.report.catalogue import RESERVED  # results/ folders that are no campaign
 
 
 def previous(path: str | Path) -> dict:
