@@ -30,5 +30,5 @@ rule all:
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
         expand("reports/studies/{study}.html", study=STUDIES),
-        expand("reports/stages/{stage}/history.html", stage=STAGES),
-        expand("reports/stages/{stage}/history.pdf", stage=STAGES),
+        expand("reports/stages/{stage}/history.html", stage=HISTORIES),
+        expand("reports/stages/{stage}/history.pdf", stage=HISTORIES),

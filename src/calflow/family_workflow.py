@@ -65,6 +65,13 @@ class FamilyWorkflow:
         """The campaign values identification of ``model`` reads: a change reruns it."""
         return []
 
+    def needs(self, c: dict) -> list[tuple[str, str, list[str]]]:
+        """Another campaign's results the campaign reads: ``(key, campaign, files)`` per key of
+        the campaign file that names another campaign (an interim check's reference). When the
+        other campaign is not in the run its files must be on disk: the run reads them as they
+        are and does not remake them (``calflow.lifecycle.stages.check_needs``)."""
+        return []
+
 
 DEFAULT = FamilyWorkflow()
 

@@ -1,6 +1,7 @@
 # Helpers shared by the rules: config validation, campaign look-up, rerun digests, and
 # the list of files each campaign produces (asked of the campaign's family).
 import os
+import re
 import shlex
 import sys
 
@@ -15,7 +16,8 @@ from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
 from calflow.lifecycle.settings import check_stage_settings
-from calflow.lifecycle.stages import stages_of
+from calflow.lifecycle.members import histories_on_disk, on_disk
+from calflow.lifecycle.stages import check_needs, stages_of
 from calflow.workflow_config import load as load_checked_config
 
 
@@ -46,7 +48,15 @@ try:
         name: load_campaign(f"{CAMPAIGN_DIR}/{name}.yaml", RIG_PLUGINS)
         for name in CAMPAIGNS
     }
-    STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
+    # the campaigns of a stage whose results are on disk, whichever run made them: a history
+    # holds them all, and a campaign that reads another's results reads them there
+    ON_DISK = on_disk("results", CAMPAIGN_DIR, tuple(CAMPAIGNS))
+    STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR, ON_DISK)
+    check_needs(CAMPAIGN, CAMPAIGN_DIR, lambda c: hooks(c).needs(c))
+    # every stage's history is kept current, as the index is: the run's stages, and those
+    # of the campaigns and histories on disk (rebuilt only when what they read changed)
+    DISK_STAGES = histories_on_disk("results", ON_DISK)
+    HISTORIES = sorted(set(STAGES) | set(DISK_STAGES))
     check_stage_settings(
         config["stages"],
         CAMPAIGN,
@@ -90,8 +100,11 @@ CONDA_ENV = os.path.join(workflow.basedir, "workflow", "envs", "calflow.yaml")
 REPORT_DIR = os.path.join(workflow.basedir, "workflow", "report")
 
 
+# A campaign's files are made only for the run's campaigns: another campaign's results (an
+# interim check's reference run before, a stage's earlier campaigns) are read as they are
+# on disk, never remade from a configuration this run does not have.
 wildcard_constraints:
-    campaign="[A-Za-z0-9][A-Za-z0-9_-]*",
+    campaign="|".join(re.escape(n) for n in CAMPAIGNS) or "(?!)",
     model="[A-Za-z0-9_]+",
     run=OPEN_LOOP_RUNS,
 
@@ -205,8 +218,29 @@ def rig_slots(wildcards):
 
 
 # ---------------------------------------------------------------- stage histories
-def stage_campaign_files(w):
-    return [f"{CAMPAIGN_DIR}/{name}.yaml" for name in STAGES[w.stage]]
+def stage_members(stage):
+    """The campaigns of ``stage``'s history, the run's and those on disk, by name: the same
+    list whichever of them the run has (docs/lifecycle.md)."""
+    disk = [n for n, d in ON_DISK.items() if d["stage"] == stage]
+    return sorted(list(STAGES.get(stage, [])) + disk)
+
+
+def stage_summaries(w):
+    """Every member's summary: made by this run for its campaigns, else read as it is on disk
+    (a newer one reruns the history)."""
+    return [f"results/{n}/summary.json" for n in stage_members(w.stage)]
+
+
+def stage_robot(stage):
+    """The robot of the stage's campaigns: the run's, else those on disk, else its history's."""
+    names = STAGES.get(stage) or []
+    if names:
+        return CAMPAIGN[names[0]]["robot"]
+    if stage not in DISK_STAGES:
+        raise CalflowError(
+            f"results/stages/{stage}: expected a stage with campaigns in the run or on disk"
+        )
+    return DISK_STAGES[stage]
 
 
 def stage_settings(w):
@@ -216,12 +250,18 @@ def stage_settings(w):
 
 
 def stage_digest(w):
-    names = STAGES[w.stage]
-    robot = CAMPAIGN[names[0]]["robot"]
+    """What the history reads besides the summaries: which campaigns it holds (one appearing,
+    going or moving to another stage reruns it) and what each campaign file says of them.
+    """
+    keys = ("stage", "robot", "start", "tolerance_um")
+    members = [
+        (
+            {"campaign": n, **{k: CAMPAIGN[n].get(k) for k in keys}, "note": None}
+            if n in CAMPAIGN
+            else {"campaign": n, **ON_DISK[n]}
+        )
+        for n in stage_members(w.stage)
+    ]
     return digest(
-        [code_digest("history", robot), stage_settings(w)]
-        + [
-            {k: CAMPAIGN[n].get(k) for k in ("stage", "start", "tolerance_um")}
-            for n in names
-        ]
+        [code_digest("history", stage_robot(w.stage)), stage_settings(w)] + members
     )

@@ -86,7 +86,7 @@ rule index:
     input:
         summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
         reports=expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
-        histories=expand("results/stages/{stage}/history.json", stage=STAGES),
+        histories=expand("results/stages/{stage}/history.json", stage=HISTORIES),
     output:
         report(
             "reports/index.html",

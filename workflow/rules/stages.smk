@@ -1,4 +1,6 @@
-# A stage's life: the history of every stage with campaigns in the run (docs/lifecycle.md).
+# A stage's life: the history of every stage with campaigns in the run, from every campaign
+# of the stage on disk (docs/lifecycle.md). Its files are updated in place: a failed job
+# leaves the earlier history and its report as they were (Snakemake restores them).
 
 
 wildcard_constraints:
@@ -7,9 +9,9 @@ wildcard_constraints:
 
 rule stage_history:
     input:
-        summaries=lambda w: [f"results/{n}/summary.json" for n in STAGES[w.stage]],
+        summaries=stage_summaries,
     output:
-        "results/stages/{stage}/history.json",
+        update("results/stages/{stage}/history.json"),
     log:
         "results/stages/{stage}/logs/history.log",
     benchmark:
@@ -19,11 +21,11 @@ rule stage_history:
     resources:
         mem_mb=1000,
     params:
-        campaigns=stage_campaign_files,
+        campaign_dir=CAMPAIGN_DIR,
         settings=lambda w: shlex.quote(stage_settings(w)),
         digest=stage_digest,
     shell:
-        "calflow history --stage {wildcards.stage} --campaigns {params.campaigns}"
+        "calflow history --stage {wildcards.stage} --campaign-dir {params.campaign_dir}"
         " --summaries {input.summaries} --settings {params.settings} --out {output} > {log} 2>&1"
 
 
@@ -31,8 +33,8 @@ rule stage_report:
     input:
         "results/stages/{stage}/history.json",
     output:
-        html="reports/stages/{stage}/history.html",
-        pdf="reports/stages/{stage}/history.pdf",
+        html=update("reports/stages/{stage}/history.html"),
+        pdf=update("reports/stages/{stage}/history.pdf"),
     log:
         "results/stages/{stage}/logs/report.log",
     benchmark:
@@ -42,9 +44,7 @@ rule stage_report:
     resources:
         mem_mb=2000,
     params:
-        digest=lambda w: digest(
-            [code_digest("history-report", CAMPAIGN[STAGES[w.stage][0]]["robot"])]
-        ),
+        digest=lambda w: digest([code_digest("history-report", stage_robot(w.stage))]),
     shell:
         "calflow history-report --history {input} --html {output.html}"
         " --pdf {output.pdf} > {log} 2>&1"

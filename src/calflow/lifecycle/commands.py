@@ -12,10 +12,27 @@ from calflow.errors import ConfigError
 
 def history_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", required=True, help="the stage's id (campaign key 'stage')")
-    p.add_argument("--campaigns", nargs="+", required=True, help="the stage's campaign files")
-    p.add_argument("--summaries", nargs="+", required=True, help="their summary.json, in the same order")
+    p.add_argument(
+        "--summaries",
+        nargs="*",
+        default=[],
+        help="the summary.json of every campaign of the stage on disk (results/<campaign>/summary.json); "
+        "none when every campaign of the stage has gone",
+    )
+    p.add_argument(
+        "--campaigns",
+        nargs="+",
+        help="their campaign files, in the same order (default: <campaign-dir>/<campaign>.yaml)",
+    )
+    p.add_argument("--campaign-dir", default="config/campaigns", help="the folder of the campaign files")
+    p.add_argument("--results", default="results", help="the results folder the summaries are in")
     p.add_argument("--settings", default="{}", help="JSON: the stage's settings (config 'stages.<id>')")
-    p.add_argument("--out", required=True)
+    p.add_argument(
+        "--out",
+        required=True,
+        help="history.json; an earlier one there is read first (the campaigns that left it, and "
+        "what it knew of campaigns without a campaign file)",
+    )
 
 
 def report_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,14 +42,16 @@ def report_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_history(args) -> None:
-    from calflow.config import load_campaign
     from calflow.data.io import jsonable, load_summary, write_json
     from calflow.lifecycle.history import build
-    from calflow.lifecycle.stages import stages_of
+    from calflow.lifecycle.members import departed, previous
 
-    if len(args.campaigns) != len(args.summaries):
+    files = args.campaigns or [
+        str(Path(args.campaign_dir) / f"{Path(s).parent.name}.yaml") for s in args.summaries
+    ]
+    if len(files) != len(args.summaries):
         raise ConfigError(
-            f"calflow history: --campaigns gives {len(args.campaigns)} files, --summaries "
+            f"calflow history: --campaigns gives {len(files)} files, --summaries "
             f"{len(args.summaries)}; expected one summary per campaign"
         )
     try:
@@ -49,21 +68,90 @@ def run_history(args) -> None:
         check_settings(settings.get("reliability", 0.95), settings.get("tolerance_um"), "stage settings")
     except ValueError as exc:
         raise ConfigError(f"calflow history: --settings: {exc}") from None
-    campaigns = [load_campaign(f) for f in args.campaigns]
-    folder = Path(args.campaigns[0]).parent
-    groups = stages_of({c["name"]: c for c in campaigns}, folder)
-    others = [c["name"] for c in campaigns if c.get("stage") != args.stage]
-    if others or args.stage not in groups:
-        raise ConfigError(
-            f"{folder / (others[0] if others else campaigns[0]['name'])}.yaml: key 'stage': expected "
-            f"{args.stage!r}, the stage whose history is asked for"
-        )
-    pairs = [(c, load_summary(s)) for c, s in zip(campaigns, args.summaries)]
+    results = Path(args.results)
+    earlier = previous(Path(args.out))
+    campaigns = [
+        _campaign(Path(f), Path(s), args.stage, results, earlier) for f, s in zip(files, args.summaries)
+    ]
+    _same_robot(campaigns, args.stage)
+    pairs = [(c, _summary(s, load_summary)) for c, s in zip(campaigns, args.summaries)]
+    gone = departed(args.stage, [c["name"] for c in campaigns], results, Path(args.campaign_dir), earlier)
     try:
-        history = build(args.stage, pairs, settings)
+        history = build(args.stage, pairs, settings, gone)
     except ValueError as exc:  # a campaign's tolerance_um the schema would have refused
         raise ConfigError(f"calflow history: {exc}") from None
+    if history["robot"] is None:  # every campaign gone: the stage's robot is still the history's
+        history["robot"] = earlier.get("robot")
     write_json(jsonable(history), args.out)
+
+
+def _summary(path: str, load) -> dict:
+    """A member's summary.json, or one line naming it: the job fails and the workflow keeps the
+    earlier history (its outputs are updated in place) rather than one without the campaign."""
+    try:
+        data = load(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: expected a campaign's summary (JSON), got {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{path}: expected a campaign's summary (a JSON mapping), got {type(data).__name__}"
+        )
+    return data
+
+
+def _campaign(file: Path, summary: Path, stage: str, results: Path, earlier: dict) -> dict:
+    """A member of the stage's history: its campaign file, loaded and checked; else what is
+    known of it on disk (calflow.lifecycle.members.describe), with a note saying whence."""
+    from calflow.config import load_campaign
+    from calflow.lifecycle.members import describe
+    from calflow.lifecycle.stages import check_stage_id
+
+    name = summary.parent.name
+    why = None
+    if file.is_file():
+        try:
+            c = load_campaign(file)
+        except ConfigError as exc:
+            why = f"{file} does not load now ({exc})"
+        else:
+            if c.get("stage") != stage:
+                raise ConfigError(
+                    f"{file}: key 'stage': expected {stage!r}, the stage whose history is asked for"
+                )
+            return c
+    known = describe(name, results, file.parent, {stage: earlier}) if why is None else None
+    if why is not None:  # the file is there but no longer valid: what it says, read as it is
+        known = describe(name, results, file.parent, {})
+        if known is not None:
+            known["note"] = f"{why}: its start and stage read from the file as it is"
+    if known is None or known.get("stage") != stage or known.get("start") is None:
+        raise ConfigError(
+            f"{file}: key 'stage': expected a campaign file of stage {stage!r} for {summary} (or "
+            "the stage's earlier history listing it, or a summary recording stage and start), found none"
+        )
+    check_stage_id(known["stage"], file)
+    robot = known.get("robot") or _summary(str(summary), lambda p: json.loads(Path(p).read_text())).get(
+        "robot"
+    )
+    return {
+        "name": name,
+        "stage": stage,
+        "robot": robot,
+        "start": known["start"],
+        "tolerance_um": known.get("tolerance_um"),
+        "note": known["note"],
+    }
+
+
+def _same_robot(campaigns: list[dict], stage: str) -> None:
+    robots = {c["robot"] for c in campaigns}
+    if len(robots) > 1:
+        first = campaigns[0]
+        other = next(c for c in campaigns if c["robot"] != first["robot"])
+        raise ConfigError(
+            f"{other['name']}.yaml: key 'robot': expected {first['robot']!r} as the other campaigns "
+            f"of stage {stage!r} ({first['name']}), got {other['robot']!r}"
+        )
 
 
 def run_report(args) -> None:

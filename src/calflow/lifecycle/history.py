@@ -6,7 +6,8 @@ correlation, accuracy_um}}`` where ``correlation`` is over the parameters with a
 σ, in the order of ``parameters``). An interim check's summary carries ``interim_check:
 {model, accuracy_um, decision, …}`` and enters the history with its accuracy only.
 
-The history holds, in time order, every campaign; between consecutive calibrations the
+The history holds, in time order, every campaign of the stage whose results are on disk
+(:mod:`calflow.lifecycle.members`), and those that left it with the reason; between consecutive calibrations the
 change test (:mod:`calflow.lifecycle.change`); control charts (:mod:`calflow.lifecycle.charts`);
 and the due date (:mod:`calflow.lifecycle.due`).
 """
@@ -27,6 +28,8 @@ def entry(campaign: dict, summary: dict) -> dict:
     base = {"campaign": campaign["name"], "start": campaign["start"], "robot": campaign["robot"]}
     if campaign.get("tolerance_um") is not None:
         base["tolerance_um"] = campaign["tolerance_um"]
+    if campaign.get("note"):  # known from the earlier history or its summary, not its campaign file
+        base["note"] = campaign["note"]
     if "interim_check" in summary:
         check = summary["interim_check"]
         found = as_found.interim_as_found(campaign, check)
@@ -97,8 +100,15 @@ def _due_model(entries: list[dict], settings: dict) -> str | None:
     return min(acc, key=acc.get) if acc else None
 
 
-def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = None) -> dict:
-    """The history of ``stage`` from (campaign, summary) pairs in any order."""
+def build(
+    stage: str,
+    pairs: list[tuple[dict, dict]],
+    settings: dict | None = None,
+    departed: list[dict] | None = None,
+) -> dict:
+    """The history of ``stage`` from (campaign, summary) pairs in any order; ``departed``: the
+    campaigns an earlier history held that left it, with the reason
+    (:func:`calflow.lifecycle.members.departed`)."""
     s = {**DEFAULTS, **(settings or {})}
     entries = sorted((entry(c, m) for c, m in pairs), key=lambda e: due.parse(e["start"]))
     cals = [e for e in entries if e["kind"] == "calibration"]
@@ -125,6 +135,7 @@ def build(stage: str, pairs: list[tuple[dict, dict]], settings: dict | None = No
         "due": as_found.due(found) or _due(entries, segments, model, tol, s),
         "interval": found,
         "settings": s,
+        "departed": list(departed or []),
     }
 
 

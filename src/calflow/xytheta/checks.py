@@ -100,34 +100,23 @@ def _check_design(campaign: dict, path: Path) -> None:
 
 
 def _check_interim(campaign: dict, path: Path) -> None:
-    """An interim check identifies nothing; its reference is a calibration of the same folder
-    that identifies ``interim_check.model``. Resolved here, as the rig's ageing is: the
-    reference's identification workspace (where the check's targets are chosen) and every run
+    """An interim check identifies nothing; its reference is an earlier calibration of the same
+    stage and robot, in the same folder, that identifies ``interim_check.model``. Resolved
+    here, as the rig's ageing is: the reference's identification workspace (where the check's targets are chosen) and every run
     of the reference (its rig time), in ``interim_check.resolved``."""
     from calflow.config import load_campaign
+    from calflow.lifecycle.stages import check_after, check_reference
     from calflow.xytheta.plans.workflow import WORKFLOW
 
     if campaign.get("models"):
         raise ConfigError(f"{path}: key 'models': an interim check identifies no model; remove the key")
     campaign["models"] = {}
     check = campaign["interim_check"]
-    ref_path = path.parent / f"{check['reference']}.yaml"
-    if not ref_path.is_file():
-        raise ConfigError(
-            f"{path}: key 'interim_check.reference': expected a campaign of {path.parent}, "
-            f"got {check['reference']!r} (no {ref_path.name})"
-        )
-    ref = load_campaign(ref_path)
-    if "interim_check" in ref:
-        raise ConfigError(
-            f"{path}: key 'interim_check.reference': expected a calibration campaign, got "
-            f"{check['reference']!r}, itself an interim check"
-        )
-    if ref.get("stage") != campaign.get("stage"):
-        raise ConfigError(
-            f"{path}: key 'interim_check.reference': expected a calibration of stage "
-            f"{campaign.get('stage')!r}, got {check['reference']!r} of stage {ref.get('stage')!r}"
-        )
+    # itself, a missing file, another check, robot, stage, a reference that starts later:
+    # refused on the raw file, before loading it (a cycle of references would load forever)
+    check_reference(campaign, path, "interim_check.reference", check["reference"])
+    ref = load_campaign(path.parent / f"{check['reference']}.yaml")
+    check_after(campaign, path, check["reference"], ref["start"])  # its start may be the default
     if check["model"] not in ref["models"]:
         raise ConfigError(
             f"{path}: key 'interim_check.model': expected one of the reference's models "

@@ -22,7 +22,6 @@ start before this campaign, or has no exported bundle of ``model`` (does not ide
 from __future__ import annotations
 
 import dataclasses
-import datetime as dt
 from pathlib import Path
 
 import numpy as np
@@ -31,14 +30,8 @@ from calflow.errors import CalflowError, ConfigError
 from calflow.plan import Acquisition
 
 
-def _start(c: dict) -> dt.datetime:
-    return dt.datetime.fromisoformat(str(c["start"]).replace("Z", "+00:00"))
-
-
 def check(campaign: dict, path: Path) -> None:
     """Refuse an ``as_found`` section that cannot run (module docstring), one line each."""
-    from calflow.config import load_campaign
-
     spec = campaign.get("as_found")
     if spec is None:
         return
@@ -46,28 +39,16 @@ def check(campaign: dict, path: Path) -> None:
         raise ConfigError(
             f"{path}: key 'as_found': an interim check measures through the bundle in use already; remove the key"
         )
-    ref_path = Path(path).parent / f"{spec['reference']}.yaml"
-    if not ref_path.is_file():
+    if campaign.get("stage") is None:
         raise ConfigError(
-            f"{path}: key 'as_found.reference': expected a calibration campaign of {Path(path).parent}, "
-            f"got {spec['reference']!r} (no {ref_path.name})"
+            f"{path}: key 'as_found': expected a campaign of a stage (key 'stage'), whose earlier "
+            "calibration's compensation was in use"
         )
-    ref = load_campaign(ref_path)
-    if "interim_check" in ref:
-        raise ConfigError(
-            f"{path}: key 'as_found.reference': expected a calibration campaign, got "
-            f"{spec['reference']!r}, an interim check (it exports no bundle)"
-        )
-    if ref.get("stage") is None or ref.get("stage") != campaign.get("stage"):
-        raise ConfigError(
-            f"{path}: key 'as_found.reference': expected an earlier calibration of stage "
-            f"{campaign.get('stage')!r}, got {spec['reference']!r} of stage {ref.get('stage')!r}"
-        )
-    if _start(ref) >= _start(campaign):
-        raise ConfigError(
-            f"{path}: key 'as_found.reference': expected a calibration that starts before this one "
-            f"({campaign['start']}), got {spec['reference']!r} starting {ref['start']}"
-        )
+    from calflow.lifecycle.stages import check_reference
+
+    # another campaign of the folder, of the same robot and stage, starting earlier; read as it
+    # is written (a chain or a cycle of references is refused there, not loaded without end)
+    ref = check_reference(campaign, path, "as_found.reference", spec["reference"])
     if spec["model"] not in (ref.get("models") or {}):
         raise ConfigError(
             f"{path}: key 'as_found.model': expected a model whose bundle {spec['reference']!r} exports "

@@ -43,6 +43,19 @@ class XYThetaWorkflow(FamilyWorkflow):
         runs.update(layout.run(name, f"{t}_{k}") for t in ("square", "random_points") for k in tests)
         return sorted(runs)
 
+    def needs(self, c: dict) -> list[tuple[str, str, list[str]]]:
+        """An interim check reads its reference's export (the bundle it runs), the export's
+        closed-loop check (its H0) and the reference's runs (its rig time); a recalibration
+        measured as found, the export of the calibration whose compensation the stage ran."""
+        if c.get("as_found"):  # a recalibration measured through the bundle in use
+            return [("as_found.reference", c["as_found"]["reference"], [as_found_export(c)])]
+        if "interim_check" not in c:
+            return []
+        check = c["interim_check"]
+        ref = check["reference"]
+        files = [interim_export(c), interim_reference_run(c), *check["resolved"]["runs"]]
+        return [("interim_check.reference", ref, list(dict.fromkeys(files)))]
+
     def results_of(self, c: dict) -> list[str]:
         if "interim_check" in c:  # its run and metrics, and the reference's runs (resolved at load)
             name, runs = c["name"], c["interim_check"]["resolved"]["runs"]
@@ -136,6 +149,22 @@ class XYThetaWorkflow(FamilyWorkflow):
         if "base" in spec:
             sections.append(c["angle_residuals"])
         return sections
+
+
+def interim_export(c: dict) -> str:
+    """An interim check's bundle: its reference's export manifest."""
+    return layout.campaign(c["interim_check"]["reference"], "export", "manifest.json")
+
+
+def as_found_export(c: dict) -> str:
+    """The export manifest of the calibration whose compensation the stage ran (``as_found``)."""
+    return layout.campaign(c["as_found"]["reference"], "export", "manifest.json")
+
+
+def interim_reference_run(c: dict) -> str:
+    """An interim check's H0: the reference's closed-loop check of the model's bundle."""
+    check = c["interim_check"]
+    return layout.run(check["reference"], f"export_{check['model']}")
 
 
 WORKFLOW = XYThetaWorkflow()

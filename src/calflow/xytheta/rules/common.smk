@@ -28,19 +28,23 @@ def budget_digest(w):
 
 
 def interim_export(w):
-    """The reference's export manifest: the bundle the stage runs."""
-    ref = CAMPAIGN[w.campaign]["interim_check"]["reference"]
-    return f"results/{ref}/export/manifest.json"
+    """The reference's export manifest: the bundle the stage runs (made by this run when the
+    reference is in it, else read as it is on disk: the campaign wildcard is the run's).
+    """
+    from calflow.xytheta.plans.workflow import interim_export as export_of
+
+    return export_of(CAMPAIGN[w.campaign])
 
 
 def interim_reference_run(w):
     """The reference's closed-loop check of that bundle: the sequential test's H0."""
-    check = CAMPAIGN[w.campaign]["interim_check"]
-    return f"results/{check['reference']}/runs/export_{check['model']}.nc"
+    from calflow.xytheta.plans.workflow import interim_reference_run as run_of
+
+    return run_of(CAMPAIGN[w.campaign])
 
 
 def as_found_export(w):
     """The export manifest of the calibration whose compensation the stage ran."""
-    return (
-        f"results/{CAMPAIGN[w.campaign]['as_found']['reference']}/export/manifest.json"
-    )
+    from calflow.xytheta.plans.workflow import as_found_export as manifest_of
+
+    return manifest_of(CAMPAIGN[w.campaign])
