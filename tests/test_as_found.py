@@ -10,7 +10,7 @@ import yaml
 
 from calflow.config import load_campaign
 from calflow.errors import ConfigError
-from calflow.lifecycle.stages import stages_of
+from calflow.lifecycle.stages import check_needs
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "config/campaigns"
@@ -71,30 +71,38 @@ def test_refuses_an_as_found_step_that_cannot_run(tmp_path, section, key, match)
 def test_refuses_a_reference_of_another_stage_or_a_later_one(tmp_path):
     path = _folder(tmp_path, stage="SN-0043")
     with pytest.raises(
-        ConfigError, match=r"key 'as_found.reference': expected an earlier calibration of stage 'SN-0043'"
+        ConfigError, match=r"key 'as_found.reference': expected a calibration of stage 'SN-0043'"
     ):
         load_campaign(path)
     path = _folder(tmp_path, start="2025-12-01T08:00:00+00:00")
     with pytest.raises(
-        ConfigError, match=r"key 'as_found.reference': expected a calibration that starts before"
+        ConfigError, match=r"key 'start': expected a start after that of its reference 'demo-sn0042-2026-01'"
     ):
         load_campaign(path)
 
 
-def test_refuses_a_reference_outside_the_run():
+def test_refuses_a_reference_neither_in_the_run_nor_on_disk(tmp_path):
+    from calflow.xytheta.plans.workflow import WORKFLOW
+
     cs = {
         "b": {
             "name": "b",
             "robot": "xytheta",
             "stage": "S",
             "start": "2026-07-05T08:00:00Z",
-            "as_found": {"reference": "a"},
+            "as_found": {"reference": "a", "model": "III"},
         },
     }
+    results = tmp_path / "results"
     with pytest.raises(
-        ConfigError, match=r"b\.yaml: key 'as_found.reference': expected a calibration campaign of this run"
+        ConfigError,
+        match=r"b\.yaml: key 'as_found.reference': expected the results of 'a' on disk .* "
+        r"results/a/export/manifest\.json is missing: run it first",
     ):
-        stages_of(cs)
+        check_needs(cs, tmp_path, WORKFLOW.needs, results)
+    (results / "a" / "export").mkdir(parents=True)
+    (results / "a" / "export" / "manifest.json").write_text("{}")
+    check_needs(cs, tmp_path, WORKFLOW.needs, results)  # on disk: runs alone
 
 
 def test_summary_blocks_as_left_for_every_model_as_found_for_the_model_in_use():
