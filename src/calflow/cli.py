@@ -46,7 +46,11 @@ def cmd_summarise(args) -> None:
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
-    write_json(family.step("summarise")(campaign, args.files, truth), args.out)
+    summary = family.step("summarise")(campaign, args.files, truth)
+    from calflow.certificate.annotate import annotate, stage_settings_or_fail
+
+    summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
+    write_json(summary, args.out)
 
 
 def cmd_report(args) -> None:
@@ -188,6 +192,9 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--files", nargs="+", required=True, help="the campaign's model, metrics and table files")
     s.add_argument("--truth")
     s.add_argument("--budget", help="the error budget's replays (calflow error-budget), simulated rigs")
+    s.add_argument(
+        "--settings", help="JSON: the stage's settings (config 'stages.<id>'): specification, decision rule"
+    )
     s.add_argument("--out", required=True)
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")

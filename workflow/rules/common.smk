@@ -16,6 +16,7 @@ from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
 from calflow.lifecycle.stages import stages_of
+from calflow.certificate.annotate import check_settings
 
 
 def selected_studies(config):
@@ -38,6 +39,14 @@ try:
         for name in CAMPAIGNS
     }
     STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
+    for _stage, _settings in config.get("stages", {}).items():
+        if _stage in STAGES:  # the specification names figures the stage's family computes
+            check_settings(
+                _settings,
+                CAMPAIGN[STAGES[_stage][0]]["robot"],
+                "config/config.yaml",
+                f"stages.{_stage}.",
+            )
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)
@@ -189,6 +198,16 @@ def stage_settings(w):
     import json
 
     return json.dumps(config.get("stages", {}).get(w.stage, {}), sort_keys=True)
+
+
+def certificate_settings(name):
+    """The specification and decision rule of campaign ``name``'s stage (JSON), or {}."""
+    import json
+
+    stage = CAMPAIGN[name].get("stage")
+    settings = config.get("stages", {}).get(stage, {}) if stage else {}
+    keys = ("specification", "decision_rule")
+    return json.dumps({k: settings[k] for k in keys if k in settings}, sort_keys=True)
 
 
 def stage_digest(w):

@@ -27,6 +27,7 @@ class HexapodWorkflow(FamilyWorkflow):
         models = self.models(c)
         files = [f"{base}/models/{m}.nc" for m in models]
         files += [f"{base}/metrics/validation_heldout_{m}.nc" for m in models]
+        files += [f"{base}/runs/validation_heldout_{m}.nc" for m in models]  # the U of AP, RP
         files += [f"{base}/metrics/closed_loop_{m}.nc" for m in models]
         if "iso9283" in c:
             files += [f"{base}/metrics/iso9283_{m}.nc" for m in models]

@@ -1,0 +1,468 @@
+"""Expanded uncertainty U of the headline figures: ISO 9283 AP and RP, ISO 230-2 E, A, B, M, R.
+
+The budget of a metric has the finite sample of targets and cycles (Type A, from the data:
+the within-target scatter pooled over targets, with its degrees of freedom) and the
+sensor's own terms (Type B, declared by the robot family: calibration, alignment,
+temperature, reference standard; :class:`Term`). A term acts on the mean reading at a
+target in one of three ways (``scope``):
+
+* ``common``: one error shared by every target of the measurement (an offset, or with
+  ``relative`` a scale error in 1e-6 of the position: the sensor's calibration, its
+  alignment's cosine error, the reference standard);
+* ``target``: an independent error at each target (and direction): drift of the sensor
+  with temperature between visits, nonlinearity;
+* ``reading``: a per-reading error (noise, resolution). It is in the observed scatter
+  already, so it enters through the sample term; the budget lists it for reference only.
+
+Metrics linear in the inputs (the signed mean reversal B̄, a mean deviation) are
+propagated with the GUM law (JCGM 100:2008, Eq. 10) and a coverage factor from Student's
+t at the Welch–Satterthwaite effective degrees of freedom (JCGM 100 G.4.1). The maxima
+(AP and RP are maxima over targets, ISO 230-2's E, A, B, M, R are maxima and ranges) and
+AP (the length of a mean vector) are propagated by Monte Carlo (JCGM 101:2008) with a
+fixed number of trials M (``trials``, default 50 000, seeded so a result reproduces):
+the variance of the scatter is drawn from its scaled inverse χ² (ν s²/χ²_ν), the means
+given it from normals (JCGM 101 6.4.9), the Type B terms from normals with their
+standard uncertainty. The 95 % coverage interval is the probabilistically symmetric one
+(JCGM 101 7.7); U is its half-width, u the standard deviation of the trials, k = U/u, and
+``dof_eff`` the Welch–Satterthwaite degrees of freedom of the same budget. Each term's
+contribution in ``budget`` is the standard deviation of the metric with that term alone.
+
+The measurand of RP (and of ISO 230-2's A and R) is the population value of the scatter
+(isotropic normal, pooled over targets): RP∞ = σ (E[χ_d] + 3 SD[χ_d]), what the ISO
+formula l̄ + 3 S_l tends to with many cycles; with few cycles the ISO value is biased low
+and may lie outside the interval — the record says so in ``note``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import special, stats
+
+__all__ = [
+    "Term",
+    "Uncertainty",
+    "chi_rp_factor",
+    "coverage_factor",
+    "gum_linear",
+    "iso230_2_uncertainty",
+    "iso9283_uncertainty",
+    "pooled_scatter",
+    "welch_satterthwaite",
+]
+
+SCOPES = ("common", "target", "reading")
+TRIALS = 50_000
+P95 = 0.95
+
+
+@dataclass(frozen=True)
+class Term:
+    """One declared source of the sensor's uncertainty.
+
+    ``u``: standard uncertainty per axis (one number for every axis, or one per axis) in
+    the metric's length unit, or with ``relative`` in 1e-6 of the position (ppm).
+    ``scope``: ``common``, ``target`` or ``reading`` (module notes). ``dof``: its degrees of
+    freedom (∞ for a Type B term known well).
+    """
+
+    name: str
+    u: float | tuple[float, ...]
+    scope: str = "common"
+    relative: bool = False
+    dof: float = math.inf
+
+    def __post_init__(self):
+        if self.scope not in SCOPES:
+            raise ValueError(
+                f"uncertainty term {self.name!r}: scope {self.scope!r}; expected one of {SCOPES}"
+            )
+        u = np.atleast_1d(np.asarray(self.u, float))
+        if not np.all(np.isfinite(u)) or np.any(u < 0):
+            raise ValueError(f"uncertainty term {self.name!r}: u must be finite and >= 0, got {self.u!r}")
+
+    def per_axis(self, d: int) -> np.ndarray:
+        u = np.atleast_1d(np.asarray(self.u, float))
+        if u.size == 1:
+            return np.full(d, float(u[0]))
+        if u.size != d:
+            raise ValueError(f"uncertainty term {self.name!r}: {u.size} values for {d} axes")
+        return u
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """The expanded uncertainty of one metric (its unit): ``value`` ± ``U`` at 95 %."""
+
+    value: float
+    U: float
+    k: float
+    u: float
+    dof_eff: float
+    interval: tuple[float, float]
+    budget: dict[str, float]
+    method: str
+    note: str = ""
+    samples: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def record(self) -> dict:
+        """``{U, k, dof_eff, budget, u, interval, coverage, method, note}`` for a summary."""
+        dof = None if not math.isfinite(self.dof_eff) else float(self.dof_eff)
+        return {
+            "U": float(self.U),
+            "k": float(self.k),
+            "dof_eff": dof,
+            "budget": {k: float(v) for k, v in self.budget.items()},
+            "u": float(self.u),
+            "interval": [float(self.interval[0]), float(self.interval[1])],
+            "coverage": P95,
+            "method": self.method,
+            **({"note": self.note} if self.note else {}),
+        }
+
+
+def welch_satterthwaite(u: Sequence[float], dof: Sequence[float]) -> float:
+    """Effective degrees of freedom, JCGM 100 Eq. (G.2b): u_c⁴ / Σ u_i⁴/ν_i (∞ terms drop)."""
+    u, dof = np.asarray(u, float), np.asarray(dof, float)
+    uc4 = float(np.sum(u**2)) ** 2
+    finite = np.isfinite(dof) & (u > 0)
+    den = float(np.sum(u[finite] ** 4 / dof[finite]))
+    return math.inf if den == 0 else uc4 / den
+
+
+def coverage_factor(dof: float, p: float = P95) -> float:
+    """k = t_{(1+p)/2}(ν) (JCGM 100 G.3.4); the normal quantile for ν = ∞."""
+    q = (1.0 + p) / 2.0
+    return float(stats.norm.ppf(q) if not math.isfinite(dof) else stats.t.ppf(q, dof))
+
+
+def gum_linear(
+    value: float, contributions: dict[str, float], dofs: dict[str, float], p: float = P95
+) -> Uncertainty:
+    """GUM law of propagation for a metric linear in its inputs (JCGM 100 Eq. 10).
+
+    ``contributions``: each input's |c_i| u(x_i) in the metric's unit (uncorrelated);
+    ``dofs``: their degrees of freedom (missing: ∞).
+    """
+    names = list(contributions)
+    u_i = [float(contributions[n]) for n in names]
+    nu = [float(dofs.get(n, math.inf)) for n in names]
+    uc = math.sqrt(sum(x * x for x in u_i))
+    dof = welch_satterthwaite(u_i, nu)
+    k = coverage_factor(dof, p)
+    return Uncertainty(
+        value=float(value),
+        U=k * uc,
+        k=k,
+        u=uc,
+        dof_eff=dof,
+        interval=(value - k * uc, value + k * uc),
+        budget=dict(zip(names, u_i)),
+        method="GUM law of propagation (JCGM 100:2008), k from Student's t at the Welch–Satterthwaite dof",
+    )
+
+
+def pooled_scatter(groups: Sequence[np.ndarray]) -> tuple[np.ndarray, int]:
+    """Within-group standard deviation per axis pooled over groups, and its dof Σ(n_j − 1).
+
+    ``groups``: arrays (n_j, d) (or (n_j,)) of readings; NaN rows are dropped.
+    """
+    ss, dof = None, 0
+    for g in groups:
+        g = np.asarray(g, float)
+        g = g.reshape(len(g), -1)
+        g = g[np.all(np.isfinite(g), axis=1)]
+        if len(g) < 2:
+            continue
+        dev = ((g - g.mean(axis=0)) ** 2).sum(axis=0)
+        ss = dev if ss is None else ss + dev
+        dof += len(g) - 1
+    if ss is None or dof == 0:
+        raise ValueError("no group with two or more readings: the scatter is unknown")
+    return np.sqrt(ss / dof), dof
+
+
+def chi_rp_factor(d: int) -> float:
+    """E[χ_d] + 3 SD[χ_d]: RP∞ / σ of an isotropic normal scatter in d axes (Eq. 3.5–3.8, n → ∞)."""
+    mean = math.sqrt(2.0) * math.exp(special.gammaln((d + 1) / 2) - special.gammaln(d / 2))
+    return mean + 3.0 * math.sqrt(max(d - mean * mean, 0.0))
+
+
+def maximum_interval(estimates, draws, level: float = P95) -> tuple[float, float, float]:
+    """95 % interval of max_j θ_j from per-cell estimates (T,) and Monte Carlo draws (M, T).
+
+    Each cell's interval is the bias-corrected percentile interval of its draws (z₀ from the
+    share of draws below the estimate); the maximum's bounds are the largest of the cells'
+    bounds, at the one-sided level (1 − (1 − level)/2)^(1/T_eff) (Šidák) where T_eff =
+    1/Σ p_j² counts the cells that can be the maximum (p_j: share of the draws in which
+    cell j is). With one clear maximum this is that cell's interval; with ties it widens,
+    which a maximum of noisy means needs (its estimate is biased upwards and so are the
+    draws around it). Returns ``(low, high, T_eff)``.
+    """
+    y = np.atleast_1d(np.asarray(estimates, float))
+    d = np.asarray(draws, float).reshape(len(draws), y.size)
+    p = np.bincount(np.argmax(d, axis=1), minlength=y.size) / len(d)
+    t_eff = float(1.0 / np.sum(p**2))
+    alpha = 1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / t_eff)
+    z0 = stats.norm.ppf(np.clip(np.mean(d < y, axis=0), 1.0 / len(d), 1.0 - 1.0 / len(d)))
+    za = stats.norm.ppf(alpha)
+    lo = [np.quantile(d[:, j], stats.norm.cdf(2 * z0[j] + za)) for j in range(y.size)]
+    hi = [np.quantile(d[:, j], stats.norm.cdf(2 * z0[j] - za)) for j in range(y.size)]
+    return float(max(lo)), float(max(hi)), t_eff
+
+
+_MAX_METHOD = (
+    "Monte Carlo (JCGM 101:2008), M = {M} trials (fixed), per target; the 95 % interval of the maximum "
+    "from the targets' bias-corrected percentile intervals, Šidák-adjusted over the {t:.1f} target(s) "
+    "that can be the maximum"
+)
+
+
+def _mc(value, draws, parts, dofs, interval, method, note="") -> Uncertainty:
+    """A Monte Carlo result: u the trials' standard deviation, U the interval's half-width."""
+    lo, hi = interval
+    u = float(np.std(draws, ddof=1))
+    U = float(hi - lo) / 2.0
+    budget = {n: float(np.std(v, ddof=1)) for n, v in parts.items()}
+    dof = welch_satterthwaite(list(budget.values()), [dofs.get(n, math.inf) for n in budget])
+    return Uncertainty(
+        value=float(value),
+        U=U,
+        k=U / u if u > 0 else math.nan,
+        u=u,
+        dof_eff=dof,
+        interval=(float(lo), float(hi)),
+        budget=budget,
+        method=method,
+        note=note,
+        samples=draws,
+    )
+
+
+class _Draws:
+    """Shared random inputs of one Monte Carlo: a sample term and the declared terms."""
+
+    def __init__(self, s: np.ndarray, dof: int, shape: tuple[int, int], terms, trials: int, seed: int):
+        self.rng = np.random.default_rng(seed)
+        self.trials, (self.cells, self.d) = trials, shape
+        self.s, self.dof = np.asarray(s, float), dof
+        # scaled inverse χ²: σ² = ν s² / χ²_ν, one per trial (the variance shared by the cells)
+        self.scale = np.sqrt(dof / self.rng.chisquare(dof, size=trials))[:, None]
+        self.z = self.rng.standard_normal((trials, self.cells, self.d))
+        self.terms = [t for t in terms if t.scope != "reading"]
+        self.noise = {}
+        for t in self.terms:
+            shape = (trials, 1, self.d) if t.scope == "common" else (trials, self.cells, self.d)
+            self.noise[t.name] = self.rng.standard_normal(shape) * t.per_axis(self.d)
+
+    def sigma(self) -> np.ndarray:
+        """(M, d): the scatter's σ per axis in each trial."""
+        return self.s[None, :] * self.scale
+
+    def error(self, positions: np.ndarray, n: np.ndarray, only: str | None = None) -> np.ndarray:
+        """(M, cells, d): the error of each cell's mean; ``only`` one term (or "sample")."""
+        out = np.zeros((self.trials, self.cells, self.d))
+        if only in (None, "sample"):
+            out += self.z * (self.sigma()[:, None, :] / np.sqrt(n)[None, :, None])
+        for t in self.terms:
+            if only not in (None, t.name):
+                continue
+            e = self.noise[t.name]
+            out = out + (e * 1e-6 * positions[None, :, :] if t.relative else e)
+        return out
+
+
+def _check_terms(terms: Sequence[Term]) -> list[Term]:
+    names = [t.name for t in terms]
+    if len(set(names)) != len(names) or "sample" in names:
+        raise ValueError(f"uncertainty terms: names must be unique and not 'sample', got {names}")
+    return list(terms)
+
+
+def _reading_budget(terms: Sequence[Term]) -> dict:
+    return {
+        f"{t.name} (in the sample term)": float(np.max(t.per_axis(1))) for t in terms if t.scope == "reading"
+    }
+
+
+def _sigma_interval(s: float, dof: int, level: float = P95) -> tuple[float, float]:
+    """Exact interval of a normal σ from its estimate s with ν dof (χ² quantiles)."""
+    a = (1.0 - level) / 2.0
+    return s * math.sqrt(dof / stats.chi2.ppf(1 - a, dof)), s * math.sqrt(dof / stats.chi2.ppf(a, dof))
+
+
+def iso9283_uncertainty(
+    command, attained: Sequence, terms: Sequence[Term] = (), origin=None, trials: int = TRIALS, seed: int = 0
+) -> dict[str, Uncertainty]:
+    """U of a test's AP = max_j AP_j and RP = max_j RP_j (ISO 9283, thesis Sec. 3.2.3).
+
+    ``command``: (T, d) command poses; ``attained``: T arrays (n_j, d) of the readings at
+    each (any length unit, the unit of the results and of the terms); ``origin``: (d,) the
+    sensor's zero, which relative (ppm) terms scale from (default 0). AP by Monte Carlo
+    (:func:`maximum_interval`); RP's measurand is RP∞ = c_d σ (:func:`chi_rp_factor`) with
+    σ pooled over targets and axes, its interval exact (χ²). Returns ``{"accuracy", "repeatability"}``.
+    """
+    cmd = np.atleast_2d(np.asarray(command, float))
+    T, d = cmd.shape
+    if len(attained) != T:
+        raise ValueError(f"{T} commands but {len(attained)} groups of readings")
+    groups = [np.asarray(a, float).reshape(len(a), d) for a in attained]
+    groups = [g[np.all(np.isfinite(g), axis=1)] for g in groups]
+    n = np.array([len(g) for g in groups], float)
+    if np.any(n < 2):
+        raise ValueError("every target needs two or more valid readings")
+    terms = _check_terms(terms)
+    dev = np.array([g.mean(axis=0) for g in groups]) - cmd
+    s_axis, dof = pooled_scatter(groups)
+    pos = cmd - (np.zeros(d) if origin is None else np.asarray(origin, float))
+    draws = _Draws(s_axis, dof, (T, d), terms, trials, seed)
+
+    def per_target(only=None):
+        return np.linalg.norm(dev[None] + draws.error(pos, n, only), axis=2)
+
+    y = np.linalg.norm(dev, axis=1)
+    full = per_target()
+    lo, hi, t_eff = maximum_interval(y, full)
+    parts = {"sample": per_target("sample").max(axis=1)}
+    for t in draws.terms:
+        parts[t.name] = per_target(t.name).max(axis=1)
+    accuracy = _mc(
+        float(y.max()),
+        full.max(axis=1),
+        parts,
+        {"sample": float(dof)},
+        (lo, hi),
+        _MAX_METHOD.format(M=trials, t=t_eff),
+    )
+    accuracy.budget.update(_reading_budget(terms))
+
+    from calflow.metrics.iso9283 import iso9283
+
+    s_iso = math.sqrt(float(np.mean(s_axis**2)))
+    dof_iso = dof * d
+    c = chi_rp_factor(d)
+    rp_value = float(max(iso9283(cmd[j], groups[j]).rp for j in range(T)))
+    lo, hi = (c * v for v in _sigma_interval(s_iso, dof_iso))
+    rp_draws = c * s_iso * np.sqrt(dof_iso / draws.rng.chisquare(dof_iso, size=trials))
+    note = ""
+    if not lo <= rp_value <= hi:
+        note = (
+            f"the ISO value ({rp_value:.4g}) from {int(n.min())}–{int(n.max())} cycles lies outside the interval "
+            f"of the population RP (c·σ = {c * s_iso:.4g}): few cycles make l̄ + 3 S_l a poor estimate"
+        )
+    repeatability = _mc(
+        rp_value,
+        rp_draws,
+        {"sample": rp_draws},
+        {"sample": float(dof_iso)},
+        (lo, hi),
+        f"RP∞ = {c:.4f} σ, σ pooled over {T} targets and {d} axes ({dof_iso} dof); exact χ² interval of σ; "
+        f"u from M = {trials} Monte Carlo trials (JCGM 101:2008)",
+        note,
+    )
+    repeatability.budget.update(_reading_budget(terms))
+    return {"accuracy": accuracy, "repeatability": repeatability}
+
+
+def iso230_2_uncertainty(
+    targets,
+    forward,
+    backward,
+    terms: Sequence[Term] = (),
+    origin: float = 0.0,
+    trials: int = TRIALS,
+    seed: int = 0,
+) -> dict[str, Uncertainty]:
+    """U of ISO 230-2's E, M, B, A, R (Monte Carlo) and of B̄, the signed mean reversal (GUM).
+
+    ``targets`` (P,), ``forward`` (P, n↑), ``backward`` (P, n↓): attained positions per
+    target and cycle, one length unit for all (and the terms'). ``origin``: the sensor's
+    zero, which relative terms scale from. Measurands: cell means μ_i↑, μ_i↓ and a common
+    σ (pooled over cells): E = range of μ, M = range of (μ↑ + μ↓)/2, B = max |μ↑ − μ↓|,
+    A = E + 4σ (range of μ ± 2σ), R = B + 4σ — the standard's formulas with its per-target
+    s replaced by the pooled σ. A range's bounds are those of its maximum and minimum
+    as maxima over pairs of cells (:func:`maximum_interval`); A and R carry σ's spread.
+    Returns ``{"E", "M", "B", "A", "R", "B_mean"}``.
+    """
+    t = np.asarray(targets, float)
+    f, b = np.atleast_2d(np.asarray(forward, float)), np.atleast_2d(np.asarray(backward, float))
+    P = t.size
+    if f.shape[0] != P or b.shape[0] != P:
+        raise ValueError(f"{P} targets but tables of {f.shape[0]} and {b.shape[0]} rows")
+    terms = _check_terms(terms)
+    rows = [f[i] for i in range(P)] + [b[i] for i in range(P)]
+    s, dof = pooled_scatter([r[:, None] for r in rows])
+    sigma = float(s[0])
+    n = np.array([np.isfinite(r).sum() for r in rows], float)
+    mean = np.array([np.nanmean(r) for r in rows]) - np.concatenate([t, t])
+    pos = (np.concatenate([t, t]) - origin)[:, None]
+    draws = _Draws(s, dof, (2 * P, 1), terms, trials, seed)
+
+    def cells(only=None):
+        mu = mean[None, :] + draws.error(pos, n, only)[:, :, 0]
+        return mu, (mu[:, :P] + mu[:, P:]) / 2.0, mu[:, :P] - mu[:, P:]
+
+    def spans(est, dr, add_est=0.0, add_dr=0.0):
+        """A range as a maximum over pairs: max_{i,j} (μ_i − μ_j) over the cells that can be
+        the maximum (i) or the minimum (j) in some trial; estimates and draws of each pair."""
+        top = np.unique(np.argmax(dr, axis=1))
+        bottom = np.unique(np.argmin(dr, axis=1))
+        e = (est[top][:, None] - est[bottom][None, :]).ravel() + add_est
+        d = (dr[:, top][:, :, None] - dr[:, bottom][:, None, :]).reshape(len(dr), -1) + np.reshape(
+            add_dr, (-1, 1)
+        )
+        return e, d
+
+    mu, mid, rev = cells()
+    est_mid, est_rev = (mean[:P] + mean[P:]) / 2.0, mean[:P] - mean[P:]
+    # the estimator's σ̂ around the pooled s (the cells' bias-corrected intervals need it)
+    sig_hat = sigma * np.sqrt(draws.rng.chisquare(dof, size=trials) / dof)
+    bounds = {
+        "E": maximum_interval(*spans(mean, mu)),
+        "M": maximum_interval(*spans(est_mid, mid)),
+        "B": maximum_interval(np.abs(est_rev), np.abs(rev)),
+        "A": maximum_interval(*spans(mean, mu, 4 * sigma, 4 * sig_hat)),
+        "R": maximum_interval(np.abs(est_rev) + 4 * sigma, np.abs(rev) + 4 * sig_hat[:, None]),
+    }
+    stats_of = {
+        "E": lambda m, md, r: m.max(1) - m.min(1),
+        "M": lambda m, md, r: md.max(1) - md.min(1),
+        "B": lambda m, md, r: np.abs(r).max(1),
+        "A": lambda m, md, r: m.max(1) - m.min(1) + 4 * sig_hat,
+        "R": lambda m, md, r: np.abs(r).max(1) + 4 * sig_hat,
+    }
+    parts_cells = {"sample": cells("sample"), **{term.name: cells(term.name) for term in draws.terms}}
+
+    from calflow.metrics.iso230_2 import iso230_2
+
+    iso = iso230_2(t, f, b)
+    out: dict[str, Uncertainty] = {}
+    for key, fn in stats_of.items():
+        reported = float(getattr(iso, key))
+        lo, hi, t_eff = bounds[key]
+        note = ""
+        if not lo <= reported <= hi:
+            note = f"the standard's value ({reported:.4g}, per-target s) lies outside the interval of the measurand"
+        parts = {name: fn(*c) for name, c in parts_cells.items()}
+        if key in ("A", "R"):  # σ's own share: the sample term
+            parts = {**parts, "sample": fn(*parts_cells["sample"])}
+        out[key] = _mc(
+            reported,
+            fn(mu, mid, rev),
+            parts,
+            {"sample": float(dof)},
+            (max(lo, 0.0), hi),
+            _MAX_METHOD.format(M=trials, t=t_eff),
+            note,
+        )
+        out[key].budget.update(_reading_budget(terms))
+    # B̄ is linear in the cell means: GUM
+    contrib = {"sample": sigma / P * math.sqrt(float(np.sum(1 / n[:P]) + np.sum(1 / n[P:])))}
+    for term in terms:
+        if term.scope == "target":
+            contrib[term.name] = float(term.per_axis(1)[0]) * math.sqrt(2.0 / P)
+    out["B_mean"] = gum_linear(float(np.mean(est_rev)), contrib, {"sample": float(dof)})
+    return out
