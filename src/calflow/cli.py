@@ -135,9 +135,12 @@ def cmd_check_config(args) -> None:
     campaigns = {}
     for name in cfg["campaigns"]:
         campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
-    stages_of(
+    groups = stages_of(
         campaigns, folder
     )  # the campaigns of each stage agree (robot, distinct starts, interim references)
+    from calflow.certificate.annotate import check_stages
+
+    check_stages(cfg.get("stages", {}), campaigns, groups, args.config)  # specifications and rules
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -227,6 +230,17 @@ def parser() -> argparse.ArgumentParser:
             "render a stage's history report (HTML and PDF)",
         )
     )
+
+    ce = _sub(
+        sub,
+        "certificate",
+        _run("calflow.certificate.page:run"),
+        "render a campaign's certificate (HTML and PDF): U, decisions, as found and as left",
+    )
+    ce.add_argument("--campaign", required=True)
+    ce.add_argument("--summary", required=True)
+    ce.add_argument("--html", required=True)
+    ce.add_argument("--pdf")
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

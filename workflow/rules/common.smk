@@ -16,7 +16,7 @@ from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
 from calflow.family_workflow import hooks, load_study
 from calflow.lifecycle.stages import stages_of
-from calflow.certificate.annotate import check_settings
+from calflow.certificate.annotate import check_stages
 
 
 def selected_studies(config):
@@ -39,14 +39,8 @@ try:
         for name in CAMPAIGNS
     }
     STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR)
-    for _stage, _settings in config.get("stages", {}).items():
-        if _stage in STAGES:  # the specification names figures the stage's family computes
-            check_settings(
-                _settings,
-                CAMPAIGN[STAGES[_stage][0]]["robot"],
-                "config/config.yaml",
-                f"stages.{_stage}.",
-            )
+    # each stage's specification names figures its family computes, with a known rule
+    check_stages(config.get("stages", {}), CAMPAIGN, STAGES, "config/config.yaml")
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)

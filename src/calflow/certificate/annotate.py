@@ -38,6 +38,14 @@ def check_settings(settings: dict, robot: str, file: str, prefix: str = "") -> d
     return conformity.check(settings or {}, certified(robot), file, prefix)
 
 
+def check_stages(settings: dict, campaigns: dict[str, dict], groups: dict[str, list[str]], file: str) -> None:
+    """Each configured stage's specification and rule (config ``stages.<id>``), checked against
+    the family of its campaigns (``groups``: stage → campaign names, :func:`calflow.lifecycle.stages.stages_of`)."""
+    for stage, values in (settings or {}).items():
+        if stage in groups and isinstance(values, dict):
+            check_settings(values, campaigns[groups[stage][0]]["robot"], str(file), f"stages.{stage}.")
+
+
 def _dig(summary: dict, path: tuple[str, ...]):
     node = summary
     for key in path:

@@ -135,6 +135,9 @@ FAMILY = Family(
         "summarise": _CORE
         + _MODELS
         + (
+            "calflow.certificate",
+            "calflow.conformity",
+            "calflow.nano.certificate",
             "calflow.summary_routing",
             "calflow.nano.report.reference",
             "calflow.uncertainty",

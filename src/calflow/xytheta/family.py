@@ -200,6 +200,9 @@ FAMILY = Family(
         ),
         "summarise": _CORE
         + (
+            "calflow.certificate",
+            "calflow.conformity",
+            "calflow.xytheta.certificate",
             "calflow.summary_routing",
             "calflow.xytheta.report.reference",
             "calflow.metrics",

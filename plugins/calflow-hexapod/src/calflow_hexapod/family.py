@@ -95,7 +95,9 @@ FAMILY = Family(
         + _ALL,
         "identify": _CORE + ("calflow.identification",) + _ALL,
         "metrics": _CORE + ("calflow.metrics",) + _ALL,
-        "summarise": _CORE + ("calflow.metrics", "calflow.summary_routing") + _ALL,
+        "summarise": _CORE
+        + ("calflow.metrics", "calflow.summary_routing", "calflow.certificate", "calflow.conformity")
+        + _ALL,
         "report": _CORE + ("calflow.report",) + _ALL,
         "export": _CORE + _ALL,
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.identification") + _ALL,
