@@ -22,7 +22,7 @@ rule certificate:
     params:
         campaign=campaign_file,
         digest=lambda w: digest(
-[module_digest("calflow.certificate", "calflow.report")]
+            [module_digest("calflow.certificate", "calflow.report")]
         ),
     shell:
         "calflow certificate --campaign {params.campaign} --summary {input.summary}"
