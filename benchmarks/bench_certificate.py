@@ -49,7 +49,7 @@ import time
 import numpy as np
 import xarray as xr
 
-from calflow.metrics.uncertainty import iso230_2_uncertainty, iso9283_uncertainty
+from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
 
 TOL = 3.5
 
@@ -71,7 +71,7 @@ def _fake_run(temps: np.ndarray, theta: np.ndarray, pose: np.ndarray) -> xr.Data
 
 
 def xytheta_case(rng, trials, bias_sd=1.5, bias=None):
-    from calflow.xytheta.certificate import vision_terms
+    from calflow.xytheta.report.certificate import vision_terms
 
     T, n, sig, noise, q = 8, 3, 0.3, 0.05, 0.01
     drift = np.array([0.157, 1.357])

@@ -15,12 +15,11 @@ from calflow.metrics.uncertainty import (
     chi_rp_factor,
     coverage_factor,
     gum_linear,
-    iso230_2_uncertainty,
-    iso9283_uncertainty,
     maximum_interval,
     pooled_scatter,
     welch_satterthwaite,
 )
+from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
 
 
 def test_welch_satterthwaite_one_finite_term_gives_its_dof():

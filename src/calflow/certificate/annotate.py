@@ -23,7 +23,8 @@ from calflow import conformity
 from calflow.certificate import Measurement
 from calflow.errors import ConfigError
 from calflow.family import family_of, resolve
-from calflow.metrics.uncertainty import Uncertainty, iso230_2_uncertainty, iso9283_uncertainty
+from calflow.metrics.uncertainty import Uncertainty
+from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
 
 ORDER = ("pass", "conditional pass", "conditional fail", "fail")
 

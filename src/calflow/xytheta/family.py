@@ -202,7 +202,7 @@ FAMILY = Family(
         + (
             "calflow.certificate",
             "calflow.conformity",
-            "calflow.xytheta.certificate",
+            "calflow.xytheta.report.certificate",
             "calflow.summary_routing",
             "calflow.xytheta.report.reference",
             "calflow.metrics",
@@ -317,7 +317,7 @@ FAMILY = Family(
     reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},
     headline="calflow.xytheta.report.headline:headline",
     index_row="xytheta_index_row.html.j2",
-    uncertainty="calflow.xytheta.certificate:measurements",
+    uncertainty="calflow.xytheta.report.certificate:measurements",
     # the figures a stage's specification may name: True when calflow gives their U
     certified={
         "xytheta": {
