@@ -75,6 +75,12 @@ def record(u: Uncertainty, scale: float, value, notes=()) -> dict:
     r["interval"] = [v * scale for v in r["interval"]]
     r["budget"] = {k: v * scale for k, v in r["budget"].items()}
     r["value"] = value if value is not None else u.value * scale
+    mine = u.value * scale
+    if isinstance(value, (int, float)) and not math.isclose(mine, value, rel_tol=5e-3, abs_tol=1e-9 * scale):
+        r["mismatch"] = (
+            f"the data the U was computed from give {mine:.6g}, the summary {value:.6g}: "
+            "the U may not describe this value"
+        )
     if notes:
         r["notes"] = list(notes)
     return r
