@@ -28,10 +28,11 @@ JCGM 101 probabilistically symmetric interval of the maximum covers its true val
 rarely when targets nearly tie (≈ 86 % for eight targets three cycles each, measured);
 the 95 % interval is built instead from each target's bias-corrected percentile interval
 and Šidák's adjustment over the targets that can be the maximum
-(:func:`maximum_interval`). U is the interval's half-width, u the trials' standard
-deviation, k = U/u, and ``dof_eff`` the Welch–Satterthwaite degrees of freedom of the same
-budget. Each term's contribution in ``budget`` is the standard deviation of the metric
-with that term alone.
+(:func:`maximum_interval`). U is the interval's half-width, ``dof_eff`` the
+Welch–Satterthwaite degrees of freedom of the budget, k = t_0.975(ν_eff) and u = U/k (the
+trials' own standard deviation does not exist when the scatter is known from few
+readings). Each term's contribution in ``budget`` is the robust standard deviation (half
+the central 68 % range) of the metric with that term alone.
 
 The measurand of RP (and of ISO 230-2's A and R) is the population value of the scatter
 (isotropic normal, pooled over targets): RP∞ = σ (E[χ_d] + 3 SD[χ_d]), what the ISO
@@ -60,6 +61,7 @@ __all__ = [
     "mc_result",
     "pooled_scatter",
     "reading_budget",
+    "robust_sd",
     "sigma_interval",
     "welch_satterthwaite",
 ]
@@ -231,18 +233,32 @@ MAX_METHOD = (
 )
 
 
+def robust_sd(x) -> float:
+    """Half the central 68.27 % range of ``x``: the standard deviation of a normal, and finite
+    for the heavy tails of a scatter known from few readings (a variance with ν ≤ 4 dof has
+    no finite variance of its own)."""
+    lo, hi = np.quantile(np.asarray(x, float), [stats.norm.cdf(-1.0), stats.norm.cdf(1.0)])
+    return float(hi - lo) / 2.0
+
+
 def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertainty:
-    """A Monte Carlo result: u the trials' standard deviation, U the interval's half-width."""
+    """A Monte Carlo result: U the interval's half-width, k = t_0.975(ν_eff) and u = U/k.
+
+    ν_eff is the Welch–Satterthwaite dof of the budget, whose terms are the robust standard
+    deviations (:func:`robust_sd`) of the metric with each term alone; u = U/k makes the
+    Student's t that the decisions use (:mod:`calflow.conformity`) reproduce the Monte
+    Carlo interval's half-width.
+    """
     lo, hi = interval
-    u = float(np.std(draws, ddof=1))
     U = float(hi - lo) / 2.0
-    budget = {n: float(np.std(v, ddof=1)) for n, v in parts.items()}
+    budget = {n: robust_sd(v) for n, v in parts.items()}
     dof = welch_satterthwaite(list(budget.values()), [dofs.get(n, math.inf) for n in budget])
+    k = coverage_factor(dof)
     return Uncertainty(
         value=float(value),
         U=U,
-        k=U / u if u > 0 else math.nan,
-        u=u,
+        k=k,
+        u=U / k,
         dof_eff=dof,
         interval=(float(lo), float(hi)),
         budget=budget,

@@ -92,7 +92,7 @@ def iso9283_uncertainty(
         {"sample": float(dof_iso)},
         (lo, hi),
         f"RP∞ = {c:.4f} σ, σ pooled over {T} targets and {d} axes ({dof_iso} dof); exact χ² interval of σ; "
-        f"u from M = {trials} Monte Carlo trials (JCGM 101:2008)",
+        f"k from Student's t at {dof_iso} dof, M = {trials} trials for the budget (JCGM 101:2008)",
         note,
     )
     repeatability.budget.update(reading_budget(terms))
