@@ -1,8 +1,9 @@
 """What the XYΘ family's certificate figures are measured from, and its vision sensor's budget.
 
 The held-out AP and RP of each model (ISO 9283, max over the held-out targets; world frame,
-Eq. 4.27), an interim check's AP and RP, and ISO 230-2 of the X and Y characterisation
-sweeps. The vision sensor's declared terms (µm):
+Eq. 4.27), the as-found AP and RP through the compensation in use (the ``as_found`` run,
+when the campaign has one), an interim check's AP and RP, and ISO 230-2 of the X and Y
+characterisation sweeps. The vision sensor's declared terms (µm):
 
 * resolution: below 10 nm (thesis Sec. 3.5.1), a quantisation step of 10 nm, u = q/√12,
   per reading (in the observed scatter);
@@ -119,6 +120,12 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
                 out += [m] if m else []
         return out
     found = route(files, FAMILY.summary_sections, "XYΘ family")
+    spec = campaign.get("as_found") or {}
+    for _, run in found.get("as_found_runs", []):  # first: the as-left loop decides as_found with its U
+        label = f"Model {spec.get('model')}, as found through {spec.get('reference')}"
+        for path in (("models", str(spec.get("model")), "as_found"), ("as_found",)):
+            m = _iso9283(path, run, label)
+            out += [m] if m else []
     for _, run in found.get("heldout_runs", []):
         model = run.attrs.get("model")
         m = _iso9283(("models", str(model)), run, f"Model {model}, held-out targets")
