@@ -55,3 +55,40 @@ def test_vision_terms_use_table_3_3_and_the_runs_own_temperature_and_angle():
     terms, notes = vision_terms(run.drop_vars("temperature"))
     assert "sensor thermal drift (Table 3.3)" not in {t.name for t in terms}
     assert any("no thermometer" in n for n in notes)
+
+
+def _nano_run(plan, rng):
+    t = np.repeat(np.linspace(0, 500, 6), 4)
+    d = np.tile([1, 1, -1, -1], 6)
+    return xr.Dataset(
+        {
+            "meas_x": ("sample", t + 0.1 * np.sin(t / 80) + rng.normal(0, 0.03, t.size)),
+            "target_x": ("sample", t),
+            "pose": ("sample", np.arange(t.size) // 2),  # each (target, direction) a pose, 2 visits
+            "cycle": ("sample", np.arange(t.size) % 2),
+            "direction": ("sample", d),
+            "time": ("sample", np.arange(t.size, dtype=float)),
+        },
+        attrs={"plan": plan},
+    )
+
+
+def test_nano_metrology_and_iso230_2_figures(monkeypatch):
+    from calflow.metrics.iso9283 import iso9283
+    from calflow.nano.certificate import measurements
+
+    rng = np.random.default_rng(0)
+    runs = [("m.nc", _nano_run("metrology", rng)), ("t.nc", _nano_run("training", rng))]
+    monkeypatch.setattr("calflow.summary_routing.route", lambda files, sections, family="": {"runs": runs})
+    campaign = {"name": "n", "robot": "stage1d", "rig": {"factory": "simulated"}}
+    ms = {m.path: m for m in measurements(campaign, [])}
+    assert set(ms) == {("intrinsic",), ("training",), ("iso230_2",)}
+    m = ms[("intrinsic",)]
+    assert m.scale == 1000.0 and m.keys["accuracy"] == "accuracy_nm" and len(m.data["attained"]) == 12
+    ap = max(iso9283(c, a).ap for c, a in zip(m.data["command"], m.data["attained"]))
+    from calflow.certificate.annotate import uncertainties
+
+    assert uncertainties(m)["accuracy"].value == pytest.approx(ap)
+    iso = ms[("iso230_2",)]
+    assert iso.kind == "iso230_2" and iso.data["forward"].shape == (6, 2)
+    assert measurements({**campaign, "robot": "stage2d"}, []) == []
