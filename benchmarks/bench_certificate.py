@@ -35,6 +35,7 @@ a 3.5 µm tolerance; guarded acceptance (w = U); the observed false-accept rate 
 accepted stages against the mean of their specific PFAs.
 
 Run: python benchmarks/bench_certificate.py --json [--seeds 200] [--stages 2000] [--trials 5000]
+(``--stages 0``: coverage only)
 """
 
 from __future__ import annotations
@@ -254,7 +255,7 @@ def main() -> None:
     a = p.parse_args()
     out = {
         "coverage": coverage(a.seeds, a.trials),
-        "decision_risk": decision_risk(a.stages, a.trials),
+        "decision_risk": decision_risk(a.stages, a.trials) if a.stages > 0 else None,
         "seeds": a.seeds,
         "trials": a.trials,
         "machine": f"{platform.machine()} {platform.python_version()} load {os.getloadavg()[0]:.2f}",

@@ -137,3 +137,12 @@ def test_bad_inputs():
         iso9283_uncertainty(np.zeros((1, 2)), [np.zeros((1, 2))])
     with pytest.raises(ValueError, match="unique"):
         iso9283_uncertainty(np.zeros((1, 1)), [np.zeros((3, 1))], [Term("a", 1), Term("a", 2)])
+
+
+def test_rp_factor_of_unequal_axes_matches_simulation_and_reduces_to_chi():
+    from calflow.metrics.uncertainty_iso import rp_factor
+
+    assert rp_factor([1.0, 1.0, 1.0]) == chi_rp_factor(3)
+    r = np.array([0.5, 1.2, 1.2]) / math.sqrt(np.mean(np.array([0.5, 1.2, 1.2]) ** 2))
+    z = np.linalg.norm(np.random.default_rng(1).standard_normal((400_000, 3)) * r, axis=1)
+    assert rp_factor(r) == pytest.approx(z.mean() + 3 * z.std(), rel=5e-3)
