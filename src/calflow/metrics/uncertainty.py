@@ -203,7 +203,16 @@ def chi_rp_factor(d: int) -> float:
     return mean + 3.0 * math.sqrt(max(d - mean * mean, 0.0))
 
 
-def maximum_interval(estimates, draws, level: float = P95) -> tuple[float, float, float]:
+def effective_count(draws) -> float:
+    """1/Σ p_j²: how many cells can be the maximum (p_j: share of the draws (M, T) where j is)."""
+    d = np.asarray(draws, float)
+    p = np.bincount(np.argmax(d, axis=1), minlength=d.shape[1]) / len(d)
+    return float(1.0 / np.sum(p**2))
+
+
+def maximum_interval(
+    estimates, draws, level: float = P95, t_eff: float | None = None
+) -> tuple[float, float, float]:
     """95 % interval of max_j θ_j from per-cell estimates (T,) and Monte Carlo draws (M, T).
 
     Each cell's interval is the bias-corrected percentile interval of its draws (z₀ from the
@@ -212,12 +221,12 @@ def maximum_interval(estimates, draws, level: float = P95) -> tuple[float, float
     1/Σ p_j² counts the cells that can be the maximum (p_j: share of the draws in which
     cell j is). With one clear maximum this is that cell's interval; with ties it widens,
     which a maximum of noisy means needs (its estimate is biased upwards and so are the
-    draws around it). Returns ``(low, high, T_eff)``.
+    draws around it). ``t_eff`` overrides the count (a range's pairs share their cells).
+    Returns ``(low, high, T_eff)``.
     """
     y = np.atleast_1d(np.asarray(estimates, float))
     d = np.asarray(draws, float).reshape(len(draws), y.size)
-    p = np.bincount(np.argmax(d, axis=1), minlength=y.size) / len(d)
-    t_eff = float(1.0 / np.sum(p**2))
+    t_eff = effective_count(d) if t_eff is None else float(t_eff)
     alpha = 1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / t_eff)
     z0 = stats.norm.ppf(np.clip(np.mean(d < y, axis=0), 1.0 / len(d), 1.0 - 1.0 / len(d)))
     za = stats.norm.ppf(alpha)

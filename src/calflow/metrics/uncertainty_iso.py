@@ -15,6 +15,7 @@ from calflow.metrics.uncertainty import (
     Uncertainty,
     check_terms,
     chi_rp_factor,
+    effective_count,
     gum_linear,
     maximum_interval,
     mc_result,
@@ -114,6 +115,10 @@ def iso9283_uncertainty(
     return {"accuracy": accuracy, "repeatability": repeatability}
 
 
+def _span_interval(estimates, draws, t_eff):
+    return maximum_interval(estimates, draws, t_eff=t_eff)
+
+
 def iso230_2_uncertainty(
     targets,
     forward,
@@ -154,24 +159,26 @@ def iso230_2_uncertainty(
 
     def spans(est, dr, add_est=0.0, add_dr=0.0):
         """A range as a maximum over pairs: max_{i,j} (μ_i − μ_j) over the cells that can be
-        the maximum (i) or the minimum (j) in some trial; estimates and draws of each pair."""
+        the maximum (i) or the minimum (j) in some trial; estimates and draws of each pair,
+        and the number of candidates."""
         top = np.unique(np.argmax(dr, axis=1))
         bottom = np.unique(np.argmin(dr, axis=1))
         e = (est[top][:, None] - est[bottom][None, :]).ravel() + add_est
         d = (dr[:, top][:, :, None] - dr[:, bottom][:, None, :]).reshape(len(dr), -1) + np.reshape(
             add_dr, (-1, 1)
         )
-        return e, d
+        # the pairs share their cells: as many candidates as the maximum's and the minimum's
+        return e, d, effective_count(dr) + effective_count(-dr) - 1.0
 
     mu, mid, rev = cells()
     est_mid, est_rev = (mean[:P] + mean[P:]) / 2.0, mean[:P] - mean[P:]
     # the estimator's σ̂ around the pooled s (the cells' bias-corrected intervals need it)
     sig_hat = sigma * np.sqrt(draws.rng.chisquare(dof, size=trials) / dof)
     bounds = {
-        "E": maximum_interval(*spans(mean, mu)),
-        "M": maximum_interval(*spans(est_mid, mid)),
+        "E": _span_interval(*spans(mean, mu)),
+        "M": _span_interval(*spans(est_mid, mid)),
         "B": maximum_interval(np.abs(est_rev), np.abs(rev)),
-        "A": maximum_interval(*spans(mean, mu, 4 * sigma, 4 * sig_hat)),
+        "A": _span_interval(*spans(mean, mu, 4 * sigma, 4 * sig_hat)),
         "R": maximum_interval(np.abs(est_rev) + 4 * sigma, np.abs(rev) + 4 * sig_hat[:, None]),
     }
     stats_of = {
