@@ -15,6 +15,7 @@ include: "workflow/rules/heldout.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/stages.smk"
+include: "workflow/rules/certificate.smk"
 include: "workflow/rules/cluster.smk"
 
 
@@ -29,6 +30,8 @@ rule all:
         "reports/index.html",
         expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
         expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
+        expand("reports/{campaign}/certificate.html", campaign=CAMPAIGNS),
+        expand("reports/{campaign}/certificate.pdf", campaign=CAMPAIGNS),
         expand("reports/studies/{study}.html", study=STUDIES),
         expand("reports/stages/{stage}/history.html", stage=HISTORIES),
         expand("reports/stages/{stage}/history.pdf", stage=HISTORIES),

@@ -442,6 +442,7 @@ def test_validation_change_reruns_only_validation_metrics_and_report(thesis_run,
     n = len(c["models"])
     assert jobs.pop("acquire_validation_model") == str(n) and jobs.pop("metrics") == str(n)
     assert jobs.pop("summarise") == "1" and jobs.pop("report") == "1" and jobs.pop("index") == "1"
+    assert jobs.pop("certificate") == "1"  # the certificate is made from the summary
     jobs.pop("total", None), jobs.pop("all", None)
     assert jobs == {}, f"only validation, its metrics and the report rerun, not {jobs}"
 

@@ -47,7 +47,11 @@ def cmd_summarise(args) -> None:
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
-    write_json(family.step("summarise")(campaign, args.files, truth), args.out)
+    summary = family.step("summarise")(campaign, args.files, truth)
+    from calflow.certificate.annotate import annotate, stage_settings_or_fail
+
+    summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
+    write_json(summary, args.out)
 
 
 def cmd_report(args) -> None:
@@ -134,10 +138,13 @@ def cmd_check_config(args) -> None:
     campaigns = {}
     for name in cfg["campaigns"]:
         campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
-    stages_of(
+    groups = stages_of(
         campaigns, folder
     )  # the campaigns of each stage agree (robot, distinct starts, interim references)
     check_stage_settings(cfg["stages"], campaigns, folder, args.config)
+    from calflow.certificate.annotate import check_stages
+
+    check_stages(cfg.get("stages", {}), campaigns, groups, args.config)  # specifications and rules
     print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
 
 
@@ -193,6 +200,9 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--files", nargs="+", required=True, help="the campaign's model, metrics and table files")
     s.add_argument("--truth")
     s.add_argument("--budget", help="the error budget's replays (calflow error-budget), simulated rigs")
+    s.add_argument(
+        "--settings", help="JSON: the stage's settings (config 'stages.<id>'): specification, decision rule"
+    )
     s.add_argument("--out", required=True)
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
@@ -225,6 +235,17 @@ def parser() -> argparse.ArgumentParser:
             "render a stage's history report (HTML and PDF)",
         )
     )
+
+    ce = _sub(
+        sub,
+        "certificate",
+        _run("calflow.certificate.page:run"),
+        "render a campaign's certificate (HTML and PDF): U, decisions, as found and as left",
+    )
+    ce.add_argument("--campaign", required=True)
+    ce.add_argument("--summary", required=True)
+    ce.add_argument("--html", required=True)
+    ce.add_argument("--pdf")
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

@@ -100,6 +100,12 @@ class Family:
     * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
       {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
       history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
+    * ``uncertainty``: ``"module:function"``, ``function(campaign, files) ->
+      list[calflow.certificate.Measurement]``: where its headline figures are in its summary,
+      the data they come from and its sensor's declared uncertainty terms; the core computes
+      U and the decisions (:mod:`calflow.certificate`). None: no figure has a U.
+    * ``certified``: per robot, figure key → whether calflow gives its U (``accuracy_um``:
+      True): the figures a stage's ``specification`` may name.
     """
 
     name: str
@@ -127,6 +133,8 @@ class Family:
     history_entry: str | None = None
     headline: str | None = None
     options: Mapping[str, str] = field(default_factory=dict)
+    uncertainty: str | None = None
+    certified: Mapping[str, Mapping[str, bool]] = field(default_factory=dict)
 
     def step(self, name: str) -> Callable[..., Any]:
         if name not in self.steps:

@@ -19,6 +19,7 @@ from calflow.lifecycle.settings import check_stage_settings
 from calflow.lifecycle.members import histories_on_disk, on_disk
 from calflow.lifecycle.stages import check_needs, stages_of
 from calflow.workflow_config import load as load_checked_config
+from calflow.certificate.annotate import check_stages
 
 
 def selected_studies(config):
@@ -57,16 +58,14 @@ try:
     # of the campaigns and histories on disk (rebuilt only when what they read changed)
     DISK_STAGES = histories_on_disk("results", ON_DISK)
     HISTORIES = sorted(set(STAGES) | set(DISK_STAGES))
-    check_stage_settings(
-        config["stages"],
-        CAMPAIGN,
-        CAMPAIGN_DIR,
-        (
-            "--config stages"
-            if "stages" in (workflow.config_settings.overwrite_config or {})
-            else (workflow.configfiles or ["config/config.yaml"])[-1]
-        ),
+    STAGE_SETTINGS_FILE = (
+        "--config stages"
+        if "stages" in (workflow.config_settings.overwrite_config or {})
+        else (workflow.configfiles or ["config/config.yaml"])[-1]
     )
+    check_stage_settings(config["stages"], CAMPAIGN, CAMPAIGN_DIR, STAGE_SETTINGS_FILE)
+    # each stage's specification names figures its family computes, with a known rule
+    check_stages(config["stages"], CAMPAIGN, STAGES, STAGE_SETTINGS_FILE)
     STUDIES = [check_campaign_name(name) for name in selected_studies(config)]
     STUDY = {
         name: load_study(f"{config['study_dir']}/{name}.yaml", CAMPAIGN_DIR)
@@ -247,6 +246,16 @@ def stage_settings(w):
     import json
 
     return json.dumps(config.get("stages", {}).get(w.stage, {}), sort_keys=True)
+
+
+def certificate_settings(name):
+    """The specification and decision rule of campaign ``name``'s stage (JSON), or {}."""
+    import json
+
+    stage = CAMPAIGN[name].get("stage")
+    settings = config.get("stages", {}).get(stage, {}) if stage else {}
+    keys = ("specification", "decision_rule")
+    return json.dumps({k: settings[k] for k in keys if k in settings}, sort_keys=True)
 
 
 def stage_digest(w):

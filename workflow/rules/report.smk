@@ -32,6 +32,7 @@ rule summarise:
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
+        settings=lambda w: shlex.quote(certificate_settings(w.campaign)),
         digest=section(
             "summarise",
             "description",
@@ -43,7 +44,8 @@ rule summarise:
         ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"
-        " {params.truth} {params.budget} --out {output.summary} > {log} 2>&1"
+        " {params.truth} {params.budget} --settings {params.settings}"
+        " --out {output.summary} > {log} 2>&1"
 
 
 rule report:

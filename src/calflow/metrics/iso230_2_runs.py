@@ -15,18 +15,10 @@ def _where(run: xr.Dataset) -> str:
     return f"run {run.attrs.get('campaign', '?')}/{run.attrs.get('plan', '?')}"
 
 
-def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
-    """ISO 230-2 of a 1-DoF run (training): E, M, B, R, A and parts, in nm.
-
-    ``attained``/``target`` (µm, one per sample) replace ``meas_x``/``target_x`` — e.g. the
-    stage-frame displacement and the command of an XY characterisation sweep.
-
-    Attained positions ``meas_x`` grouped by target ``target_x`` and ``direction`` (+1
-    forward, −1 backward), one column per cycle.  Only targets reached in both directions
-    are used: the turning point of the sweep (480 µm) is reached forward only and is
-    listed in ``excluded_targets_um``.  Cycles with a NaN reading at any used target in a
-    direction are dropped for that direction.
-    """
+def tables_of_run(run: xr.Dataset, attained=None, target=None):
+    """``(targets, forward, backward, forward_cycles, backward_cycles, excluded_targets)``: the attained
+    positions of a 1-DoF run per target (both directions) and cycle, as
+    :func:`iso230_2_of_run` scores them (its notes say which targets and cycles are kept)."""
     x = np.asarray(run["meas_x"].values if attained is None else attained, dtype=float)
     tgt = np.asarray(run["target_x"].values if target is None else target, dtype=float)
     direction, cycle = run["direction"].values.astype(int), run["cycle"].values.astype(int)
@@ -50,6 +42,23 @@ def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
 
     fwd, fc = table(1)
     bwd, bc = table(-1)
+    excluded = sorted(float(t) for t in (fwd_t | bwd_t) - set(both))
+    return both, fwd, bwd, fc, bc, excluded
+
+
+def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
+    """ISO 230-2 of a 1-DoF run (training): E, M, B, R, A and parts, in nm.
+
+    ``attained``/``target`` (µm, one per sample) replace ``meas_x``/``target_x`` — e.g. the
+    stage-frame displacement and the command of an XY characterisation sweep.
+
+    Attained positions ``meas_x`` grouped by target ``target_x`` and ``direction`` (+1
+    forward, −1 backward), one column per cycle.  Only targets reached in both directions
+    are used: the turning point of the sweep (480 µm) is reached forward only and is
+    listed in ``excluded_targets_um``.  Cycles with a NaN reading at any used target in a
+    direction are dropped for that direction.
+    """
+    both, fwd, bwd, fc, bc, excluded = tables_of_run(run, attained, target)
     r = iso230_2(both, fwd, bwd)
     nm = {
         k: float(getattr(r, k)) * NM_PER_UM
@@ -59,7 +68,7 @@ def iso230_2_of_run(run: xr.Dataset, attained=None, target=None) -> dict:
         "units": "nm",
         **{f"{k}_nm": v for k, v in nm.items()},
         "targets_um": both.tolist(),
-        "excluded_targets_um": sorted(float(t) for t in (fwd_t | bwd_t) - set(both)),
+        "excluded_targets_um": excluded,
         "cycles_forward": int(fc.size),
         "cycles_backward": int(bc.size),
         "mean_deviation_forward_nm": (r.x_fwd * NM_PER_UM).tolist(),

@@ -86,6 +86,17 @@ FAMILY = Family(
     },
     index_row="nano_index_row.html.j2",
     summary_sections={"metrics": "metrics", "model": "models", "run": "runs"},
+    uncertainty="calflow.nano.certificate:measurements",
+    # the figures a stage's specification may name: True when calflow gives their U
+    certified={
+        "stage1d": {
+            **dict.fromkeys(
+                ("accuracy_nm", "repeatability_nm", "E_nm", "A_nm", "B_nm", "M_nm", "R_nm"), True
+            ),
+            "max_accuracy_nm": False,
+        },
+        "stage2d": {"max_accuracy_nm": False},
+    },
     rules=("calflow.nano", "rules/step_response.smk", "rules/validation.smk"),
     workflow="calflow.nano.plans.workflow:WORKFLOW",
     history_entry="calflow.nano.report.history:history_entry",

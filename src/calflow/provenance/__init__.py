@@ -47,6 +47,7 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.report.catalogue": ("headline",),
     "calflow.lifecycle.history": ("history_entry",),
     "calflow.family:option_check": ("*options",),
+    "calflow.certificate.annotate": ("uncertainty",),
     "calflow.cli:cmd_identify": ("steps:identify",),
     "calflow.cli:cmd_metrics": ("steps:metrics",),
     "calflow.cli:cmd_summarise": ("steps:summarise",),

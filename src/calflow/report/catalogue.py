@@ -193,6 +193,8 @@ def entry(results: Path, reports: Path, name: str, campaign_dir: Path | None = N
     )
     row["current"] = not failed and not row["stale"]
     row["report"] = (reports / name / "report.html").is_file()
+    row["certificate"] = (reports / name / "certificate.html").is_file()
+    row["decision"] = ((row["summary"] or {}).get("certificate") or {}).get("decision")
     return row
 
 

@@ -249,11 +249,15 @@ def render_index(catalogue: dict | list[dict], histories: list[dict] | None = No
             "groups": [{"stage": None, "history": False, "campaigns": rows}] if rows else [],
             "histories": histories or [],
         }
+    from calflow.lifecycle.fleet import fleets
+
     template = environment().get_template("index.html.j2")
+    hist = histories if histories is not None else catalogue.get("histories") or []
     return template.render(
         groups=catalogue["groups"],
         rows=[c for g in catalogue["groups"] for c in g["campaigns"]],
-        histories=histories if histories is not None else catalogue.get("histories") or [],
+        histories=hist,
+        fleets=fleets(hist),
         versions=_versions(),
         machine=_machine(),
         css=(TEMPLATES / "style.css").read_text(),

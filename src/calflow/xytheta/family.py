@@ -209,6 +209,16 @@ FAMILY = Family(
     reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},
     headline="calflow.xytheta.report.headline:headline",
     index_row="xytheta_index_row.html.j2",
+    uncertainty="calflow.xytheta.report.certificate:measurements",
+    # the figures a stage's specification may name: True when calflow gives their U
+    certified={
+        "xytheta": {
+            **dict.fromkeys(
+                ("accuracy_um", "repeatability_um", "E_um", "A_um", "B_um", "M_um", "R_um"), True
+            ),
+            "cv_rms_um": False,
+        }
+    },
     summary_sections={
         "model": "models",
         "metrics:validation": "reference_targets",

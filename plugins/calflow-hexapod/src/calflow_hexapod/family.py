@@ -68,6 +68,16 @@ FAMILY = Family(
         "metrics:iso9283": "iso9283",
         "metrics:validation_export": "export",
         "run:identification": "identification",
+        "run:validation_heldout": "heldout_runs",
+    },
+    uncertainty="calflow_hexapod.certificate:measurements",
+    # the figures a stage's specification may name: True when calflow gives their U
+    certified={
+        "hexapod": {
+            "accuracy_um": True,
+            "repeatability_um": True,
+            **{f"{k}_{a}_deg": False for k in ("accuracy", "repeatability") for a in "uvw"},
+        }
     },
     rules=("calflow_hexapod", "rules/hexapod.smk"),
     workflow="calflow_hexapod.workflow:WORKFLOW",

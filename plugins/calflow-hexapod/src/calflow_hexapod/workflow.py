@@ -27,6 +27,7 @@ class HexapodWorkflow(FamilyWorkflow):
         name, models = c["name"], self.models(c)
         files = [layout.model(name, m) for m in models]
         files += [layout.metrics(name, f"validation_heldout_{m}") for m in models]
+        files += [layout.run(name, f"validation_heldout_{m}") for m in models]  # the U of AP, RP
         files += [layout.metrics(name, f"closed_loop_{m}") for m in models]
         if "iso9283" in c:
             files += [layout.metrics(name, f"iso9283_{m}") for m in models]

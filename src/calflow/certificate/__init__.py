@@ -1,0 +1,54 @@
+"""Calibration certificates: the uncertainty of every headline figure and its conformity.
+
+A robot family says what its headline figures are measured from and what its sensor
+contributes to their uncertainty (``Family.uncertainty``: ``function(campaign, files) ->
+list[Measurement]``), and which figures it computes with and without U
+(``Family.certified``). The core does the rest: the budgets and U
+(:mod:`calflow.metrics.uncertainty`), the decisions against the stage's specification
+(:mod:`calflow.conformity`), the summary keys (:mod:`calflow.certificate.annotate`) and the
+certificate page (:mod:`calflow.certificate.page`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from calflow.metrics.uncertainty import Term
+
+KINDS = ("iso9283", "iso230_2", "none")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Where a family's headline figures are in its summary and the data they come from.
+
+    * ``path``: the keys down to the summary's mapping holding the figures, e.g.
+      ``("models", "III")``; ``keys``: result name → the figure's key there, e.g.
+      ``{"accuracy": "accuracy_um", "repeatability": "repeatability_um"}`` for ``iso9283``
+      or ``{"E": "E_um", …}`` for ``iso230_2``.
+    * ``kind``: ``iso9283`` (``data``: ``command`` (T, d), ``attained`` T arrays (n, d),
+      optional ``origin``), ``iso230_2`` (``targets``, ``forward``, ``backward``, optional
+      ``origin``) or ``none`` (figures calflow states without U).
+    * ``terms``: the sensor's declared terms (:class:`calflow.metrics.uncertainty.Term`),
+      in the data's unit; ``scale``: the summary's unit per data unit (1000 for nm from µm).
+    * ``label``: how the certificate names the measurement; ``notes``: what the budget
+      leaves out, in words.
+    """
+
+    path: tuple[str, ...]
+    keys: Mapping[str, str]
+    kind: str = "iso9283"
+    data: Mapping[str, Any] = field(default_factory=dict)
+    terms: tuple[Term, ...] = ()
+    scale: float = 1.0
+    label: str = ""
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"measurement {self.path}: kind {self.kind!r}; expected one of {KINDS}")
+
+
+__all__ = ["KINDS", "Measurement"]

@@ -1,0 +1,91 @@
+"""The certificate page of a campaign: ``reports/<campaign>/certificate.html`` and ``.pdf``.
+
+Everything on it is a key of the campaign's ``summary.json`` (:mod:`calflow.certificate.annotate`):
+as-found and as-left values of each model when the summary has them, each result with its
+U, k and effective dof, the decision rule and specification, the decision and its specific
+probability of a false accept (or reject), and each figure's uncertainty budget. Rendered
+with the reports' Jinja2 environment (autoescaped) and WeasyPrint, as the reports are.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from calflow.report.render import dig
+
+UNITS = {"um": "µm", "nm": "nm", "deg": "°"}
+
+
+def unit_of(key: str) -> str:
+    """The unit of a summary key from its suffix (``accuracy_um`` → µm)."""
+    return UNITS.get(key.rsplit("_", 1)[-1], "")
+
+
+def rows(summary: dict) -> list[dict]:
+    """One row per figure with a U or a decision: label, key, value, unit, uncertainty, conformity."""
+    out = []
+    for f in (summary.get("certificate") or {}).get("figures", []):
+        parent = dig(summary, ".".join(f["path"])) if f["path"] else summary
+        if not isinstance(parent, dict):
+            continue
+        key = f["key"]
+        out.append(
+            {
+                "label": f["label"],
+                "key": key,
+                "dotted": ".".join([*f["path"], key]),
+                "value": parent.get(key),
+                "unit": unit_of(key),
+                "uncertainty": (parent.get("uncertainty") or {}).get(key),
+                "conformity": (parent.get("conformity") or {}).get(key),
+            }
+        )
+    return out
+
+
+def as_found_left(summary: dict) -> list[dict]:
+    """Per model with ``as_found`` or ``as_left`` values: both, and the as-found decisions."""
+    out = []
+    for name, m in (summary.get("models") or {}).items():
+        if not isinstance(m, dict) or not (m.get("as_found") or m.get("as_left")):
+            continue
+        out.append(
+            {"model": name, "as_found": m.get("as_found") or {}, "as_left": m.get("as_left") or {}, "m": m}
+        )
+    return out
+
+
+def render(summary: dict, campaign: dict, command: str) -> str:
+    """The certificate's HTML."""
+    from calflow.report.render import TEMPLATES, _machine, _versions, environment
+
+    template = environment().get_template("certificate.html.j2")
+    return template.render(
+        s=summary,
+        c=campaign,
+        cert=summary.get("certificate") or {},
+        rows=rows(summary),
+        models=as_found_left(summary),
+        command=command,
+        versions=_versions(),
+        machine=_machine(),
+        css=(TEMPLATES / "style.css").read_text(),
+    )
+
+
+def run(args) -> None:
+    """``calflow certificate``: the page from the campaign's summary."""
+    from calflow.config import load_campaign
+    from calflow.data.io import load_summary, write_bytes, write_text
+    from calflow.report.render import write_pdf
+
+    campaign = load_campaign(args.campaign)
+    summary = load_summary(args.summary)
+    command = f"snakemake --cores 2 reports/{campaign['name']}/certificate.html"
+    html = render(summary, campaign, command)
+    if args.pdf:
+        pdf = write_pdf(html, Path(args.html).parent)
+        write_text(html, args.html)
+        write_bytes(pdf, args.pdf)
+    else:
+        write_text(html, args.html)

@@ -1,0 +1,148 @@
+"""U of the headline figures (calflow.metrics.uncertainty): GUM, Welch–Satterthwaite, Monte Carlo."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from calflow.metrics.uncertainty import (
+    Term,
+    chi_rp_factor,
+    coverage_factor,
+    gum_linear,
+    maximum_interval,
+    pooled_scatter,
+    welch_satterthwaite,
+)
+from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
+
+
+def test_welch_satterthwaite_one_finite_term_gives_its_dof():
+    # u_c^4 / (u_1^4 / nu_1) with u_2 infinite-dof: nu_1 (u_c/u_1)^4
+    assert welch_satterthwaite([1.0, 1.0], [10, math.inf]) == pytest.approx(10 * 4)
+    assert welch_satterthwaite([1.0], [7]) == pytest.approx(7)
+    assert math.isinf(welch_satterthwaite([1.0, 2.0], [math.inf, math.inf]))
+
+
+def test_coverage_factor_is_students_t():
+    assert coverage_factor(math.inf) == pytest.approx(1.959964, abs=1e-6)
+    assert coverage_factor(4) == pytest.approx(2.776445, abs=1e-6)
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_rp_factor_matches_simulation(d):
+    z = np.random.default_rng(d).standard_normal((400_000, d))
+    r = np.linalg.norm(z, axis=1)
+    assert chi_rp_factor(d) == pytest.approx(r.mean() + 3 * r.std(), rel=5e-3)
+
+
+def test_gum_and_monte_carlo_agree_on_the_signed_mean_reversal():
+    """B̄ is linear in the cell means: the GUM U and the Monte Carlo spread of the same model agree."""
+    rng = np.random.default_rng(4)
+    t = np.linspace(0, 100, 8)
+    f = t[:, None] + 0.2 + rng.normal(0, 0.1, (8, 6))
+    b = t[:, None] + rng.normal(0, 0.1, (8, 6))
+    terms = [Term("drift", 0.05, scope="target")]
+    r = iso230_2_uncertainty(t, f, b, terms, trials=20_000)
+    gum = r["B_mean"]
+    assert "GUM" in gum.method
+    # the same model by Monte Carlo: cell means with σ drawn from its posterior, the drift per cell
+    s, dof = pooled_scatter([row[:, None] for row in np.vstack([f, b])])
+    m = 400_000
+    g = np.random.default_rng(1)
+    sigma = s[0] * np.sqrt(dof / g.chisquare(dof, m))
+    e = g.standard_normal((m, 16)) * (sigma[:, None] / math.sqrt(6)) + g.normal(0, 0.05, (m, 16))
+    mc = gum.value + (e[:, :8] - e[:, 8:]).mean(axis=1)
+    assert np.std(mc) == pytest.approx(gum.u, rel=0.02)
+    lo, hi = np.quantile(mc, [0.025, 0.975])
+    assert (hi - lo) / 2 == pytest.approx(gum.U, rel=0.03)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.floats(0.1, 5.0), st.floats(0.1, 5.0), st.integers(3, 30))
+def test_gum_linear_is_root_sum_of_squares(a, b, dof):
+    r = gum_linear(1.0, {"a": a, "b": b}, {"a": dof})
+    uc = math.hypot(a, b)
+    assert r.u == pytest.approx(uc)
+    assert r.dof_eff == pytest.approx(dof * (uc / a) ** 4)
+    assert r.U == pytest.approx(stats.t.ppf(0.975, r.dof_eff) * uc)
+    assert r.interval == pytest.approx((1.0 - r.U, 1.0 + r.U))
+
+
+def test_maximum_interval_of_one_clear_maximum_is_its_cells():
+    rng = np.random.default_rng(0)
+    draws = np.column_stack([rng.normal(10, 1, 100_000), rng.normal(0, 1, 100_000)])
+    lo, hi, t_eff = maximum_interval([10.0, 0.0], draws)
+    assert t_eff == pytest.approx(1.0, abs=1e-3)
+    assert (lo, hi) == pytest.approx((10 - 1.96, 10 + 1.96), abs=0.05)
+
+
+def test_maximum_interval_widens_with_ties():
+    rng = np.random.default_rng(0)
+    draws = rng.normal(0, 1, (50_000, 6))
+    lo1, hi1, _ = maximum_interval([0.0], draws[:, :1])
+    lo, hi, t_eff = maximum_interval(np.zeros(6), draws)
+    assert t_eff > 4
+    assert hi - lo > hi1 - lo1
+
+
+def test_ap_interval_covers_the_truth_on_synthetic_stages():
+    """95 % intervals of AP cover a known true AP in 93–97 % of synthetic stages (±2σ of 150 draws)."""
+    hits = 0
+    for seed in range(150):  # 150 synthetic stages, 2000 trials each
+        rng = np.random.default_rng(seed)
+        cmd = rng.uniform(-1000, 1000, (6, 2))
+        bias = rng.normal(0, 1.0, (6, 2))
+        att = [c + b + rng.normal(0, 0.3, (4, 2)) for c, b in zip(cmd, bias)]
+        lo, hi = iso9283_uncertainty(cmd, att, trials=2000, seed=seed)["accuracy"].interval
+        hits += lo <= np.max(np.linalg.norm(bias, axis=1)) <= hi
+    assert 0.90 <= hits / 150 <= 0.99
+
+
+def test_relative_terms_scale_with_position_and_common_offsets_cancel_in_ranges():
+    t = np.linspace(0, 1000, 6)
+    rng = np.random.default_rng(2)
+    f = t[:, None] + rng.normal(0, 0.01, (6, 5))
+    b = t[:, None] + rng.normal(0, 0.01, (6, 5))
+    r = iso230_2_uncertainty(
+        t, f, b, [Term("scale", 10.0, relative=True), Term("offset", 5.0)], trials=20_000
+    )
+    # a 10 ppm scale over 1000 µm makes E = |ε|·1000 µm: SD 10 nm·sqrt(1 − 2/π); an offset cancels
+    assert r["E"].budget["scale"] == pytest.approx(0.01 * math.sqrt(1 - 2 / math.pi), rel=0.1)
+    assert r["E"].budget["offset"] == pytest.approx(0.0, abs=1e-9)
+    assert r["E"].interval[0] <= r["E"].value <= r["E"].interval[1]
+
+
+def test_reading_terms_are_listed_not_added():
+    rng = np.random.default_rng(3)
+    cmd = np.zeros((3, 1))
+    att = [rng.normal(1.0, 0.1, (10, 1)) for _ in range(3)]
+    a = iso9283_uncertainty(cmd, att, trials=5000)["accuracy"]
+    b = iso9283_uncertainty(cmd, att, [Term("noise", 0.1, scope="reading")], trials=5000)["accuracy"]
+    assert b.U == pytest.approx(a.U)
+    assert "noise (in the sample term)" in b.budget
+
+
+def test_bad_inputs():
+    with pytest.raises(ValueError, match="scope"):
+        Term("x", 1.0, scope="sometimes")
+    with pytest.raises(ValueError, match=">= 0"):
+        Term("x", -1.0)
+    with pytest.raises(ValueError, match="two or more"):
+        iso9283_uncertainty(np.zeros((1, 2)), [np.zeros((1, 2))])
+    with pytest.raises(ValueError, match="unique"):
+        iso9283_uncertainty(np.zeros((1, 1)), [np.zeros((3, 1))], [Term("a", 1), Term("a", 2)])
+
+
+def test_rp_factor_of_unequal_axes_matches_simulation_and_reduces_to_chi():
+    from calflow.metrics.uncertainty_iso import rp_factor
+
+    assert rp_factor([1.0, 1.0, 1.0]) == chi_rp_factor(3)
+    r = np.array([0.5, 1.2, 1.2]) / math.sqrt(np.mean(np.array([0.5, 1.2, 1.2]) ** 2))
+    z = np.linalg.norm(np.random.default_rng(1).standard_normal((400_000, 3)) * r, axis=1)
+    assert rp_factor(r) == pytest.approx(z.mean() + 3 * z.std(), rel=5e-3)

@@ -1,0 +1,29 @@
+# A campaign's certificate: its results with U, the stage's decision rule and decisions
+# (summary keys written by the summarise rule; docs/certificate.md).
+
+
+rule certificate:
+    input:
+        summary="results/{campaign}/summary.json",
+    output:
+        html="reports/{campaign}/certificate.html",
+        pdf="reports/{campaign}/certificate.pdf",
+    log:
+        "results/{campaign}/logs/certificate.log",
+    benchmark:
+        "results/{campaign}/benchmarks/certificate.tsv"
+    group:
+        "campaign"
+    conda:
+        "../envs/calflow.yaml"
+    resources:
+        mem_mb=400,
+        runtime=1,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [module_digest("calflow.certificate", "calflow.report")]
+        ),
+    shell:
+        "calflow certificate --campaign {params.campaign} --summary {input.summary}"
+        " --html {output.html} --pdf {output.pdf} > {log} 2>&1"
