@@ -21,9 +21,7 @@ rule certificate:
         runtime=1,
     params:
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [module_digest("calflow.certificate", "calflow.report")]
-        ),
+        digest=lambda w: digest([code_digest("certificate", robot(w))]),
     shell:
         "calflow certificate --campaign {params.campaign} --summary {input.summary}"
         " --html {output.html} --pdf {output.pdf} > {log} 2>&1"
