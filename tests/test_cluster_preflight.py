@@ -74,7 +74,7 @@ def test_nodes_slurm_powers_up_on_demand_can_run_a_job(case):
 @pytest.mark.parametrize("case", sorted(DOWN_WHILE_POWERING))
 def test_a_node_down_or_drained_is_no_node_even_while_powering_up(case):
     msg = partition_problem("normal", DOWN_WHILE_POWERING[case])
-    assert f"has no node that can run a job (node states: {case}#)" in msg
+    assert f"has no node that can run a job (node states: {case}#; sinfo -R says why)" in msg
 
 
 @pytest.mark.parametrize("state", ["idle$", "mixed@", "allocated^", "planned-", "reserved", "maint"])
@@ -93,7 +93,10 @@ def test_a_missing_partition_is_named_with_the_ones_there_are():
 
 
 def test_a_partition_set_down_starts_nothing():
-    assert partition_problem("long", SITE).startswith("SLURM partition 'long' is down")
+    assert (
+        partition_problem("long", SITE)
+        == "SLURM partition 'long' is down: it starts no job (sinfo -R says why)"
+    )
 
 
 @pytest.mark.parametrize("avail", ["inactive", "drain"])
@@ -103,7 +106,10 @@ def test_a_partition_inactive_or_draining_starts_nothing(avail):
 
 def test_nodes_down_or_not_responding_leave_no_node():
     msg = partition_problem("big", SITE)
-    assert "no node that can run a job" in msg and "down*" in msg and "idle*" in msg
+    assert (
+        msg
+        == "SLURM partition 'big' has no node that can run a job (node states: down*, idle*; sinfo -R says why)"
+    )
 
 
 def test_no_partition_and_no_default():
@@ -127,7 +133,7 @@ def test_a_list_naming_a_partition_that_does_not_exist_is_refused_as_sbatch_does
 def test_a_list_none_of_which_can_run_a_job_names_each():
     msg = partition_problem("long,big", SITE)
     assert msg.startswith("no SLURM partition of 'long,big' can run a job: 'long' is down")
-    assert "'big' has no node that can run a job (node states: down*, idle*)" in msg
+    assert msg.endswith("'big' has no node that can run a job (node states: down*, idle*; sinfo -R says why)")
     assert "\n" not in msg
 
 

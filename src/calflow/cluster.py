@@ -108,8 +108,15 @@ def partition_problem(partition: str | None, sinfo_text: str) -> str | None:
     if not names or not all(reasons):
         return None
     if len(names) == 1:
-        return f"SLURM partition {reasons[0]} (sinfo -R says why)"
-    return f"no SLURM partition of {partition!r} can run a job: {'; '.join(reasons)} (sinfo -R says why)"
+        return _hint(f"SLURM partition {reasons[0]}")
+    return _hint(f"no SLURM partition of {partition!r} can run a job: {'; '.join(reasons)}")
+
+
+def _hint(sentence: str) -> str:
+    """``sentence`` pointing to ``sinfo -R``, inside its closing parenthesis if it has one."""
+    if sentence.endswith(")"):
+        return f"{sentence[:-1]}; sinfo -R says why)"
+    return f"{sentence} (sinfo -R says why)"
 
 
 def _run(cmd: list[str], what: str, timeout: float = 60) -> subprocess.CompletedProcess:
