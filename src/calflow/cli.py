@@ -165,6 +165,7 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
+    a.add_argument("--decoded", help="a frame recording's decoded run (calflow decode-run), for a replay rig")
     a.add_argument(
         "--rig-plugins",
         metavar="MODULES",
@@ -248,6 +249,16 @@ def parser() -> argparse.ArgumentParser:
     ir.add_argument("--plan", required=True, help="the run's plan (e.g. metrology, training)")
     ir.add_argument("--campaign", required=True)
     ir.add_argument("--out", required=True)
+
+    dr = _sub(
+        sub,
+        "decode-run",
+        _run("calflow.commands.decode_run:run"),
+        "decode a replay campaign's recorded camera frames into the run dataset of one run",
+    )
+    dr.add_argument("--campaign", required=True)
+    dr.add_argument("--run", required=True, help="the run id of the frame recording (rig.options.recordings)")
+    dr.add_argument("--out", required=True)
 
     v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")

@@ -65,6 +65,20 @@ class FamilyWorkflow:
         """The campaign values identification of ``model`` reads: a change reruns it."""
         return []
 
+    def acquire_modules(self, c: dict) -> tuple[str, ...]:
+        """Modules the campaign's acquisitions run beyond the family's ``acquire`` step (an
+        instrument its rig options switch on): their code is in the acquisitions' digest."""
+        return instrument_modules(c)
+
+
+def instrument_modules(c: dict) -> tuple[str, ...]:
+    """The instrument a campaign's ``gcs`` rig reads through its ``camera`` sensor, if any."""
+    options = c["rig"].get("options") or {}
+    sensor = options.get("sensor") if c["rig"]["factory"] == "gcs" else None
+    if isinstance(sensor, Mapping) and sensor.get("factory") == "camera":
+        return ("calflow.instruments", "calflow.gcs.camera")
+    return ()
+
 
 DEFAULT = FamilyWorkflow()
 
@@ -96,6 +110,30 @@ def replayed_runs(c: dict) -> set[str]:
     if isinstance(rec, str) and rec and os.path.isdir(rec):
         return {f[: -len(".nc")] for f in os.listdir(rec) if f.endswith(".nc")}
     return set()
+
+
+def frame_recordings(c: dict) -> dict[str, dict]:
+    """The runs of a replay campaign recorded as camera frames (``format: frames``), by run
+    id: each is decoded by the ``decode_frames`` rule before the replay rig serves it."""
+    recordings = c["rig"].get("options", {}).get("recordings")
+    if c["rig"]["factory"] != "replay" or not isinstance(recordings, dict):
+        return {}
+    return {
+        run: spec
+        for run, spec in recordings.items()
+        if isinstance(spec, Mapping) and spec.get("format") == "frames"
+    }
+
+
+def frame_files(spec: Mapping) -> list[str]:
+    """The files a frame recording's decoding reads: the stack or every image of the folder
+    (the table names them), the table and the pattern file."""
+    source = str(spec["file"])
+    files = [source] if os.path.isfile(source) else []
+    if os.path.isdir(source):
+        suffixes = (".png", ".tif", ".tiff", ".bmp", ".pgm")
+        files = sorted(os.path.join(source, f) for f in os.listdir(source) if f.lower().endswith(suffixes))
+    return files + [str(spec["table"]), str(spec["pattern"])]
 
 
 def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") -> dict:

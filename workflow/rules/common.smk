@@ -11,10 +11,10 @@ from calflow.config import (
     load_campaign,
     load_workflow_config,
 )
-from calflow.provenance import code_digest
+from calflow.provenance import code_digest, module_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
-from calflow.family_workflow import hooks, load_study
+from calflow.family_workflow import frame_files, frame_recordings, hooks, load_study
 from calflow.lifecycle.stages import stages_of
 
 
@@ -106,9 +106,17 @@ def rig_digest(run_id):
         c = CAMPAIGN[wildcards.campaign]
         rid = run_id(wildcards) if callable(run_id) else run_id
         rig = {**c["rig"], "runs": c["rig"].get("runs", {}).get(rid)}
-        return digest(
-            [code_digest("acquire", c["robot"]), c["robot"], c["seed"], c["start"], rig]
-        )
+        parts = [
+            code_digest("acquire", c["robot"]),
+            c["robot"],
+            c["seed"],
+            c["start"],
+            rig,
+        ]
+        instrument = hooks(c).acquire_modules(
+            c
+        )  # a camera and decoder the rig reads through
+        return digest(parts + [module_digest(*instrument)] if instrument else parts)
 
     return _digest
 
@@ -145,8 +153,38 @@ def plan_section(w):
 
 
 def acquire_inputs(w):
-    """Files an open-loop run's plan reads, by option of ``calflow acquire``."""
-    return hooks_of(w.campaign).acquire_inputs(CAMPAIGN[w.campaign], w.run)
+    """Files an open-loop run's plan reads, by option of ``calflow acquire``; a run
+    recorded as camera frames is served from its decoded run (rule decode_frames)."""
+    c = CAMPAIGN[w.campaign]
+    inputs = hooks_of(w.campaign).acquire_inputs(c, w.run)
+    if w.run in frame_recordings(c):
+        inputs = {**inputs, "decoded": f"results/{w.campaign}/decoded/{w.run}.nc"}
+    return inputs
+
+
+def frames_of(w):
+    """The files a frame recording's decoding reads (rule decode_frames)."""
+    c = CAMPAIGN[w.campaign]
+    if w.run not in frame_recordings(c):
+        raise ValueError(
+            f"{w.campaign}: run {w.run!r} is not recorded as camera frames"
+        )
+    return frame_files(frame_recordings(c)[w.run])
+
+
+def decode_digest(w):
+    """What decoding a frame recording depends on: its entry and the decoder's code."""
+    spec = frame_recordings(CAMPAIGN[w.campaign])[w.run]
+    return digest(
+        [
+            module_digest(
+                "calflow.instruments",
+                "calflow.data.frames",
+                "calflow.commands.decode_run",
+            ),
+            spec,
+        ]
+    )
 
 
 def identify_inputs(w):

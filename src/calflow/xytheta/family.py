@@ -25,6 +25,10 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
         if sensor.get("factory") == "simulated_vision":
             sensor["options"] = {"seed": c["seed"], **sensor.get("options", {}), "stream": run_id}
             options["sensor"] = sensor
+        source = dict((sensor.get("options") or {}).get("source") or {})
+        if sensor.get("factory") == "camera" and source.get("factory") == "simulated_camera":
+            source["options"] = {"seed": c["seed"], **(source.get("options") or {}), "stream": run_id}
+            options["sensor"] = {**sensor, "options": {**sensor["options"], "source": source}}
     return options
 
 
@@ -205,6 +209,7 @@ FAMILY = Family(
             "calflow.metrics",
             "calflow.xytheta.report.summary",
             "calflow.xytheta.report.heldout",
+            "calflow.xytheta.report.instrument",
             "calflow.xytheta.stage.oracle",
             "calflow.xytheta.stage.rig",
             "calflow.xytheta.stage.physics",
@@ -233,6 +238,13 @@ FAMILY = Family(
             "calflow.xytheta.tables.angle",
         ),
         "error_budget": _CORE + ("calflow.acquisition", "calflow.rigs", "calflow.xytheta"),
+        "instrument": _CORE
+        + (
+            "calflow.instruments",
+            "calflow.xytheta.stage.bench",
+            "calflow.xytheta.stage.images",
+            "calflow.xytheta.stage.physics",
+        ),
         "export": _CORE
         + (
             "calflow.xytheta.export",
@@ -250,6 +262,7 @@ FAMILY = Family(
         + (
             "calflow.report",
             "calflow.xytheta.report.figures",
+            "calflow.xytheta.report.instrument",
             "calflow.xytheta.report.templates",
             "calflow.xytheta.models.ladder",
             "calflow.xytheta.design.study",
@@ -275,6 +288,12 @@ FAMILY = Family(
             "replay the calibration with each rig effect off: the error budget (simulated rigs)",
             _budget_arguments,
             "calflow.xytheta.stage.error_budget:error_budget_command",
+        ),
+        Command(
+            "instrument-bench",
+            "the camera and decoder of a rig that reads through images, on rendered frames (report)",
+            _observability_arguments,
+            "calflow.xytheta.stage.bench:bench_command",
         ),
         Command(
             "design-study",
@@ -308,7 +327,10 @@ FAMILY = Family(
         ),
         Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
     ),
-    sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
+    sensors={  # of the gcs rig; simulated_camera is a frame source of its camera sensor (gcs.camera)
+        "simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision",
+        "simulated_camera": "calflow.xytheta.stage.vision_sensor:simulated_camera",
+    },
     emulator="calflow.xytheta.stage.emulate:emulate_main",
     joints={"xytheta": ("x", "y", "theta")},
     reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},
@@ -323,6 +345,7 @@ FAMILY = Family(
         "metrics:observability": "observability",
         "metrics:design_study": "design_study",
         "metrics:validation_export": "export",
+        "metrics:instrument": "instrument",
         "luts": "characterisation",
         "run:characterisation_x": "iso230_2",
         "run:characterisation_y": "iso230_2",

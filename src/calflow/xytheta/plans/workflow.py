@@ -63,7 +63,16 @@ class XYThetaWorkflow(FamilyWorkflow):
             files.append(f"{base}/luts/position.nc")
             files += [f"{base}/runs/characterisation_{a}.nc" for a in "xy"]  # ISO 230-2
         files += [f"{base}/metrics/{t}_{k}.nc" for t in ("square", "random_points") for k in tests]
+        if self.reads_images(c):  # the camera and decoder on the bench (report)
+            files.append(f"{base}/metrics/instrument.nc")
         return files + self.export_results(c)
+
+    @staticmethod
+    def reads_images(c: dict) -> bool:
+        """The simulated rig reads its vision sensor through rendered frames (stage.images)."""
+        return (
+            c["rig"]["factory"] == "simulated" and (c["rig"].get("options") or {}).get("sensor") == "images"
+        )
 
     def export_results(self, c: dict) -> list[str]:
         """The export metrics the summary draws on: every model; on a replayed rig, those whose
@@ -80,10 +89,11 @@ class XYThetaWorkflow(FamilyWorkflow):
         return f"results/{c['name']}/truth/identification.json"
 
     def budget_files(self, c: dict) -> list[str]:
-        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
+        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``,
+        or that read their sensor through images (the replay with the noise-model sensor)."""
         if "interim_check" in c or c["rig"]["factory"] != "simulated":
             return []
-        if not c["validation"]["heldout"]["error_budget"]:
+        if not (c["validation"]["heldout"]["error_budget"] or self.reads_images(c)):
             return []
         return [f"results/{c['name']}/truth/error_budget.json"]
 
@@ -119,6 +129,12 @@ class XYThetaWorkflow(FamilyWorkflow):
         if spec.get("position_table"):
             inputs["luts"] = f"{base}/luts/position.nc"
         return inputs
+
+    def acquire_modules(self, c: dict) -> tuple[str, ...]:
+        """The camera model and decoder when the simulated rig reads through images."""
+        if self.reads_images(c):
+            return ("calflow.instruments", "calflow.xytheta.stage.images")
+        return super().acquire_modules(c)
 
     def identify_sections(self, c: dict, model: str) -> list:
         spec = c["models"][model]

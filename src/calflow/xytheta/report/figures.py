@@ -321,4 +321,8 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
         draw(validation, summary),
         draw(angle_errors, inputs),
     ]
+    from calflow.xytheta.report import instrument
+
+    figures += [draw(instrument.example_frame, inputs.metrics.get("instrument", {}).get(""))]
+    figures += [draw(instrument.period_error, inputs.metrics.get("instrument", {}).get(""))]
     return [f for f in figures if f is not None], notes

@@ -20,11 +20,13 @@ def budget_digest(w):
         "models",
     )
     v = c["validation"]
-    return digest(
+    parts = (
         [code_digest("error_budget", "xytheta")]
         + [c.get(k) for k in keys]
         + [v["heldout"], v["dwell_s"]]
     )
+    instrument = hooks(c).acquire_modules(c)  # the camera and decoder of an images rig
+    return digest(parts + [module_digest(*instrument)] if instrument else parts)
 
 
 def interim_export(w):
