@@ -64,7 +64,7 @@ def spectrum(frame: np.ndarray, pattern, camera) -> np.ndarray:
     return np.log10(crop + 1e-9).astype(np.float32)
 
 
-def bench(pattern, camera, pose, steps: int = 16, static: int = 16, seed: int = 0) -> xr.Dataset:
+def bench(pattern, camera, pose, steps: int = 12, static: int = 12, seed: int = 0) -> xr.Dataset:
     """The bench's dataset (module docstring) around ``pose`` = (x µm, y µm, Θ degree), a
     camera point and angle in the pattern frame (Eq. 4.26); ``steps`` frames over one period,
     ``static`` frames of one pose; noise drawn from ``seed``."""
