@@ -281,6 +281,25 @@ def parser() -> argparse.ArgumentParser:
         help="--campaign FILE [--port 50000] [--time-scale 1] [--duration S]",
     )
 
+    from calflow.instruments.pattern.commands import decode_arguments, pattern_arguments
+
+    pattern_arguments(
+        _sub(
+            sub,
+            "pattern",
+            _run("calflow.instruments.pattern.commands:run_pattern"),
+            "an encoded dot pattern: its file, GDSII and preview (docs/instruments.md)",
+        )
+    )
+    decode_arguments(
+        _sub(
+            sub,
+            "decode",
+            _run("calflow.instruments.pattern.commands:run_decode"),
+            "decode frames of an encoded pattern into x, y, Θ (docs/instruments.md)",
+        )
+    )
+
     from calflow.family import families
 
     for family in families():
