@@ -62,7 +62,10 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     frames = FrameFiles(e["file"], table.frame, frame_shape(camera))
     readings, shas = [], []
     for rows, block, digests in frames.chunks(CHUNK):
-        d = decode(block, pattern, camera)
+        try:
+            d = decode(block, pattern, camera)
+        except ValueError as exc:  # the camera cannot decode this pattern (field of view)
+            raise DataError(f"{e['file']}: rig.options.recordings.{run_id}: {exc}") from None
         r = readings_of(d)
         for k in range(len(block)):
             i = rows.start + k

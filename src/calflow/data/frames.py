@@ -2,9 +2,8 @@
 
 A lab that filmed its pattern under the microscope hands calflow
 
-* the frames: a folder of image files (``.png``, ``.tif``/``.tiff``, ``.bmp``, ``.pgm``) or
-  one multi-page TIFF stack (read with tifffile), monochrome, integer pixels, each of the
-  camera's size;
+* the frames: a folder of image files (``.png``, ``.tif``/``.tiff``) or one multi-page TIFF
+  stack (read with tifffile, page by page), monochrome, each of the camera's size;
 * a CSV table, one row per frame: ``frame`` (the file name in the folder, or the 0-based
   page of the stack), ``time`` (seconds since the recording's start, or ISO 8601 times),
   ``cmd_<joint>`` for every joint of the robot (µm, degree); optionally ``target_<axis>``,
@@ -31,7 +30,7 @@ import numpy as np
 
 from calflow.errors import DataError
 
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".pgm")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff")  # what calflow.instruments.pattern.frames reads
 STACK_SUFFIXES = (".tif", ".tiff")
 INDEX_COLUMNS = ("pose", "cycle", "direction")
 MISSING = ("", "nan", "NaN", "NA", "N/A")
@@ -167,15 +166,7 @@ class FrameFiles:
         if self.stack:
             if self.source.suffix.lower() not in STACK_SUFFIXES:
                 raise DataError(f"{self.source}: frames: expected a folder of images or a TIFF stack (.tif)")
-            import tifffile
-
-            try:
-                with tifffile.TiffFile(self.source) as tif:
-                    self.pages = len(tif.pages)
-            except Exception as exc:  # tifffile raises its own and OS errors: the file is not a TIFF
-                raise DataError(
-                    f"{self.source}: frames: not a readable TIFF stack ({_reason(exc)})"
-                ) from None
+            self.pages = _stack_pages(self.source)
             if self.pages != len(self.names):
                 raise DataError(
                     f"{self.source}: TIFF stack of {self.pages} frames, the joints table has "
@@ -219,9 +210,9 @@ class FrameFiles:
                 rows = range(start, min(start + size, len(self)))
                 frames, shas = [], []
                 for i in rows:
-                    data = (self.source / self.names[i]).read_bytes()
-                    frames.append(self._check(self._image(data, i), i))
-                    shas.append(hashlib.sha256(data).hexdigest())
+                    path = self.source / self.names[i]
+                    frames.append(self._check(self._image(path), i))
+                    shas.append(file_sha256(path))
                 yield slice(rows.start, rows.stop), np.stack(frames), shas
 
     def _page(self, tif, i: int) -> np.ndarray:
@@ -230,27 +221,19 @@ class FrameFiles:
         except Exception as exc:  # a truncated or corrupt page
             raise DataError(f"{self.where(i)}: not a readable image ({_reason(exc)})") from None
 
-    def _image(self, data: bytes, i: int) -> np.ndarray:
-        import io
+    def _image(self, path: Path) -> np.ndarray:
+        """One image file: the instrument's reader (formats, colour, readability)."""
+        from calflow.instruments.pattern.frames import read_frames
 
-        name = self.names[i]
-        try:
-            if Path(name).suffix.lower() in STACK_SUFFIXES:
-                import tifffile
-
-                return tifffile.imread(io.BytesIO(data))
-            from PIL import Image
-
-            with Image.open(io.BytesIO(data)) as im:
-                im.load()
-                return np.asarray(im)
-        except Exception as exc:  # PIL/tifffile errors of a truncated or corrupt file
-            raise DataError(f"{self.where(i)}: not a readable image ({_reason(exc)})") from None
+        frames, _ = read_frames([path])
+        if len(frames) != 1:
+            raise DataError(f"{path}: {len(frames)} frames in one file; expected one frame per table row")
+        return frames[0]
 
     def _check(self, frame: np.ndarray, i: int) -> np.ndarray:
-        if frame.ndim != 2 or frame.dtype.kind not in "ui":
+        if frame.ndim != 2 or frame.dtype.kind not in "uif":
             raise DataError(
-                f"{self.where(i)}: expected a monochrome frame of integer pixels, got "
+                f"{self.where(i)}: expected a monochrome frame of integers or floats, got "
                 f"{frame.dtype} of shape {frame.shape}"
             )
         if self.shape is not None and frame.shape != tuple(self.shape):
@@ -260,6 +243,45 @@ class FrameFiles:
                 f"{frame.shape[1]} × {frame.shape[0]}"
             )
         return frame
+
+
+def _stack_pages(path: Path) -> int:
+    """The page count of a TIFF stack; :class:`DataError` when it is not readable, or is
+    truncated or corrupt (tifffile then logs an error and stops counting, or a page's data
+    would lie beyond the end of the file)."""
+    import logging
+
+    import tifffile
+
+    class Errors(logging.Handler):
+        def __init__(self):
+            super().__init__(logging.ERROR)
+            self.messages: list[str] = []
+
+        def emit(self, record):
+            self.messages.append(record.getMessage())
+
+    log = logging.getLogger("tifffile")
+    errors, propagate = Errors(), log.propagate
+    log.addHandler(errors)
+    log.propagate = False  # its own line would be a second one
+    try:
+        with tifffile.TiffFile(path) as tif:
+            pages = len(tif.pages)
+            size = path.stat().st_size
+            ends = [
+                max((o + n for o, n in zip(page.dataoffsets, page.databytecounts)), default=0)
+                for page in tif.pages
+            ]
+    except Exception as exc:  # tifffile raises its own and OS errors: the file is not a TIFF
+        raise DataError(f"{path}: frames: not a readable TIFF stack ({_reason(exc)})") from None
+    finally:
+        log.removeHandler(errors)
+        log.propagate = propagate
+    if errors.messages or any(end > size for end in ends):
+        why = errors.messages[0] if errors.messages else "a page's data lies beyond the end of the file"
+        raise DataError(f"{path}: frames: not a readable TIFF stack, truncated or corrupt ({why[:160]})")
+    return pages
 
 
 def _pixels_sha(frame: np.ndarray) -> str:

@@ -73,7 +73,10 @@ class CameraSensor:
         problem = check_frame(frame, self.camera)
         if problem:
             raise RigError(f"gcs rig: camera sensor: frame {self.frames}: {problem}")
-        return decode_readings(frame[None], self.pattern, self.camera)[0]
+        try:
+            return decode_readings(frame[None], self.pattern, self.camera)[0]
+        except ValueError as exc:  # the camera cannot decode this pattern (field of view)
+            raise RigError(f"gcs rig: camera sensor: {exc}") from None
 
     def close(self) -> None:
         self.source.close()

@@ -71,8 +71,8 @@ def frame_shape(camera) -> tuple[int, int]:
 
 def check_frame(frame: np.ndarray, camera) -> str | None:
     """What is wrong with ``frame`` for ``camera`` (type, size), or None."""
-    if frame.ndim != 2 or frame.dtype.kind not in "ui":
-        return f"expected a monochrome frame of integer pixels, got {frame.dtype} of shape {frame.shape}"
+    if frame.ndim != 2 or frame.dtype.kind not in "uif":
+        return f"expected a monochrome frame of integers or floats, got {frame.dtype} of shape {frame.shape}"
     h, w = frame_shape(camera)
     if frame.shape != (h, w):
         return f"expected {w} × {h} pixels (the camera's width × height), got {frame.shape[1]} × {frame.shape[0]}"
