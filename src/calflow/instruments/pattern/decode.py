@@ -202,11 +202,11 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
     sign = 1.0 if med[qf] > 0 else -1.0
     contrast = contrast * sign
     fmask = valid & (par == qf)
-    num = ndimage.uniform_filter(np.where(fmask, contrast, 0.0), size=7, mode="constant")
-    den = ndimage.uniform_filter(fmask.astype(float), size=7, mode="constant")
-    level = np.where(den > 0, num / np.maximum(den, 1e-12), np.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = contrast / level
+    # local contrast from the always-present dots, twice: the second time only from those seen,
+    # so that dust or the pattern's edge does not dilute it
+    z = _normalised(contrast, fmask)
+    seen = fmask & (z > 0.5)
+    z = _normalised(contrast, seen)
     zf = z[fmask]
     frame_missing = float(np.mean(~(zf > 0.5))) if len(zf) else 1.0
     if frame_missing > MAX_FRAME_MISSING:
@@ -217,7 +217,12 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
         )
     present = z > 0.5
     # steps 8–9: the eight readings, each matched against both codes at every place
-    cmask = valid & (par != qf) & np.isfinite(z)
+    # a code dot is read only where the four frame dots around it are seen (not under dust,
+    # not off the pattern's edge)
+    seen = fmask & (z > 0.5)
+    pad = np.pad(seen, 1)
+    around_seen = pad[:-2, 1:-1] & pad[2:, 1:-1] & pad[1:-1, :-2] & pad[1:-1, 2:]
+    cmask = valid & (par != qf) & np.isfinite(z) & around_seen
     SS, TT = np.meshgrid(S, T)
     readings = []
     for m, Q in enumerate(_Q):
@@ -227,15 +232,22 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             pv = (qf - pu) % 2
             u, v = U + pu, V + pv
             xm, ym = cmask & (v % 2 == 0), cmask & (v % 2 == 1)
-            mx = _match(_votes(u[xm] // 2, present[xm]), pattern.x_bits)
-            # the y code is flipped on every other column of cells: undo it with the x place
-            flip = ((u[ym] // 2 + mx[1]) % 2) == 1
+            # the x code is flipped on odd rows of cells; where the rows start is not known yet,
+            # so the reading is matched as it is (y place even) and complemented (odd)
+            xr = _votes(u[xm] // 2, present[xm] ^ ((v[xm] // 2) % 2 == 1))
+            both = (_match(xr, pattern.x_bits), _match((xr[0], 1 - xr[1], xr[2]), pattern.x_bits))
+            q = int(both[1][0] < both[0][0])
+            mx, other = both[q], both[1 - q]
+            # the y code is flipped on odd pairs of columns of cells: undo it from the x place
+            flip = (((u[ym] // 2 + mx[1]) // 2) % 2) == 1
             my = _match(_votes(v[ym] // 2, present[ym] ^ flip), pattern.y_bits)
             enough = mx[3] >= pattern.window_bits[0] and my[3] >= pattern.window_bits[1]
-            readings.append((mx[0] + my[0] if enough else 10**6, m, pu, pv, mx, my))
+            consistent = my[1] % 2 == q  # the x flip guessed is the y place's parity
+            score = mx[0] + my[0] if enough and consistent else 10**6
+            readings.append((score, m, pu, pv, mx, my, other[0]))
     readings.sort(key=lambda r: (r[0], -(r[4][3] + r[5][3])))
     best = readings[0]
-    _, m, pu, pv, mx, my = best
+    _, m, pu, pv, mx, my, x_alt = best
     nbits = (mx[3], my[3])
     if nbits[0] < pattern.window_bits[0] or nbits[1] < pattern.window_bits[1]:
         return _fail(
@@ -244,11 +256,15 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             f"{pattern.window_bits[0]} and {pattern.window_bits[1]}",
         )
     if mx[0] > MAX_WRONG_BITS or my[0] > MAX_WRONG_BITS:
+        if best[0] >= 10**6:
+            return _fail(
+                "code_mismatch", "no reading of the code is consistent (x flips against the y place)"
+            )
         return _fail(
             "code_mismatch",
             f"the best reading has {mx[0]} x and {my[0]} y bits wrong (at most {MAX_WRONG_BITS} allowed)",
         )
-    runner = min([readings[1][0]] + [mx[0] + my[2], mx[2] + my[0]])
+    runner = min([readings[1][0]] + [mx[0] + my[2], mx[2] + my[0], x_alt + my[0]])
     if runner - best[0] < MIN_MARGIN:
         return _fail(
             "ambiguous",
@@ -298,6 +314,15 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
     return result
 
 
+def _normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around)."""
+    num = ndimage.uniform_filter(np.where(mask, contrast, 0.0), size=7, mode="constant")
+    den = ndimage.uniform_filter(mask.astype(float), size=7, mode="constant")
+    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return contrast / level
+
+
 def _angle(k, cov, sgn):
     """Direction (degree) of a lobe's frequency and its variance from the slope covariance."""
     g = 2 * np.pi * k  # rad per pixel; the covariance is of the fitted slopes (sign-free)
@@ -324,6 +349,9 @@ def _match(reading, code: np.ndarray):
     """Best place of a reading in the code: (wrong bits, cell offset, next-best wrong bits, bits used)."""
     c0, bits, sure = reading
     nsure = int(sure.sum())
+    if nsure:  # the cells before the first sure bit and after the last one are not read
+        first, last = np.flatnonzero(sure)[[0, -1]]
+        c0, bits, sure = c0 + int(first), bits[first : last + 1], sure[first : last + 1]
     L = len(code)
     if len(bits) == 0 or len(bits) > L or nsure == 0:
         return (10**6, 0, 10**6, nsure)

@@ -2,8 +2,8 @@
 
 GDSII: one cell ``DOT`` (a disc of the dot diameter, a polygon within 1 nm of the circle) and a
 top cell ``PATTERN`` that places it with arrays only — the two always-present classes as two
-arrays, each x-code column that carries dots as one array, each y-code row as one array of
-every other cell — so a 10 cm pattern is a file of kilobytes, not millions of polygons. Units:
+arrays, each x-code column as one array of every other row of cells, each y-code row as two
+arrays of every fourth cell — so a 10 cm pattern is a file of kilobytes, not millions of polygons. Units:
 1 µm, precision 1 nm; layer 1, datatype 0. The GDS y axis is the pattern's −y, so that a
 layout viewer (y up) shows the pattern as the camera sees it at Θ = 0 (rows downwards), like
 the preview; the dot of site (r, c) is at (c·p − origin_x, −(r·p − origin_y)).
@@ -48,12 +48,14 @@ def write_gds(pattern: Pattern, path, layer: int = 1, datatype: int = 0) -> Path
     half_r, half_c = rows // 2, cols // 2
     place(0, 0, half_r, half_c, 2, 2)  # sites (even, even)
     place(1, 1, half_r, half_c, 2, 2)  # sites (odd, odd)
-    for cell in np.flatnonzero(pattern.x_bits):  # x code: sites (even row, odd column 2·cell + 1)
-        place(0, 2 * int(cell) + 1, half_r, 1, 2, 2)
-    for cell_row, bit in enumerate(pattern.y_bits):  # y code: sites (2·cell_row + 1, even column)
-        first = 0 if bit else 1  # flipped on odd cells of columns: present where bit XOR (C odd)
-        n = (half_c - first + 1) // 2
-        place(2 * cell_row + 1, 2 * first, 1, n, 2, 4)
+    for cell, bit in enumerate(pattern.x_bits):  # x code: sites (2R, 2·cell + 1), bit XOR (R odd)
+        first = 0 if bit else 1
+        place(2 * first, 2 * cell + 1, (half_r - first + 1) // 2, 1, 4, 2)
+    for cell_row, bit in enumerate(
+        pattern.y_bits
+    ):  # y code: sites (2·cell_row + 1, 2C), bit XOR (C // 2 odd)
+        for first in (0, 1) if bit else (2, 3):
+            place(2 * cell_row + 1, 2 * first, 1, (half_c - first + 3) // 4, 2, 8)
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     lib.write_gds(str(tmp))

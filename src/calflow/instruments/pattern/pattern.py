@@ -5,21 +5,26 @@ column c along x — is at pattern coordinates ``(c·p − origin_x, r·p − or
 is cut into 2 × 2 cells; in each cell
 
 * the two nodes with r ≡ c (mod 2) always carry a dot (the periodic frame the phase sees);
-* node (r even, c odd) carries a dot when bit ``x_bits[c // 2]`` is 1 — the x code, constant
-  along a column of cells, read by a majority vote over every row in view;
-* node (r odd, c even) carries a dot when ``y_bits[r // 2] XOR ((c // 2) mod 2)`` is 1 — the y
-  code, flipped on every other column of cells.
+* node (r even, c odd) carries a dot when ``x_bits[c // 2] XOR ((r // 2) mod 2)`` is 1 — the x
+  code, constant along a column of cells but flipped on every other row of cells;
+* node (r odd, c even) carries a dot when ``y_bits[r // 2] XOR ((c // 4) mod 2)`` is 1 — the y
+  code, flipped on every other pair of columns of cells.
 
-The flip breaks the square grid's quarter-turn symmetry in the layout itself: read a quarter
-turn off, neither code class is constant along the direction its votes are taken, so no bit
-of such a reading is sure. The half turn is left to the codes: the x and y bits are the first
-bits of two m-sequences (primitive feedback polynomials, neither self-reciprocal), and a view
-read backwards must disagree with every forward window of both codes in at least
-:data:`MIN_DISTANCE` bits together, while two places along one axis must differ in that many
-bits on that axis alone. ``window_bits`` bits per axis (the polynomial's order plus redundancy,
-more where those distances need it) locate a view absolutely; :func:`code_distances` checks
-them on the code. The field of view decoding needs follows: ``window_bits + 1`` cells per axis
-(``min_fov_um``).
+The flips do two things. They move each code's random content off the grid's lobes, so that
+the missing dots average out of the phase planes instead of biasing them (by ~0.2 nm without
+them). And, being different along x (period 2 cells) and y (period 4 cells), they break the
+square grid's quarter-turn symmetry in the layout itself: read a quarter turn off, neither
+code class keeps one value along the direction its votes are taken, so no bit of such a
+reading is sure. A reading only knows the flips up to where it sits, so the x bits are read
+as they are and complemented (the m-sequence's complements are far from its windows), and
+the y flips follow from the x place. The half turn is left to the codes: the x and y bits are
+the first bits of two m-sequences (primitive feedback polynomials, neither self-reciprocal),
+and a view read backwards must disagree with every forward window of both codes in at least
+:data:`MIN_DISTANCE` bits together, while two places along one axis, or an x window and a
+complemented one, must differ in that many bits on that axis alone. ``window_bits`` bits per
+axis (the polynomial's order plus redundancy, more where those distances need it) locate a
+view absolutely; :func:`code_distances` checks them on the code. The field of view decoding
+needs follows: ``window_bits + 1`` cells per axis (``min_fov_um``).
 
 The pattern file (``save``/``load``) is plain JSON, versioned, documented in docs/instruments.md.
 """
@@ -111,8 +116,8 @@ class Pattern:
         r = np.clip(rows, 0, nr - 1)
         c = np.clip(cols, 0, nc - 1)
         frame = (r % 2) == (c % 2)
-        xb = self.x_bits[c // 2].astype(bool)
-        yb = self.y_bits[r // 2].astype(bool) ^ ((c // 2) % 2 == 1)
+        xb = self.x_bits[c // 2].astype(bool) ^ ((r // 2) % 2 == 1)
+        yb = self.y_bits[r // 2].astype(bool) ^ ((c // 4) % 2 == 1)
         return inside & np.where(frame, True, np.where(r % 2 == 0, xb, yb))
 
     # -- construction ------------------------------------------------------------------------
@@ -295,26 +300,37 @@ def site_matrix(x_bits: np.ndarray, y_bits: np.ndarray) -> np.ndarray:
     rows, cols = 2 * len(y_bits), 2 * len(x_bits)
     r = np.arange(rows)[:, None]
     c = np.arange(cols)[None, :]
-    xb = np.asarray(x_bits, bool)[c // 2]
-    yb = np.asarray(y_bits, bool)[r // 2] ^ ((c // 2) % 2 == 1)
+    xb = np.asarray(x_bits, bool)[c // 2] ^ ((r // 2) % 2 == 1)
+    yb = np.asarray(y_bits, bool)[r // 2] ^ ((c // 4) % 2 == 1)
     return np.where((r % 2) == (c % 2), True, np.where(r % 2 == 0, xb, yb))
 
 
 def code_distances(x_bits, y_bits, window_bits) -> dict:
     """The code's distances (bits) for windows of ``window_bits`` (x, y) bits.
 
-    ``shift_x``/``shift_y``: between two places of one code (a wrong position on that axis);
-    ``reversed_x``/``reversed_y``: between a forward window of a code and a backward one (a
-    half turn misread). A view of the pattern locates itself uniquely whatever Θ when both
-    shifts and the sum of the reversed ones reach :data:`MIN_DISTANCE`; the quarter turns are
-    excluded by the layout (module docstring).
+    ``shift_*``: between two places of one code (a wrong position on that axis);
+    ``complement_*``: between a window and a complemented one (the x reading's flip guessed
+    wrong); ``reversed_*`` and ``reversed_complement_*``: between a forward window and a
+    backward one, as is or complemented (a half turn misread). A view of the pattern locates
+    itself uniquely whatever Θ when every shift and the x complement reach
+    :data:`MIN_DISTANCE`, and so does the sum over both axes of the smaller reversed distance;
+    the quarter turns are excluded by the layout (module docstring).
     """
     out = {}
     for axis, bits, m in (("x", x_bits, window_bits[0]), ("y", y_bits, window_bits[1])):
         a = np.asarray(bits, np.int8)
-        out[f"shift_{axis}"] = codes.window_distance(a, a, int(m), same=True)
-        out[f"reversed_{axis}"] = codes.window_distance(a, a[::-1], int(m))
+        m = int(m)
+        out[f"shift_{axis}"] = codes.window_distance(a, a, m, same=True)
+        out[f"complement_{axis}"] = codes.window_distance(a, 1 - a, m)
+        out[f"reversed_{axis}"] = codes.window_distance(a, a[::-1], m)
+        out[f"reversed_complement_{axis}"] = codes.window_distance(a, 1 - a[::-1], m)
     return out
+
+
+def distances_ok(d: dict) -> bool:
+    """Whether :func:`code_distances` meet the rule that makes every view decode to one place."""
+    half_turn = sum(min(d[f"reversed_{a}"], d[f"reversed_complement_{a}"]) for a in "xy")
+    return min(d["shift_x"], d["shift_y"], d["complement_x"]) >= MIN_DISTANCE and half_turn >= MIN_DISTANCE
 
 
 def _windows(orders, spans, cell, redundancy_bits, check):
@@ -327,19 +343,31 @@ def _windows(orders, spans, cell, redundancy_bits, check):
             base[i] += 1
 
     def build(extra):
-        window = [base[0] + extra, base[1] + extra]
+        window = [base[0] + extra[0], base[1] + extra[1]]
         lengths = [_cells_needed(s, (w + 1) * cell, cell) for s, w in zip(spans, window)]
         return window, [full[i][: lengths[i]] for i in (0, 1)]
 
     if not check:
-        return build(0)
+        return build((0, 0))
+    extra_x = 0  # the x reading's flip: an x window against complemented ones
+    while True:
+        window, bits = build((extra_x, 0))
+        a = np.asarray(bits[0], np.int8)
+        if codes.window_distance(a, 1 - a, window[0]) >= MIN_DISTANCE:
+            break
+        extra_x += 1
+
+    def half_turn_ok(extra):
+        window, bits = build((extra_x + extra, extra))
+        return distances_ok(code_distances(bits[0], bits[1], window))
+
     lo, hi = -1, 0  # a view read backwards (a half turn): both axes together
-    while not _reversal_ok(*build(hi)):
+    while not half_turn_ok(hi):
         lo, hi = hi, 2 * hi + 1
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        lo, hi = (lo, mid) if _reversal_ok(*build(mid)) else (mid, hi)
-    return build(hi)
+        lo, hi = (lo, mid) if half_turn_ok(mid) else (mid, hi)
+    return build((extra_x + hi, hi))
 
 
 def _lightest_window(full_period: np.ndarray, m: int) -> int:
@@ -350,14 +378,6 @@ def _lightest_window(full_period: np.ndarray, m: int) -> int:
     ext = np.concatenate([full_period, full_period[: m - 1]]).astype(np.int32)
     c = np.concatenate(([0], np.cumsum(ext)))
     return int((c[m:] - c[:-m]).min())
-
-
-def _reversal_ok(window, bits) -> bool:
-    d = sum(
-        codes.window_distance(np.asarray(b, np.int8), np.asarray(b, np.int8)[::-1], m)
-        for b, m in zip(bits, window)
-    )
-    return d >= MIN_DISTANCE
 
 
 def _cells_needed(span_um: float, fov_um: float, cell_um: float) -> int:

@@ -31,6 +31,7 @@ import scipy.fft
 RING = (0.8, 1.2)  # the lobe is searched between these fractions of the expected frequency
 CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
 TUKEY = 0.2  # fraction of each side tapered by the window
+GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
 
 
 @dataclass
@@ -61,7 +62,7 @@ class PhaseFitter:
         h, w = shape
         self.h, self.w, self.f0 = h, w, float(f0)
         self.workers = workers or os.cpu_count() or 1
-        self.window = tukey(h)[:, None] * tukey(w)[None, :]
+        self.window = tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
         fi = np.fft.fftfreq(h)[:, None]
         fj = np.fft.rfftfreq(w)[None, :]
         rad = np.hypot(fi, fj)
@@ -116,71 +117,80 @@ class PhaseFitter:
         vals = spec[k, ie, je]
         return np.where(neg, np.conj(vals), vals)
 
+    def noise_power(self, spec: np.ndarray) -> np.ndarray:
+        """Mean noise power per bin (n,), from the spectrum's corners beyond 0.4 cycle per pixel,
+        where a microscope's optics leave only noise (an undersampled image overstates it)."""
+        hi_i = np.abs(np.fft.fftfreq(self.h)) > 0.4
+        hi_j = np.fft.rfftfreq(self.w) > 0.4
+        corner = spec[:, hi_i][:, :, hi_j]
+        return np.median(np.abs(corner.reshape(len(spec), -1)) ** 2, axis=1) / math.log(2)
+
     def fit(self, spec: np.ndarray) -> Planes:
+        """Steps 3–6 for every frame: a first pass with a box around each lobe's peak bin, then
+        a Gaussian band-pass centred on the lobe's fitted frequency (symmetric about it, so that
+        the missing dots, a real modulation, change the field's amplitude and not its phase)."""
         n = len(spec)
         bins, ratio = self.lobes(spec)
-        boxes = np.zeros((n, 2, self.ni, self.nj), dtype=np.complex64)
-        ri = self.di % self.ni
-        rj = self.dj % self.nj
+        crops = np.empty((n, 2) + self.di.shape, dtype=np.complex64)
         sub = np.zeros((n, 2, 2))
         for k in range(n):
             for lobe in (0, 1):
-                i0, j0 = bins[k, lobe]
-                c = self.crop(spec, k, i0, j0)
-                boxes[k, lobe, ri, rj] = c
-                sub[k, lobe] = _subbin(np.abs(c), self.bi, self.bj)
-        fields = scipy.fft.ifft2(boxes, workers=self.workers)  # step 4
-        # carrier of each lobe in cycles per pixel: integer bin + sub-bin estimate
-        fy = (bins[..., 0] + sub[..., 0]) / self.h
-        fx = (bins[..., 1] + sub[..., 1]) / self.w
-        base_y = bins[..., 0] / self.h
-        base_x = bins[..., 1] / self.w
+                crops[k, lobe] = self.crop(spec, k, *bins[k, lobe])
+                sub[k, lobe] = _subbin(np.abs(crops[k, lobe]), self.bi, self.bj)
+        freq = np.stack(
+            [(bins[..., 1] + sub[..., 1]) / self.w, (bins[..., 0] + sub[..., 0]) / self.h], axis=-1
+        )
+        first = self._planes(crops, bins, freq, None)
+        sigma = CROP * self.f0 / GAUSS  # cycles per pixel
+        # offsets of each crop bin from the fitted frequency, in cycles per pixel
+        oy = (bins[..., 0, None, None] + self.di) / self.h - first[1][..., 1, None, None]
+        ox = (bins[..., 1, None, None] + self.dj) / self.w - first[1][..., 0, None, None]
+        H = np.exp(-(ox**2 + oy**2) / (2 * sigma**2))
+        phase, freq, cov = self._planes(crops * H, bins, first[1], None)
+        # the intercept's variance from the noise the spectrum shows (module docstring)
+        n0 = self.noise_power(spec)
+        pw = np.abs(crops) ** 2
+        num = np.sum(H**4 * pw, axis=(2, 3))
+        den = np.sum(H**2 * pw, axis=(2, 3)) ** 2
+        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300)
+        cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
+        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3))) / (self.h * self.w)
+        return Planes(phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp)
+
+    def _planes(self, crops, bins, freq, _):
+        """Inverse transforms of the crops (step 4), then per lobe the demodulated phase
+        unwrapped (step 5) and its weighted least-squares plane (step 6), from ``freq``
+        (n, 2, (x, y)) cycles per pixel. Returns (phase at the centre, frequency, covariance)."""
+        n = len(crops)
+        boxes = np.zeros((n, 2, self.ni, self.nj), dtype=np.complex64)
+        boxes[:, :, self.di % self.ni, self.dj % self.nj] = crops
+        fields = scipy.fft.ifft2(boxes, workers=self.workers)
         phase = np.empty((n, 2))
-        freq = np.empty((n, 2, 2))
+        out_f = np.empty((n, 2, 2))
         cov = np.empty((n, 2, 3, 3))
-        amp = np.empty((n, 2))
-        X = (self.xm - self.xc).ravel()
-        Y = (self.ym - self.yc).ravel()
-        A = np.stack([np.ones_like(X), X, Y], axis=1)
+        xm, ym = self.xm.ravel(), self.ym.ravel()
+        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
         for k in range(n):
             for lobe in (0, 1):
                 z = fields[k, lobe].ravel().astype(np.complex128)
                 wgt = np.abs(z) ** 2
-                amp[k, lobe] = np.sqrt(wgt.mean()) * self.ni * self.nj
-                # analytic-signal phase = angle(z) + 2π(base · r) over absolute pixel positions;
-                # demodulate by the current frequency estimate around the frame centre
-                gx, gy = fx[k, lobe], fy[k, lobe]
-                for _ in range(2):  # step 5: unwrap by demodulation, step 6: weighted LS plane
-                    carrier = (
-                        2
-                        * np.pi
-                        * (
-                            (base_x[k, lobe] - gx) * self.xm.ravel()
-                            + (base_y[k, lobe] - gy) * self.ym.ravel()
-                        )
-                    )
-                    zz = z * np.exp(1j * carrier)
+                base_x, base_y = bins[k, lobe, 1] / self.w, bins[k, lobe, 0] / self.h
+                gx, gy = freq[k, lobe]
+                for _ in range(2):  # demodulate by the current frequency, fit, again
+                    zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
                     ref = np.angle(np.sum(zz * np.abs(zz)))
                     psi = np.angle(zz * np.exp(-1j * ref))
                     Aw = A * wgt[:, None]
                     N = A.T @ Aw
                     coef = np.linalg.solve(N, Aw.T @ psi)
-                    gx = gx + coef[1] / (2 * np.pi)
-                    gy = gy + coef[2] / (2 * np.pi)
+                    used_x, used_y = gx, gy
+                    gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
                 res = psi - A @ coef
-                dof = max(len(psi) - 3, 1)
-                s2 = float(np.sum(wgt * res**2) / dof)
+                s2 = float(np.sum(wgt * res**2) / max(len(psi) - 3, 1))
                 cov[k, lobe] = np.linalg.inv(N) * s2
-                # phase at the frame centre: the reference, the intercept, and the carrier
-                phase[k, lobe] = (
-                    ref
-                    + coef[0]
-                    + 2
-                    * np.pi
-                    * ((gx - coef[1] / (2 * np.pi)) * self.xc + (gy - coef[2] / (2 * np.pi)) * self.yc)
-                )
-                freq[k, lobe] = (gx, gy)
-        return Planes(phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp)
+                phase[k, lobe] = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
+                out_f[k, lobe] = (gx, gy)
+        return phase, out_f, cov
 
 
 def _subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:

@@ -116,7 +116,7 @@ class Camera:
         """One frame (uint8 up to 8 bits, uint16 beyond) of the pattern at a pose, shape (height, width).
 
         ``rng`` (a ``numpy.random.Generator`` or a seed) draws the noise and dust; ``rng=None``
-        renders the noise-free expectation, unrounded, as float64.
+        renders the noise-free expectation, unrounded, as float32.
         """
         expect = self.expectation(pattern, x_um, y_um, theta_deg)
         if rng is None:
@@ -129,7 +129,7 @@ class Camera:
         if poses.ndim != 2 or poses.shape[1] != 3:
             raise ValueError(f"poses: expected an array of shape (n, 3), got {poses.shape}")
         gen = None if rng is None else np.random.default_rng(rng)
-        dtype = np.float64 if gen is None else (np.uint8 if self.bit_depth <= 8 else np.uint16)
+        dtype = np.float32 if gen is None else (np.uint8 if self.bit_depth <= 8 else np.uint16)
         out = np.empty((len(poses), self.height, self.width), dtype=dtype)
         for k, (x, y, t) in enumerate(poses):
             e = self.expectation(pattern, x, y, t)
@@ -138,75 +138,77 @@ class Camera:
 
     def object_points(self, x_um: float, y_um: float, theta_deg: float):
         """Pattern coordinates (µm, float64) of every pixel centre: two arrays (height, width)."""
-        h, w = self.height, self.width
-        px = self.pixel_um
-        cx = (np.arange(w) - (w - 1) / 2.0) * px
-        cy = (np.arange(h) - (h - 1) / 2.0) * px
+        X, Y = self._camera_points()
         t = math.radians(theta_deg)
         ct, st = math.cos(t), math.sin(t)
-        if self.k1:
-            half_diag2 = ((w - 1) ** 2 + (h - 1) ** 2) / 4.0 * px * px
-            rho2 = (cx[None, :] ** 2 + cy[:, None] ** 2) / half_diag2
-            scale = 1.0 + self.k1 * rho2
-            X, Y = cx[None, :] * scale, cy[:, None] * scale
-            return x_um + ct * X + st * Y, y_um - st * X + ct * Y
-        return (x_um + ct * cx[None, :] + st * cy[:, None]), (y_um - st * cx[None, :] + ct * cy[:, None])
+        if X.ndim == 1:  # no distortion: separable
+            return (x_um + ct * X[None, :] + st * Y[:, None]), (y_um - st * X[None, :] + ct * Y[:, None])
+        return x_um + ct * X + st * Y, y_um - st * X + ct * Y
+
+    def _camera_points(self):
+        """Camera-plane coordinates (µm) of the pixel centres, distorted: 1-D (x, y) when k1 is 0."""
+        h, w, px = self.height, self.width, self.pixel_um
+        cx = (np.arange(w) - (w - 1) / 2.0) * px
+        cy = (np.arange(h) - (h - 1) / 2.0) * px
+        if not self.k1:
+            return cx, cy
+        half_diag2 = ((w - 1) ** 2 + (h - 1) ** 2) / 4.0 * px * px
+        scale = 1.0 + self.k1 * (cx[None, :] ** 2 + cy[:, None] ** 2) / half_diag2
+        return cx[None, :] * scale, cy[:, None] * scale
 
     def expectation(self, pattern: Pattern, x_um: float, y_um: float, theta_deg: float) -> np.ndarray:
-        """The noise-free frame in DN (float64), before dust."""
-        px, py = self.object_points(x_um, y_um, theta_deg)
+        """The noise-free frame in DN (float32), before dust."""
         p = pattern.period_um
-        u = (px + pattern.origin_um[0]) / p  # column of the site grid, fractional
-        v = (py + pattern.origin_um[1]) / p
-        c0 = np.floor(u).astype(np.int64)
-        r0 = np.floor(v).astype(np.int64)
+        u, v = self.object_points(x_um + pattern.origin_um[0], y_um + pattern.origin_um[1], theta_deg)
+        u /= p  # site coordinates, fractional: column u, row v
+        v /= p
+        c0 = np.floor(u)
+        r0 = np.floor(v)
         fu = (u - c0).astype(np.float32)
         fv = (v - r0).astype(np.float32)
         sigma = self.blur_sigma_um
         radius = pattern.dot_diameter_um / 2.0
         reach = int(math.ceil((radius + 6.0 * sigma) / p))  # sites beyond it add < 1e-9
-        table_r, table_v = _profile_table(radius / p, sigma / p, reach + 1.0)
+        step, table = _profile_table(radius / p, sigma / p, float(2 * reach * reach))
         lo_c, lo_r = int(c0.min()) - reach, int(r0.min()) - reach
         hi_c, hi_r = int(c0.max()) + reach + 1, int(r0.max()) + reach + 1
         rows = np.arange(lo_r, hi_r + 1)[:, None]
         cols = np.arange(lo_c, hi_c + 1)[None, :]
         present = pattern.present(rows, cols)
         present = _defects(present, rows, cols, self.missing_dot_rate, self.extra_dot_rate, self.defect_seed)
-        present = present.astype(np.float32)
-        ci = c0 - lo_c
-        ri = r0 - lo_r
-        dots = np.zeros(u.shape, dtype=np.float32)
+        ncols = present.shape[1]
+        flat = present.astype(np.float32).ravel()
+        site = ((r0 - lo_r) * ncols + (c0 - lo_c)).astype(np.int32)
+        dots = np.zeros(fu.shape, dtype=np.float32)
+        last = len(table) - 2
         for dr in range(-reach + 1, reach + 1):
+            dv2 = (fv - dr) ** 2
             for dc in range(-reach + 1, reach + 1):
-                d = np.sqrt((fu - dc) ** 2 + (fv - dr) ** 2)
-                dots += present[ri + dr, ci + dc] * np.interp(d, table_r, table_v).astype(np.float32)
-        level = self.background + (self.dot_level - self.background) * dots
-        return (self._illumination() * level * (self.exposure * self.max_level)).astype(np.float64)
-
-    def _illumination(self) -> np.ndarray:
-        """Relative illumination: a quadratic fall-off and a tilt, peak-to-peak ``illumination_nonuniformity``."""
-        a = self.illumination_nonuniformity
-        h, w = self.height, self.width
-        if not a:
-            return np.ones((h, w), dtype=np.float32)
-        X = np.linspace(-1, 1, w, dtype=np.float32)[None, :]
-        Y = np.linspace(-1, 1, h, dtype=np.float32)[:, None]
-        shape = 0.6 * (X**2 + Y**2) / 2 + 0.4 * (X + Y + 2) / 4  # 0 at the brightest corner … 1
-        return 1.0 - a * shape
+                q = ((fu - dc) ** 2 + dv2) * np.float32(1.0 / step)  # squared distance in table steps
+                i = np.minimum(q.astype(np.int32), last)
+                f = np.minimum(q - i, np.float32(1.0))
+                val = table[i] + f * (table[i + 1] - table[i])
+                dots += flat[site + (dr * ncols + dc)] * val
+        level = np.float32(self.background) + np.float32(self.dot_level - self.background) * dots
+        level *= _illumination(self.illumination_nonuniformity, self.height, self.width)
+        level *= np.float32(self.exposure * self.max_level)
+        return level
 
     def expose(self, expectation: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Dust, shot noise, read noise and rounding applied to an expected frame (DN)."""
         gain = self.full_well_e / self.max_level
-        electrons = np.clip(expectation * self._dust(rng) * gain, 0, None)
-        electrons = electrons + np.sqrt(electrons + self.read_noise_e**2) * rng.standard_normal(
-            electrons.shape
-        )
-        dn = np.clip(np.rint(electrons / gain), 0, self.max_level)
+        electrons = expectation * np.float32(gain)
+        if self.dust_count > 0:
+            electrons = electrons * self._dust(rng)
+        np.clip(electrons, 0, None, out=electrons)
+        noise = rng.standard_normal(electrons.shape, dtype=np.float32)
+        electrons += np.sqrt(electrons + np.float32(self.read_noise_e**2)) * noise
+        dn = np.clip(np.rint(electrons * np.float32(1 / gain)), 0, self.max_level)
         return dn.astype(np.uint8 if self.bit_depth <= 8 else np.uint16)
 
     def _dust(self, rng: np.random.Generator) -> np.ndarray:
         h, w = self.height, self.width
-        out = np.ones((h, w), dtype=np.float64)
+        out = np.ones((h, w), dtype=np.float32)
         n = rng.poisson(self.dust_count) if self.dust_count > 0 else 0
         for _ in range(n):  # a few particles per frame: a loop over particles, not dots
             d = self.dust_size_um * rng.uniform(0.5, 1.5) / self.pixel_um
@@ -226,13 +228,26 @@ class Camera:
 
 
 @lru_cache(maxsize=32)
-def _profile_table(radius: float, sigma: float, reach: float):
-    """Radial profile of a disc (radius, in periods) blurred by a Gaussian (σ, in periods)."""
+def _profile_table(radius: float, sigma: float, max_d2: float):
+    """Radial profile of a disc (radius, in periods) blurred by a Gaussian (σ, in periods),
+    tabulated against the squared distance (periods²) up to ``max_d2``: (step, values float32)."""
     from scipy.stats import ncx2
 
-    r = np.linspace(0.0, reach * 1.5, 4097)
-    v = ncx2.cdf((radius / sigma) ** 2, 2, (r / sigma) ** 2)
-    return r, v
+    n = 16384
+    step = max_d2 / (n - 2)
+    d2 = np.arange(n) * step
+    return step, ncx2.cdf((radius / sigma) ** 2, 2, d2 / sigma**2).astype(np.float32)
+
+
+@lru_cache(maxsize=8)
+def _illumination(a: float, h: int, w: int) -> np.ndarray:
+    """Relative illumination: a quadratic fall-off and a tilt, peak-to-peak ``a``."""
+    if not a:
+        return np.ones((h, w), dtype=np.float32)
+    X = np.linspace(-1, 1, w, dtype=np.float32)[None, :]
+    Y = np.linspace(-1, 1, h, dtype=np.float32)[:, None]
+    shape = 0.6 * (X**2 + Y**2) / 2 + 0.4 * (X + Y + 2) / 4  # 0 at the brightest corner … 1
+    return (1.0 - a * shape).astype(np.float32)
 
 
 def _defects(present, rows, cols, missing: float, extra: float, seed: int) -> np.ndarray:
