@@ -144,3 +144,22 @@ def test_summary_puts_the_noise_model_replay_beside_the_images():
     assert summary["models"]["V"]["noise_model_sensor"]["accuracy_um"] == 3.0
     assert summary["models"]["V"]["noise_model_sensor"]["rms_ap_um"] == pytest.approx(np.sqrt(14 / 3))
     assert "noise-model sensor" in summary["validation"]["heldout"]["sensor_comparison"]
+
+
+def test_validate_checks_the_decoder_variables():
+    """calflow validate: u_meas_* beside their meas_*, decode_status as CF flags, NaN readings
+    where a frame did not decode."""
+    plan = _plan([0, 30, 3000], [0, 10, 0], [0, 0.5, 0])
+    ds = acquire(plan, simulated_xytheta(seed=1, stream="i", **SMALL), META)
+    bad = ds.copy(deep=True)
+    bad["meas_x"].values[2] = 1.0  # a reading where the frame did not decode
+    bad["u_meas_y"].values[0] = -1.0
+    bad["decode_status"].values[1] = 42
+    problems = validate_dataset(bad)
+    assert any("'meas_x': expected NaN where decode_status" in p for p in problems)
+    assert any("'u_meas_y': expected standard uncertainties >= 0" in p for p in problems)
+    assert any("'decode_status': expected values in flag_values" in p for p in problems)
+    assert any(
+        "'u_meas_theta': expected beside 'meas_theta'" in p
+        for p in validate_dataset(ds.drop_vars("meas_theta"))
+    )
