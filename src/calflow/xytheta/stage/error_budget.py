@@ -177,8 +177,8 @@ def replay(campaign_path: str | Path, name: str) -> dict:
 
 
 def replays(campaign_path: str | Path, names=REPLAYS, workers: int = 1) -> list[dict]:
-    """:func:`replay` of each of ``names``, over ``workers`` processes."""
-    if workers <= 1:
+    """:func:`replay` of each of ``names``, over ``workers`` processes (no more than replays)."""
+    if min(workers, len(names)) <= 1:
         return [replay(campaign_path, n) for n in names]
     from concurrent.futures import ProcessPoolExecutor
 
