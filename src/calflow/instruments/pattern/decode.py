@@ -113,7 +113,7 @@ def decode(
             if not good[k]:
                 status[f], reason[f] = "bad_frame", "the frame is uniform or holds non-finite values"
                 continue
-            result = _read(block[k], planes, k, pattern, details)
+            result = _read(block[k], planes, k, pattern, details, fitter)
             status[f], reason[f] = result["status"], result["reason"]
             if result["status"] == "ok":
                 for key in out:
@@ -139,7 +139,7 @@ def _frames(frames) -> np.ndarray:
 _Q = (((1, 0), (0, 1)), ((0, 1), (-1, 0)), ((-1, 0), (0, -1)), ((0, -1), (1, 0)))  # (u, v) = Q_m (s, t)
 
 
-def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
+def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter) -> dict:
     """Steps 7–10 for one frame whose phase planes are ``planes[k]``."""
     ratio = planes.peak_ratio[k]
     if not (ratio.min() >= MIN_PEAK_RATIO):
@@ -147,6 +147,8 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             "no_lobes",
             f"no grid of period {pattern.period_um:g} µm in the frame (lobe/ring {ratio.min():.0f})",
         )
+    if not (np.isfinite(planes.phase[k]).all() and np.isfinite(planes.cov[k]).all()):
+        return _fail("no_lobes", "the grid's phase planes could not be fitted (no signal in the lobes)")
     kvec = planes.freq[k].copy()  # (lobe, (x, y)) cycles per pixel
     phase = planes.phase[k].copy()
     cov = planes.cov[k]
@@ -270,6 +272,22 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             "ambiguous",
             f"two readings of the code differ by {runner - best[0]} bits only (at least {MIN_MARGIN} needed)",
         )
+    # where dust or the pattern's edge hides frame dots, the planes are fitted again without
+    # the samples there (a sharp change of the field's amplitude bends its phase around it)
+    unseen = fmask & ~(z > 0.5)
+    if unseen.any():
+        bad = ndimage.maximum_filter(unseen, size=3)
+        pts = fitter.coarse_points()
+        st_pts = (pts - rc) @ K.T + [sc, tc]
+        ti_ = np.clip(np.rint(st_pts[:, 1]).astype(int) - T[0], 0, len(T) - 1)
+        si_ = np.clip(np.rint(st_pts[:, 0]).astype(int) - S[0], 0, len(S) - 1)
+        keep = ~bad[ti_, si_]
+        if keep.sum() > 16:
+            new_phase, new_freq, cov = fitter.refit(planes, k, keep)
+            ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
+            # move the fine phases by the change only: the nodes' numbering stays as read
+            sc += ((sgn_s * (new_phase[si] - phase[si]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
+            tc += ((sgn_t * (new_phase[ti] - phase[ti]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
     # step 10: coarse cell + fine phase
     Q = _Q[m]
     uc = Q[0][0] * sc + Q[0][1] * tc + pu + 2 * mx[1]
@@ -315,12 +333,17 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
 
 
 def _normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around)."""
+    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around), the
+    local mean kept above a third of the frame's median (so that where the dots fade out —
+    heavy dust, beyond the pattern's edge — noise is not scaled up into dots)."""
+    if not mask.any():
+        return np.full(contrast.shape, np.nan)
     num = ndimage.uniform_filter(np.where(mask, contrast, 0.0), size=7, mode="constant")
     den = ndimage.uniform_filter(mask.astype(float), size=7, mode="constant")
-    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), np.nan)
+    floor = np.median(contrast[mask]) / 3.0
+    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), floor)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return contrast / level
+        return contrast / np.maximum(level, floor)
 
 
 def _angle(k, cov, sgn):
@@ -341,7 +364,7 @@ def _votes(cells: np.ndarray, present: np.ndarray):
     n = np.bincount(idx)
     ones = np.bincount(idx, weights=present.astype(float), minlength=len(n))
     frac = np.where(n > 0, ones / np.maximum(n, 1), 0.5)
-    sure = (n >= 3) & (np.abs(frac - 0.5) >= 0.25)
+    sure = (n >= 3) & (np.minimum(frac, 1 - frac) <= 0.2)  # three votes at least, four in five agree
     return c0, (frac > 0.5).astype(np.int8), sure
 
 
