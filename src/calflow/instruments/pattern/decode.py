@@ -180,8 +180,7 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
         SS, TT = np.meshgrid(S + ds - sc, T + dt - tc)
         xy = np.stack([SS, TT], -1) @ Kinv.T + rc
         inside = (xy[..., 0] >= 1) & (xy[..., 0] <= w - 2) & (xy[..., 1] >= 1) & (xy[..., 1] <= h - 2)
-        vals = ndimage.map_coordinates(img, [xy[..., 1].ravel(), xy[..., 0].ravel()], order=1, mode="nearest")
-        return vals.reshape(SS.shape), inside, xy
+        return _bilinear(img, xy[..., 0], xy[..., 1]), inside, xy
 
     v0, in0, xy0 = sample(0.0, 0.0)
     v1, in1, _ = sample(0.5, 0.5)
@@ -190,10 +189,13 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     if spread1 > spread0:  # dark dots: the nodes are where the phase is π
         sc, tc = (sc + 0.5) % 1.0, (tc + 0.5) % 1.0
         v0, in0, xy0 = sample(0.0, 0.0)
-    gaps, _, _ = sample(-0.5, -0.5)  # gap (S−½, T−½); the node's four gaps are g[T,S], g[T,S+1], …
-    gaps_p = np.pad(gaps, ((0, 1), (0, 1)), mode="edge")
-    sg = np.pad(sample(0.5, 0.5)[0], ((1, 0), (1, 0)), mode="edge")
-    around = 0.25 * (gaps + gaps_p[:-1, 1:] + gaps_p[1:, :-1] + sg[1:, 1:])
+    # the four gaps around node (S, T) are at (S ± ½, T ± ½): one grid of gaps, one row and
+    # column larger, holds them all
+    S_, T_ = S, T
+    S, T = np.append(S_, S_[-1] + 1), np.append(T_, T_[-1] + 1)
+    gaps = sample(-0.5, -0.5)[0]  # gap (S−½, T−½) at [T, S]
+    S, T = S_, T_
+    around = 0.25 * (gaps[:-1, :-1] + gaps[:-1, 1:] + gaps[1:, :-1] + gaps[1:, 1:])
     contrast = v0 - around
     valid = in0
     if valid.sum() < 16:
@@ -330,6 +332,22 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
             "margin_bits": int(runner - best[0]),
         }
     return result
+
+
+def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``img`` at pixel positions (x along columns), edges clamped."""
+    h, w = img.shape
+    x = np.clip(x, 0, w - 1.001)
+    y = np.clip(y, 0, h - 1.001)
+    j = x.astype(np.intp)
+    i = y.astype(np.intp)
+    fx = (x - j).astype(np.float32)
+    fy = (y - i).astype(np.float32)
+    flat = img.ravel()
+    k = i * w + j
+    top = flat[k] * (1 - fx) + flat[k + 1] * fx
+    bottom = flat[k + w] * (1 - fx) + flat[k + w + 1] * fx
+    return top * (1 - fy) + bottom * fy
 
 
 def _normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
