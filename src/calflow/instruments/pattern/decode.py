@@ -105,9 +105,15 @@ def decode(
     for start in range(0, n, CHUNK):
         block = stack[start : start + CHUNK]
         finite = np.isfinite(block).all(axis=(1, 2)) if block.dtype.kind == "f" else np.ones(len(block), bool)
-        flat = np.ptp(block.reshape(len(block), -1), axis=1) == 0 if finite.all() else ~finite
+        flat = np.zeros(len(block), bool)
+        flat[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1) == 0
         good = finite & ~flat
-        planes = fitter.fit(fitter.spectrum(np.where(good[:, None, None], block, 0))) if good.any() else None
+        if good.all():
+            planes = fitter.fit(fitter.spectrum(block))
+        elif good.any():
+            planes = fitter.fit(fitter.spectrum(np.where(good[:, None, None], block, 0)))
+        else:
+            planes = None
         for k in range(len(block)):
             f = start + k
             if not good[k]:
