@@ -112,13 +112,19 @@ def test_defects_dust_and_defocus_are_right_or_flagged(pattern):
         (np.zeros((192, 224), dtype=complex), "dtype"),
         (np.zeros((192, 224), dtype=bool), "dtype"),
         (np.zeros((8, 8)), "16 × 16"),
-        (np.zeros((100, 224)), "field of view"),
+        (np.zeros((100, 224)), "224 × 192 pixels"),
     ],
 )
 def test_bad_frames_raise_one_line(pattern, frames, match):
     with pytest.raises(ValueError, match=match) as err:
         decode(frames, pattern, CAMERA)
     assert "\n" not in str(err.value)
+
+
+def test_field_of_view_too_small_raises(pattern):
+    with pytest.raises(ValueError, match="field of view") as err:
+        decode(np.zeros((100, 224)), pattern, pixel_um=CAMERA.pixel_um)
+    assert "min_fov_um" in str(err.value)
 
 
 def test_bad_pixel_size_raises(pattern):

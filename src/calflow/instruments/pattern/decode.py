@@ -33,7 +33,7 @@ import numpy as np
 from scipy import ndimage
 
 from calflow.instruments.pattern.pattern import Pattern
-from calflow.instruments.pattern.phase import PhaseFitter
+from calflow.instruments.pattern.phase import CROP, GAUSS, PhaseFitter
 
 STATUSES = ("ok", "bad_frame", "no_lobes", "low_contrast", "fov_too_small", "code_mismatch", "ambiguous")
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median: noise alone reaches ~15
@@ -41,6 +41,9 @@ MAX_WRONG_BITS = 1  # per axis; the code keeps windows ≥ 5 bits apart
 MIN_MARGIN = 3  # bits between the best reading and the next one
 MAX_FRAME_MISSING = 0.25  # fraction of frame dots unseen before the frame is not trusted
 CHUNK = 8  # frames transformed together
+# how far (grid nodes) an unseen frame dot bends the band-passed field: three standard
+# deviations of the Gaussian band-pass's impulse response, GAUSS / (2π·CROP) periods
+EDGE_NODES = math.ceil(3 * GAUSS / (2 * math.pi * CROP))
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,10 @@ def decode(
     """
     stack = _frames(frames)
     n, h, w = stack.shape
+    if camera is not None and (h, w) != (camera.height, camera.width):
+        raise ValueError(
+            f"frames: expected {camera.width} × {camera.height} pixels (the camera's), got {w} × {h}"
+        )
     if pixel_um is None:
         if camera is None:
             from calflow.instruments.pattern.render import Camera
@@ -284,7 +291,7 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     # the samples there (a sharp change of the field's amplitude bends its phase around it)
     unseen = fmask & ~(z > 0.5)
     if unseen.any():
-        bad = ndimage.maximum_filter(unseen, size=3)
+        bad = ndimage.maximum_filter(unseen, size=2 * EDGE_NODES + 1)
         pts = fitter.coarse_points()
         st_pts = (pts - rc) @ K.T + [sc, tc]
         ti_ = np.clip(np.rint(st_pts[:, 1]).astype(int) - T[0], 0, len(T) - 1)
