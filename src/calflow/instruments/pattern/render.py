@@ -239,7 +239,7 @@ def _profile_table(radius: float, sigma: float, max_d2: float):
     return step, ncx2.cdf((radius / sigma) ** 2, 2, d2 / sigma**2).astype(np.float32)
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=64)
 def _illumination(a: float, h: int, w: int) -> np.ndarray:
     """Relative illumination: a quadratic fall-off and a tilt, peak-to-peak ``a``."""
     if not a:
