@@ -33,7 +33,7 @@ import numpy as np
 from scipy import ndimage
 
 from calflow.instruments.pattern.pattern import Pattern
-from calflow.instruments.pattern.phase import PhaseFitter
+from calflow.instruments.pattern.phase import CROP, GAUSS, PhaseFitter
 
 STATUSES = ("ok", "bad_frame", "no_lobes", "low_contrast", "fov_too_small", "code_mismatch", "ambiguous")
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median: noise alone reaches ~15
@@ -41,6 +41,9 @@ MAX_WRONG_BITS = 1  # per axis; the code keeps windows ≥ 5 bits apart
 MIN_MARGIN = 3  # bits between the best reading and the next one
 MAX_FRAME_MISSING = 0.25  # fraction of frame dots unseen before the frame is not trusted
 CHUNK = 8  # frames transformed together
+# how far (grid nodes) an unseen frame dot bends the band-passed field: three standard
+# deviations of the Gaussian band-pass's impulse response, GAUSS / (2π·CROP) periods
+EDGE_NODES = math.ceil(3 * GAUSS / (2 * math.pi * CROP))
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,10 @@ def decode(
     """
     stack = _frames(frames)
     n, h, w = stack.shape
+    if camera is not None and (h, w) != (camera.height, camera.width):
+        raise ValueError(
+            f"frames: expected {camera.width} × {camera.height} pixels (the camera's), got {w} × {h}"
+        )
     if pixel_um is None:
         if camera is None:
             from calflow.instruments.pattern.render import Camera
@@ -105,15 +112,21 @@ def decode(
     for start in range(0, n, CHUNK):
         block = stack[start : start + CHUNK]
         finite = np.isfinite(block).all(axis=(1, 2)) if block.dtype.kind == "f" else np.ones(len(block), bool)
-        flat = np.ptp(block.reshape(len(block), -1), axis=1) == 0 if finite.all() else ~finite
+        flat = np.zeros(len(block), bool)
+        flat[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1) == 0
         good = finite & ~flat
-        planes = fitter.fit(fitter.spectrum(np.where(good[:, None, None], block, 0))) if good.any() else None
+        if good.all():
+            planes = fitter.fit(fitter.spectrum(block))
+        elif good.any():
+            planes = fitter.fit(fitter.spectrum(np.where(good[:, None, None], block, 0)))
+        else:
+            planes = None
         for k in range(len(block)):
             f = start + k
             if not good[k]:
                 status[f], reason[f] = "bad_frame", "the frame is uniform or holds non-finite values"
                 continue
-            result = _read(block[k], planes, k, pattern, details)
+            result = _read(block[k], planes, k, pattern, details, fitter)
             status[f], reason[f] = result["status"], result["reason"]
             if result["status"] == "ok":
                 for key in out:
@@ -139,7 +152,7 @@ def _frames(frames) -> np.ndarray:
 _Q = (((1, 0), (0, 1)), ((0, 1), (-1, 0)), ((-1, 0), (0, -1)), ((0, -1), (1, 0)))  # (u, v) = Q_m (s, t)
 
 
-def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
+def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter) -> dict:
     """Steps 7–10 for one frame whose phase planes are ``planes[k]``."""
     ratio = planes.peak_ratio[k]
     if not (ratio.min() >= MIN_PEAK_RATIO):
@@ -147,6 +160,8 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             "no_lobes",
             f"no grid of period {pattern.period_um:g} µm in the frame (lobe/ring {ratio.min():.0f})",
         )
+    if not (np.isfinite(planes.phase[k]).all() and np.isfinite(planes.cov[k]).all()):
+        return _fail("no_lobes", "the grid's phase planes could not be fitted (no signal in the lobes)")
     kvec = planes.freq[k].copy()  # (lobe, (x, y)) cycles per pixel
     phase = planes.phase[k].copy()
     cov = planes.cov[k]
@@ -178,8 +193,7 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
         SS, TT = np.meshgrid(S + ds - sc, T + dt - tc)
         xy = np.stack([SS, TT], -1) @ Kinv.T + rc
         inside = (xy[..., 0] >= 1) & (xy[..., 0] <= w - 2) & (xy[..., 1] >= 1) & (xy[..., 1] <= h - 2)
-        vals = ndimage.map_coordinates(img, [xy[..., 1].ravel(), xy[..., 0].ravel()], order=1, mode="nearest")
-        return vals.reshape(SS.shape), inside, xy
+        return _bilinear(img, xy[..., 0], xy[..., 1]), inside, xy
 
     v0, in0, xy0 = sample(0.0, 0.0)
     v1, in1, _ = sample(0.5, 0.5)
@@ -188,10 +202,13 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
     if spread1 > spread0:  # dark dots: the nodes are where the phase is π
         sc, tc = (sc + 0.5) % 1.0, (tc + 0.5) % 1.0
         v0, in0, xy0 = sample(0.0, 0.0)
-    gaps, _, _ = sample(-0.5, -0.5)  # gap (S−½, T−½); the node's four gaps are g[T,S], g[T,S+1], …
-    gaps_p = np.pad(gaps, ((0, 1), (0, 1)), mode="edge")
-    sg = np.pad(sample(0.5, 0.5)[0], ((1, 0), (1, 0)), mode="edge")
-    around = 0.25 * (gaps + gaps_p[:-1, 1:] + gaps_p[1:, :-1] + sg[1:, 1:])
+    # the four gaps around node (S, T) are at (S ± ½, T ± ½): one grid of gaps, one row and
+    # column larger, holds them all
+    S_, T_ = S, T
+    S, T = np.append(S_, S_[-1] + 1), np.append(T_, T_[-1] + 1)
+    gaps = sample(-0.5, -0.5)[0]  # gap (S−½, T−½) at [T, S]
+    S, T = S_, T_
+    around = 0.25 * (gaps[:-1, :-1] + gaps[:-1, 1:] + gaps[1:, :-1] + gaps[1:, 1:])
     contrast = v0 - around
     valid = in0
     if valid.sum() < 16:
@@ -270,6 +287,22 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
             "ambiguous",
             f"two readings of the code differ by {runner - best[0]} bits only (at least {MIN_MARGIN} needed)",
         )
+    # where dust or the pattern's edge hides frame dots, the planes are fitted again without
+    # the samples there (a sharp change of the field's amplitude bends its phase around it)
+    unseen = fmask & ~(z > 0.5)
+    if unseen.any():
+        bad = ndimage.maximum_filter(unseen, size=2 * EDGE_NODES + 1)
+        pts = fitter.coarse_points()
+        st_pts = (pts - rc) @ K.T + [sc, tc]
+        ti_ = np.clip(np.rint(st_pts[:, 1]).astype(int) - T[0], 0, len(T) - 1)
+        si_ = np.clip(np.rint(st_pts[:, 0]).astype(int) - S[0], 0, len(S) - 1)
+        keep = ~bad[ti_, si_]
+        if keep.sum() > 16:
+            new_phase, new_freq, cov = fitter.refit(planes, k, keep)
+            ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
+            # move the fine phases by the change only: the nodes' numbering stays as read
+            sc += ((sgn_s * (new_phase[si] - phase[si]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
+            tc += ((sgn_t * (new_phase[ti] - phase[ti]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
     # step 10: coarse cell + fine phase
     Q = _Q[m]
     uc = Q[0][0] * sc + Q[0][1] * tc + pu + 2 * mx[1]
@@ -314,13 +347,34 @@ def _read(frame, planes, k, pattern: Pattern, details: bool) -> dict:
     return result
 
 
+def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``img`` at pixel positions (x along columns), edges clamped."""
+    h, w = img.shape
+    x = np.clip(x, 0, w - 1.001)
+    y = np.clip(y, 0, h - 1.001)
+    j = x.astype(np.intp)
+    i = y.astype(np.intp)
+    fx = (x - j).astype(np.float32)
+    fy = (y - i).astype(np.float32)
+    flat = img.ravel()
+    k = i * w + j
+    top = flat[k] * (1 - fx) + flat[k + 1] * fx
+    bottom = flat[k + w] * (1 - fx) + flat[k + w + 1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
 def _normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around)."""
+    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around), the
+    local mean kept above a third of the frame's median (so that where the dots fade out —
+    heavy dust, beyond the pattern's edge — noise is not scaled up into dots)."""
+    if not mask.any():
+        return np.full(contrast.shape, np.nan)
     num = ndimage.uniform_filter(np.where(mask, contrast, 0.0), size=7, mode="constant")
     den = ndimage.uniform_filter(mask.astype(float), size=7, mode="constant")
-    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), np.nan)
+    floor = np.median(contrast[mask]) / 3.0
+    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), floor)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return contrast / level
+        return contrast / np.maximum(level, floor)
 
 
 def _angle(k, cov, sgn):
@@ -341,7 +395,7 @@ def _votes(cells: np.ndarray, present: np.ndarray):
     n = np.bincount(idx)
     ones = np.bincount(idx, weights=present.astype(float), minlength=len(n))
     frac = np.where(n > 0, ones / np.maximum(n, 1), 0.5)
-    sure = (n >= 3) & (np.abs(frac - 0.5) >= 0.25)
+    sure = (n >= 3) & (np.minimum(frac, 1 - frac) <= 0.2)  # three votes at least, four in five agree
     return c0, (frac > 0.5).astype(np.int8), sure
 
 

@@ -43,6 +43,8 @@ class Planes:
     cov: np.ndarray  # (n, 2, 3, 3) covariance of (phase, slope_x, slope_y) per lobe, rad & rad/px
     peak_ratio: np.ndarray  # (n, 2) lobe power over the ring's median power
     amplitude: np.ndarray  # (n, 2) mean |field| of the lobe (DN)
+    fields: np.ndarray  # (n, 2, ni·nj) the band-passed lobes on the coarse grid (complex)
+    bins: np.ndarray  # (n, 2, 2) each lobe's integer bin (row signed, column)
 
 
 def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
@@ -146,7 +148,7 @@ class PhaseFitter:
         oy = (bins[..., 0, None, None] + self.di) / self.h - first[1][..., 1, None, None]
         ox = (bins[..., 1, None, None] + self.dj) / self.w - first[1][..., 0, None, None]
         H = np.exp(-(ox**2 + oy**2) / (2 * sigma**2))
-        phase, freq, cov = self._planes(crops * H, bins, first[1], None)
+        phase, freq, cov, fields = self._planes(crops * H, bins, first[1], None)
         # the intercept's variance from the noise the spectrum shows (module docstring)
         n0 = self.noise_power(spec)
         pw = np.abs(crops) ** 2
@@ -155,7 +157,29 @@ class PhaseFitter:
         var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300)
         cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
         amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3))) / (self.h * self.w)
-        return Planes(phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp)
+        return Planes(
+            phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp, fields=fields, bins=bins
+        )
+
+    def coarse_points(self) -> np.ndarray:
+        """Pixel positions (x, y) of the coarse grid the lobes' fields are sampled on, (ni·nj, 2)."""
+        return np.stack([self.xm.ravel(), self.ym.ravel()], axis=1)
+
+    def refit(self, planes: Planes, k: int, keep: np.ndarray):
+        """Frame k's two planes again, from the coarse samples in ``keep`` only (where the
+        pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov)."""
+        phase = np.empty(2)
+        freq = np.empty((2, 2))
+        cov = np.empty((2, 3, 3))
+        for lobe in (0, 1):
+            z = planes.fields[k, lobe].astype(np.complex128)
+            wgt = np.abs(z) ** 2
+            kept = wgt * keep
+            phase[lobe], freq[lobe], c = self._fit(z, kept, planes.bins[k, lobe], planes.freq[k, lobe])
+            # the noise's share grows as samples are left out (the same noise per sample)
+            scale = planes.cov[k, lobe, 0, 0] * wgt.sum() / max(kept.sum(), 1e-300)
+            cov[lobe] = c * (scale / max(c[0, 0], 1e-300))
+        return phase, freq, cov
 
     def _planes(self, crops, bins, freq, _):
         """Inverse transforms of the crops (step 4), then per lobe the demodulated phase
@@ -168,29 +192,40 @@ class PhaseFitter:
         phase = np.empty((n, 2))
         out_f = np.empty((n, 2, 2))
         cov = np.empty((n, 2, 3, 3))
-        xm, ym = self.xm.ravel(), self.ym.ravel()
-        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
+        flat = fields.reshape(n, 2, -1)
         for k in range(n):
             for lobe in (0, 1):
-                z = fields[k, lobe].ravel().astype(np.complex128)
-                wgt = np.abs(z) ** 2
-                base_x, base_y = bins[k, lobe, 1] / self.w, bins[k, lobe, 0] / self.h
-                gx, gy = freq[k, lobe]
-                for _ in range(2):  # demodulate by the current frequency, fit, again
-                    zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
-                    ref = np.angle(np.sum(zz * np.abs(zz)))
-                    psi = np.angle(zz * np.exp(-1j * ref))
-                    Aw = A * wgt[:, None]
-                    N = A.T @ Aw
-                    coef = np.linalg.solve(N, Aw.T @ psi)
-                    used_x, used_y = gx, gy
-                    gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
-                res = psi - A @ coef
-                s2 = float(np.sum(wgt * res**2) / max(len(psi) - 3, 1))
-                cov[k, lobe] = np.linalg.inv(N) * s2
-                phase[k, lobe] = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
-                out_f[k, lobe] = (gx, gy)
-        return phase, out_f, cov
+                z = flat[k, lobe].astype(np.complex128)
+                phase[k, lobe], out_f[k, lobe], cov[k, lobe] = self._fit(
+                    z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe]
+                )
+        return phase, out_f, cov, flat
+
+    def _fit(self, z, wgt, bin_, freq):
+        """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6).
+        Returns (phase at the frame centre, frequency (x, y) cycles/px, covariance)."""
+        xm, ym = self.xm.ravel(), self.ym.ravel()
+        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
+        base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
+        gx, gy = freq
+        if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > 3):
+            return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+        for _ in range(2):  # demodulate by the current frequency, fit, again
+            zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
+            ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
+            psi = np.angle(zz * np.exp(-1j * ref))
+            Aw = A * wgt[:, None]
+            N = A.T @ Aw
+            try:
+                coef = np.linalg.solve(N, Aw.T @ psi)
+            except np.linalg.LinAlgError:
+                return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+            used_x, used_y = gx, gy
+            gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
+        res = psi - A @ coef
+        s2 = float(np.sum(wgt * res**2) / max(int((wgt > 0).sum()) - 3, 1))
+        phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
+        return phase, (gx, gy), np.linalg.inv(N) * s2
 
 
 def _subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:

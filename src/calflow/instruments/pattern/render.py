@@ -168,7 +168,7 @@ class Camera:
         fv = (v - r0).astype(np.float32)
         sigma = self.blur_sigma_um
         radius = pattern.dot_diameter_um / 2.0
-        reach = int(math.ceil((radius + 6.0 * sigma) / p))  # sites beyond it add < 1e-9
+        reach = int(math.ceil((radius + 5.0 * sigma) / p))  # sites beyond it add < 3e-7 of a dot
         step, table = _profile_table(radius / p, sigma / p, float(2 * reach * reach))
         lo_c, lo_r = int(c0.min()) - reach, int(r0.min()) - reach
         hi_c, hi_r = int(c0.max()) + reach + 1, int(r0.max()) + reach + 1
@@ -239,7 +239,7 @@ def _profile_table(radius: float, sigma: float, max_d2: float):
     return step, ncx2.cdf((radius / sigma) ** 2, 2, d2 / sigma**2).astype(np.float32)
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=64)
 def _illumination(a: float, h: int, w: int) -> np.ndarray:
     """Relative illumination: a quadratic fall-off and a tilt, peak-to-peak ``a``."""
     if not a:
