@@ -45,25 +45,18 @@ def pattern_file(tmp_path):
     return str(Pattern.make(range_um=(1500.0, 1500.0)).save(tmp_path / "pattern.json"))
 
 
-def test_emulated_camera_through_the_gcs_emulator(pattern_file):
-    """The stages through the GCS emulator, the pattern seen by the emulated camera and
-    decoded: the readings of the simulated rig reading through images, within the stage's
+def test_emulated_camera_through_the_gcs_emulator():
+    """A campaign whose simulated rig reads through images, served by the GCS emulator: the
+    rig section it prints reads the pattern through the emulated camera and the decoder, and
+    gives the readings of the simulated rig reading through images, within the stage's
     repeatability, with uncertainties and status."""
-    campaign = {**SMALL_XYTHETA, "rig": {"factory": "simulated", "options": dict(PHYSICS)}}
-    emu, options = emulated_rig_options(campaign, time_scale=100.0, timeout=1.0)
+    options = {"sensor": "images", "camera": CAMERA, **PHYSICS}
+    campaign = {**SMALL_XYTHETA, "rig": {"factory": "simulated", "options": options}}
+    emu, rig_options = emulated_rig_options(campaign, time_scale=100.0, timeout=1.0)
     try:
-        options["sensor"] = {
-            "factory": "camera",
-            "options": {
-                "source": {
-                    "factory": "simulated_camera",
-                    "options": {"seed": 7, "camera": CAMERA, **PHYSICS},
-                },
-                "pattern": pattern_file,
-                "camera": CAMERA,
-            },
-        }
-        rig = gcs(**options)
+        assert rig_options["sensor"]["factory"] == "camera"
+        assert rig_options["sensor"]["options"]["source"]["factory"] == "simulated_camera"
+        rig = gcs(**rig_options)
         try:
             ds = acquire(PLAN, rig, META)
         finally:
@@ -133,7 +126,12 @@ def test_genicam_without_harvesters_names_what_to_install(tmp_path, monkeypatch)
         genicam()
 
 
-def test_camera_sensor_options_are_checked(pattern_file):
+def blank_source():
+    """A frame source that knows no pattern (a plug-in of the tests)."""
+    return Frames([])
+
+
+def test_camera_sensor_options_are_checked(pattern_file, monkeypatch):
     from calflow.gcs.camera import camera_sensor
 
     with pytest.raises(RigError, match="sensor.options.source"):
@@ -142,3 +140,9 @@ def test_camera_sensor_options_are_checked(pattern_file):
         camera_sensor(source={"factory": "genicam"}, pattern="no/such.json")
     with pytest.raises(RigError, match="not allowed to run"):
         camera_sensor(source={"factory": "os:getcwd"}, pattern=pattern_file)
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    with pytest.raises(RigError, match="expected the pattern file the camera looks at"):
+        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=None)
+    emulated = {"factory": "simulated_camera", "options": {"camera": CAMERA, **PHYSICS}}
+    sensor = camera_sensor(source=emulated, pattern=pattern_file, camera=CAMERA)
+    assert sensor.pattern.range_um == (1500.0, 1500.0) and sensor.camera.width == 352

@@ -21,6 +21,9 @@ allowed ``module:callable``. Options::
         source: {factory: genicam, options: {cti: /opt/vendor/lib/producer.cti, serial: "22FK019"}}
         pattern: pattern.json        # the pattern file (calflow pattern make)
         camera: {}                   # camera-model fields the decoder uses (pixel size, optics)
+
+An emulated source that renders a known pattern with a known camera model (its ``pattern``
+and ``camera`` attributes) needs neither option.
 """
 
 from __future__ import annotations
@@ -92,14 +95,25 @@ def camera_sensor(source=None, pattern=None, camera=None) -> CameraSensor:
             "gcs rig: sensor.options.source: expected {factory: genicam (or a family's emulated "
             f"camera, or 'module:callable'), options: {{...}}}}, got {source!r}"
         )
-    if not isinstance(pattern, str) or not Path(pattern).is_file():
+    if pattern is not None and (not isinstance(pattern, str) or not Path(pattern).is_file()):
         raise RigError(f"gcs rig: sensor.options.pattern: expected an existing pattern file, got {pattern!r}")
-    try:
-        pat = Pattern.load(pattern)
-    except (OSError, ValueError) as exc:
-        raise RigError(f"{pattern}: pattern file: {exc}") from None
-    model = camera_of(camera or {}, "sensor.options.camera", RigError)
-    return CameraSensor(load_source(source), pat, model)
+    grabber = load_source(source)
+    if pattern is None:  # an emulated camera knows the pattern it renders; a real one does not
+        if getattr(grabber, "pattern", None) is None:
+            grabber.close()
+            raise RigError("gcs rig: sensor.options.pattern: expected the pattern file the camera looks at")
+        pat = grabber.pattern
+    else:
+        try:
+            pat = Pattern.load(pattern)
+        except (OSError, ValueError) as exc:
+            grabber.close()
+            raise RigError(f"{pattern}: pattern file: {exc}") from None
+    if camera is None and getattr(grabber, "camera", None) is not None:
+        model = grabber.camera
+    else:
+        model = camera_of(camera or {}, "sensor.options.camera", RigError)
+    return CameraSensor(grabber, pat, model)
 
 
 def load_source(spec: Mapping[str, Any]) -> FrameSource:

@@ -106,6 +106,16 @@ class SimulatedCamera:
         self.images = ImageSensor(truth, sensor, seed=seed, stream=f"gcs-camera:{stream}")
         self._point: tuple[float, float, float] | None = None
 
+    @property
+    def pattern(self):
+        """The pattern it renders (the camera sensor decodes with it)."""
+        return self.images.pattern
+
+    @property
+    def camera(self):
+        """The camera model it renders with."""
+        return self.images.camera
+
     def observe(self, positions: Mapping[str, float], time_s: float) -> None:
         t = self.stage.truth_model
         x_P, y_P, theta_a, temperature = self.stage.tool(positions, time_s)
