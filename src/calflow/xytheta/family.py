@@ -61,6 +61,12 @@ def _observability_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True)
 
 
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--throughput", help="where to write the decoder's throughput on this machine (JSON)")
+
+
 def _budget_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
     p.add_argument("--jobs", type=int, default=1, help="replays run in parallel (processes)")
@@ -292,7 +298,7 @@ FAMILY = Family(
         Command(
             "instrument-bench",
             "the camera and decoder of a rig that reads through images, on rendered frames (report)",
-            _observability_arguments,
+            _bench_arguments,
             "calflow.xytheta.stage.bench:bench_command",
         ),
         Command(

@@ -98,11 +98,15 @@ class XYThetaWorkflow(FamilyWorkflow):
         return [f"results/{c['name']}/truth/error_budget.json"]
 
     def report_files(self, c: dict) -> list[str]:
-        """The summary's files and the identification poses (the report's pose figure); an
-        interim check has no identification."""
+        """The summary's files and the identification poses (the report's pose figure), and
+        the decoder's throughput of an images rig (not in the summary: no two runs share it);
+        an interim check has no identification."""
         if "interim_check" in c:
             return self.results_of(c)
-        return self.results_of(c) + [f"results/{c['name']}/runs/identification.nc"]
+        files = self.results_of(c) + [f"results/{c['name']}/runs/identification.nc"]
+        if self.reads_images(c):  # the decoder's throughput on the machine that ran the bench
+            files.append(f"results/{c['name']}/benchmarks/instrument_throughput.json")
+        return files
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
         """The XY tables a designed identification plan reads for its discrepancy kernel."""

@@ -323,6 +323,9 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
     ]
     from calflow.xytheta.report import instrument
 
-    figures += [draw(instrument.example_frame, inputs.metrics.get("instrument", {}).get(""))]
-    figures += [draw(instrument.period_error, inputs.metrics.get("instrument", {}).get(""))]
+    bench = inputs.metrics.get("instrument", {}).get("")
+    figures += [
+        draw(instrument.example_frame, bench),
+        draw(instrument.period_error, bench, instrument.throughput(inputs)),
+    ]
     return [f for f in figures if f is not None], notes

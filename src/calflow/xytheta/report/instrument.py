@@ -69,11 +69,6 @@ def summary_block(runs: list[xr.Dataset], bench: xr.Dataset | None) -> dict | No
                 "std_theta_deg": _std(sweep["theta"]),
                 "steps": int(sweep["x"].size),
             },
-            "throughput": {
-                "frames_per_cpu_s": float(bench.attrs["decode_frames_per_cpu_s"]),
-                "frames": int(bench.attrs["decode_frames"]),
-                "note": str(bench.attrs.get("throughput_note", "")),
-            },
         }
     return out
 
@@ -145,8 +140,9 @@ def example_frame(bench: xr.Dataset | None) -> Figure | None:
     )
 
 
-def period_error(bench: xr.Dataset | None) -> Figure | None:
-    """Decoded − set over one period, and the static series."""
+def period_error(bench: xr.Dataset | None, speed: dict | None = None) -> Figure | None:
+    """Decoded − set over one period, and the static series; the caption gives the decoder's
+    throughput when the bench measured it (``speed``)."""
     if bench is None or "sweep_x" not in bench:
         return None
     fig, ax = new_figure(2, height=2.5)
@@ -173,11 +169,27 @@ def period_error(bench: xr.Dataset | None) -> Figure | None:
         "instrument",
         "(a) Decoded − set camera point for frames rendered at set poses stepped over one period of "
         "the grid along x (the decoder's periodic error). (b) Frames of one pose with independent "
-        "noise: the repeatability of a static frame series.",
+        "noise: the repeatability of a static frame series." + _speed(speed),
         "Sec. 3.5.1",
     )
 
 
-def figures(inputs) -> list[Figure]:
-    bench = inputs.metrics.get("instrument", {}).get("")
-    return [f for f in (example_frame(bench), period_error(bench)) if f is not None]
+def throughput(inputs) -> dict | None:
+    """The decoder's throughput measured by the bench (its JSON among the report's files)."""
+    import json
+    from pathlib import Path
+
+    path = next((Path(p) for p in inputs.unknown if p.endswith("instrument_throughput.json")), None)
+    if path is None or not path.is_file():
+        return None
+    return json.loads(path.read_text())
+
+
+def _speed(speed: dict | None) -> str:
+    if not speed or not speed.get("frames_per_cpu_s"):
+        return " The decoder's throughput was not measured."
+    w, h = speed["frame"]
+    return (
+        f" Decoder throughput: {speed['frames_per_cpu_s']:.0f} frames of {w} × {h} pixels per CPU second "
+        f"({speed['frames']} frames; {speed['note']}; it varies with the machine and its load)."
+    )

@@ -64,6 +64,7 @@ rule error_budget:
 rule instrument_bench:
     output:
         bench="results/{campaign}/metrics/instrument.nc",
+        throughput="results/{campaign}/benchmarks/instrument_throughput.json",
     log:
         "results/{campaign}/logs/instrument_bench.log",
     benchmark:
@@ -86,4 +87,5 @@ rule instrument_bench:
             ]
         ),
     shell:
-        "calflow instrument-bench --campaign {params.campaign} --out {output.bench} > {log} 2>&1"
+        "calflow instrument-bench --campaign {params.campaign} --out {output.bench}"
+        " --throughput {output.throughput} > {log} 2>&1"

@@ -31,7 +31,7 @@ def bench_command(args) -> None:
     rendered frames around the middle of the pattern (:mod:`calflow.instruments.bench`)."""
     from calflow.commands.common import campaign as load
     from calflow.commands.common import meta
-    from calflow.data.io import output_folder, write_dataset
+    from calflow.data.io import output_folder, write_dataset, write_json
     from calflow.instruments.bench import bench
 
     c = load(args.campaign)
@@ -39,6 +39,10 @@ def bench_command(args) -> None:
     rx, ry = sensor.pattern.range_um
     theta = float(np.mean(c["identification"]["theta_deg"]))
     output_folder(args.out)
-    ds = bench(sensor.pattern, sensor.camera, (0.5 * rx, 0.5 * ry, theta), seed=int(c.get("seed") or 0))
+    ds, throughput = bench(
+        sensor.pattern, sensor.camera, (0.5 * rx, 0.5 * ry, theta), seed=int(c.get("seed") or 0)
+    )
     ds.attrs = {**meta(c, "simulated", "instrument").attrs("metrics"), **ds.attrs}
+    if getattr(args, "throughput", None):
+        write_json(throughput, args.throughput)
     write_dataset(ds, args.out)
