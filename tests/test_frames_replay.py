@@ -172,12 +172,16 @@ def test_a_table_without_a_joint(tmp_path, rendered, capsys):
 
 
 def test_the_workflow_decodes_before_it_replays(tmp_path, rendered):
-    """The acquire rule of a frame-recorded run reads its decoded run; the decode rule reads
-    the stack, the table and the pattern file."""
-    from calflow.config import load_campaign
-    from calflow.family_workflow import frame_files, frame_recordings
+    """Snakemake: the decode_frames rule decodes the recording into decoded/<run>.nc from the
+    stack, the table and the pattern file, then the acquire rule's replay rig serves it."""
+    from conftest import make_workdir, snakemake
 
     campaign, stack = _recording(tmp_path, rendered)
-    c = load_campaign(str(campaign))
-    spec = frame_recordings(c)["identification"]
-    assert frame_files(spec) == [str(stack), str(tmp_path / "ident.csv"), spec["pattern"]]
+    work = make_workdir(tmp_path, {"rec": yaml.safe_load(campaign.read_text())})
+    proc = snakemake(work, "results/rec/runs/identification.nc")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (work / "results/rec/logs/decode_frames_identification.log").exists()
+    decoded = open_dataset(work / "results/rec/decoded/identification.nc", kind="run")
+    run = open_dataset(work / "results/rec/runs/identification.nc", kind="run")
+    assert np.array_equal(run["meas_x"].values, decoded["meas_x"].values)
+    assert np.array_equal(run["decode_status"].values, decoded["decode_status"].values)

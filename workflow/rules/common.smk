@@ -11,6 +11,7 @@ from calflow.config import (
     load_campaign,
     load_workflow_config,
 )
+from calflow.data.io import sha256_file
 from calflow.provenance import code_digest, module_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
@@ -173,18 +174,21 @@ def frames_of(w):
 
 
 def decode_digest(w):
-    """What decoding a frame recording depends on: its entry and the decoder's code."""
+    """What decoding a frame recording depends on: its entry, the decoder's code, the
+    table's and the pattern file's contents, the frame files' sizes and times (Snakemake
+    does not rerun a job for a newer file no rule makes)."""
     spec = frame_recordings(CAMPAIGN[w.campaign])[w.run]
-    return digest(
-        [
-            module_digest(
-                "calflow.instruments",
-                "calflow.data.frames",
-                "calflow.commands.decode_run",
-            ),
-            spec,
-        ]
+    files = frame_files(spec)
+    stamps = [
+        [f, os.stat(f).st_size, os.stat(f).st_mtime_ns]
+        for f in files[:-2]
+        if os.path.exists(f)
+    ]
+    contents = [sha256_file(f) if os.path.exists(f) else None for f in files[-2:]]
+    code = module_digest(
+        "calflow.instruments", "calflow.data.frames", "calflow.commands.decode_run"
     )
+    return digest([code, spec, stamps, contents])
 
 
 def identify_inputs(w):
