@@ -173,7 +173,8 @@ def test_a_table_without_a_joint(tmp_path, rendered, capsys):
 
 def test_the_workflow_decodes_before_it_replays(tmp_path, rendered):
     """Snakemake: the decode_frames rule decodes the recording into decoded/<run>.nc from the
-    stack, the table and the pattern file, then the acquire rule's replay rig serves it."""
+    stack, the table and the pattern file, then the acquire rule's replay rig serves it; a
+    changed table decodes again."""
     from conftest import make_workdir, snakemake
 
     campaign, stack = _recording(tmp_path, rendered)
@@ -185,3 +186,7 @@ def test_the_workflow_decodes_before_it_replays(tmp_path, rendered):
     run = open_dataset(work / "results/rec/runs/identification.nc", kind="run")
     assert np.array_equal(run["meas_x"].values, decoded["meas_x"].values)
     assert np.array_equal(run["decode_status"].values, decoded["decode_status"].values)
+    table = tmp_path / "ident.csv"
+    table.write_text(table.read_text().replace("21.03", "21.04"))  # a corrected thermometer reading
+    proc = snakemake(work, "-n", "results/rec/runs/identification.nc")
+    assert proc.returncode == 0 and "rule decode_frames" in proc.stdout and "rule acquire" in proc.stdout
