@@ -223,9 +223,16 @@ class FrameFiles:
 
     def _image(self, path: Path) -> np.ndarray:
         """One image file: the instrument's reader (formats, colour, readability)."""
+        from PIL import ImageFile
+
         from calflow.instruments.pattern.frames import read_frames
 
-        frames, _ = read_frames([path])
+        lenient = ImageFile.LOAD_TRUNCATED_IMAGES  # WeasyPrint, once imported, sets it for everyone
+        ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated image is refused, not padded
+        try:
+            frames, _ = read_frames([path])
+        finally:
+            ImageFile.LOAD_TRUNCATED_IMAGES = lenient
         if len(frames) != 1:
             raise DataError(f"{path}: {len(frames)} frames in one file; expected one frame per table row")
         return frames[0]
