@@ -76,7 +76,7 @@ def instrument_modules(c: dict) -> tuple[str, ...]:
     options = c["rig"].get("options") or {}
     sensor = options.get("sensor") if c["rig"]["factory"] == "gcs" else None
     if isinstance(sensor, Mapping) and sensor.get("factory") == "camera":
-        return ("calflow.instruments", "calflow.gcs.camera")
+        return ("calflow.instruments.pattern", "calflow.instruments.readings", "calflow.gcs.camera")
     return ()
 
 

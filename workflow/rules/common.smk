@@ -186,7 +186,10 @@ def decode_digest(w):
     ]
     contents = [sha256_file(f) if os.path.exists(f) else None for f in files[-2:]]
     code = module_digest(
-        "calflow.instruments", "calflow.data.frames", "calflow.commands.decode_run"
+        "calflow.instruments.pattern",
+        "calflow.instruments.readings",
+        "calflow.data.frames",
+        "calflow.commands.decode_run",
     )
     return digest([code, spec, stamps, contents])
 

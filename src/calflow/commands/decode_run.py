@@ -98,7 +98,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
             "frames": str(e["file"]),
             "frames_sha256": file_sha256(e["file"]) if frames.stack else _digest_of(shas),
             "pattern_sha256": file_sha256(e["pattern"]),
-            "decoder_sha256": module_digest("calflow.instruments"),
+            "decoder_sha256": module_digest("calflow.instruments.pattern", "calflow.instruments.readings"),
         },
     )
     sensors = [f"meas_{a}" for a in axes] + [f"u_meas_{a}" for a in axes] + ["decode_status"]

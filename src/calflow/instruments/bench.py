@@ -55,13 +55,13 @@ def sites_in_frame(pattern, camera, x_um: float, y_um: float, theta_deg: float):
 
 def spectrum(frame: np.ndarray, pattern, camera) -> np.ndarray:
     """log10 of the magnitude of the frame's 2-D spectrum (mean removed), centred, cropped to
-    2.5 times the grid's frequency on each axis."""
+    1.6 times the grid's frequency on each axis (its first lobes and their neighbours)."""
     from scipy import fft
 
     f = fft.fftshift(np.abs(fft.fft2(frame.astype(float) - frame.mean())))
     h, w = frame.shape
     k = pattern.period_um / camera.pixel_um  # the grid's period in pixels
-    ch, cw = min(h // 2, math.ceil(2.5 * h / k)), min(w // 2, math.ceil(2.5 * w / k))
+    ch, cw = min(h // 2, math.ceil(1.6 * h / k)), min(w // 2, math.ceil(1.6 * w / k))
     crop = f[h // 2 - ch : h // 2 + ch, w // 2 - cw : w // 2 + cw]
     return np.log10(crop + 1e-9).astype(np.float32)
 

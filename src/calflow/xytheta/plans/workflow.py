@@ -137,7 +137,11 @@ class XYThetaWorkflow(FamilyWorkflow):
     def acquire_modules(self, c: dict) -> tuple[str, ...]:
         """The camera model and decoder when the simulated rig reads through images."""
         if self.reads_images(c):
-            return ("calflow.instruments", "calflow.xytheta.stage.images")
+            return (
+                "calflow.instruments.pattern",
+                "calflow.instruments.readings",
+                "calflow.xytheta.stage.images",
+            )
         return super().acquire_modules(c)
 
     def identify_sections(self, c: dict, model: str) -> list:
