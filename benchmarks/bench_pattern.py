@@ -18,7 +18,8 @@ Sections (``--sections``, default all three):
   the noise-free frame and the camera's noise (docs/instruments.md derives it); Θ's standard
   deviation and bound in µrad.
 * ``robustness``: ``--robust-frames`` frames at random poses over the whole range and the
-  whole turn of Θ, each with dust (Poisson, mean 3 particles of 5–40 µm), missing and extra
+  whole turn of Θ, each with dust (Poisson, mean 3 particles of 5–40 µm; ``--dust-mean``,
+  ``--dust-max-um`` for harsher), missing and extra
   dots (each rate uniform in 0–5 %, a new defect draw per frame), defocus (0–3 µm) and uneven
   light (0–40 % peak to peak): the fraction decoded to the right place (within a quarter
   period), the frames flagged and why, and the silent jumps (decoded "ok" but a period or
@@ -189,7 +190,7 @@ def accuracy(n_frames: int) -> dict:
 
 # -- robustness ------------------------------------------------------------------------------
 def _robust_chunk(args) -> list:
-    seed, count, binning = args
+    seed, count, binning, dust_mean, dust_max = args
     pattern = _pattern()
     base = Camera(width=1024 // binning, height=768 // binning, sensor_pixel_um=3.75 * binning)
     rng = np.random.default_rng(seed)
@@ -197,8 +198,8 @@ def _robust_chunk(args) -> list:
     for _ in range(count):
         cam = dataclasses.replace(
             base,
-            dust_count=3.0,
-            dust_size_um=float(rng.uniform(5, 40)),
+            dust_count=dust_mean,
+            dust_size_um=float(rng.uniform(5, dust_max)),
             missing_dot_rate=float(rng.uniform(0, 0.05)),
             extra_dot_rate=float(rng.uniform(0, 0.05)),
             defect_seed=int(rng.integers(2**31)),
@@ -214,10 +215,20 @@ def _robust_chunk(args) -> list:
     return [(str(s), float(e)) for s, e in zip(d.status, err)]
 
 
-def robustness(n_frames: int, binning: int, processes: int, seed: int = 1000) -> dict:
+def robustness(
+    n_frames: int,
+    binning: int,
+    processes: int,
+    seed: int = 1000,
+    dust_mean: float = 3.0,
+    dust_max: float = 40.0,
+) -> dict:
     p = _pattern().period_um
     chunk = 50
-    jobs = [(seed + i, min(chunk, n_frames - i * chunk), binning) for i in range(math.ceil(n_frames / chunk))]
+    jobs = [
+        (seed + i, min(chunk, n_frames - i * chunk), binning, dust_mean, dust_max)
+        for i in range(math.ceil(n_frames / chunk))
+    ]
     t = time.perf_counter()
     with multiprocessing.get_context("fork").Pool(processes) as pool:
         results = []
@@ -247,6 +258,8 @@ def robustness(n_frames: int, binning: int, processes: int, seed: int = 1000) ->
         "wall_s": round(wall, 1),
         "processes": processes,
         "seed": seed,
+        "dust_mean": dust_mean,
+        "dust_max_um": dust_max,
     }
 
 
@@ -260,6 +273,8 @@ def main(argv=None) -> int:
     ap.add_argument("--binning", type=int, default=3, help="robustness frames binned n × n (1: 1024 × 768)")
     ap.add_argument("--processes", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1000, help="first seed of the robustness frames' chunks")
+    ap.add_argument("--dust-mean", type=float, default=3.0, help="mean dust particles per robustness frame")
+    ap.add_argument("--dust-max-um", type=float, default=40.0, help="largest dust shadow (µm)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     sections = args.sections.split(",")
@@ -270,7 +285,9 @@ def main(argv=None) -> int:
     if "accuracy" in sections:
         out["accuracy"] = accuracy(args.accuracy_frames)
     if "robustness" in sections:
-        out["robustness"] = robustness(args.robust_frames, args.binning, args.processes, args.seed)
+        out["robustness"] = robustness(
+            args.robust_frames, args.binning, args.processes, args.seed, args.dust_mean, args.dust_max_um
+        )
     out["load_after"] = list(os.getloadavg())
     if args.json:
         print(json.dumps(out))
