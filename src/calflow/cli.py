@@ -177,6 +177,7 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
+    a.add_argument("--decoded", help="a frame recording's decoded run (calflow decode-run), for a replay rig")
     a.add_argument(
         "--rig-plugins",
         metavar="MODULES",
@@ -275,6 +276,16 @@ def parser() -> argparse.ArgumentParser:
     ir.add_argument("--campaign", required=True)
     ir.add_argument("--out", required=True)
 
+    dr = _sub(
+        sub,
+        "decode-run",
+        _run("calflow.commands.decode_run:run"),
+        "decode a replay campaign's recorded camera frames into the run dataset of one run",
+    )
+    dr.add_argument("--campaign", required=True)
+    dr.add_argument("--run", required=True, help="the run id of the frame recording (rig.options.recordings)")
+    dr.add_argument("--out", required=True)
+
     v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
     v.add_argument("files", nargs="+")
 
@@ -294,6 +305,25 @@ def parser() -> argparse.ArgumentParser:
         "rest",
         nargs=argparse.REMAINDER,
         help="--campaign FILE [--port 50000] [--time-scale 1] [--duration S]",
+    )
+
+    from calflow.instruments.pattern.commands import decode_arguments, pattern_arguments
+
+    pattern_arguments(
+        _sub(
+            sub,
+            "pattern",
+            _run("calflow.instruments.pattern.commands:run_pattern"),
+            "an encoded dot pattern: its file, GDSII and preview (docs/instruments.md)",
+        )
+    )
+    decode_arguments(
+        _sub(
+            sub,
+            "decode",
+            _run("calflow.instruments.pattern.commands:run_decode"),
+            "decode frames of an encoded pattern into x, y, Θ (docs/instruments.md)",
+        )
     )
 
     from calflow.family import families

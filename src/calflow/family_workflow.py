@@ -105,6 +105,30 @@ def replayed_runs(c: dict) -> set[str]:
     return set()
 
 
+def frame_recordings(c: dict) -> dict[str, dict]:
+    """The runs of a replay campaign recorded as camera frames (``format: frames``), by run
+    id: each is decoded by the ``decode_frames`` rule before the replay rig serves it."""
+    recordings = c["rig"].get("options", {}).get("recordings")
+    if c["rig"]["factory"] != "replay" or not isinstance(recordings, dict):
+        return {}
+    return {
+        run: spec
+        for run, spec in recordings.items()
+        if isinstance(spec, Mapping) and spec.get("format") == "frames"
+    }
+
+
+def frame_files(spec: Mapping) -> list[str]:
+    """The files a frame recording's decoding reads: the stack or every image of the folder
+    (the table names them), the table and the pattern file."""
+    source = str(spec["file"])
+    files = [source] if os.path.isfile(source) else []
+    if os.path.isdir(source):
+        suffixes = (".png", ".tif", ".tiff", ".bmp", ".pgm")
+        files = sorted(os.path.join(source, f) for f in os.listdir(source) if f.lower().endswith(suffixes))
+    return files + [str(spec["table"]), str(spec["pattern"])]
+
+
 def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") -> dict:
     """A study file (``config/studies/<name>.yaml``), loaded by the family of its base campaign
     (key ``campaign``) through the family's ``studies`` loader."""

@@ -14,7 +14,7 @@ from calflow.config import (
 from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
-from calflow.family_workflow import hooks, load_study
+from calflow.family_workflow import frame_files, frame_recordings, hooks, load_study
 from calflow.lifecycle.settings import check_stage_settings
 from calflow.lifecycle.members import histories_on_disk, on_disk
 from calflow.lifecycle.stages import check_needs, stages_of
@@ -177,10 +177,54 @@ def plan_section(w):
 
 def acquire_inputs(w):
     """Files an open-loop run's plan reads, by option of ``calflow acquire``; ``after_*``
-    names a run acquired first, for the order on the rig only (never newer than ours).
+    names a run acquired first, for the order on the rig only (never newer than ours); a
+    run recorded as camera frames is served from its decoded run (rule decode_frames).
     """
-    files = hooks_of(w.campaign).acquire_inputs(CAMPAIGN[w.campaign], w.run)
-    return {k: ancient(v) if k.startswith("after_") else v for k, v in files.items()}
+    c = CAMPAIGN[w.campaign]
+    files = hooks_of(w.campaign).acquire_inputs(c, w.run)
+    inputs = {k: ancient(v) if k.startswith("after_") else v for k, v in files.items()}
+    if w.run in frame_recordings(c):
+        inputs["decoded"] = f"results/{w.campaign}/decoded/{w.run}.nc"
+    return inputs
+
+
+def frames_of(w):
+    """The files a frame recording's decoding reads (rule decode_frames)."""
+    c = CAMPAIGN[w.campaign]
+    if w.run not in frame_recordings(c):
+        raise ValueError(
+            f"{w.campaign}: run {w.run!r} is not recorded as camera frames"
+        )
+    return frame_files(frame_recordings(c)[w.run])
+
+
+def decode_digest(w):
+    """What decoding a frame recording depends on: its entry, the decoder's code, the
+    table's and the pattern file's contents, the frame files' sizes and times (Snakemake
+    does not rerun a job for a newer file no rule makes)."""
+    spec = frame_recordings(CAMPAIGN[w.campaign])[w.run]
+    files = frame_files(spec)
+    stamps = [
+        [f, os.stat(f).st_size, os.stat(f).st_mtime_ns]
+        for f in files[:-2]
+        if os.path.exists(f)
+    ]
+    contents = [_sha256(f) if os.path.exists(f) else None for f in files[-2:]]
+    return digest(
+        [
+            code_digest("decode-run", CAMPAIGN[w.campaign]["robot"]),
+            spec,
+            stamps,
+            contents,
+        ]
+    )
+
+
+def _sha256(path):
+    import hashlib
+
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def identify_inputs(w):

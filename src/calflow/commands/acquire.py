@@ -45,7 +45,7 @@ def acquire_job(c: dict, plan_name: str, args, plugins=None, journal_path: str |
     from calflow.acquisition.runner import acquire
 
     job = family_of(c["robot"]).plan(c["robot"], plan_name)(c, args)
-    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins)
+    rig, source = open_rig(c, job.run_id, job.plan.start_s, plugins, getattr(args, "decoded", None))
     if getattr(rig, "recorded_plan", None) is not None:  # an instrument's file: replay the poses it chose
         job = _recorded(job, rig, c)
     journal = Journal(journal_path, plan_digest(job.plan)) if journal_path else None

@@ -47,6 +47,7 @@ def _axis_variables(axis: str, unit: str, name: str) -> dict[str, tuple[str, str
     return {
         f"cmd_{axis}": (unit, f"joint command {name}"),
         f"meas_{axis}": (unit, f"external sensor reading {name} in the sensor frame"),
+        f"u_meas_{axis}": (unit, f"standard uncertainty of the sensor reading {name} (its decoder's)"),
         f"target_{axis}": (unit, f"task-space target {name}"),
     }
 
@@ -60,6 +61,9 @@ RUN_VARIABLES: dict[str, tuple[str, str]] = {
 for _axis, _unit in AXIS_UNITS.items():
     RUN_VARIABLES.update(_axis_variables(_axis, _unit, AXIS_NAMES[_axis]))
 RUN_VARIABLES["temperature"] = ("degC", "thermocouple temperature")
+# Optional, from a sensor that decodes images (calflow.instruments.pattern): per reading,
+# the decoder's status (CF flags: 0 decoded; the others name why the frame was not).
+RUN_VARIABLES["decode_status"] = ("1", "decode status of the sensor's frame")
 
 REQUIRED_RUN_VARIABLES = ("time", "pose", "cycle", "direction")
 

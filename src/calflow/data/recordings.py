@@ -6,6 +6,12 @@ calflow run file (``.nc``) or a file an instrument wrote, given as::
     {file: data/recordings/axis1_ISO230.dat, format: ecmc_iso230}   # ISO 230-2, one axis x
     {file: data/recordings/tracker.csv, format: laser_tracker}      # XYZ poses, axes x and y
     {file: bench.csv, format: csv, mapping: bench-mapping.yaml}     # generic CSV mapping
+    {file: ident.tif, format: frames, table: ident.csv, pattern: pattern.json}  # camera frames
+
+A ``frames`` recording (a TIFF stack or a folder of images, its joints table, the pattern
+file, optional ``camera`` fields) is decoded by the workflow's ``decode_frames`` rule
+(``calflow decode-run``, :mod:`calflow.commands.decode_run`) into a run dataset, which the
+replay rig serves (its ``decoded`` option).
 
 A plain path is a ``.nc`` run file, or an instrument file recognised by its name
 (``*ISO230.dat``). :func:`load` returns the run dataset and, for an instrument's file, the
@@ -28,7 +34,8 @@ from calflow.errors import DataError
 from calflow.plan import Plan
 
 # format -> the joints an instrument's file of that format records (None: the file says)
-FORMATS = {"nc": None, "ecmc_iso230": ("x",), "laser_tracker": ("x", "y"), "csv": None}
+FORMATS = {"nc": None, "ecmc_iso230": ("x",), "laser_tracker": ("x", "y"), "csv": None, "frames": None}
+KEYS = {"frames": ("file", "format", "table", "pattern", "camera")}  # beyond file, format, mapping
 RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
 
 
@@ -54,14 +61,25 @@ def entry(spec: Any) -> dict:
         return {"file": str(spec), "format": fmt, "mapping": None}
     if not isinstance(spec, Mapping):
         raise BadEntry("", "a file name or {file: ..., format: ...}", spec)
-    unknown = sorted(set(spec) - {"file", "format", "mapping"})
+    fmt = spec.get("format")
+    keys = KEYS.get(fmt, ("file", "format", "mapping"))
+    unknown = sorted(set(spec) - set(keys))
     if unknown:
-        raise BadEntry(f".{unknown[0]}", "no such key (the keys are file, format, mapping)", spec[unknown[0]])
+        raise BadEntry(f".{unknown[0]}", f"no such key (the keys are {', '.join(keys)})", spec[unknown[0]])
     if not isinstance(spec.get("file"), str) or not spec["file"]:
         raise BadEntry(".file", "the path of the recording", spec.get("file"))
-    fmt = spec.get("format")
     if fmt not in FORMATS:
         raise BadEntry(".format", f"one of {list(FORMATS)}", fmt)
+    if fmt == "frames":
+        for key, what in (
+            ("table", "the joints table (CSV: frame, time, cmd_<joint>…)"),
+            ("pattern", "the pattern file"),
+        ):
+            if not (isinstance(spec.get(key), str) and spec[key]):
+                raise BadEntry(f".{key}", what, spec.get(key))
+        if not isinstance(spec.get("camera", {}), Mapping):
+            raise BadEntry(".camera", "a mapping of camera-model fields", spec.get("camera"))
+        return {**{k: spec.get(k) for k in keys}, "camera": dict(spec.get("camera") or {}), "mapping": None}
     if fmt == "csv" and not (isinstance(spec.get("mapping"), str) and spec["mapping"]):
         raise BadEntry(
             ".mapping", "the column mapping file of a csv recording (docs/data.md)", spec.get("mapping")
@@ -77,8 +95,12 @@ def check_entry(spec: Any) -> None:
     """The config check of one entry: its shape, and that its files exist (relative paths
     are from the project folder, where Snakemake runs). The file is read at acquisition."""
     e = entry(spec)
-    for key in ("file", "mapping"):
-        if e[key] is not None and not Path(e[key]).is_file():
+    if e["format"] == "frames" and not Path(e["file"]).exists():
+        raise BadEntry(
+            ".file", "an existing TIFF stack or folder of images (relative to the project folder)", e["file"]
+        )
+    for key in ("mapping", "table", "pattern") if e["format"] == "frames" else ("file", "mapping"):
+        if e.get(key) is not None and not Path(e[key]).is_file():
             raise BadEntry(
                 "" if isinstance(spec, (str, Path)) else f".{key}",
                 "an existing file (paths are relative to the project folder)",
@@ -196,9 +218,12 @@ def plan_of(ds: xr.Dataset, name: str) -> Plan:
     )
 
 
-def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Dataset | None, Plan | None]:
+def load(
+    spec: Any, run_id: str, where: str = "recordings", decoded: str | None = None
+) -> tuple[Path, xr.Dataset | None, Plan | None]:
     """The recording ``spec`` of run ``run_id``: (path, run dataset or None for a ``.nc``
-    file the replay rig opens itself, the instrument's plan or None)."""
+    file the replay rig opens itself, the instrument's plan or None). A ``frames``
+    recording is served from its ``decoded`` run file (``calflow decode-run``)."""
     try:
         s = entry(spec)
     except BadEntry as exc:
@@ -206,6 +231,16 @@ def load(spec: Any, run_id: str, where: str = "recordings") -> tuple[Path, xr.Da
     path = Path(s["file"])
     if s["format"] == "nc":
         return path, None, None
+    if s["format"] == "frames":
+        if not decoded or not Path(decoded).is_file():
+            raise DataError(
+                f"{path}: {where}.{run_id}: frames are served decoded: run 'calflow decode-run' "
+                f"(the workflow's decode_frames rule) and give its file (calflow acquire --decoded), got {decoded!r}"
+            )
+        from calflow.data.io import open_dataset
+
+        ds = open_dataset(decoded, kind="run")
+        return Path(decoded), ds, plan_of(ds, run_id)
     if not path.is_file():
         raise DataError(f"{path}: file not found ({where}.{run_id})")
     if s["format"] == "ecmc_iso230":

@@ -76,6 +76,12 @@ def run_dataset(
         data[f"target_{axis}"] = _var(np.asarray(values[:n], dtype=float), f"target_{axis}")
     for sensor in sensors:
         data[sensor] = _var(np.array([r[sensor] for r in readings], dtype=float), sensor)
+    if "decode_status" in data:  # an image sensor's decoder: CF flags (calflow.instruments.readings)
+        from calflow.instruments.readings import status_attrs
+
+        data["decode_status"] = xr.Variable(
+            ("sample",), data["decode_status"].values.astype("int8"), status_attrs()
+        )
     if thermometers:
         temps = np.array([[r[t] for t in thermometers] for r in readings], dtype=float).reshape(
             n, len(thermometers)

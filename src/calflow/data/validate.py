@@ -96,12 +96,47 @@ def _check_run(ds: xr.Dataset) -> list[str]:
         values = np.asarray(ds[name].values, dtype=float)
         if values.size and not np.any(np.isfinite(values)):
             problems.append(f"variable '{name}': expected measurements, every value is NaN")
+    problems += _check_decoder(ds)
     if "direction" in ds.variables:
         bad = ~np.isin(ds["direction"].values, (-1, 0, 1))
         if bad.any():
             problems.append("variable 'direction': expected values in {-1, 0, +1}")
     if "plan" not in ds.attrs:
         problems.append("global attribute 'plan': missing")
+    return problems
+
+
+def _check_decoder(ds: xr.Dataset) -> list[str]:
+    """The optional variables of a sensor that decodes images: ``u_meas_*`` beside their
+    ``meas_*``, non-negative; ``decode_status`` integer CF flags, NaN readings where not 0."""
+    problems = []
+    for name in sorted(n for n in ds.data_vars if n.startswith("u_meas_")):
+        if name[2:] not in ds.data_vars:
+            problems.append(f"variable '{name}': expected beside '{name[2:]}', which is missing")
+        values = np.asarray(ds[name].values, dtype=float)
+        if np.any(values[np.isfinite(values)] < 0):
+            problems.append(
+                f"variable '{name}': expected standard uncertainties >= 0, found a negative value"
+            )
+    if "decode_status" in ds.data_vars:
+        status = ds["decode_status"]
+        flags = status.attrs.get("flag_values")
+        if status.dtype.kind not in "iu":
+            problems.append(f"variable 'decode_status': expected integer flags, got {status.dtype}")
+        elif flags is None or "flag_meanings" not in status.attrs:
+            problems.append(
+                "variable 'decode_status': attributes 'flag_values' and 'flag_meanings' missing (CF flags)"
+            )
+        else:
+            values = np.asarray(status.values)
+            if not np.all(np.isin(values, np.asarray(flags))):
+                problems.append(
+                    f"variable 'decode_status': expected values in flag_values {list(np.asarray(flags))}"
+                )
+            failed = values != 0
+            for name in sorted(n for n in ds.data_vars if n.startswith("meas_")):
+                if np.any(np.isfinite(np.asarray(ds[name].values, dtype=float)[failed])):
+                    problems.append(f"variable '{name}': expected NaN where decode_status is not 0 (ok)")
     return problems
 
 

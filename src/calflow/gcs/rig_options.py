@@ -170,7 +170,9 @@ def check_options(**options: Any) -> dict[str, Any]:
     sensor = options.get("sensor")
     if not isinstance(sensor, Mapping) or not isinstance(sensor.get("factory"), str):
         raise OptionError(
-            "sensor", "{factory: 'simulated_vision' | 'package.module:callable', options: {...}}", sensor
+            "sensor",
+            "{factory: 'simulated_vision' | 'camera' | 'package.module:callable', options: {...}}",
+            sensor,
         )
     unknown = sorted(set(sensor) - {"factory", "options"})
     if unknown:

@@ -10,7 +10,8 @@ The ``gcs`` rig moves PI stages; what it measures comes from a *sensor*: any obj
 
 A sensor is named in the rig options as ``sensor: {factory: "module:callable", options:
 {...}}``; ``factory(**options)`` returns it. Short names (``simulated_vision``) are the
-sensors the installed robot families register (:mod:`calflow.family`).
+sensors the installed robot families register (:mod:`calflow.family`) and the core's
+``camera`` (a camera over a coded pattern, :mod:`calflow.gcs.camera`).
 """
 
 from __future__ import annotations
@@ -26,38 +27,51 @@ from calflow.family import families
 _FACTORY_RE = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*$")
 
 
+CORE_SENSORS = {"camera": "calflow.gcs.camera:camera_sensor"}  # a camera over a pattern (gcs.camera)
+
+
 def builtin_sensors() -> dict[str, str]:
-    """Short sensor names registered by the families, to ``"module:callable"``."""
-    return {name: target for fam in families() for name, target in fam.sensors.items()}
+    """Short sensor names: the core's (``camera``) and those the families register, to ``"module:callable"``."""
+    return {**CORE_SENSORS, **{name: target for fam in families() for name, target in fam.sensors.items()}}
 
 
-def load_sensor(spec: Mapping[str, Any] | None) -> Any:
-    """Build the sensor named by ``{factory, options}`` and check its interface."""
-    if not isinstance(spec, Mapping) or "factory" not in spec:
-        raise RigError(
-            "gcs rig: option 'sensor' is required: {factory: 'simulated_vision' or "
-            "'package.module:callable', options: {...}}"
-        )
-    name, options = str(spec["factory"]), dict(spec.get("options") or {})
-    target = builtin_sensors().get(name, name)
+def resolve(target: str, name: str, where: str = "sensor.factory"):
+    """The callable ``target`` (``"module:callable"``) of the factory the options call ``name``;
+    a name that is not a registered short name is plug-in code and must be allowed."""
     if not _FACTORY_RE.match(target):
         raise RigError(
-            f"gcs rig: sensor.factory: expected 'simulated_vision' or 'package.module:callable', got {name!r}"
+            f"gcs rig: {where}: expected a registered name or 'package.module:callable', got {name!r}"
         )
     module_name, attr = target.split(":")
     from calflow.rigs.plugin import HOW_TO_ALLOW, is_allowed
 
     if target == name and not is_allowed(module_name):  # not a registered short name: plug-in code
         raise RigError(
-            f"gcs rig: sensor.factory: {name!r} is not allowed to run; "
-            + HOW_TO_ALLOW.format(module=module_name)
+            f"gcs rig: {where}: {name!r} is not allowed to run; " + HOW_TO_ALLOW.format(module=module_name)
         )
     try:
         factory = getattr(importlib.import_module(module_name), attr, None)
     except ImportError as exc:
-        raise RigError(f"gcs rig: sensor.factory: cannot import module {module_name!r} ({exc})") from None
+        raise RigError(f"gcs rig: {where}: cannot import module {module_name!r} ({exc})") from None
     if not callable(factory):
-        raise RigError(f"gcs rig: sensor.factory: module {module_name!r} has no callable {attr!r}")
+        raise RigError(f"gcs rig: {where}: module {module_name!r} has no callable {attr!r}")
+    return factory
+
+
+def load_sensor(spec: Mapping[str, Any] | None) -> Any:
+    """Build the sensor named by ``{factory, options}`` and check its interface."""
+    if not isinstance(spec, Mapping) or "factory" not in spec:
+        raise RigError(
+            "gcs rig: option 'sensor' is required: {factory: 'simulated_vision', 'camera' or "
+            "'package.module:callable', options: {...}}"
+        )
+    name, options = str(spec["factory"]), dict(spec.get("options") or {})
+    target = builtin_sensors().get(name, name)
+    if not _FACTORY_RE.match(target):
+        raise RigError(
+            f"gcs rig: sensor.factory: expected 'simulated_vision', 'camera' or 'package.module:callable', got {name!r}"
+        )
+    factory = resolve(target, name)
     try:
         sensor = factory(**options)
     except (TypeError, ValueError) as exc:

@@ -27,7 +27,7 @@ import hashlib
 from functools import cache
 
 from calflow import __version__
-from calflow.provenance.modules import find, registrations, source
+from calflow.provenance.modules import find, registrations, source, under
 
 #: Where the core resolves a hook of a family at run time (an import no ``import`` statement
 #: shows): core module, or ``module:function`` of an entry point → the ``Family`` fields it
@@ -192,3 +192,9 @@ def module_digest(*modules: str) -> str:
         h.update(module.encode())
         h.update(source(module).digest.encode())
     return h.hexdigest()
+
+
+def package_digest(*packages: str) -> str:
+    """:func:`module_digest` of every module of ``packages`` and their subpackages (an
+    instrument's whole code, recorded beside what it measured)."""
+    return module_digest(*(m for p in packages for m in under(p)))

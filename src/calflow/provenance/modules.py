@@ -75,6 +75,11 @@ def _modules() -> dict[str, tuple[Path, bool]]:
     return found
 
 
+def under(package: str) -> tuple[str, ...]:
+    """Every calflow or family module of ``package`` and its subpackages, sorted."""
+    return tuple(sorted(m for m in _modules() if m == package or m.startswith(f"{package}.")))
+
+
 def find(module: str) -> tuple[Path, bool] | None:
     """``(file, is_package)`` of a calflow or family module, or None (not one, or absent)."""
     return _modules().get(module)

@@ -59,7 +59,7 @@ class ReplayRig:
     """Serves one recorded run dataset through the rig protocol (docs/rigs.md).
 
     ``joints`` are the recorded ``cmd_*`` variables, ``sensors`` the ``meas_*``
-    variables, ``thermometers`` the ``sensor`` coordinate of ``temperature``.
+    variables (and, from an image sensor, their ``u_meas_*`` and ``decode_status``), ``thermometers`` the ``sensor`` coordinate of ``temperature``.
     Commands are compared with the recording within ``tolerance`` in each joint's
     own unit (µm for translations, degree for rotations).
     """
@@ -99,7 +99,10 @@ class ReplayRig:
         self.joints = tuple([j for j in order if j in cmd] + [j for j in cmd if j not in order])
         meas = [n for n in ds.data_vars if n.startswith("meas_")]
         ordered = [f"meas_{j}" for j in order if f"meas_{j}" in meas]
-        self.sensors = tuple(ordered + [m for m in meas if m not in ordered])
+        ordered += [m for m in meas if m not in ordered]
+        decoder = [f"u_{m}" for m in ordered if f"u_{m}" in ds.data_vars]  # an image sensor's decoder
+        decoder += ["decode_status"] if "decode_status" in ds.data_vars else []
+        self.sensors = tuple(ordered + decoder)
         if "temperature" in ds.data_vars:
             if ds["temperature"].dims != ("sample", "sensor") or "sensor" not in ds.coords:
                 raise RigError(
@@ -220,6 +223,7 @@ def replay(
     tolerance_um: float = 1e-6,
     seed: int | None = None,
     campaign_start: str | None = None,
+    decoded: str | None = None,
 ) -> ReplayRig:
     """Factory of the replay rig (``rig: {factory: replay, options: {recordings: ...}}``).
 
@@ -234,6 +238,8 @@ def replay(
     ``seed`` is accepted and ignored: a recording has no randomness left.
     ``campaign_start`` (ISO 8601, given by ``calflow acquire``): an instrument's recording
     with a clock is served in seconds since it, not since its own first timestamp.
+    ``decoded``: the run file a ``frames`` recording was decoded into (``calflow
+    decode-run``; ``calflow acquire --decoded`` gives it).
     """
     del seed
     tolerance = float(tolerance_um)
@@ -245,7 +251,7 @@ def replay(
     from calflow.data.recordings import in_campaign_time, load
 
     try:
-        path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings")
+        path, ds, plan = load(entry, stream or next(iter(recordings)), "rig.options.recordings", decoded)
         if ds is not None and campaign_start:
             ds = in_campaign_time(ds, campaign_start)
     except CalflowError as exc:
@@ -254,7 +260,12 @@ def replay(
 
 
 def check_options(
-    recordings=None, stream: str = "", tolerance_um: float = 1e-6, seed=None, campaign_start=None
+    recordings=None,
+    stream: str = "",
+    tolerance_um: float = 1e-6,
+    seed=None,
+    campaign_start=None,
+    decoded=None,
 ) -> None:
     """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
     ``recordings`` given, each entry of a mapping well formed and its files present, the

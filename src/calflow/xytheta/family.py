@@ -25,6 +25,10 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
         if sensor.get("factory") == "simulated_vision":
             sensor["options"] = {"seed": c["seed"], **sensor.get("options", {}), "stream": run_id}
             options["sensor"] = sensor
+        source = dict((sensor.get("options") or {}).get("source") or {})
+        if sensor.get("factory") == "camera" and source.get("factory") == "simulated_camera":
+            source["options"] = {"seed": c["seed"], **(source.get("options") or {}), "stream": run_id}
+            options["sensor"] = {**sensor, "options": {**sensor["options"], "source": source}}
     return options
 
 
@@ -55,6 +59,12 @@ def _characterise_arguments(p: argparse.ArgumentParser) -> None:
 def _observability_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--campaign", required=True)
     p.add_argument("--out", required=True)
+
+
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--campaign", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--throughput", help="where to write the decoder's throughput on this machine (JSON)")
 
 
 def _budget_arguments(p: argparse.ArgumentParser) -> None:
@@ -168,6 +178,12 @@ FAMILY = Family(
             "calflow.xytheta.stage.error_budget:error_budget_command",
         ),
         Command(
+            "instrument-bench",
+            "the camera and decoder of a rig that reads through images, on rendered frames (report)",
+            _bench_arguments,
+            "calflow.xytheta.stage.bench:bench_command",
+        ),
+        Command(
             "design-study",
             "Cramér–Rao σ against poses and rig time, random against designed",
             _observability_arguments,
@@ -199,7 +215,10 @@ FAMILY = Family(
         ),
         Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
     ),
-    sensors={"simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision"},
+    sensors={  # of the gcs rig; simulated_camera is a frame source of its camera sensor (gcs.camera)
+        "simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision",
+        "simulated_camera": "calflow.xytheta.stage.vision_sensor:simulated_camera",
+    },
     options={
         "calflow.xytheta.stage.rig:simulated_xytheta": "calflow.xytheta.stage.physics:check_options",
         "calflow.xytheta.stage.vision_sensor:simulated_vision": "calflow.xytheta.stage.physics:check_options",
@@ -230,6 +249,7 @@ FAMILY = Family(
         "metrics:validation_export": "export",
         "metrics:as_found": "as_found",
         "run:as_found": "as_found_runs",
+        "metrics:instrument": "instrument",
         "luts": "characterisation",
         "run:characterisation_x": "iso230_2",
         "run:characterisation_y": "iso230_2",

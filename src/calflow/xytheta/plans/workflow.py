@@ -81,7 +81,16 @@ class XYThetaWorkflow(FamilyWorkflow):
         files += [layout.metrics(name, f"{t}_{k}") for t in ("square", "random_points") for k in tests]
         if c.get("as_found"):  # the compensation in use, before the recalibration (plans/as_found.py)
             files += [layout.run(name, "as_found"), layout.metrics(name, "as_found")]
+        if self.reads_images(c):  # the camera and decoder on the bench (report)
+            files.append(layout.metrics(name, "instrument"))
         return files + self.export_results(c)
+
+    @staticmethod
+    def reads_images(c: dict) -> bool:
+        """The simulated rig reads its vision sensor through rendered frames (stage.images)."""
+        return (
+            c["rig"]["factory"] == "simulated" and (c["rig"].get("options") or {}).get("sensor") == "images"
+        )
 
     def export_results(self, c: dict) -> list[str]:
         """The export metrics the summary draws on: every model; on a replayed rig, those whose
@@ -98,19 +107,24 @@ class XYThetaWorkflow(FamilyWorkflow):
         return layout.truth(c["name"], "identification")
 
     def budget_files(self, c: dict) -> list[str]:
-        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``."""
+        """The error budget's replays: simulated rigs with ``validation.heldout.error_budget``,
+        or that read their sensor through images (the replay with the noise-model sensor)."""
         if "interim_check" in c or c["rig"]["factory"] != "simulated":
             return []
-        if not c["validation"]["heldout"]["error_budget"]:
+        if not (c["validation"]["heldout"]["error_budget"] or self.reads_images(c)):
             return []
         return [layout.truth(c["name"], "error_budget")]
 
     def report_files(self, c: dict) -> list[str]:
-        """The summary's files and the identification poses (the report's pose figure); an
-        interim check has no identification."""
+        """The summary's files and the identification poses (the report's pose figure), and
+        the decoder's throughput of an images rig (not in the summary: no two runs share it);
+        an interim check has no identification."""
         if "interim_check" in c:
             return self.results_of(c)
-        return self.results_of(c) + [layout.run(c["name"], "identification")]
+        files = self.results_of(c) + [layout.run(c["name"], "identification")]
+        if self.reads_images(c):  # the decoder's throughput on the machine that ran the bench
+            files.append(layout.campaign(c["name"], "benchmarks", "instrument_throughput.json"))
+        return files
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
         """The XY tables a designed identification plan reads for its discrepancy kernel; the

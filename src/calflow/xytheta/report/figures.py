@@ -321,4 +321,11 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
         draw(validation, summary),
         draw(angle_errors, inputs),
     ]
+    from calflow.xytheta.report import instrument
+
+    bench = inputs.metrics.get("instrument", {}).get("")
+    figures += [
+        draw(instrument.example_frame, bench),
+        draw(instrument.period_error, bench, instrument.throughput(inputs)),
+    ]
     return [f for f in figures if f is not None], notes

@@ -278,6 +278,13 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             "O2_limit": jsonable(obs.attrs.get("O2_limit")),
             "repeats": jsonable(obs.attrs.get("repeats")),
         }
+    from calflow.xytheta.report.instrument import summary_block
+
+    bench = next((ds for _, ds in found.get("instrument", [])), None)
+    runs = [ds for sec in ("iso230_2", "training_runs", "heldout_runs") for _, ds in found.get(sec, [])]
+    sensor = summary_block(runs, bench)
+    if sensor is not None:
+        summary["sensor"] = sensor
     if truth and truth.get("error_budget") and heldout:
         _add_error_budget(summary, heldout, truth["error_budget"])
     if truth and truth.get("available", True):
@@ -292,6 +299,9 @@ def _add_error_budget(summary: dict, heldout: dict, budget: dict) -> None:
     replays on the simulated truth (:mod:`calflow.xytheta.stage.error_budget`): reports only."""
     from calflow.xytheta.stage.error_budget import combine, groups
 
+    _add_noise_model_sensor(summary, budget)
+    if not any(r["replay"] == "baseline" for r in budget["replays"]):  # only the noise-model replay
+        return
     ap = {name: m["ap"].values for name, m in heldout.items()}
     b = combine(ap, budget["replays"])
     for name, entry in b["models"].items():
@@ -304,6 +314,26 @@ def _add_error_budget(summary: dict, heldout: dict, budget: dict) -> None:
     summary["validation"].setdefault("heldout", {})["error_budget"] = {
         k: b[k] for k in ("effects", "unmodelled", "combination")
     }
+
+
+def _add_noise_model_sensor(summary: dict, budget: dict) -> None:
+    """``models.<M>.noise_model_sensor`` of a rig that reads through images: the held-out AP
+    and RMS of the same calibration replayed with the noise-model sensor (same seeds)."""
+    record = next((r for r in budget["replays"] if r["replay"] == "noise_model" and r.get("active")), None)
+    if record is None:
+        return
+    for name, ap in record["ap_um"].items():
+        if name in summary["models"]:
+            ap = np.asarray(ap, dtype=float)
+            summary["models"][name]["noise_model_sensor"] = {
+                "accuracy_um": float(np.max(ap)),
+                "rms_ap_um": float(np.sqrt(np.mean(ap**2))),
+            }
+    summary["validation"].setdefault("heldout", {})["sensor_comparison"] = (
+        "models.<M>.accuracy_um: the sensor read through rendered frames and the decoder; "
+        "models.<M>.noise_model_sensor.accuracy_um: the same calibration (seeds, poses, stage "
+        "draws) with the noise-model sensor; validation.heldout.floor_um: the rig's repeatability floor"
+    )
 
 
 def _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth) -> dict:

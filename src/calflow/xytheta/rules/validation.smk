@@ -57,3 +57,35 @@ rule error_budget:
     shell:
         "calflow error-budget --campaign {params.campaign} --jobs {threads}"
         " --out {output.budget} > {log} 2>&1"
+
+
+# The camera and decoder of a rig that reads through images, on rendered frames: the
+# report's measurement-system section (calflow.instruments.bench).
+rule instrument_bench:
+    output:
+        bench="results/{campaign}/metrics/instrument.nc",
+        throughput="results/{campaign}/benchmarks/instrument_throughput.json",
+    log:
+        "results/{campaign}/logs/instrument_bench.log",
+    benchmark:
+        "results/{campaign}/benchmarks/instrument_bench.tsv"
+    group:
+        "campaign"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=600,
+        runtime=2,
+    params:
+        campaign=campaign_file,
+        digest=lambda w: digest(
+            [
+                code_digest("instrument", "xytheta"),
+                CAMPAIGN[w.campaign]["rig"],
+                CAMPAIGN[w.campaign]["seed"],
+                CAMPAIGN[w.campaign]["identification"]["theta_deg"],
+            ]
+        ),
+    shell:
+        "calflow instrument-bench --campaign {params.campaign} --out {output.bench}"
+        " --throughput {output.throughput} > {log} 2>&1"

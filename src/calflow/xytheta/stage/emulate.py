@@ -73,7 +73,8 @@ _load = load_campaign_arg
 
 def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`XYThetaTruth` overrides of a campaign: the simulated rig's options, or the
-    ``simulated_vision`` sensor options of a ``gcs`` rig (seed and stream removed)."""
+    ``simulated_vision`` sensor options of a ``gcs`` rig, or its ``camera`` sensor's
+    ``simulated_camera`` options (then ``sensor: images``); seed and stream removed."""
     if campaign.get("robot", "xytheta") != "xytheta":
         raise CalflowError(
             f"emulate gcs: robot {campaign.get('robot')!r}: only xytheta campaigns "
@@ -84,6 +85,13 @@ def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     if rig.get("factory", "simulated") != "simulated":
         sensor = options.get("sensor") or {}
         options = dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_vision" else {}
+        source = (
+            (sensor.get("options") or {}).get("source") or {} if sensor.get("factory") == "camera" else {}
+        )
+        if (
+            source.get("factory") == "simulated_camera"
+        ):  # an emulated camera: its physics, read through images
+            options = {**(source.get("options") or {}), "sensor": "images"}
     return {k: v for k, v in options.items() if k not in ("seed", "stream")}
 
 
@@ -117,10 +125,18 @@ def rig_options(
     backoff_s: float = 0.2,
 ) -> dict[str, Any]:
     """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
+    physics = physics_options(campaign)
     sensor = {
         "factory": "simulated_vision",
-        "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
+        "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics},
     }
+    if physics.get("sensor") == "images":  # the pattern seen by an emulated camera and decoded
+        source = {k: v for k, v in physics.items() if k != "sensor"}
+        source = {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **source}
+        sensor = {
+            "factory": "camera",
+            "options": {"source": {"factory": "simulated_camera", "options": source}},
+        }
     return link_options(
         address,
         JOINT_AXES,

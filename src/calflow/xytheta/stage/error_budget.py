@@ -23,6 +23,13 @@ interaction the remainder (effects that add or cancel in the same direction are 
 additive). The budget is given in µm as sign(ΔMS)·√|ΔMS|; the RMS of AP_k is √MS_full.
 An effect a model compensates has a small ΔMS_e; one it cannot has ΔMS_e near the
 effect's own mean square at the targets.
+
+A rig that reads its sensor through images (``sensor: images``, :mod:`.images`) has no
+noise-model terms (``decode``, ``gross_errors``): its sensor is one more effect,
+``sensor``, whose replay reads the camera point exactly (no frames, no noise), so ΔMS_sensor
+is what the rendered frames and their decoding add. Its campaigns also replay once with
+the noise-model sensor (``noise_model``, not an effect of the budget): the same calibration
+with the sensor the rig has without images, side by side in the summary.
 """
 
 from __future__ import annotations
@@ -39,25 +46,57 @@ from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, opt
 
 EXTRA = {"lost_motion": {"lost_motion": False}, "gross_errors": {"gross_error_rate": 0.0}}  # beyond EFFECTS
 REPLAYS = ("baseline", *EFFECTS, *EXTRA)  # "baseline": every effect off; any other: that effect off
+NOISE_MODEL = {"sensor": "model", "camera": None, "pattern": None}  # an images rig read by the noise model
+IDEAL_SENSOR = {  # the camera point read exactly: the "sensor" effect of an images rig switched off
+    **NOISE_MODEL,
+    "sensor_noise_um": 0.0,
+    "sensor_theta_noise_deg": 0.0,
+    "decode_error_um": 0.0,
+    "gross_error_rate": 0.0,
+    "sensor_resolution_um": 1e-6,
+}
+IMAGES_ONLY = {"sensor": IDEAL_SENSOR, "noise_model": NOISE_MODEL}  # replays of an images rig only
+MODEL_ONLY = ("decode", "gross_errors")  # effects of the noise-model sensor
 
 
-def active_effects(truth: XYThetaTruth) -> list[str]:
+def reads_images(options: dict) -> bool:
+    """True when rig options ``options`` read the vision sensor through images."""
+    return (options or {}).get("sensor") == "images"
+
+
+def budget_replays(campaign: dict) -> tuple[str, ...]:
+    """The replays a campaign's budget file holds: the effects' (``validation.heldout.error_budget``,
+    with ``sensor`` on an images rig) and, on an images rig, ``noise_model``."""
+    images = reads_images(campaign["rig"].get("options") or {})
+    names = (*REPLAYS, "sensor") if images else REPLAYS
+    names = names if campaign["validation"]["heldout"].get("error_budget", True) else ()
+    return (*names, "noise_model") if images else names
+
+
+def active_effects(truth: XYThetaTruth, images: bool = False) -> list[str]:
     """The effects (names of :data:`EFFECTS` and ``lost_motion``, ``gross_errors``) that
-    ``truth`` has switched on."""
+    ``truth`` has switched on; on a rig that reads through images (``images``), the
+    noise model's own (:data:`MODEL_ONLY`) are not and ``sensor`` is."""
     names = [e for e, fs in EFFECTS.items() if any(np.any(np.asarray(getattr(truth, f)) != 0) for f in fs)]
     if truth.lost_motion:
         names.append("lost_motion")
     if truth.gross_error_rate > 0:
         names.append("gross_errors")
+    if images:
+        names = [n for n in names if n not in MODEL_ONLY] + ["sensor"]
     return names
 
 
 def replay_options(replay: str) -> dict:
-    """Rig options of a replay: every effect off (``baseline``), one effect off, or none (``none``)."""
+    """Rig options of a replay: every effect off (``baseline``), one effect off, the sensor
+    read exactly or by the noise model (images rigs: ``sensor``, ``noise_model``), or none
+    (``none``)."""
     if replay == "none":
         return {}
     if replay == "baseline":
         return options_off()
+    if replay in IMAGES_ONLY:
+        return dict(IMAGES_ONLY[replay])
     return dict(EXTRA[replay]) if replay in EXTRA else options_off(replay)
 
 
@@ -126,8 +165,11 @@ def replay(campaign_path: str | Path, name: str) -> dict:
     by model, or ``active: false`` when the campaign's rig has that effect off already."""
     from calflow.commands.common import campaign as load
 
-    truth = truth_from_options(dict(load(campaign_path)["rig"].get("options") or {}))
-    if name not in ("baseline", "none") and name not in active_effects(truth):
+    options = dict(load(campaign_path)["rig"].get("options") or {})
+    truth = truth_from_options(options)
+    if name not in ("baseline", "none", "noise_model") and name not in active_effects(
+        truth, reads_images(options)
+    ):
         return {"replay": name, "active": False}
     with tempfile.TemporaryDirectory(prefix="calflow-budget-") as tmp:
         ap = replay_heldout(campaign_path, replay_options(name), Path(tmp))
@@ -135,8 +177,8 @@ def replay(campaign_path: str | Path, name: str) -> dict:
 
 
 def replays(campaign_path: str | Path, names=REPLAYS, workers: int = 1) -> list[dict]:
-    """:func:`replay` of each of ``names``, over ``workers`` processes."""
-    if workers <= 1:
+    """:func:`replay` of each of ``names``, over ``workers`` processes (no more than replays)."""
+    if min(workers, len(names)) <= 1:
         return [replay(campaign_path, n) for n in names]
     from concurrent.futures import ProcessPoolExecutor
 
@@ -148,7 +190,7 @@ def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
     """The budget of every model from the campaign's own held-out per-target AP (µm) and the
     replays' (module docstring): per model ``rms_ap_um`` and ``error_budget_um`` (effect →
     signed µm, with ``baseline`` and ``interaction``); Σ sign·v² over it = rms_ap_um²."""
-    by = {r["replay"]: r for r in records if r.get("active")}
+    by = {r["replay"]: r for r in records if r.get("active") and r["replay"] != "noise_model"}
     effects = [n for n in by if n not in ("baseline", "none")]
     models = {}
     for name, ap in heldout_ap.items():
@@ -163,7 +205,9 @@ def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
         models[name] = {"rms_ap_um": float(np.sqrt(ms)), "error_budget_um": budget}
     return {
         "effects": effects,
-        "unmodelled": [e for e in effects if e in EXTRA or set(EFFECTS[e]) & set(UNMODELLED)],
+        "unmodelled": [
+            e for e in effects if e in EXTRA or e in IMAGES_ONLY or set(EFFECTS[e]) & set(UNMODELLED)
+        ],
         "combination": "rms_ap_um^2 = sum over error_budget_um of sign(v)*v^2, where rms_ap_um^2 is the mean "
         "over held-out targets of AP_k^2; an effect's entry is sign*sqrt(rms_ap_um^2 - the same "
         "mean after a calibration on the rig without it); baseline: every effect off; "
@@ -206,6 +250,7 @@ def error_budget_command(args) -> None:
             f"(it replays the calibration on the rig's truth), got {c['rig']['factory']!r}"
         )
     output_folder(args.out)
+    names = budget_replays(c)
     write_json(
-        {"campaign": c["name"], "replays": replays(args.campaign, REPLAYS, max(1, int(args.jobs)))}, args.out
+        {"campaign": c["name"], "replays": replays(args.campaign, names, max(1, int(args.jobs)))}, args.out
     )

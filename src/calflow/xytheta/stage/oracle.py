@@ -2,8 +2,9 @@
 
 Test and report use only (the summary step, like its truth block): the held-out targets
 are commanded through the simulated rig's *exact* inverse (:meth:`XYThetaTruth.exact_inverse`),
-so what remains is what no calibration can remove — stage repeatability, sensor noise,
-the approach-dependent effects the exact inverse does not know. Its ISO 9283 RP is the
+so what remains is what no calibration can remove — stage repeatability, sensor noise
+(from rendered frames and the decoder when the rig reads through images), the
+approach-dependent effects the exact inverse does not know. Its ISO 9283 RP is the
 floor a model's held-out accuracy is compared with. Analysis code never imports this.
 """
 
@@ -29,7 +30,10 @@ def oracle_validation(truth: dict, run: xr.Dataset, seed: int) -> dict:
     from calflow.xytheta.stage.rig import simulated_xytheta
 
     physics = {f.name: truth[f.name] for f in fields(XYThetaTruth) if f.name in truth}
-    rig = simulated_xytheta(seed=seed, stream="validation_oracle", **physics)
+    sensor = {
+        k: v for k, v in (truth.get("sensor") or {}).items() if v is not None
+    }  # images: the same camera
+    rig = simulated_xytheta(seed=seed, stream="validation_oracle", **physics, **sensor)
     t = rig.truth_model
     visits = run["pose"].values > 0
     poses = run["pose"].values[visits]

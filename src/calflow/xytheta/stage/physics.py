@@ -30,6 +30,7 @@ UNMODELLED = (
     "gross_error_rate",
     "drift_um_per_degC",
 )  # effects no calflow model represents
+SENSOR_OPTIONS = ("sensor", "camera", "pattern")  # how the vision sensor reads: stage.images
 
 
 def _off(value):
@@ -245,6 +246,14 @@ class XYThetaTruth:
             a * np.cos(2 * np.pi * (0.61 * x_m / p - y_m / p) + 1.3),
         )
 
+    def camera_point(self, x_P, y_P, theta, temperature_degC):
+        """Where the camera looks on the pattern (µm, pattern frame): the camera point M of
+        Eq. (4.26) for the tool point (x_P, y_P) at angle Θ, shifted by the thermal drift of
+        the camera mount (Table 3.3); what a frame shows, before any sensor noise."""
+        x_m, y_m = pattern_from_world(x_P, y_P, theta, self.camera_x_um, self.camera_y_um)
+        warm = np.asarray(temperature_degC) - self.room_temperature_degC
+        return x_m + warm * self.drift_um_per_degC[0], y_m + warm * self.drift_um_per_degC[1]
+
     def vision(self, x_P, y_P, theta, temperature_degC, noise_um, gross=(0.0, 0.0)):
         """The vision reading (x_m, y_m) of the camera point in the pattern frame, µm.
 
@@ -337,16 +346,25 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
     """The options of the simulated XYΘ rig checked and converted; raises :class:`OptionError`
     naming the option: unknown names, non-numbers, NaN/inf, negative magnitudes (noise,
     resolution, backlash, repeatability, rates), non-positive velocities, pitches, periods
-    and ranges, switches that are not true/false."""
+    and ranges, switches that are not true/false. The vision sensor's options (``sensor``,
+    ``camera``, ``pattern``: :mod:`calflow.xytheta.stage.images`), when given, come back
+    checked under ``sensor``."""
     known = {f.name: f.default for f in fields(XYThetaTruth)}
     if "aging" in physics:  # checked here, resolved for the campaign's start by the loader (stage.aging)
         from calflow.xytheta.stage.aging import check as check_aging
 
         physics = dict(physics)
         check_aging(physics.pop("aging"))
+    sensor = {k: physics[k] for k in SENSOR_OPTIONS if k in physics}
+    if sensor:  # how the vision sensor reads (stage.images): not physics
+        from calflow.xytheta.stage.images import check as check_sensor
+
+        physics = {k: v for k, v in physics.items() if k not in SENSOR_OPTIONS}
+        sensor = check_sensor(**sensor)
     for key in physics:
         if key not in known:
-            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(known))}")
+            names = sorted([*known, *SENSOR_OPTIONS])
+            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(names)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise OptionError("seed", "an integer >= 0", seed)
     if not isinstance(stream, str):
@@ -375,7 +393,7 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
             out[key] = _number(key, value, bound)
     if out.get("gross_error_rate", 0.0) > 1:
         raise OptionError("gross_error_rate", "a probability between 0 and 1", physics["gross_error_rate"])
-    return {"seed": int(seed), "stream": stream, **out}
+    return {"seed": int(seed), "stream": stream, **out, **({"sensor": sensor} if sensor else {})}
 
 
 def truth_from_options(physics) -> XYThetaTruth:
@@ -383,6 +401,7 @@ def truth_from_options(physics) -> XYThetaTruth:
     options are (:func:`check_options`)."""
     o = check_options(**physics)
     del o["seed"], o["stream"]
+    o.pop("sensor", None)
     return XYThetaTruth(**o)
 
 

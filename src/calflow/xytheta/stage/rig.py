@@ -9,7 +9,10 @@ angular errors and axis runout, a vision sensor with noise, a per-pose decoding 
 rare gross errors, resolution and thermal drift. Time is virtual; a seed makes a run
 reproducible to the byte.
 
-The vision reading is the camera point M in the pattern frame, Eq. (4.26).
+The vision reading is the camera point M in the pattern frame, Eq. (4.26). With
+``sensor: images`` it is read through rendered frames of the coded pattern and the
+decoder instead of the noise model (:mod:`calflow.xytheta.stage.images`); the stage's own
+random draws are the same whichever sensor reads it.
 """
 
 from __future__ import annotations
@@ -33,8 +36,14 @@ class SimulatedXYTheta:
     sensors = ("meas_x", "meas_y", "meas_theta")
     thermometers = ("T1",)
 
-    def __init__(self, truth: XYThetaTruth, seed: int = 0, stream: str = ""):
+    def __init__(self, truth: XYThetaTruth, seed: int = 0, stream: str = "", sensor: dict | None = None):
         self.truth_model = truth
+        self.images = None
+        if sensor and sensor.get("sensor") == "images":
+            from calflow.xytheta.stage.images import IMAGE_CHANNELS, ImageSensor
+
+            self.images = ImageSensor(truth, sensor, seed=seed, stream=stream)
+            self.sensors = (*type(self).sensors, *IMAGE_CHANNELS)
         seq = np.random.SeedSequence([int(seed), zlib.crc32(stream.encode())])
         self._rng = np.random.default_rng(seq)
         self._time = 0.0
@@ -111,6 +120,14 @@ class SimulatedXYTheta:
         sensor's and the thermometer's noise."""
         t = self.truth_model
         temperature = t.room_temperature(time_s)
+        if self.images is not None:  # frames rendered at the camera point and decoded
+            x_m, y_m = t.camera_point(pose[:, 0], pose[:, 1], pose[:, 2], temperature)
+            thermometer = temperature + (0.0 + 0.005 * w[:, 1])
+            return {
+                "time": np.asarray(time_s, dtype=float),
+                **self.images.read(x_m, y_m, pose[:, 2]),
+                "T1": np.array([round(float(v), 3) for v in thermometer]),
+            }
         gross = t.gross_error(u[:, 0], u[:, 1])
         s = t.sensor_noise_um
         x_m, y_m = t.vision(
@@ -162,15 +179,20 @@ class SimulatedXYTheta:
         self._closed = True
 
     def truth(self) -> dict:
-        """The rig's true physics, for tests and reports only."""
-        return {"rig": "simulated_xytheta", **self.truth_model.as_dict()}
+        """The rig's true physics, for tests and reports only (with the image sensor's
+        options when it reads through images)."""
+        out = {"rig": "simulated_xytheta", **self.truth_model.as_dict()}
+        if self.images is not None:
+            out["sensor"] = dict(self.images.options)
+        return out
 
 
 def simulated_xytheta(seed: int = 0, stream: str = "", **physics) -> SimulatedXYTheta:
-    """Factory of the simulated XYΘ rig; ``physics`` overrides :class:`XYThetaTruth` fields."""
+    """Factory of the simulated XYΘ rig; ``physics`` overrides :class:`XYThetaTruth` fields,
+    ``sensor``/``camera``/``pattern`` choose how the vision sensor reads (stage.images)."""
     o = check_options(seed, stream, **physics)
-    seed, stream = o.pop("seed"), o.pop("stream")
-    return SimulatedXYTheta(XYThetaTruth(**o), seed=seed, stream=stream)
+    seed, stream, sensor = o.pop("seed"), o.pop("stream"), o.pop("sensor", None)
+    return SimulatedXYTheta(XYThetaTruth(**o), seed=seed, stream=stream, sensor=sensor)
 
 
 simulated_xytheta.check_options = check_options  # the config check calls it (calflow.rigs.plugin)

@@ -1,0 +1,139 @@
+"""``calflow decode-run``: a recording of camera frames decoded into a run dataset.
+
+A replay campaign names, for a run id, a frame recording (docs/data.md, "Recorded
+frames")::
+
+    rig:
+      factory: replay
+      options:
+        recordings:
+          identification:
+            file: data/ident.tif            # a TIFF stack, or a folder of image files
+            format: frames
+            table: data/ident.csv           # frame, time, cmd_<joint>, thermometers
+            pattern: data/pattern.json      # the pattern file (calflow pattern make)
+            camera: {}                      # optional: camera-model fields (size, pixel, optics)
+
+The workflow's ``decode_frames`` rule runs this command into
+``results/<campaign>/decoded/<run>.nc``, a run dataset: ``meas_*`` the decoded pose in the
+pattern frame (Eq. 4.26), ``u_meas_*`` their standard uncertainties, ``decode_status``,
+``frame_sha256``; the replay rig then serves it as the run (``calflow acquire --decoded``).
+Frames stay in their files. A changed decoder reruns this rule; nothing reads the frames
+again but it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from calflow.data.frames import FrameFiles, file_sha256, read_table
+from calflow.data.runs import RunMetadata, run_dataset
+from calflow.errors import DataError
+from calflow.plan import Plan
+
+CHUNK = 16  # frames read and decoded at once
+AXES = ("x", "y", "theta")  # what the decoder measures: the camera point and the angle
+
+
+def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
+    """The run dataset of a frame recording ``entry`` (``{file, format: frames, table,
+    pattern, camera}``) for run ``run_id`` of ``campaign`` (its robot, name and start)."""
+    from calflow.data.conventions import robot_joints
+    from calflow.data.recordings import entry as normalised
+    from calflow.instruments.pattern import Pattern, decode
+    from calflow.instruments.readings import camera_of, frame_shape, readings_of
+    from calflow.provenance import package_digest
+
+    e = normalised(entry)
+    robot = campaign["robot"]
+    joints = robot_joints(robot)
+    axes = [a for a in AXES if a in joints]
+    if not axes:
+        raise DataError(
+            f"rig.options.recordings.{run_id}: robot {robot!r} has none of the joints {list(AXES)} a camera over a pattern measures"
+        )
+    table = read_table(e["table"], joints)
+    try:
+        pattern = Pattern.load(e["pattern"])
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{e['pattern']}: pattern file: {exc}") from None
+    camera = camera_of(e.get("camera") or {}, f"rig.options.recordings.{run_id}.camera")
+    frames = FrameFiles(e["file"], table.frame, frame_shape(camera))
+    readings, shas = [], []
+    for rows, block, digests in frames.chunks(CHUNK):
+        try:
+            d = decode(block, pattern, camera)
+        except ValueError as exc:  # the camera cannot decode this pattern (field of view)
+            raise DataError(f"{e['file']}: rig.options.recordings.{run_id}: {exc}") from None
+        r = readings_of(d)
+        for k in range(len(block)):
+            i = rows.start + k
+            reading = {"time": float(table.time_s[i])}
+            reading.update({f"meas_{a}": float(r[f"meas_{a}"][k]) for a in axes})
+            reading.update({f"u_meas_{a}": float(r[f"u_meas_{a}"][k]) for a in axes})
+            reading["decode_status"] = float(r["decode_status"][k])
+            reading.update({name: float(v[i]) for name, v in table.temperatures.items()})
+            readings.append(reading)
+        shas += digests
+    n = len(table)
+    plan = Plan(
+        name=run_id,
+        commands=dict(table.commands),
+        targets=dict(table.targets),
+        pose=table.indices.get("pose", np.arange(n)),
+        cycle=table.indices.get("cycle", np.zeros(n, int)),
+        direction=table.indices.get("direction", np.zeros(n, int)),
+        dwell_s=0.0,
+    )
+    meta = RunMetadata(
+        campaign=campaign["name"],
+        robot=robot,
+        source="replay",
+        plan=run_id,
+        config_sha256=file_sha256(table.path),
+        start=campaign["start"],
+        extra={
+            "imported_from": table.path.name,
+            "frames": str(e["file"]),
+            "frames_sha256": file_sha256(e["file"]) if frames.stack else _digest_of(shas),
+            "pattern_sha256": file_sha256(e["pattern"]),
+            "decoder_sha256": package_digest("calflow.instruments"),
+        },
+    )
+    sensors = [f"meas_{a}" for a in axes] + [f"u_meas_{a}" for a in axes] + ["decode_status"]
+    ds = run_dataset(readings, plan, sensors, tuple(table.temperatures), meta)
+    del ds.attrs["dwell_s"]  # the recording does not say
+    ds["frame_sha256"] = xr.Variable(
+        ("sample",),
+        np.array(shas, dtype=object),
+        attrs={"long_name": "SHA-256 of the frame (its file, or a stack page's pixels)"},
+    )
+    if table.recording_start:
+        ds.attrs["recording_start"] = table.recording_start
+    if any(f"meas_{a}" in ds and not np.isfinite(ds[f"meas_{a}"].values).any() for a in axes):
+        raise DataError(
+            f"{e['file']}: no frame of the recording decoded (decode_status gives each frame's reason)"
+        )
+    return ds
+
+
+def _digest_of(shas: list[str]) -> str:
+    import hashlib
+
+    return hashlib.sha256("\n".join(shas).encode()).hexdigest()
+
+
+def run(args) -> None:
+    """``calflow decode-run --campaign C --run R --out F``."""
+    from calflow.commands.common import campaign as load
+    from calflow.data.io import output_folder, write_dataset
+
+    c = load(args.campaign)
+    recordings = (c["rig"].get("options") or {}).get("recordings")
+    if c["rig"]["factory"] != "replay" or not isinstance(recordings, dict) or args.run not in recordings:
+        raise DataError(
+            f"{args.campaign}: key 'rig.options.recordings.{args.run}': no frame recording of this run"
+        )
+    output_folder(args.out)
+    write_dataset(decode_recording(recordings[args.run], args.run, c), args.out)

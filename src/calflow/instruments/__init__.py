@@ -1,0 +1,1 @@
+"""Instruments: sensors that serve any robot family (a camera over a coded pattern, …)."""

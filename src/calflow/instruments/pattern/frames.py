@@ -1,0 +1,103 @@
+"""Camera frames from files: TIFF (one frame or a stack, tifffile) and PNG (Pillow).
+
+Frames must be monochrome (one channel), 8- or 16-bit integers or floats, all of one size; a
+file that cannot be read, is truncated, holds colour or a frame of another size is refused in
+one line naming it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from calflow.errors import DataError
+
+TIFF = (".tif", ".tiff")
+PNG = (".png",)
+
+
+def read_frames(paths) -> tuple[np.ndarray, list[tuple[str, int]]]:
+    """The frames of these files as one array (n, h, w) and, per frame, (file, page)."""
+    frames: list[np.ndarray] = []
+    origin: list[tuple[str, int]] = []
+    shape = None
+    for path in map(Path, paths):
+        for page, frame in enumerate(_read(path)):
+            if shape is None:
+                shape = frame.shape
+            elif frame.shape != shape:
+                raise DataError(
+                    f"{path}: frame {page} is {frame.shape[1]} × {frame.shape[0]} pixels; "
+                    f"expected {shape[1]} × {shape[0]} like the frames before it"
+                )
+            frames.append(frame)
+            origin.append((str(path), page))
+    if not frames:
+        raise DataError("no frames: expected at least one image file")
+    return np.stack(frames), origin
+
+
+def _read(path: Path) -> list[np.ndarray]:
+    if not path.is_file():
+        raise DataError(f"{path}: no such image file")
+    suffix = path.suffix.lower()
+    if suffix in TIFF:
+        arr = _tiff(path)
+    elif suffix in PNG:
+        arr = _png(path)
+    else:
+        raise DataError(f"{path}: unknown image type {suffix or '(none)'!r}; expected .tif, .tiff or .png")
+    if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
+        raise DataError(f"{path}: pixels of type {arr.dtype}; expected integers or floats")
+    if arr.ndim == 2:
+        return [arr]
+    if arr.ndim == 3 and suffix in TIFF and arr.shape[-1] not in (3, 4):
+        return list(arr)
+    raise DataError(f"{path}: image of shape {arr.shape}; expected a monochrome frame (one channel)")
+
+
+def _tiff(path: Path) -> np.ndarray:
+    import logging
+
+    import tifffile
+
+    logging.getLogger("tifffile").setLevel(logging.CRITICAL)  # its warnings would be a second line
+    try:
+        with tifffile.TiffFile(path) as tif:
+            series = tif.series[0]
+            if series.axes[-1:] == "S" or (
+                series.shape and series.shape[-1] in (3, 4) and "S" in series.axes
+            ):
+                raise DataError(f"{path}: a colour TIFF (axes {series.axes}); expected monochrome frames")
+            return series.asarray()
+    except DataError:
+        raise
+    except Exception as exc:  # tifffile raises TiffFileError, ValueError, OSError … on bad files
+        raise DataError(f"{path}: not a readable TIFF ({type(exc).__name__}: {exc})") from None
+
+
+def _png(path: Path) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as img:
+            img.load()
+            if img.mode not in ("L", "I;16", "I;16B", "I;16L", "I", "F"):
+                raise DataError(f"{path}: a {img.mode} image; expected a monochrome frame (mode L or I;16)")
+            return np.asarray(img)
+    except DataError:
+        raise
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise DataError(f"{path}: not a readable PNG ({exc})") from None
+
+
+def write_frames_tiff(frames: np.ndarray, path) -> Path:
+    """Write frames (h, w) or (n, h, w) as a TIFF stack, atomically."""
+    import tifffile
+
+    from calflow.data.io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tifffile.imwrite(tmp, np.asarray(frames), photometric="minisblack")
+    return Path(path)

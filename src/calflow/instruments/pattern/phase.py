@@ -1,0 +1,241 @@
+"""The linear part of the decoding (thesis Sec. 3.5.1, steps 2–6): the grid's two phase planes.
+
+Each frame is windowed (Tukey, so that the frame's edges do not leak into the lobes), Fourier
+transformed (step 2), and the two lobes of the grid's fundamental — one per lattice
+direction — are found on the ring where the pattern's period puts them. A box of the spectrum
+around each lobe is cut out (step 3, the band-pass) and inverse transformed on its own small
+grid (step 4): the result is the lobe's complex field sampled every few pixels over the whole
+frame. Its phase, demodulated by the lobe's frequency, is unwrapped (step 5) and a plane is
+fitted to it by weighted least squares (step 6), the weights the field's squared amplitude.
+
+The plane gives, per lobe, the lattice coordinate of the frame centre (its intercept over 2π)
+and the lattice's spatial frequency (its slope), each with the covariance of the fit.
+
+Cramér–Rao bound of the intercept. Near a lobe the frame is I(r) = B(r) + A(r) cos Φ(r) + n(r),
+Φ(r) = φ₀ + 2π k·(r − r_c), with white noise of variance σ²(r). With centred coordinates the
+intercept decouples from the slopes, and the Fisher information of φ₀ is
+J = Σ_r A(r)² sin² Φ(r) / σ²(r) ≈ Σ_r A(r)² / (2σ²(r)), so var(φ̂₀) ≥ 1/J and the position
+along the lobe's direction has σ ≥ p/(2π)·J^(−1/2) (p the period). The benchmark computes J
+from the noise-free frame's lobe (:func:`lobe_information`) and the camera's noise.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+RING = (0.8, 1.2)  # the lobe is searched between these fractions of the expected frequency
+CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
+TUKEY = 0.2  # fraction of each side tapered by the window
+GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
+
+
+@dataclass
+class Planes:
+    """Per frame (arrays of length n): each lobe's phase at the frame centre and frequency."""
+
+    phase: np.ndarray  # (n, 2) radians at the frame centre (unwrapped branch arbitrary)
+    freq: np.ndarray  # (n, 2, 2) cycles per pixel, lobe × (along columns x, along rows y)
+    cov: np.ndarray  # (n, 2, 3, 3) covariance of (phase, slope_x, slope_y) per lobe, rad & rad/px
+    peak_ratio: np.ndarray  # (n, 2) lobe power over the ring's median power
+    amplitude: np.ndarray  # (n, 2) mean |field| of the lobe (DN)
+    fields: np.ndarray  # (n, 2, ni·nj) the band-passed lobes on the coarse grid (complex)
+    bins: np.ndarray  # (n, 2, 2) each lobe's integer bin (row signed, column)
+
+
+def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
+    from scipy.signal.windows import tukey as _tukey
+
+    return _tukey(n, alpha).astype(np.float32)
+
+
+def _fast(n: int) -> int:
+    return scipy.fft.next_fast_len(int(n), real=False)
+
+
+class PhaseFitter:
+    """Steps 2–6 for frames of one shape and one expected lobe frequency (cycles per pixel)."""
+
+    def __init__(self, shape: tuple[int, int], f0: float, workers: int | None = None):
+        h, w = shape
+        self.h, self.w, self.f0 = h, w, float(f0)
+        self.workers = workers or os.cpu_count() or 1
+        self.window = tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
+        fi = np.fft.fftfreq(h)[:, None]
+        fj = np.fft.rfftfreq(w)[None, :]
+        rad = np.hypot(fi, fj)
+        ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
+        self.ring_i, self.ring_j = np.nonzero(ring)
+        self.ring_angle = np.degrees(np.arctan2(fi[self.ring_i, 0], fj[0, self.ring_j]))
+        self.bi = max(2, int(math.ceil(CROP * f0 * h)))
+        self.bj = max(2, int(math.ceil(CROP * f0 * w)))
+        self.ni = _fast(2 * self.bi + 1)
+        self.nj = _fast(2 * self.bj + 1)
+        di = np.arange(-self.bi, self.bi + 1)
+        dj = np.arange(-self.bj, self.bj + 1)
+        self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
+        # sample points of the cropped field, pixels from the frame centre
+        self.yc, self.xc = (h - 1) / 2.0, (w - 1) / 2.0
+        ym = np.arange(self.ni) * (h / self.ni)
+        xm = np.arange(self.nj) * (w / self.nj)
+        self.ym, self.xm = np.meshgrid(ym, xm, indexing="ij")
+
+    def spectrum(self, frames: np.ndarray) -> np.ndarray:
+        """Step 2: the windowed, mean-removed frames' half-plane spectrum (n, h, w//2+1)."""
+        f = frames.astype(np.float32, copy=True)
+        f -= f.mean(axis=(1, 2), keepdims=True)
+        f *= self.window
+        return scipy.fft.rfft2(f, workers=self.workers)
+
+    def lobes(self, spec: np.ndarray):
+        """The two lobes' integer bins (n, 2, 2: row index signed, column index) and peak ratios."""
+        power = np.abs(spec[:, self.ring_i, self.ring_j]) ** 2
+        n = len(spec)
+        first = np.argmax(power, axis=1)
+        a1 = self.ring_angle[first]
+        diff = (self.ring_angle[None, :] - a1[:, None] - 90.0 + 90.0) % 180.0 - 90.0
+        second_mask = np.abs(diff) < 20.0
+        p2 = np.where(second_mask, power, -1.0)
+        second = np.argmax(p2, axis=1)
+        med = np.median(power, axis=1) + 1e-30
+        ratio = np.stack([power[np.arange(n), first] / med, power[np.arange(n), second] / med], axis=1)
+        idx = np.stack([first, second], axis=1)
+        i = self.ring_i[idx]
+        i = np.where(i > self.h // 2, i - self.h, i)
+        j = self.ring_j[idx]
+        return np.stack([i, j], axis=2), ratio
+
+    def crop(self, spec: np.ndarray, k: int, i0: int, j0: int) -> np.ndarray:
+        """Step 3: the box of frame k's spectrum around bin (i0, j0), conjugate-mirrored where j < 0."""
+        ii = i0 + self.di
+        jj = j0 + self.dj
+        neg = jj < 0
+        ie = np.where(neg, -ii, ii) % self.h
+        je = np.where(neg, -jj, jj)
+        vals = spec[k, ie, je]
+        return np.where(neg, np.conj(vals), vals)
+
+    def noise_power(self, spec: np.ndarray) -> np.ndarray:
+        """Mean noise power per bin (n,), from the spectrum's corners beyond 0.4 cycle per pixel,
+        where a microscope's optics leave only noise (an undersampled image overstates it)."""
+        hi_i = np.abs(np.fft.fftfreq(self.h)) > 0.4
+        hi_j = np.fft.rfftfreq(self.w) > 0.4
+        corner = spec[:, hi_i][:, :, hi_j]
+        return np.median(np.abs(corner.reshape(len(spec), -1)) ** 2, axis=1) / math.log(2)
+
+    def fit(self, spec: np.ndarray) -> Planes:
+        """Steps 3–6 for every frame: a first pass with a box around each lobe's peak bin, then
+        a Gaussian band-pass centred on the lobe's fitted frequency (symmetric about it, so that
+        the missing dots, a real modulation, change the field's amplitude and not its phase)."""
+        n = len(spec)
+        bins, ratio = self.lobes(spec)
+        crops = np.empty((n, 2) + self.di.shape, dtype=np.complex64)
+        sub = np.zeros((n, 2, 2))
+        for k in range(n):
+            for lobe in (0, 1):
+                crops[k, lobe] = self.crop(spec, k, *bins[k, lobe])
+                sub[k, lobe] = _subbin(np.abs(crops[k, lobe]), self.bi, self.bj)
+        freq = np.stack(
+            [(bins[..., 1] + sub[..., 1]) / self.w, (bins[..., 0] + sub[..., 0]) / self.h], axis=-1
+        )
+        first = self._planes(crops, bins, freq, None)
+        sigma = CROP * self.f0 / GAUSS  # cycles per pixel
+        # offsets of each crop bin from the fitted frequency, in cycles per pixel
+        oy = (bins[..., 0, None, None] + self.di) / self.h - first[1][..., 1, None, None]
+        ox = (bins[..., 1, None, None] + self.dj) / self.w - first[1][..., 0, None, None]
+        H = np.exp(-(ox**2 + oy**2) / (2 * sigma**2))
+        phase, freq, cov, fields = self._planes(crops * H, bins, first[1], None)
+        # the intercept's variance from the noise the spectrum shows (module docstring)
+        n0 = self.noise_power(spec)
+        pw = np.abs(crops) ** 2
+        num = np.sum(H**4 * pw, axis=(2, 3))
+        den = np.sum(H**2 * pw, axis=(2, 3)) ** 2
+        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300)
+        cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
+        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3))) / (self.h * self.w)
+        return Planes(
+            phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp, fields=fields, bins=bins
+        )
+
+    def coarse_points(self) -> np.ndarray:
+        """Pixel positions (x, y) of the coarse grid the lobes' fields are sampled on, (ni·nj, 2)."""
+        return np.stack([self.xm.ravel(), self.ym.ravel()], axis=1)
+
+    def refit(self, planes: Planes, k: int, keep: np.ndarray):
+        """Frame k's two planes again, from the coarse samples in ``keep`` only (where the
+        pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov)."""
+        phase = np.empty(2)
+        freq = np.empty((2, 2))
+        cov = np.empty((2, 3, 3))
+        for lobe in (0, 1):
+            z = planes.fields[k, lobe].astype(np.complex128)
+            wgt = np.abs(z) ** 2
+            kept = wgt * keep
+            phase[lobe], freq[lobe], c = self._fit(z, kept, planes.bins[k, lobe], planes.freq[k, lobe])
+            # the noise's share grows as samples are left out (the same noise per sample)
+            scale = planes.cov[k, lobe, 0, 0] * wgt.sum() / max(kept.sum(), 1e-300)
+            cov[lobe] = c * (scale / max(c[0, 0], 1e-300))
+        return phase, freq, cov
+
+    def _planes(self, crops, bins, freq, _):
+        """Inverse transforms of the crops (step 4), then per lobe the demodulated phase
+        unwrapped (step 5) and its weighted least-squares plane (step 6), from ``freq``
+        (n, 2, (x, y)) cycles per pixel. Returns (phase at the centre, frequency, covariance)."""
+        n = len(crops)
+        boxes = np.zeros((n, 2, self.ni, self.nj), dtype=np.complex64)
+        boxes[:, :, self.di % self.ni, self.dj % self.nj] = crops
+        fields = scipy.fft.ifft2(boxes, workers=self.workers)
+        phase = np.empty((n, 2))
+        out_f = np.empty((n, 2, 2))
+        cov = np.empty((n, 2, 3, 3))
+        flat = fields.reshape(n, 2, -1)
+        for k in range(n):
+            for lobe in (0, 1):
+                z = flat[k, lobe].astype(np.complex128)
+                phase[k, lobe], out_f[k, lobe], cov[k, lobe] = self._fit(
+                    z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe]
+                )
+        return phase, out_f, cov, flat
+
+    def _fit(self, z, wgt, bin_, freq):
+        """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6).
+        Returns (phase at the frame centre, frequency (x, y) cycles/px, covariance)."""
+        xm, ym = self.xm.ravel(), self.ym.ravel()
+        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
+        base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
+        gx, gy = freq
+        if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > 3):
+            return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+        for _ in range(2):  # demodulate by the current frequency, fit, again
+            zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
+            ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
+            psi = np.angle(zz * np.exp(-1j * ref))
+            Aw = A * wgt[:, None]
+            N = A.T @ Aw
+            try:
+                coef = np.linalg.solve(N, Aw.T @ psi)
+            except np.linalg.LinAlgError:
+                return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+            used_x, used_y = gx, gy
+            gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
+        res = psi - A @ coef
+        s2 = float(np.sum(wgt * res**2) / max(int((wgt > 0).sum()) - 3, 1))
+        phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
+        return phase, (gx, gy), np.linalg.inv(N) * s2
+
+
+def _subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:
+    """Gaussian (log-parabolic) interpolation of a spectral peak at (ci, cj) of ``mag``."""
+    out = []
+    for m1, m0, p1 in (
+        (mag[ci - 1, cj], mag[ci, cj], mag[ci + 1, cj]),
+        (mag[ci, cj - 1], mag[ci, cj], mag[ci, cj + 1]),
+    ):
+        a, b, c = (math.log(max(float(v), 1e-30)) for v in (m1, m0, p1))
+        den = a - 2 * b + c
+        out.append(0.0 if den >= 0 else max(-0.5, min(0.5, 0.5 * (a - c) / den)))
+    return out[0], out[1]

@@ -1,0 +1,148 @@
+"""The ``gcs`` rig's camera sensor: frames grabbed from a frame source and decoded. Tested
+with the XYΘ family's emulated camera, which renders the pattern where the emulated stages
+put it, through the GCS emulator; the GenICam driver's missing producer and package are one
+line each. Small frames, few poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import SMALL_XYTHETA
+
+from calflow.acquisition.runner import acquire
+from calflow.data.runs import RunMetadata
+from calflow.data.validate import validate_dataset
+from calflow.errors import RigError
+from calflow.gcs.camera import CameraSensor, FrameSource, genicam
+from calflow.gcs.rig import gcs
+from calflow.plan import Plan
+from calflow.xytheta.stage.emulate import emulated_rig_options
+from calflow.xytheta.stage.rig import simulated_xytheta
+
+CAMERA = {"width": 352, "height": 272, "magnification": 5.0}
+PHYSICS = {"pattern_range_um": [1500.0, 1500.0], "camera_x_um": 750.0, "camera_y_um": 750.0}
+META = RunMetadata(campaign="t", robot="xytheta", source="gcs", plan="identification", config_sha256="0" * 64)
+PLAN = Plan(
+    name="identification",
+    commands={
+        "x": np.array([0.0, 40.0, 80.0, 20.0]),
+        "y": np.array([0.0, 30.0, -20.0, 60.0]),
+        "theta": np.array([0.0, 0.3, 0.6, -0.4]),
+    },
+    targets={},
+    pose=np.arange(4),
+    cycle=np.zeros(4, int),
+    direction=np.zeros(4, int),
+    dwell_s=0.5,
+)
+
+
+@pytest.fixture
+def pattern_file(tmp_path):
+    from calflow.instruments.pattern import Pattern
+
+    return str(Pattern.make(range_um=(1500.0, 1500.0)).save(tmp_path / "pattern.json"))
+
+
+def test_emulated_camera_through_the_gcs_emulator():
+    """A campaign whose simulated rig reads through images, served by the GCS emulator: the
+    rig section it prints reads the pattern through the emulated camera and the decoder, and
+    gives the readings of the simulated rig reading through images, within the stage's
+    repeatability, with uncertainties and status."""
+    options = {"sensor": "images", "camera": CAMERA, **PHYSICS}
+    campaign = {**SMALL_XYTHETA, "rig": {"factory": "simulated", "options": options}}
+    emu, rig_options = emulated_rig_options(campaign, time_scale=100.0, timeout=1.0)
+    try:
+        assert rig_options["sensor"]["factory"] == "camera"
+        assert rig_options["sensor"]["options"]["source"]["factory"] == "simulated_camera"
+        rig = gcs(**rig_options)
+        try:
+            ds = acquire(PLAN, rig, META)
+        finally:
+            rig.close()
+    finally:
+        emu.stop()
+    assert validate_dataset(ds) == []
+    assert np.all(ds["decode_status"].values == 0) and np.all(ds["u_meas_x"].values > 0)
+    sim = acquire(
+        PLAN,
+        simulated_xytheta(seed=7, stream="identification", sensor="images", camera=CAMERA, **PHYSICS),
+        META,
+    )
+    for name in ("meas_x", "meas_y"):  # same physics; the stage repeatability draws differ (0.5 µm)
+        assert np.max(np.abs(ds[name].values - sim[name].values)) < 3.0, name
+    assert np.max(np.abs(ds["meas_theta"].values - sim["meas_theta"].values)) < 0.01
+
+
+class Frames:
+    """A frame source serving given frames."""
+
+    def __init__(self, frames):
+        self.frames, self.closed = list(frames), False
+
+    def grab(self):
+        return self.frames.pop(0)
+
+    def close(self):
+        self.closed = True
+
+
+def test_a_frame_of_the_wrong_size_or_type_is_one_line(pattern_file):
+    from calflow.instruments.pattern import Pattern
+    from calflow.instruments.readings import camera_of
+
+    pattern, camera = Pattern.load(pattern_file), camera_of(CAMERA, "camera")
+    source = Frames([np.zeros((100, 100), np.uint8), np.zeros((272, 352, 3), np.uint8)])
+    assert isinstance(source, FrameSource)
+    sensor = CameraSensor(source, pattern, camera)
+    with pytest.raises(RigError, match=r"frame 1: expected 352 × 272 pixels.*got 100 × 100"):
+        sensor.read({}, 0.0)
+    with pytest.raises(RigError, match="frame 2: expected a monochrome frame"):
+        sensor.read({}, 0.0)
+    sensor.close()
+    assert source.closed
+
+
+def test_genicam_without_a_producer_file_names_what_to_set(monkeypatch):
+    monkeypatch.delenv("GENICAM_GENTL64_PATH", raising=False)
+    with pytest.raises(RigError) as err:
+        genicam()
+    assert "GenTL producer (.cti)" in str(err.value) and "GENICAM_GENTL64_PATH" in str(err.value)
+    assert len(str(err.value).splitlines()) == 1
+
+
+def test_genicam_without_harvesters_names_what_to_install(tmp_path, monkeypatch):
+    import sys
+
+    producer = tmp_path / "vendor.cti"
+    producer.write_bytes(b"\0")
+    monkeypatch.setitem(sys.modules, "harvesters", None)  # as if not installed
+    monkeypatch.setitem(sys.modules, "harvesters.core", None)
+    monkeypatch.setenv("GENICAM_GENTL64_PATH", str(tmp_path))
+    with pytest.raises(
+        RigError, match=r"harvesters package is not installed: pip install 'calflow\[genicam\]'"
+    ):
+        genicam()
+
+
+def blank_source():
+    """A frame source that knows no pattern (a plug-in of the tests)."""
+    return Frames([])
+
+
+def test_camera_sensor_options_are_checked(pattern_file, monkeypatch):
+    from calflow.gcs.camera import camera_sensor
+
+    with pytest.raises(RigError, match="sensor.options.source"):
+        camera_sensor(source=None, pattern=pattern_file)
+    with pytest.raises(RigError, match="sensor.options.pattern"):
+        camera_sensor(source={"factory": "genicam"}, pattern="no/such.json")
+    with pytest.raises(RigError, match="not allowed to run"):
+        camera_sensor(source={"factory": "os:getcwd"}, pattern=pattern_file)
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    with pytest.raises(RigError, match="expected the pattern file the camera looks at"):
+        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=None)
+    emulated = {"factory": "simulated_camera", "options": {"camera": CAMERA, **PHYSICS}}
+    sensor = camera_sensor(source=emulated, pattern=pattern_file, camera=CAMERA)
+    assert sensor.pattern.range_um == (1500.0, 1500.0) and sensor.camera.width == 352
