@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from calflow.instruments.pattern.bits import bilinear, match, normalised, votes
 from calflow.instruments.pattern.pattern import Pattern
 from calflow.instruments.pattern.phase import CROP, GAUSS, PhaseFitter
 
@@ -193,7 +194,7 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
         SS, TT = np.meshgrid(S + ds - sc, T + dt - tc)
         xy = np.stack([SS, TT], -1) @ Kinv.T + rc
         inside = (xy[..., 0] >= 1) & (xy[..., 0] <= w - 2) & (xy[..., 1] >= 1) & (xy[..., 1] <= h - 2)
-        return _bilinear(img, xy[..., 0], xy[..., 1]), inside, xy
+        return bilinear(img, xy[..., 0], xy[..., 1]), inside, xy
 
     v0, in0, xy0 = sample(0.0, 0.0)
     v1, in1, _ = sample(0.5, 0.5)
@@ -221,9 +222,9 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     fmask = valid & (par == qf)
     # local contrast from the always-present dots, twice: the second time only from those seen,
     # so that dust or the pattern's edge does not dilute it
-    z = _normalised(contrast, fmask)
+    z = normalised(contrast, fmask)
     seen = fmask & (z > 0.5)
-    z = _normalised(contrast, seen)
+    z = normalised(contrast, seen)
     zf = z[fmask]
     frame_missing = float(np.mean(~(zf > 0.5))) if len(zf) else 1.0
     if frame_missing > MAX_FRAME_MISSING:
@@ -251,13 +252,13 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
             xm, ym = cmask & (v % 2 == 0), cmask & (v % 2 == 1)
             # the x code is flipped on odd rows of cells; where the rows start is not known yet,
             # so the reading is matched as it is (y place even) and complemented (odd)
-            xr = _votes(u[xm] // 2, present[xm] ^ ((v[xm] // 2) % 2 == 1))
-            both = (_match(xr, pattern.x_bits), _match((xr[0], 1 - xr[1], xr[2]), pattern.x_bits))
+            xr = votes(u[xm] // 2, present[xm] ^ ((v[xm] // 2) % 2 == 1))
+            both = (match(xr, pattern.x_bits), match((xr[0], 1 - xr[1], xr[2]), pattern.x_bits))
             q = int(both[1][0] < both[0][0])
             mx, other = both[q], both[1 - q]
             # the y code is flipped on odd pairs of columns of cells: undo it from the x place
             flip = (((u[ym] // 2 + mx[1]) // 2) % 2) == 1
-            my = _match(_votes(v[ym] // 2, present[ym] ^ flip), pattern.y_bits)
+            my = match(votes(v[ym] // 2, present[ym] ^ flip), pattern.y_bits)
             enough = mx[3] >= pattern.window_bits[0] and my[3] >= pattern.window_bits[1]
             consistent = my[1] % 2 == q  # the x flip guessed is the y place's parity
             score = mx[0] + my[0] if enough and consistent else 10**6
@@ -347,36 +348,6 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     return result
 
 
-def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of ``img`` at pixel positions (x along columns), edges clamped."""
-    h, w = img.shape
-    x = np.clip(x, 0, w - 1.001)
-    y = np.clip(y, 0, h - 1.001)
-    j = x.astype(np.intp)
-    i = y.astype(np.intp)
-    fx = (x - j).astype(np.float32)
-    fy = (y - i).astype(np.float32)
-    flat = img.ravel()
-    k = i * w + j
-    top = flat[k] * (1 - fx) + flat[k + 1] * fx
-    bottom = flat[k + w] * (1 - fx) + flat[k + w + 1] * fx
-    return top * (1 - fy) + bottom * fy
-
-
-def _normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around), the
-    local mean kept above a third of the frame's median (so that where the dots fade out —
-    heavy dust, beyond the pattern's edge — noise is not scaled up into dots)."""
-    if not mask.any():
-        return np.full(contrast.shape, np.nan)
-    num = ndimage.uniform_filter(np.where(mask, contrast, 0.0), size=7, mode="constant")
-    den = ndimage.uniform_filter(mask.astype(float), size=7, mode="constant")
-    floor = np.median(contrast[mask]) / 3.0
-    level = np.where(den > 0.02, num / np.maximum(den, 1e-12), floor)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return contrast / np.maximum(level, floor)
-
-
 def _angle(k, cov, sgn):
     """Direction (degree) of a lobe's frequency and its variance from the slope covariance."""
     g = 2 * np.pi * k  # rad per pixel; the covariance is of the fitted slopes (sign-free)
@@ -384,40 +355,6 @@ def _angle(k, cov, sgn):
     jac = np.array([-g[1], g[0]]) / (g @ g)
     var = float(jac @ cov[1:, 1:] @ jac) * (180 / np.pi) ** 2
     return th, max(var, 1e-30)
-
-
-def _votes(cells: np.ndarray, present: np.ndarray):
-    """Majority vote per cell: (first cell, bits, sure mask) over the cells present in the frame."""
-    if len(cells) == 0:
-        return 0, np.zeros(0, np.int8), np.zeros(0, bool)
-    c0 = int(cells.min())
-    idx = cells - c0
-    n = np.bincount(idx)
-    ones = np.bincount(idx, weights=present.astype(float), minlength=len(n))
-    frac = np.where(n > 0, ones / np.maximum(n, 1), 0.5)
-    sure = (n >= 3) & (np.minimum(frac, 1 - frac) <= 0.2)  # three votes at least, four in five agree
-    return c0, (frac > 0.5).astype(np.int8), sure
-
-
-def _match(reading, code: np.ndarray):
-    """Best place of a reading in the code: (wrong bits, cell offset, next-best wrong bits, bits used)."""
-    c0, bits, sure = reading
-    nsure = int(sure.sum())
-    if nsure:  # the cells before the first sure bit and after the last one are not read
-        first, last = np.flatnonzero(sure)[[0, -1]]
-        c0, bits, sure = c0 + int(first), bits[first : last + 1], sure[first : last + 1]
-    L = len(code)
-    if len(bits) == 0 or len(bits) > L or nsure == 0:
-        return (10**6, 0, 10**6, nsure)
-    o = np.where(sure, 2.0 * bits - 1.0, 0.0)
-    a = 2.0 * code.astype(float) - 1.0
-    corr = np.correlate(a, o, mode="valid")  # corr[j]: reading's first cell at code index j
-    wrong = (nsure - corr) / 2.0
-    j = int(np.argmin(wrong))
-    best = int(round(wrong[j]))
-    rest = np.delete(wrong, j)
-    second = int(round(rest.min())) if len(rest) else 10**6
-    return (best, j - c0, second, nsure)
 
 
 def _fail(status: str, reason: str) -> dict:
