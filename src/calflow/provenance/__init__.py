@@ -41,6 +41,7 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.commands.common": ("rig_options",),
     "calflow.commands.acquire": ("plans",),
     "calflow.gcs.sensors": ("sensors",),
+    "calflow.gcs.camera": ("sensors",),  # a family's registered camera (frame source)
     "calflow.gcs.campaign_server": ("emulator",),
     "calflow.family_workflow": ("workflow", "studies"),
     "calflow.report.render": ("*templates", "steps:figures"),
