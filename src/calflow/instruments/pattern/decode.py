@@ -40,7 +40,9 @@ STATUSES = ("ok", "bad_frame", "no_lobes", "low_contrast", "fov_too_small", "cod
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median: noise alone reaches ~15
 MAX_WRONG_BITS = 1  # per axis; the code keeps windows ≥ 5 bits apart
 MIN_MARGIN = 3  # bits between the best reading and the next one
+MIN_KEPT = 0.5  # fraction of the field's samples a refit around unseen dots must keep
 MAX_FRAME_MISSING = 0.25  # fraction of frame dots unseen before the frame is not trusted
+NEAR_NODES = 3  # grid nodes around the seen frame dots over which unseen ones count
 CHUNK = 8  # frames transformed together
 # how far (grid nodes) an unseen frame dot bends the band-passed field: three standard
 # deviations of the Gaussian band-pass's impulse response, GAUSS / (2π·CROP) periods
@@ -225,7 +227,10 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     z = normalised(contrast, fmask)
     seen = fmask & (z > 0.5)
     z = normalised(contrast, seen)
-    zf = z[fmask]
+    # unseen among the frame dots within NEAR_NODES of a seen one: a part of the view beyond
+    # the pattern's edge is not poor contrast (the code's bits say whether enough is seen)
+    near = fmask & ndimage.binary_dilation(seen, iterations=NEAR_NODES)
+    zf = z[near]
     frame_missing = float(np.mean(~(zf > 0.5))) if len(zf) else 1.0
     if frame_missing > MAX_FRAME_MISSING:
         return _fail(
@@ -298,7 +303,9 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
         ti_ = np.clip(np.rint(st_pts[:, 1]).astype(int) - T[0], 0, len(T) - 1)
         si_ = np.clip(np.rint(st_pts[:, 0]).astype(int) - S[0], 0, len(S) - 1)
         keep = ~bad[ti_, si_]
-        if keep.sum() > 16:
+        # only where the unseen dots leave most of the field: scattered ones (noise) would
+        # leave a few samples at the frame's edge, whose phase can be off by up to half a period
+        if keep.sum() > 16 and keep.mean() >= MIN_KEPT:
             new_phase, new_freq, cov = fitter.refit(planes, k, keep)
             ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
             # move the fine phases by the change only: the nodes' numbering stays as read
