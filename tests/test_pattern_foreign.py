@@ -296,6 +296,7 @@ def _broken_patterns(spec):
     good = json.loads(open(spec["path"]).read())
     yield "not json", "{"
     yield "a list", "[]"
+    yield "nested too deep", "[" * 100_000 + "]" * 100_000
     for key, value in [
         ("period_um", "four"),
         ("period_um", None),
@@ -310,6 +311,8 @@ def _broken_patterns(spec):
         ("x_code", 5),
         ("x_code", {**good["x_code"], "polynomial": "x11"}),
         ("x_code", {**good["x_code"], "polynomial": [11.0, 2, 0]}),
+        ("x_code", {**good["x_code"], "polynomial": [10**6, 0]}),  # must not spin on it
+        ("x_code", {**good["x_code"], "polynomial": [True, 0]}),
         ("x_code", {**good["x_code"], "window_bits": "33"}),
         ("x_code", {**good["x_code"], "window_bits": True}),
         ("y_code", {**good["y_code"], "bits": 101}),

@@ -225,7 +225,7 @@ class Pattern:
         path = Path(path)
         try:
             data = json.loads(path.read_text())
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
             raise CalflowError(f"{path}: not a calflow pattern file (expected JSON: {exc})") from None
         return cls.from_dict(data, str(path))
 
@@ -257,9 +257,17 @@ class Pattern:
                 raise bad(key, "an object with polynomial, bits, window_bits")
             poly = code.get("polynomial")
             if not (
-                isinstance(poly, list) and poly and all(isinstance(e, int) and e >= 0 for e in poly)
+                isinstance(poly, list)
+                and poly
+                and all(
+                    isinstance(e, int) and not isinstance(e, bool) and 0 <= e <= codes.MAX_ORDER for e in poly
+                )
             ) or not codes.is_primitive(poly):
-                raise bad(f"{key}.polynomial", "the exponents of a primitive GF(2) polynomial", poly)
+                raise bad(
+                    f"{key}.polynomial",
+                    f"the exponents of a primitive GF(2) polynomial of order 2 to {codes.MAX_ORDER}",
+                    poly,
+                )
             text = code.get("bits")
             if not (isinstance(text, str) and text and set(text) <= {"0", "1"}):
                 raise bad(f"{key}.bits", "a string of 0 and 1")
