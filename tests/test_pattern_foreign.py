@@ -153,6 +153,7 @@ def test_documented_rule_gives_the_file_matrix(spec):
 def test_foreign_frames_decode(spec, size, pixel_um, dtype, dots, background):
     pattern = Pattern.load(spec["path"])
     poses = [(523.1, 411.7, 0.0), (1517.3, 1204.9, 37.0), (80.2, 1450.6, -151.5)]
+    poses = poses[::2] if size[0] * size[1] > 1e6 else poses
     frames = np.stack(
         [
             render(spec, *pose, size=size, pixel_um=pixel_um, dtype=dtype, dots=dots, background=background)
@@ -160,7 +161,7 @@ def test_foreign_frames_decode(spec, size, pixel_um, dtype, dots, background):
         ]
     )
     result = decode(frames, pattern, pixel_um=pixel_um)
-    assert list(result.status) == ["ok"] * 3, list(result.reason)
+    assert list(result.status) == ["ok"] * len(poses), list(result.reason)
     for k, pose in enumerate(poses):
         assert _right(result, k, pose), (pose, result.x_um[k], result.y_um[k], result.theta_deg[k])
 
@@ -178,7 +179,7 @@ def test_frames_drawn_on_the_pixels_then_blurred(spec):
         assert _right(result, k, pose, tol_um=0.015, tol_deg=THETA_DEG), (result.x_um[k], result.y_um[k])
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     x=st.floats(0, RANGE[0]),
     y=st.floats(0, RANGE[1]),
@@ -194,6 +195,20 @@ def test_any_pose_any_angle_and_a_slight_scale_error(spec, x, y, theta, dark, sc
     result = decode(frame, pattern, pixel_um=PIXEL)
     assert result.status[0] == "ok", result.reason[0]
     assert _right(result, 0, (x, y, theta)), (result.x_um[0], result.y_um[0], result.theta_deg[0])
+
+
+def test_a_wrong_pixel_size_is_flagged_or_right_never_wrong(spec):
+    """The pixel size told the decoder only places the search for the grid: off by 15 % the
+    position is still right; off by a third it is flagged."""
+    pattern = Pattern.load(spec["path"])
+    pose = (700.0, 300.0, 10.0)
+    frame = render(spec, *pose, size=(800, 600))
+    for told in (0.43, 0.575, 0.375, 0.7, 1.0):
+        result = decode(frame, pattern, pixel_um=told)
+        if abs(told / PIXEL - 1) <= 0.15:
+            assert result.status[0] == "ok" and _right(result, 0, pose, 0.01, 0.01), (told, result.reason[0])
+        else:
+            assert result.status[0] != "ok" and np.isnan(result.x_um[0]), (told, result.x_um[0])
 
 
 def test_strong_vignetting_and_low_snr(spec):

@@ -161,7 +161,8 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     if not (ratio.min() >= MIN_PEAK_RATIO):
         return _fail(
             "no_lobes",
-            f"no grid of period {pattern.period_um:g} µm in the frame (lobe/ring {ratio.min():.0f})",
+            f"no grid of period {pattern.period_um:g} µm in the frame at {fitter.f0 * pattern.period_um:g} µm per pixel "
+            f"(lobe/ring {ratio.min():.0f}; is the pixel size right?)",
         )
     if not (np.isfinite(planes.phase[k]).all() and np.isfinite(planes.cov[k]).all()):
         return _fail("no_lobes", "the grid's phase planes could not be fitted (no signal in the lobes)")
