@@ -269,6 +269,15 @@ def test_off_the_pattern_is_nan_with_a_reason_never_a_wrong_place(spec):
     assert all(result.status[:3] != "ok"), list(result.reason)  # too little of the code in view
 
 
+def test_a_mirrored_view_is_flagged(spec):
+    """A camera looking through the substrate of a pattern not mirrored at the mask sees it
+    mirrored: that reads no place of the codes (flagged), never a wrong one."""
+    pattern = Pattern.load(spec["path"])
+    a, b = render(spec, 523.1, 411.7, 20.0), render(spec, 1517.3, 1204.9, -110.0)
+    result = decode(np.stack([a[:, ::-1], b[::-1]]), pattern, pixel_um=PIXEL)
+    assert list(result.status) == ["code_mismatch"] * 2 and np.isnan(result.x_um).all(), list(result.reason)
+
+
 def test_blank_uniform_and_code_free_frames_are_flagged(spec):
     pattern = Pattern.load(spec["path"])
     blank = spec | {"matrix": np.zeros_like(spec["matrix"])}  # a clean substrate
