@@ -170,6 +170,30 @@ def test_foreign_frames_decode(spec, size, pixel_um, dtype, dots, background):
         assert _right(result, k, pose), (pose, result.x_um[k], result.y_um[k], result.theta_deg[k])
 
 
+def test_other_pixel_types_and_scales(spec):
+    """12 bits in 16, dark-subtracted signed integers, 32-bit integers, floats scaled far from
+    one (1e30 once overflowed the spectrum's squares: no_lobes) or on a large offset."""
+    pattern = Pattern.load(spec["path"])
+    pose = (700.3, 300.2, 12.0)
+    f = render(spec, *pose, noise=0.02)
+    frames = [
+        np.clip(np.rint(f * 3000), 0, 4095).astype(np.uint16),
+        np.rint((f - 0.5) * 2000).astype(np.int16),
+        np.rint(f * 1e6).astype(np.uint32),
+        f * 1e30,
+        (f * 1e-25).astype(np.float32),
+        1e5 + f,
+        f.astype(np.float16),
+    ]
+    for frame in frames:
+        result = decode(frame, pattern, pixel_um=PIXEL)
+        assert result.status[0] == "ok", (frame.dtype, result.reason[0])
+        assert _right(result, 0, pose, 0.005, 0.005), (frame.dtype, result.x_um[0], result.y_um[0])
+    huge = np.random.default_rng(1).uniform(-1.0, 1.0, (480, 640)) * 1e308
+    with np.errstate(all="raise"):  # no overflow warning reaches the user either
+        assert decode(huge, pattern, pixel_um=PIXEL).status[0] != "ok"
+
+
 def test_frames_drawn_on_the_pixels_then_blurred(spec):
     """Discs drawn anti-aliased on the pixel grid and blurred there (``gaussian_filter``): the
     frame holds aliases of the dots' harmonics, which move a grid commensurate with the

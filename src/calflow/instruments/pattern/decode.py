@@ -115,9 +115,12 @@ def decode(
     for start in range(0, n, CHUNK):
         block = stack[start : start + CHUNK]
         finite = np.isfinite(block).all(axis=(1, 2)) if block.dtype.kind == "f" else np.ones(len(block), bool)
-        flat = np.zeros(len(block), bool)
-        flat[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1) == 0
-        good = finite & ~flat
+        span = np.zeros(len(block))
+        with np.errstate(over="ignore"):  # a span beyond the float range is inf
+            span[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1)
+        good = finite & (span > 0)
+        if block.dtype.kind == "f" and not ((span[good] > 1e-20) & (span[good] < 1e20)).all():
+            block = _unit_range(block, good)  # the spectrum's squares would overflow or vanish
         if good.all():
             planes = fitter.fit(fitter.spectrum(block))
         elif good.any():
@@ -137,6 +140,18 @@ def decode(
             if details:
                 info[f] = result.get("details")
     return Decoded(**out, status=status.astype(str), reason=reason.astype(str), details=info)
+
+
+def _unit_range(block: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """Float frames brought to values from 0 to 1; ``good`` frames whose values do not differ
+    once scaled become uniform (bad frames)."""
+    out = np.zeros(block.shape)
+    for k in np.flatnonzero(good):
+        b = block[k] / np.abs(block[k]).max()
+        lo, hi = b.min(), b.max()
+        good[k] = hi > lo
+        out[k] = (b - lo) / (hi - lo) if good[k] else 0.0
+    return out
 
 
 def _frames(frames) -> np.ndarray:
