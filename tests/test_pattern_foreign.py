@@ -423,3 +423,13 @@ def test_a_truncated_png_is_refused_even_after_weasyprint(spec, tmp_path, monkey
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cut.png" in err[0] and not out.exists(), err
     assert ImageFile.LOAD_TRUNCATED_IMAGES is True  # the reader leaves the process's setting alone
+
+
+def test_an_image_pillow_calls_a_decompression_bomb_is_one_line(spec, tmp_path, monkeypatch, capsys):
+    Image.fromarray(render(spec, 500.0, 500.0, 0.0, dtype=np.uint8)).save(tmp_path / "f.png")
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # the frame is over twice the limit
+    out = tmp_path / "poses.csv"
+    argv = ["decode", str(tmp_path / "f.png"), "--pattern", spec["path"], "--pixel-um", "0.5"]
+    assert main([*argv, "--out", str(out)]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "f.png" in err[0] and not out.exists(), err

@@ -93,7 +93,7 @@ def _png(path: Path) -> np.ndarray:
             return np.asarray(img)
     except DataError:
         raise
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as exc:
         raise DataError(f"{path}: not a readable PNG ({exc})") from None
 
 
