@@ -306,6 +306,17 @@ def test_a_mirrored_view_is_flagged(spec):
     assert list(result.status) == ["code_mismatch"] * 2 and np.isnan(result.x_um).all(), list(result.reason)
 
 
+def test_a_frame_of_another_pattern_is_flagged(spec, tmp_path):
+    """A frame of another pattern file (other codes) decoded with this one: flagged."""
+    other = tmp_path / "other.json"
+    Pattern.make(range_um=(1000.0, 2500.0)).save(other)
+    o = json.loads(other.read_text())
+    o["matrix"] = _matrix(o)
+    frames = np.stack([render(o, 400.0, 900.0, 30.0), render(o, 900.0, 2100.0, -120.0)])
+    result = decode(frames, Pattern.load(spec["path"]), pixel_um=PIXEL)
+    assert all(result.status != "ok") and np.isnan(result.x_um).all(), list(result.reason)
+
+
 def test_blank_uniform_and_code_free_frames_are_flagged(spec):
     pattern = Pattern.load(spec["path"])
     blank = spec | {"matrix": np.zeros_like(spec["matrix"])}  # a clean substrate
