@@ -326,7 +326,7 @@ def test_blank_uniform_and_code_free_frames_are_flagged(spec):
             np.full((480, 640), 77.0),
             render(blank, 500.0, 500.0, 10.0, noise=0.02),
             render(full, 500.0, 500.0, 10.0, noise=0.02),
-            render(spec, 500.0, 500.0, 10.0, blur_um=6.0),  # far out of focus
+            render(spec, 500.0, 500.0, 10.0, blur_um=6.0, aliased=True),  # far out of focus
         ]
     )
     result = decode(frames, pattern, pixel_um=PIXEL)
