@@ -40,7 +40,9 @@ STATUSES = ("ok", "bad_frame", "no_lobes", "low_contrast", "fov_too_small", "cod
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median: noise alone reaches ~15
 MAX_WRONG_BITS = 1  # per axis; the code keeps windows ≥ 5 bits apart
 MIN_MARGIN = 3  # bits between the best reading and the next one
+MIN_KEPT = 0.5  # fraction of the field's samples a refit around unseen dots must keep
 MAX_FRAME_MISSING = 0.25  # fraction of frame dots unseen before the frame is not trusted
+NEAR_NODES = 3  # grid nodes around the seen frame dots over which unseen ones count
 CHUNK = 8  # frames transformed together
 # how far (grid nodes) an unseen frame dot bends the band-passed field: three standard
 # deviations of the Gaussian band-pass's impulse response, GAUSS / (2π·CROP) periods
@@ -113,9 +115,12 @@ def decode(
     for start in range(0, n, CHUNK):
         block = stack[start : start + CHUNK]
         finite = np.isfinite(block).all(axis=(1, 2)) if block.dtype.kind == "f" else np.ones(len(block), bool)
-        flat = np.zeros(len(block), bool)
-        flat[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1) == 0
-        good = finite & ~flat
+        span = np.zeros(len(block))
+        with np.errstate(over="ignore"):  # a span beyond the float range is inf
+            span[finite] = np.ptp(block[finite].reshape(int(finite.sum()), -1), axis=1)
+        good = finite & (span > 0)
+        if block.dtype.kind == "f" and not ((span[good] > 1e-20) & (span[good] < 1e20)).all():
+            block = _unit_range(block, good)  # the spectrum's squares would overflow or vanish
         if good.all():
             planes = fitter.fit(fitter.spectrum(block))
         elif good.any():
@@ -135,6 +140,18 @@ def decode(
             if details:
                 info[f] = result.get("details")
     return Decoded(**out, status=status.astype(str), reason=reason.astype(str), details=info)
+
+
+def _unit_range(block: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """Float frames brought to values from 0 to 1; ``good`` frames whose values do not differ
+    once scaled become uniform (bad frames)."""
+    out = np.zeros(block.shape)
+    for k in np.flatnonzero(good):
+        b = block[k] / np.abs(block[k]).max()
+        lo, hi = b.min(), b.max()
+        good[k] = hi > lo
+        out[k] = (b - lo) / (hi - lo) if good[k] else 0.0
+    return out
 
 
 def _frames(frames) -> np.ndarray:
@@ -159,7 +176,8 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     if not (ratio.min() >= MIN_PEAK_RATIO):
         return _fail(
             "no_lobes",
-            f"no grid of period {pattern.period_um:g} µm in the frame (lobe/ring {ratio.min():.0f})",
+            f"no grid of period {pattern.period_um:g} µm in the frame at {fitter.f0 * pattern.period_um:g} µm per pixel "
+            f"(lobe/ring {ratio.min():.0f}; is the pixel size right?)",
         )
     if not (np.isfinite(planes.phase[k]).all() and np.isfinite(planes.cov[k]).all()):
         return _fail("no_lobes", "the grid's phase planes could not be fitted (no signal in the lobes)")
@@ -225,7 +243,10 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     z = normalised(contrast, fmask)
     seen = fmask & (z > 0.5)
     z = normalised(contrast, seen)
-    zf = z[fmask]
+    # unseen among the frame dots within NEAR_NODES of a seen one: a part of the view beyond
+    # the pattern's edge is not poor contrast (the code's bits say whether enough is seen)
+    near = fmask & ndimage.binary_dilation(seen, iterations=NEAR_NODES)
+    zf = z[near]
     frame_missing = float(np.mean(~(zf > 0.5))) if len(zf) else 1.0
     if frame_missing > MAX_FRAME_MISSING:
         return _fail(
@@ -298,7 +319,9 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
         ti_ = np.clip(np.rint(st_pts[:, 1]).astype(int) - T[0], 0, len(T) - 1)
         si_ = np.clip(np.rint(st_pts[:, 0]).astype(int) - S[0], 0, len(S) - 1)
         keep = ~bad[ti_, si_]
-        if keep.sum() > 16:
+        # only where the unseen dots leave most of the field: scattered ones (noise) would
+        # leave a few samples at the frame's edge, whose phase can be off by up to half a period
+        if keep.sum() > 16 and keep.mean() >= MIN_KEPT:
             new_phase, new_freq, cov = fitter.refit(planes, k, keep)
             ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
             # move the fine phases by the change only: the nodes' numbering stays as read

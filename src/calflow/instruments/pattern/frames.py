@@ -78,17 +78,22 @@ def _tiff(path: Path) -> np.ndarray:
 
 
 def _png(path: Path) -> np.ndarray:
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image, ImageFile, UnidentifiedImageError
 
+    lenient = ImageFile.LOAD_TRUNCATED_IMAGES  # WeasyPrint, once imported, sets it process-wide
     try:
         with Image.open(path) as img:
-            img.load()
+            ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated image is refused, not padded
+            try:
+                img.load()
+            finally:
+                ImageFile.LOAD_TRUNCATED_IMAGES = lenient
             if img.mode not in ("L", "I;16", "I;16B", "I;16L", "I", "F"):
                 raise DataError(f"{path}: a {img.mode} image; expected a monochrome frame (mode L or I;16)")
             return np.asarray(img)
     except DataError:
         raise
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as exc:
         raise DataError(f"{path}: not a readable PNG ({exc})") from None
 
 

@@ -225,7 +225,7 @@ class Pattern:
         path = Path(path)
         try:
             data = json.loads(path.read_text())
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
             raise CalflowError(f"{path}: not a calflow pattern file (expected JSON: {exc})") from None
         return cls.from_dict(data, str(path))
 
@@ -257,9 +257,17 @@ class Pattern:
                 raise bad(key, "an object with polynomial, bits, window_bits")
             poly = code.get("polynomial")
             if not (
-                isinstance(poly, list) and poly and all(isinstance(e, int) and e >= 0 for e in poly)
+                isinstance(poly, list)
+                and poly
+                and all(
+                    isinstance(e, int) and not isinstance(e, bool) and 0 <= e <= codes.MAX_ORDER for e in poly
+                )
             ) or not codes.is_primitive(poly):
-                raise bad(f"{key}.polynomial", "the exponents of a primitive GF(2) polynomial", poly)
+                raise bad(
+                    f"{key}.polynomial",
+                    f"the exponents of a primitive GF(2) polynomial of order 2 to {codes.MAX_ORDER}",
+                    poly,
+                )
             text = code.get("bits")
             if not (isinstance(text, str) and text and set(text) <= {"0", "1"}):
                 raise bad(f"{key}.bits", "a string of 0 and 1")
@@ -296,9 +304,21 @@ class Pattern:
                     f"({math.ceil(need / pattern.cell_um) + 1} cells)",
                     f"{len(parts[i][1])} cells",
                 )
-        sha = data.get("matrix_sha256")
-        if sha is not None and sha != pattern.matrix_sha256():
-            raise bad("matrix_sha256", "the SHA-256 of the matrix the codes generate", sha)
+        # the keys another program renders from must say what the codes and numbers above give
+        derived = pattern.to_dict()
+        checks = [(k, data, derived) for k in ("units", "min_fov_um", "shape", "matrix_sha256")]
+        checks += [
+            (f"{a}_code.{k}", data[f"{a}_code"], derived[f"{a}_code"]) for a in "xy" for k in CODE_KEYS
+        ]
+        for key, given, want in checks:
+            name = key.rsplit(".", 1)[-1]
+            if name not in given or not _same(given[name], want[name]):
+                what = (
+                    "the SHA-256 of the matrix the codes generate"
+                    if name == "matrix_sha256"
+                    else repr(want[name])
+                )
+                raise bad(key, f"{what} (from the period, range and codes)", given.get(name, "nothing"))
         return pattern
 
 
@@ -340,3 +360,19 @@ def _pair(data, key, bad, positive=True) -> tuple[float, float]:
     if not ok or (positive and min(v) <= 0) or (not positive and min(v) < 0):
         raise bad(key, f"two {'positive' if positive else 'non-negative'} numbers [x, y] (µm)", v)
     return float(v[0]), float(v[1])
+
+
+CODE_KEYS = ("order", "seed", "length")  # a code's keys that follow from its polynomial and bits
+
+
+def _same(given, want) -> bool:
+    """A value of the file equals the one derived (numbers within rounding, no booleans)."""
+    if isinstance(want, list):
+        return isinstance(given, list) and len(given) == len(want) and all(map(_same, given, want))
+    if isinstance(want, (int, float)) and not isinstance(want, bool):
+        return (
+            isinstance(given, (int, float))
+            and not isinstance(given, bool)
+            and (given == want if isinstance(want, int) else math.isclose(given, want, rel_tol=1e-9))
+        )
+    return given == want
