@@ -80,7 +80,7 @@ rule instrument_bench:
         campaign=campaign_file,
         digest=lambda w: digest(
             [
-                code_digest("instrument", "xytheta"),
+                code_digest("instrument-bench", "xytheta"),
                 CAMPAIGN[w.campaign]["rig"],
                 CAMPAIGN[w.campaign]["seed"],
                 CAMPAIGN[w.campaign]["identification"]["theta_deg"],
