@@ -135,7 +135,8 @@ CAMPAIGNS = [
         JUL,
         AF,
         AF.replace(CAL, "broken"),
-        "key 'as_found.reference'", "broken.yaml: line 3: not valid YAML",
+        "key 'as_found.reference'",
+        "broken.yaml: line 3: not valid YAML",
         files={"config/campaigns/broken.yaml": "robot: xytheta\nstage: [\n"},
     ),
     case(
@@ -475,6 +476,12 @@ FRAMES = [
         "key 'rig.options.recordings.identification.format'",
         "expected one of",
         "got 'frame'",
+    ),
+    frames(
+        "frames: run id misspelt",
+        "      identification:",
+        "      identificaton:",
+        "key 'rig.options.recordings.identificaton': expected a run this campaign acquires",
     ),
     frames(
         "frames: run id with '..'",
