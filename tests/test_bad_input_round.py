@@ -263,6 +263,15 @@ CAMPAIGNS = [
         "needs a field of view",
         files={"data/pattern.json": "PATTERN", "SMALL_CAMERA": ""},
     ),
+    case(
+        "images: camera too small for the default pattern",
+        IMAGES,
+        "width: 512, height: 384",
+        "width: 32, height: 24",
+        "key 'rig.options.camera'",
+        "the default pattern",
+        "needs a field of view",
+    ),
     # ---- YAML and numbers
     case(
         "a tab for indentation",

@@ -63,6 +63,8 @@ def check(sensor="model", camera=None, pattern=None, range_um=None) -> dict:
         raise OptionError("pattern", "an existing pattern file (calflow pattern make)", pattern)
     if pattern is not None:
         _check_pattern(pattern, cam, range_um)
+    elif range_um is not None:
+        _check_default_pattern(cam, range_um, camera)
     return {"sensor": "images", "camera": camera, "pattern": pattern}
 
 
@@ -88,6 +90,25 @@ def _check_pattern(path: str, camera, range_um) -> None:
     problem = field_of_view_problem(*frame_shape(camera), camera.pixel_um, pat)
     if problem:
         raise OptionError("camera", f"a field of view the pattern can be decoded in ({problem})", path)
+
+
+def _check_default_pattern(camera, range_um, fields: dict) -> None:
+    """The camera's field of view against the default pattern for ``range_um``: its windows
+    before they are checked apart (``check=False``, milliseconds) need the least field of
+    view, so a camera refused here cannot decode the pattern the rig makes."""
+    from calflow.instruments.pattern import Pattern
+    from calflow.instruments.pattern.decode import field_of_view_problem
+    from calflow.instruments.readings import frame_shape
+
+    try:
+        least = Pattern.make(range_um=tuple(range_um), check=False)
+    except ValueError:
+        return  # a range no pattern covers: the rig's own check says so when it is built
+    problem = field_of_view_problem(*frame_shape(camera), camera.pixel_um, least)
+    if problem:
+        raise OptionError(
+            "camera", f"a field of view the default pattern can be decoded in ({problem})", fields
+        )
 
 
 def _frozen(mapping: Mapping) -> tuple:
