@@ -762,3 +762,19 @@ def test_the_default_certificate_settings_pass_check_config(tmp_path, monkeypatc
 def catalogue_counts() -> dict[str, int]:
     """The catalogue's size (docs/reliability.md)."""
     return {"campaign files": len(CAMPAIGNS), "frame recordings": len(FRAMES), "stage settings": len(CONFIGS)}
+
+
+def test_the_workflow_files_and_command_line_are_read_as_calflow_reads_them(tmp_path):
+    """Snakemake's own YAML reads 1e-3 as text; the checked configuration has the number."""
+    import yaml
+
+    from calflow.workflow_config import load
+
+    path = tmp_path / "config.yaml"
+    path.write_text("campaigns: [x]\nstages: {S-1: {specification: {accuracy_um: 1e-3}}}\n", encoding="utf-8")
+    snakemakes = yaml.safe_load(path.read_text(encoding="utf-8"))
+    assert snakemakes["stages"]["S-1"]["specification"]["accuracy_um"] == "1e-3"
+    cfg = load(snakemakes, [path], {})
+    assert cfg["stages"]["S-1"]["specification"]["accuracy_um"] == 0.001
+    cfg = load(snakemakes, [path], {"stages": {"S-1": {"tolerance_um": "2e0"}}})
+    assert cfg["stages"]["S-1"]["tolerance_um"] == 2.0
