@@ -778,3 +778,16 @@ def test_the_workflow_files_and_command_line_are_read_as_calflow_reads_them(tmp_
     assert cfg["stages"]["S-1"]["specification"]["accuracy_um"] == 0.001
     cfg = load(snakemakes, [path], {"stages": {"S-1": {"tolerance_um": "2e0"}}})
     assert cfg["stages"]["S-1"]["tolerance_um"] == 2.0
+
+
+def test_a_decoded_recording_is_not_read_again_at_load(tmp_path, monkeypatch, rendered):
+    """Once decoded, a no-op run reads no table nor frame (the decoding job checks changes)."""
+    campaigns = _frames_project(tmp_path, monkeypatch, rendered, "", 4, None, None)  # an empty table
+    text = (campaigns / f"{IMAGES}.yaml").read_text(encoding="utf-8")
+    text = text[: text.index("rig:\n")] + FRAMES_RIG + text[text.index("characterisation:") :]
+    (campaigns / "rec.yaml").write_text(text, encoding="utf-8")
+    with pytest.raises(ConfigError, match="joints table"):
+        load_campaign(campaigns / "rec.yaml", [])
+    (tmp_path / "results" / "rec" / "decoded").mkdir(parents=True)
+    (tmp_path / "results" / "rec" / "decoded" / "identification.nc").write_bytes(b"")
+    assert load_campaign(campaigns / "rec.yaml", [])["rig"]["factory"] == "replay"

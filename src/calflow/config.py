@@ -288,7 +288,9 @@ def check_campaign_name(name: str) -> str:
 
 def _check_frame_recordings(campaign: dict, path: Path) -> None:
     """Each run recorded as camera frames checked before any job: its table, pattern file,
-    camera and frames (:func:`calflow.data.frames.check_recording`), for the robot's joints."""
+    camera and frames (:func:`calflow.data.frames.check_recording`), for the robot's joints.
+    A run already decoded (``results/<campaign>/decoded/<run>.nc``) is not read again here, so
+    that a no-op run stays cheap: a changed input reruns the decoding, which checks it all."""
     from calflow.family_workflow import frame_recordings
 
     recordings = frame_recordings(campaign)
@@ -301,6 +303,8 @@ def _check_frame_recordings(campaign: dict, path: Path) -> None:
 
     joints = robot_joints(campaign["robot"])
     for run, spec in recordings.items():
+        if (Path("results") / path.stem / "decoded" / f"{run}.nc").is_file():
+            continue
         where = f"rig.options.recordings.{run}"
         if not {"x", "y", "theta"} & set(joints):
             raise ConfigError(
@@ -308,7 +312,7 @@ def _check_frame_recordings(campaign: dict, path: Path) -> None:
                 f"measures (x, y, theta), got {campaign['robot']!r} (joints {list(joints)})"
             )
         try:
-            check_recording(entry(spec), joints, where)
+            check_recording(entry(spec), joints)
         except DataError as exc:
             raise ConfigError(f"{path}: key '{where}': {exc}") from None
 

@@ -261,24 +261,24 @@ class FrameFiles:
         return frame
 
 
-def check_recording(entry: dict, joints: Sequence[str], where: str) -> None:
+def check_recording(entry: dict, joints: Sequence[str]) -> None:
     """The check of a frame recording before any job (``entry``: ``{file, table, pattern,
-    camera}``, :func:`calflow.data.recordings.entry`; ``where`` its key in the campaign): the
+    camera}``, :func:`calflow.data.recordings.entry`): the
     joints table whole, the pattern file, the camera's fields and field of view on that
     pattern, the frames' count (TIFF pages, or the folder's files the table names) and the
     first frame's type and size. The table and the page index are read, one frame only; the
     decoding reads and checks every frame. Raises :class:`DataError` in one line naming the
-    file (or ``where``) and what was expected."""
+    file (or ``camera``) and what was expected."""
     from calflow.instruments.pattern.decode import field_of_view_problem
     from calflow.instruments.readings import camera_of, frame_shape
 
     table = read_table(entry["table"], joints)
     pattern = load_pattern(entry["pattern"])
-    camera = camera_of(entry.get("camera") or {}, f"{where}.camera")
+    camera = camera_of(entry.get("camera") or {}, "camera")
     h, w = frame_shape(camera)
     problem = field_of_view_problem(h, w, camera.pixel_um, pattern)
     if problem:
-        raise DataError(f"{where}.camera: {problem}")
+        raise DataError(f"camera: {problem}")
     FrameFiles(entry["file"], table.frame, (h, w)).first()
 
 
