@@ -291,9 +291,13 @@ def _check_frame_recordings(campaign: dict, path: Path) -> None:
     camera and frames (:func:`calflow.data.frames.check_recording`), for the robot's joints.
     A run already decoded (``results/<campaign>/decoded/<run>.nc``) is not read again here, so
     that a no-op run stays cheap: a changed input reruns the decoding, which checks it all."""
-    from calflow.family_workflow import frame_recordings
-
-    recordings = frame_recordings(campaign)
+    rig = campaign["rig"]
+    recordings = (rig.get("options") or {}).get("recordings")
+    if rig["factory"] != "replay" or not isinstance(recordings, dict):
+        return
+    recordings = {
+        run: s for run, s in recordings.items() if isinstance(s, dict) and s.get("format") == "frames"
+    }
     if not recordings:
         return
     from calflow.data.conventions import robot_joints
