@@ -181,8 +181,15 @@ def _ordered_ranges(ref):
 
 
 _Base = jsonschema.Draft202012Validator
+#: JSON Schema counts 60.0 and 1e308 (integral floats) as integers: a count, seed or index is
+#: written as an integer, and 1e308 poses is not one a rig can visit
+_TYPES = _Base.TYPE_CHECKER.redefine(
+    "integer", lambda _, value: isinstance(value, int) and not isinstance(value, bool)
+)
 #: Validates, with ordered ranges; :data:`_Filling` also fills in the schema's defaults.
-_Checking = jsonschema.validators.extend(_Base, {"$ref": _ordered_ranges(_Base.VALIDATORS["$ref"])})
+_Checking = jsonschema.validators.extend(
+    _Base, {"$ref": _ordered_ranges(_Base.VALIDATORS["$ref"])}, type_checker=_TYPES
+)
 _Filling = jsonschema.validators.extend(
     _Checking, {"properties": _filling_defaults(_Base.VALIDATORS["properties"])}
 )
@@ -279,6 +286,41 @@ def check_campaign_name(name: str) -> str:
     return name
 
 
+def _check_frame_recordings(campaign: dict, path: Path) -> None:
+    """Each run recorded as camera frames checked before any job: its table, pattern file,
+    camera and frames (:func:`calflow.data.frames.check_recording`), for the robot's joints.
+    A run already decoded (``results/<campaign>/decoded/<run>.nc``) is not read again here, so
+    that a no-op run stays cheap: a changed input reruns the decoding, which checks it all."""
+    rig = campaign["rig"]
+    recordings = (rig.get("options") or {}).get("recordings")
+    if rig["factory"] != "replay" or not isinstance(recordings, dict):
+        return
+    recordings = {
+        run: s for run, s in recordings.items() if isinstance(s, dict) and s.get("format") == "frames"
+    }
+    if not recordings:
+        return
+    from calflow.data.conventions import robot_joints
+    from calflow.data.frames import check_recording
+    from calflow.data.recordings import entry
+    from calflow.errors import DataError
+
+    joints = robot_joints(campaign["robot"])
+    for run, spec in recordings.items():
+        if (Path("results") / path.stem / "decoded" / f"{run}.nc").is_file():
+            continue
+        where = f"rig.options.recordings.{run}"
+        if not {"x", "y", "theta"} & set(joints):
+            raise ConfigError(
+                f"{path}: key '{where}': expected a robot with a joint a camera over a pattern "
+                f"measures (x, y, theta), got {campaign['robot']!r} (joints {list(joints)})"
+            )
+        try:
+            check_recording(entry(spec), joints)
+        except DataError as exc:
+            raise ConfigError(f"{path}: key '{where}': {exc}") from None
+
+
 def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) -> dict:
     """Load and validate a campaign file; the campaign's name is the file's stem.
 
@@ -310,6 +352,7 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     _check_dwells(campaign, path)
     _check_strokes(campaign, path)
     check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
+    _check_frame_recordings(campaign, path)
     check_reference(campaign, path)
     check = family_of(robot).steps.get("check")
     if check:

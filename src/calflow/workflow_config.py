@@ -15,9 +15,9 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from calflow.config import load_workflow_config, load_yaml, schema
+from calflow.errors import ConfigError
+from calflow.yamlfile import parse
 
 #: How the command line is named in an error about a value it gave.
 COMMAND_LINE = "--config"
@@ -44,8 +44,8 @@ def typed(value: Any, sch: Mapping | None) -> Any:
     wanted = _types(sch)
     if isinstance(value, str) and wanted and "string" not in wanted:
         try:
-            parsed = yaml.safe_load(value)
-        except yaml.YAMLError:
+            parsed = parse(value, COMMAND_LINE)  # as in a file: 1e-3 is a number
+        except ConfigError:
             return value
         if parsed is None or isinstance(parsed, (bool, int, float)):
             return parsed
@@ -65,10 +65,12 @@ def load(config: Mapping, files: Iterable[str | Path] = (), overrides: Mapping |
     the command line's merged), its configuration ``files`` and the command line's
     ``overrides``. Raises :class:`~calflow.errors.ConfigError` in one line."""
     files = [str(f) for f in files]
-    for f in files:
-        load_yaml(f)  # the files as calflow reads them: refused here, not half-read by another loader
+    data: dict = {}
+    for f in files:  # the files as calflow reads them (1e-3 a number), not as Snakemake's loader did
+        loaded = load_yaml(f)
+        data = _merge(data, loaded) if isinstance(loaded, dict) else data
     overrides = dict(overrides or {})
-    data = _merge(dict(config), typed(overrides, schema("config")))
+    data = _merge(data if files else dict(config), typed(overrides, schema("config")))
     name = files[-1] if files else "config/config.yaml"
     if overrides:
         name = f"{name} (with {COMMAND_LINE} {', '.join(sorted(overrides))})"

@@ -18,6 +18,7 @@ On top of it, a document is refused — one line naming the file, the line and t
 
 from __future__ import annotations
 
+import re
 import unicodedata
 from pathlib import Path
 from typing import Any
@@ -179,6 +180,16 @@ class _Loader(_BASE):  # type: ignore[misc, valid-type]
     def construct_document(self, node):
         _check_tree(node)
         return super().construct_document(node)
+
+
+# YAML 1.2's floats with an exponent (1e-3, 1e308, 2.5E3): YAML 1.1, PyYAML's, reads them as
+# text unless they have a dot and a signed exponent, so a tolerance of 1e-3 was the string
+# '1e-3' and a count of 1e308 was refused as "not an integer, got '1e308'"
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
 
 
 def parse(text: str, file: str | Path, what: str = "") -> Any:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from calflow.data.frames import FrameFiles, file_sha256, read_table
+from calflow.data.frames import FrameFiles, file_sha256, load_pattern, read_table
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import DataError
 from calflow.plan import Plan
@@ -41,7 +41,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     pattern, camera}``) for run ``run_id`` of ``campaign`` (its robot, name and start)."""
     from calflow.data.conventions import robot_joints
     from calflow.data.recordings import entry as normalised
-    from calflow.instruments.pattern import Pattern, decode
+    from calflow.instruments.pattern import decode
     from calflow.instruments.readings import camera_of, frame_shape, readings_of
     from calflow.provenance import package_digest
 
@@ -54,10 +54,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
             f"rig.options.recordings.{run_id}: robot {robot!r} has none of the joints {list(AXES)} a camera over a pattern measures"
         )
     table = read_table(e["table"], joints)
-    try:
-        pattern = Pattern.load(e["pattern"])
-    except (OSError, ValueError) as exc:
-        raise DataError(f"{e['pattern']}: pattern file: {exc}") from None
+    pattern = load_pattern(e["pattern"])
     camera = camera_of(e.get("camera") or {}, f"rig.options.recordings.{run_id}.camera")
     frames = FrameFiles(e["file"], table.frame, frame_shape(camera))
     readings, shas = [], []

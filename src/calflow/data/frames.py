@@ -215,6 +215,15 @@ class FrameFiles:
                     shas.append(file_sha256(path))
                 yield slice(rows.start, rows.stop), np.stack(frames), shas
 
+    def first(self) -> np.ndarray:
+        """The first frame, checked (type, size): what a check at load reads of the frames."""
+        if self.stack:
+            import tifffile
+
+            with tifffile.TiffFile(self.source) as tif:
+                return self._check(self._page(tif, 0), 0)
+        return self._check(self._image(self.source / self.names[0]), 0)
+
     def _page(self, tif, i: int) -> np.ndarray:
         try:
             return tif.pages[int(self.names[i])].asarray()
@@ -250,6 +259,40 @@ class FrameFiles:
                 f"{frame.shape[1]} × {frame.shape[0]}"
             )
         return frame
+
+
+def check_recording(entry: dict, joints: Sequence[str]) -> None:
+    """The check of a frame recording before any job (``entry``: ``{file, table, pattern,
+    camera}``, :func:`calflow.data.recordings.entry`): the
+    joints table whole, the pattern file, the camera's fields and field of view on that
+    pattern, the frames' count (TIFF pages, or the folder's files the table names) and the
+    first frame's type and size. The table and the page index are read, one frame only; the
+    decoding reads and checks every frame. Raises :class:`DataError` in one line naming the
+    file (or ``camera``) and what was expected."""
+    from calflow.instruments.pattern.decode import field_of_view_problem
+    from calflow.instruments.readings import camera_of, frame_shape
+
+    table = read_table(entry["table"], joints)
+    pattern = load_pattern(entry["pattern"])
+    camera = camera_of(entry.get("camera") or {}, "camera")
+    h, w = frame_shape(camera)
+    problem = field_of_view_problem(h, w, camera.pixel_um, pattern)
+    if problem:
+        raise DataError(f"camera: {problem}")
+    FrameFiles(entry["file"], table.frame, (h, w)).first()
+
+
+def load_pattern(path: str | Path):
+    """The pattern file at ``path`` (:meth:`calflow.instruments.pattern.Pattern.load`);
+    :class:`DataError` in one line naming it when it cannot be read or is not one."""
+    from calflow.errors import CalflowError
+    from calflow.instruments.pattern import Pattern
+
+    try:
+        return Pattern.load(path)
+    except (OSError, ValueError, CalflowError) as exc:
+        text = str(exc)
+        raise DataError(text if text.startswith(str(path)) else f"{path}: pattern file: {text}") from None
 
 
 def _stack_pages(path: Path) -> int:

@@ -62,6 +62,8 @@ def entry(spec: Any) -> dict:
     if not isinstance(spec, Mapping):
         raise BadEntry("", "a file name or {file: ..., format: ...}", spec)
     fmt = spec.get("format")
+    if "format" in spec and fmt not in FORMATS:  # before the keys: they depend on it
+        raise BadEntry(".format", f"one of {list(FORMATS)}", fmt)
     keys = KEYS.get(fmt, ("file", "format", "mapping"))
     unknown = sorted(set(spec) - set(keys))
     if unknown:

@@ -100,7 +100,10 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
         raise ConfigError(
             f"{file}: key '{key}': expected a campaign of {file.parent}, got {name!r} (no {path.name})"
         )
-    ref = load_yaml(path)
+    try:
+        ref = load_yaml(path)
+    except ConfigError as exc:  # the reference's own line, after the key that reads it
+        raise ConfigError(f"{file}: key '{key}': {exc}") from None
     if not isinstance(ref, dict):
         raise ConfigError(f"{file}: key '{key}': expected a campaign, got {name!r}, whose file is no mapping")
     if "interim_check" in ref:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -30,6 +31,8 @@ import numpy as np
 from calflow.data.conventions import robot_joints
 from calflow.data.io import open_dataset
 from calflow.errors import CalflowError, OptionError, RigError
+
+RUN_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")  # a run's file name (runs/<run id>.nc)
 
 
 def _resolve(recordings: str | os.PathLike | Mapping[str, object], stream: str):
@@ -274,6 +277,10 @@ def check_options(
 
     if isinstance(recordings, Mapping):
         for run_id, spec in recordings.items():
+            if not (isinstance(run_id, str) and RUN_ID.fullmatch(run_id)):
+                raise OptionError(
+                    "recordings", "run ids of letters, digits, '-' or '_' (a run's file name)", run_id
+                )
             try:
                 check_entry(spec)
             except BadEntry as exc:

@@ -36,6 +36,7 @@ def check_campaign(campaign: dict, path: Path) -> None:
         )
     _check_models(campaign["models"], path)
     _check_design(campaign, path)
+    _check_recordings(campaign, path)
     if any(spec.get("position_table") for spec in campaign["models"].values()):
         ident, char = campaign["identification"], campaign["characterisation"]
         for axis in ("x", "y"):
@@ -45,6 +46,23 @@ def check_campaign(campaign: dict, path: Path) -> None:
                     f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
                     f"got up to {ident[f'{axis}_um'][1]}"
                 )
+
+
+def _check_recordings(campaign: dict, path: Path) -> None:
+    """A replay's recordings (a mapping run id -> recording) are of runs the campaign acquires:
+    a misspelt run id would be a recording nothing reads, beside a run with none."""
+    recordings = (campaign["rig"].get("options") or {}).get("recordings")
+    if campaign["rig"]["factory"] != "replay" or not isinstance(recordings, dict):
+        return
+    from calflow.xytheta.plans.workflow import XYThetaWorkflow
+
+    runs = {Path(f).stem for f in XYThetaWorkflow().all_runs({**campaign, "name": Path(path).stem})}
+    for run in recordings:
+        if run not in runs:
+            raise ConfigError(
+                f"{path}: key 'rig.options.recordings.{run}': expected a run this campaign acquires "
+                f"(one of {', '.join(sorted(runs))}), got {run!r}"
+            )
 
 
 def _check_models(models: dict, path: Path) -> None:

@@ -100,13 +100,9 @@ def decode(
         pixel_um = camera.pixel_um
     if not (isinstance(pixel_um, (int, float)) and pixel_um > 0 and math.isfinite(pixel_um)):
         raise ValueError(f"pixel_um: expected a positive number (µm), got {pixel_um!r}")
-    need = max(pattern.min_fov_um)
-    seen = (min(h, w) - 2) * pixel_um
-    if seen < need:
-        raise ValueError(
-            f"frames of {w} × {h} pixels of {pixel_um:g} µm see {seen:.1f} µm across; the pattern "
-            f"needs a field of view of {need:g} µm (min_fov_um) to be decoded"
-        )
+    problem = field_of_view_problem(h, w, pixel_um, pattern)
+    if problem:
+        raise ValueError(problem)
     fitter = PhaseFitter((h, w), pixel_um / pattern.period_um, workers)
     out = {k: np.full(n, np.nan) for k in ("x_um", "y_um", "theta_deg", "u_x_um", "u_y_um", "u_theta_deg")}
     status = np.empty(n, dtype=object)
@@ -152,6 +148,20 @@ def _unit_range(block: np.ndarray, good: np.ndarray) -> np.ndarray:
         good[k] = hi > lo
         out[k] = (b - lo) / (hi - lo) if good[k] else 0.0
     return out
+
+
+def field_of_view_problem(h: int, w: int, pixel_um: float, pattern) -> str | None:
+    """Why frames of ``h`` × ``w`` pixels of ``pixel_um`` µm cannot be decoded on ``pattern``
+    (their field of view is smaller than its ``min_fov_um``), or None. Checked before any frame
+    is read (a campaign's options at load) and by :func:`decode`."""
+    need = max(pattern.min_fov_um)
+    seen = (min(h, w) - 2) * pixel_um
+    if seen < need:
+        return (
+            f"frames of {w} × {h} pixels of {pixel_um:g} µm see {seen:.1f} µm across; the pattern "
+            f"needs a field of view of {need:g} µm (min_fov_um) to be decoded"
+        )
+    return None
 
 
 def _frames(frames) -> np.ndarray:

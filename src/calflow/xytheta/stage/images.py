@@ -38,9 +38,11 @@ IMAGE_CHANNELS = ("u_meas_x", "u_meas_y", "u_meas_theta", "decode_status")  # be
 CHUNK = 16  # frames rendered and decoded at once: bounds the memory of a long visit()
 
 
-def check(sensor="model", camera=None, pattern=None) -> dict:
+def check(sensor="model", camera=None, pattern=None, range_um=None) -> dict:
     """The sensor options checked: ``sensor`` one of :data:`SENSORS`, ``camera`` a mapping
-    of known :class:`Camera` fields, ``pattern`` an existing file. Raises :class:`OptionError`."""
+    of known :class:`Camera` fields, ``pattern`` a readable pattern file that covers the
+    rig's ``range_um`` (its ``pattern_range_um``) and that the camera's field of view can
+    decode. Raises :class:`OptionError`."""
     if sensor not in SENSORS:
         raise OptionError("sensor", f"one of {list(SENSORS)}", sensor)
     if sensor == "model":
@@ -54,12 +56,59 @@ def check(sensor="model", camera=None, pattern=None) -> dict:
         raise OptionError("camera", "a mapping of camera-model fields", camera)
     camera = dict(camera or {})
     try:
-        camera_of(camera, "camera", ValueError)
+        cam = camera_of(camera, "camera", ValueError)
     except ValueError as exc:
         raise OptionError("camera", f"camera-model fields the model accepts ({exc})", camera) from None
     if pattern is not None and not (isinstance(pattern, str) and Path(pattern).is_file()):
         raise OptionError("pattern", "an existing pattern file (calflow pattern make)", pattern)
+    if pattern is not None:
+        _check_pattern(pattern, cam, range_um)
+    elif range_um is not None:
+        _check_default_pattern(cam, range_um, camera)
     return {"sensor": "images", "camera": camera, "pattern": pattern}
+
+
+def _check_pattern(path: str, camera, range_um) -> None:
+    """The pattern file read (one line when it is not one), its range covering ``range_um``
+    and the camera's field of view enough to decode it."""
+    from calflow.data.frames import load_pattern
+    from calflow.errors import DataError
+    from calflow.instruments.pattern.decode import field_of_view_problem
+    from calflow.instruments.readings import frame_shape
+
+    try:
+        pat = load_pattern(path)
+    except DataError as exc:
+        raise OptionError("pattern", f"a calflow pattern file ({exc})", path) from None
+    if range_um is not None and any(p < r for p, r in zip(pat.range_um, range_um)):
+        raise OptionError(
+            "pattern",
+            f"a pattern whose range covers the rig's pattern_range_um {list(range_um)} µm "
+            f"(calflow pattern make --range), its range is {list(pat.range_um)} µm",
+            path,
+        )
+    problem = field_of_view_problem(*frame_shape(camera), camera.pixel_um, pat)
+    if problem:
+        raise OptionError("camera", f"a field of view the pattern can be decoded in ({problem})", path)
+
+
+def _check_default_pattern(camera, range_um, fields: dict) -> None:
+    """The camera's field of view against the default pattern for ``range_um``: its windows
+    before they are checked apart (``check=False``, milliseconds) need the least field of
+    view, so a camera refused here cannot decode the pattern the rig makes."""
+    from calflow.instruments.pattern import Pattern
+    from calflow.instruments.pattern.decode import field_of_view_problem
+    from calflow.instruments.readings import frame_shape
+
+    try:
+        least = Pattern.make(range_um=tuple(range_um), check=False)
+    except ValueError:
+        return  # a range no pattern covers: the rig's own check says so when it is built
+    problem = field_of_view_problem(*frame_shape(camera), camera.pixel_um, least)
+    if problem:
+        raise OptionError(
+            "camera", f"a field of view the default pattern can be decoded in ({problem})", fields
+        )
 
 
 def _frozen(mapping: Mapping) -> tuple:

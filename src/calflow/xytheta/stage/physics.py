@@ -356,11 +356,7 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
         physics = dict(physics)
         check_aging(physics.pop("aging"))
     sensor = {k: physics[k] for k in SENSOR_OPTIONS if k in physics}
-    if sensor:  # how the vision sensor reads (stage.images): not physics
-        from calflow.xytheta.stage.images import check as check_sensor
-
-        physics = {k: v for k, v in physics.items() if k not in SENSOR_OPTIONS}
-        sensor = check_sensor(**sensor)
+    physics = {k: v for k, v in physics.items() if k not in SENSOR_OPTIONS}
     for key in physics:
         if key not in known:
             names = sorted([*known, *SENSOR_OPTIONS])
@@ -391,6 +387,10 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
             out[key] = tuple(float(v) for v in value)
         else:
             out[key] = _number(key, value, bound)
+    if sensor:  # how the vision sensor reads (stage.images): not physics
+        from calflow.xytheta.stage.images import check as check_sensor
+
+        sensor = check_sensor(**sensor, range_um=out.get("pattern_range_um", known["pattern_range_um"]))
     if out.get("gross_error_rate", 0.0) > 1:
         raise OptionError("gross_error_rate", "a probability between 0 and 1", physics["gross_error_rate"])
     return {"seed": int(seed), "stream": stream, **out, **({"sensor": sensor} if sensor else {})}
