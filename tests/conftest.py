@@ -102,7 +102,7 @@ def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subproce
         env=env,
         capture_output=True,
         text=True,
-        timeout=900,
+        timeout=1800,  # a hang guard, not a speed check: the default run is ~6 min on a quiet machine
     )
 
 
