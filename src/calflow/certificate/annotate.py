@@ -88,23 +88,9 @@ def record(u: Uncertainty, scale: float, value, notes=()) -> dict:
 
 def _decide(value, limit, rule, unc: dict | None) -> dict:
     if not isinstance(value, (int, float)) or not math.isfinite(value):
-        return {
-            "rule": rule,
-            "spec": limit,
-            "decision": None,
-            "pfa": None,
-            "pfr": None,
-            "statement": "no value",
-        }
+        return _undecided(limit, rule, "no value")
     if unc is None and rule in conformity.NEEDS_U:
-        return {
-            "rule": rule,
-            "spec": limit,
-            "decision": None,
-            "pfa": None,
-            "pfr": None,
-            "statement": f"this value has no U: the {rule} rule cannot decide",
-        }
+        return _undecided(limit, rule, f"this value has no U: the {rule} rule cannot decide")
     if unc is None:
         return conformity.decide(value, limit, rule)
     return conformity.decide(value, limit, rule, unc["U"], unc["k"], unc["dof_eff"])
@@ -168,3 +154,8 @@ def stage_settings_or_fail(text: str | None) -> dict:
     if not isinstance(value, dict):
         raise ConfigError(f"calflow summarise: --settings: expected a JSON object, got {text!r}")
     return value
+
+
+def _undecided(limit, rule, why: str) -> dict:
+    """A conformity entry without a decision, and why."""
+    return {"rule": rule, "spec": limit, "decision": None, "pfa": None, "pfr": None, "statement": why}
