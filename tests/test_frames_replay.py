@@ -193,3 +193,23 @@ def test_the_workflow_decodes_before_it_replays(tmp_path, rendered):
     table.write_text(table.read_text().replace("21.03", "21.04"))  # a corrected thermometer reading
     proc = snakemake(work, "-n", "results/rec/runs/identification.nc")
     assert proc.returncode == 0 and "rule decode_frames" in proc.stdout and "rule acquire" in proc.stdout
+
+
+def test_a_truncated_stack_even_when_tifffile_is_silenced(tmp_path, rendered, capsys):
+    """The cut is found from the file's chain of pages, not from tifffile's log (which other
+    code in the same process may have silenced)."""
+    import logging
+
+    log = logging.getLogger("tifffile")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    logging.disable(logging.CRITICAL)
+    try:
+        campaign, stack = _recording(tmp_path, rendered)
+        data = stack.read_bytes()
+        stack.write_bytes(data[: len(data) // 2])
+        err = _fails(campaign, tmp_path, capsys)
+    finally:
+        logging.disable(logging.NOTSET)
+        log.setLevel(level)
+    assert str(stack) in err and "truncated or corrupt" in err

@@ -297,41 +297,14 @@ def load_pattern(path: str | Path):
 
 def _stack_pages(path: Path) -> int:
     """The page count of a TIFF stack; :class:`DataError` when it is not readable, or is
-    truncated or corrupt (tifffile then logs an error and stops counting, or a page's data
-    would lie beyond the end of the file)."""
-    import logging
+    truncated or corrupt (the instrument's reader checks the chain of pages and their data)."""
+    from calflow.instruments.pattern.frames import tiff_pages
 
-    import tifffile
-
-    class Errors(logging.Handler):
-        def __init__(self):
-            super().__init__(logging.ERROR)
-            self.messages: list[str] = []
-
-        def emit(self, record):
-            self.messages.append(record.getMessage())
-
-    log = logging.getLogger("tifffile")
-    errors, propagate = Errors(), log.propagate
-    log.addHandler(errors)
-    log.propagate = False  # its own line would be a second one
     try:
-        with tifffile.TiffFile(path) as tif:
-            pages = len(tif.pages)
-            size = path.stat().st_size
-            ends = [
-                max((o + n for o, n in zip(page.dataoffsets, page.databytecounts)), default=0)
-                for page in tif.pages
-            ]
-    except Exception as exc:  # tifffile raises its own and OS errors: the file is not a TIFF
-        raise DataError(f"{path}: frames: not a readable TIFF stack ({_reason(exc)})") from None
-    finally:
-        log.removeHandler(errors)
-        log.propagate = propagate
-    if errors.messages or any(end > size for end in ends):
-        why = errors.messages[0] if errors.messages else "a page's data lies beyond the end of the file"
-        raise DataError(f"{path}: frames: not a readable TIFF stack, truncated or corrupt ({why[:160]})")
-    return pages
+        return tiff_pages(path)
+    except DataError as exc:
+        text = str(exc).removeprefix(f"{path}: ").replace("not a readable TIFF", "not a readable TIFF stack")
+        raise DataError(f"{path}: frames: {text}") from None
 
 
 def _pixels_sha(frame: np.ndarray) -> str:

@@ -58,23 +58,112 @@ def _read(path: Path) -> list[np.ndarray]:
 
 
 def _tiff(path: Path) -> np.ndarray:
-    import logging
-
     import tifffile
 
-    logging.getLogger("tifffile").setLevel(logging.CRITICAL)  # its warnings would be a second line
     try:
-        with tifffile.TiffFile(path) as tif:
+        with _tifffile_errors() as errors, tifffile.TiffFile(path) as tif:
+            _check_whole(path, tif, errors)
             series = tif.series[0]
             if series.axes[-1:] == "S" or (
                 series.shape and series.shape[-1] in (3, 4) and "S" in series.axes
             ):
                 raise DataError(f"{path}: a colour TIFF (axes {series.axes}); expected monochrome frames")
-            return series.asarray()
+            frames = series.asarray()
+            _check_whole(path, tif, errors)
+            return frames
     except DataError:
         raise
     except Exception as exc:  # tifffile raises TiffFileError, ValueError, OSError … on bad files
         raise DataError(f"{path}: not a readable TIFF ({type(exc).__name__}: {exc})") from None
+
+
+def tiff_pages(path: str | Path) -> int:
+    """The number of pages of a TIFF file, every one of them whole.
+
+    :class:`DataError` when the file is not a TIFF, or is truncated or corrupt: its chain of
+    pages points past what could be read, a page's data lies beyond the end of the file, or
+    tifffile reported an error while reading it.
+    """
+    import tifffile
+
+    path = Path(path)
+    try:
+        with _tifffile_errors() as errors, tifffile.TiffFile(path) as tif:
+            pages = len(tif.pages)
+            _check_whole(path, tif, errors)
+    except DataError:
+        raise
+    except Exception as exc:  # tifffile raises its own and OS errors: the file is not a TIFF
+        raise DataError(f"{path}: not a readable TIFF ({type(exc).__name__}: {exc})") from None
+    return pages
+
+
+def _check_whole(path: Path, tif, errors: list[str]) -> None:
+    """Refuse a truncated or corrupt TIFF, not relying on tifffile's log alone (the chain of
+    pages is followed here too: a last page that points to another one is a cut file)."""
+    size = path.stat().st_size
+    pages = list(tif.pages)
+    why = errors[0] if errors else ""
+    if not why:
+        for page in pages:
+            offsets = getattr(page, "dataoffsets", ()) or ()
+            counts = getattr(page, "databytecounts", ()) or ()
+            if max((o + n for o, n in zip(offsets, counts)), default=0) > size:
+                why = "a page's data lies beyond the end of the file"
+                break
+    if not why and pages and _next_ifd(tif, pages[-1].offset, size) != 0:
+        why = f"page {len(pages)} points to a next page that cannot be read"
+    if why:
+        raise DataError(f"{path}: not a readable TIFF, truncated or corrupt ({why[:160]})")
+
+
+def _next_ifd(tif, offset: int, size: int) -> int:
+    """The offset of the page after the one whose IFD starts at ``offset`` (0: none)."""
+    import struct
+
+    header = tif.tiff  # byte order and sizes of classic or BigTIFF
+    fh = tif.filehandle
+    fh.seek(offset)
+    raw = fh.read(header.tagnosize)
+    if len(raw) < header.tagnosize:
+        return -1
+    (count,) = struct.unpack(header.tagnoformat, raw)
+    fh.seek(offset + header.tagnosize + count * header.tagsize)
+    raw = fh.read(header.offsetsize)
+    if len(raw) < header.offsetsize:
+        return -1
+    (nxt,) = struct.unpack(header.offsetformat, raw)
+    return nxt
+
+
+class _tifffile_errors:
+    """Within: tifffile's errors collected here, its warnings silenced (printed, either would
+    be a second line), whatever level other code set on its logger; restored after. The
+    structural checks of :func:`_check_whole` do not depend on this log."""
+
+    def __enter__(self) -> list[str]:
+        import logging
+
+        messages: list[str] = []
+
+        class Collect(logging.Handler):
+            def emit(self, record):
+                if record.levelno >= logging.ERROR:
+                    messages.append(record.getMessage())
+
+        self.log = logging.getLogger("tifffile")
+        self.saved = (self.log.level, self.log.propagate)
+        self.handler = Collect(logging.WARNING)
+        self.log.addHandler(self.handler)
+        self.log.setLevel(logging.WARNING)
+        self.log.propagate = False
+        return messages
+
+    def __exit__(self, *exc) -> None:
+        level, propagate = self.saved
+        self.log.removeHandler(self.handler)
+        self.log.setLevel(level)
+        self.log.propagate = propagate
 
 
 def _png(path: Path) -> np.ndarray:
