@@ -376,3 +376,25 @@ def test_a_campaign_file_whose_stem_is_not_a_name_is_refused_by_the_workflow(tmp
     with pytest.raises(ConfigError):
         check_campaign_name((tmp_path / "...yaml").stem)
     assert check_campaign_name("nano1d-thesis") == "nano1d-thesis"
+
+
+@pytest.mark.parametrize("key", ["\n", "a\nb", "x\ry", "\x85", "\u2028", "tab\there"])
+def test_a_key_with_a_line_break_is_named_in_one_line(tmp_path, key):
+    """The fuzzer's find: a key holding a line break was quoted raw, so the message broke
+    into two lines; it is shown escaped."""
+    import copy
+
+    import yaml
+
+    from calflow.config import load_campaign
+    from calflow.errors import CalflowError
+
+    c = copy.deepcopy(SMALL_XYTHETA)
+    c["rig"][key] = 1
+    f = tmp_path / "c.yaml"
+    f.write_text(yaml.safe_dump(c))
+    with pytest.raises(CalflowError) as info:
+        load_campaign(f, [])
+    message = str(info.value)
+    assert "\n" not in message and "\r" not in message and message.startswith(f"{f}: ")
+    assert "rig." + key.encode("unicode_escape").decode() in message

@@ -38,8 +38,27 @@ _ALLOWED_CONTROLS = {"\t", "\n", "\r"}
 
 
 def char_name(ch: str) -> str:
-    """``U+0430 CYRILLIC SMALL LETTER A``: a character as Unicode names it."""
+    """``U+0430 CYRILLIC SMALL LETTER A``: a character as Unicode names it (a control
+    character, which Unicode leaves unnamed, by its category)."""
+    if unicodedata.category(ch) == "Cc":
+        return f"U+{ord(ch):04X} CONTROL CHARACTER {_CONTROLS.get(ch, '')}".rstrip()
     return f"U+{ord(ch):04X} {unicodedata.name(ch, 'UNNAMED CHARACTER')}"
+
+
+_CONTROLS = {"\t": "(TAB)", "\n": "(LINE FEED)", "\r": "(CARRIAGE RETURN)", "\x00": "(NULL)"}
+
+
+def shown(text: str) -> str:
+    """``text`` as an error line may show it: characters one cannot see, line breaks among
+    them, escaped (``a\\nb``), so that a message stays one line."""
+    return "".join(
+        ch if ch == " " or unicodedata.category(ch)[0] not in "CZ" else ch.encode("unicode_escape").decode()
+        for ch in text
+    )
+
+
+def _dotted(path) -> str:
+    return shown(".".join(path)) or "<top level>"
 
 
 def _invisible(ch: str) -> bool:
@@ -113,14 +132,14 @@ def _check_tree(root: yaml.Node) -> None:
         if ident in sizes:  # an alias of a node already walked: its size, nothing new to check
             return sizes[ident]
         if ident in open_nodes:
-            raise _Refused(f"key '{'.'.join(path) or '<top level>'}': an alias that refers to itself", node)
+            raise _Refused(f"key '{_dotted(path)}': an alias that refers to itself", node)
         open_nodes.add(ident)
         size = 1
         if isinstance(node, yaml.ScalarNode):
             odd = odd_character(str(node.value), free_text=free)
             if odd is not None:
                 raise _Refused(
-                    f"key '{'.'.join(path) or '<top level>'}': value {node.value!r} contains "
+                    f"key '{_dotted(path)}': value {node.value!r} contains "
                     f"{char_name(odd)}; {_expected(odd, False)}",
                     node,
                 )
@@ -137,7 +156,7 @@ def _check_tree(root: yaml.Node) -> None:
                         continue
                     odd = odd_character(name, key=True)
                     if odd is not None:
-                        where = ".".join((*path, name))
+                        where = _dotted((*path, name))
                         raise _Refused(
                             f"key '{where}' contains {char_name(odd)}; {_expected(odd, True)}", key_node
                         )
@@ -145,7 +164,7 @@ def _check_tree(root: yaml.Node) -> None:
                     if ident_key in seen:
                         first = seen[ident_key].start_mark.line + 1
                         raise _Refused(
-                            f"key '{'.'.join((*path, name))}' appears twice (first at line {first}): "
+                            f"key '{_dotted((*path, name))}' appears twice (first at line {first}): "
                             "expected each key once",
                             key_node,
                         )
@@ -155,7 +174,7 @@ def _check_tree(root: yaml.Node) -> None:
         sizes[ident] = size
         if size > MAX_NODES:
             raise _Refused(
-                f"key '{'.'.join(path) or '<top level>'}': its aliases expand to more than "
+                f"key '{_dotted(path)}': its aliases expand to more than "
                 f"{MAX_NODES} values; expected a configuration written out (anchors and aliases "
                 "only for small repeated sections)",
                 node,
