@@ -9,7 +9,7 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.identification.design import criterion, information
 from calflow.nano.models.thermal import SingleModel
 from calflow.nano.plans import campaign as campaign_plans

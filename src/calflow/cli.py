@@ -14,7 +14,7 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from calflow import __version__
+from calflow import __version__, layout
 from calflow.errors import CalflowError
 
 
@@ -25,7 +25,7 @@ def cmd_acquire(args) -> None:
 
 
 def _family(args):
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.family import family_of
 
     campaign = load_campaign(args.campaign)
@@ -55,7 +55,7 @@ def cmd_summarise(args) -> None:
 
 
 def cmd_report(args) -> None:
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import render_campaign_pages, write_pdf
 
@@ -127,7 +127,8 @@ def cmd_validate(args) -> int:
 
 
 def cmd_check_config(args) -> None:
-    from calflow.config import check_campaign_name, load_campaign, load_yaml
+    from calflow.campaign import load as load_campaign
+    from calflow.config import check_campaign_name, load_yaml
     from calflow.lifecycle.settings import check_stage_settings
     from calflow.lifecycle.stages import stages_of
     from calflow.workflow_config import load as load_config
@@ -214,8 +215,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--pdf")
 
     x = _sub(sub, "index", cmd_index, "render reports/index.html over every campaign on disk (reruns none)")
-    x.add_argument("--results", default="results", help="the results folder (default: results)")
-    x.add_argument("--reports", default="reports", help="the reports folder (default: reports)")
+    x.add_argument("--results", default=layout.RESULTS, help="the results folder (default: results)")
+    x.add_argument("--reports", default=layout.REPORTS, help="the reports folder (default: reports)")
     x.add_argument(
         "--campaign-dir",
         default="config/campaigns",

@@ -75,7 +75,7 @@ def render(summary: dict, campaign: dict, command: str) -> str:
 
 def run(args) -> None:
     """``calflow certificate``: the page from the campaign's summary."""
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import write_pdf
 

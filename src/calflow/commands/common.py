@@ -6,7 +6,8 @@ import shlex
 import sys
 
 from calflow import __version__
-from calflow.config import campaign_digest, load_campaign
+from calflow.campaign import load as load_campaign
+from calflow.config import campaign_digest
 from calflow.data.runs import RunMetadata
 
 
