@@ -4,14 +4,14 @@
 
 rule certificate:
     input:
-        summary="results/{campaign}/summary.json",
+        summary=layout.summary("{campaign}"),
     output:
-        html="reports/{campaign}/certificate.html",
-        pdf="reports/{campaign}/certificate.pdf",
+        html=layout.certificate("{campaign}"),
+        pdf=layout.certificate("{campaign}", "pdf"),
     log:
-        "results/{campaign}/logs/certificate.log",
+        layout.log("{campaign}", "certificate"),
     benchmark:
-        "results/{campaign}/benchmarks/certificate.tsv"
+        layout.benchmark("{campaign}", "certificate")
     group:
         "campaign"
     conda:
