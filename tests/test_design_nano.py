@@ -1,5 +1,6 @@
 """Designed nano training plans (issue 15): the bound, the design, the plan, the summary block."""
 
+import copy
 import json
 from pathlib import Path
 
@@ -22,7 +23,7 @@ STROKE = np.array([480.0])
 
 
 def _campaign(robot="nano1d", **training):
-    c = load_campaign(ROOT / "config" / "campaigns" / f"{robot}-thesis.yaml")
+    c = copy.deepcopy(load_campaign(ROOT / "config" / "campaigns" / f"{robot}-thesis.yaml"))  # a variant
     c["training"].update(training)
     return c
 

@@ -226,13 +226,61 @@ class Campaign(FrozenDict):
     def reference(self) -> Campaign | None:
         return self.resolution.reference
 
-    def select(self, keys) -> FrozenDict:
-        """The sections ``keys`` (as resolved; None for an absent one): what a step reads."""
-        return FrozenDict((k, self.get(k)) for k in keys)
-
     def digest(self, keys) -> str:
-        """SHA-256 of the sections ``keys`` (:meth:`select`): a step's rerun digest."""
+        """SHA-256 of the sections ``keys`` (as resolved; None for an absent one): the rerun
+        digest of a step that reads these sections."""
         return digest([self.get(k) for k in keys])
+
+    def only(self, keys, step: str = "this step") -> Sections:
+        """The campaign as a step that reads only the sections ``keys`` sees it (its rule
+        hands it those and digests the same, :meth:`digest`): reading another section raises
+        :class:`SectionNotHanded`, so a step cannot read what its rerun digest misses."""
+        return Sections(self, tuple(keys), step)
+
+
+class SectionNotHanded(KeyError):
+    """A step read a campaign section its rule does not hand it (nor digest)."""
+
+
+class Sections(FrozenDict):
+    """The sections of a campaign its rule hands a step (:meth:`Campaign.only`), and ``name``."""
+
+    __slots__ = ("handed", "step", "campaign")
+
+    def __init__(self, campaign: Campaign, keys: tuple[str, ...], step: str):
+        handed = frozenset(keys) | {"name"}
+        dict.__init__(self, ((k, v) for k, v in campaign.items() if k in handed))
+        for attr, value in (("handed", handed), ("step", step), ("campaign", campaign)):
+            object.__setattr__(self, attr, value)
+
+    def _check(self, key) -> None:
+        if key not in self.handed:
+            raise SectionNotHanded(
+                f"{self.campaign.path}: {self.step} read section {key!r}, which its rule does not hand "
+                f"it (it hands {', '.join(sorted(self.handed - {'name'})) or 'none'}): add it to the rule's sections"
+            )
+
+    def __getitem__(self, key):
+        self._check(key)
+        return dict.__getitem__(self, key)
+
+    def get(self, key, default=None):
+        self._check(key)
+        return dict.get(self, key, default)
+
+    def __contains__(self, key) -> bool:
+        self._check(key)
+        return dict.__contains__(self, key)
+
+    def __setattr__(self, name, value):
+        _refuse(self)
+
+    def __reduce__(self):
+        return (_sections, (self.campaign, tuple(self.handed - {"name"}), self.step))
+
+
+def _sections(campaign: Campaign, keys: tuple[str, ...], step: str) -> Sections:
+    return Sections(campaign, keys, step)
 
 
 def _unpickle(path: str, sha256: str) -> Campaign:

@@ -41,9 +41,11 @@ def cmd_metrics(args) -> None:
 
 
 def cmd_summarise(args) -> None:
+    from calflow.commands.common import handed
     from calflow.data.io import write_json
 
     campaign, family = _family(args)
+    campaign = handed(campaign, args.sections, "calflow summarise")
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
@@ -206,6 +208,11 @@ def parser() -> argparse.ArgumentParser:
         "--settings", help="JSON: the stage's settings (config 'stages.<id>'): specification, decision rule"
     )
     s.add_argument("--out", required=True)
+    s.add_argument(
+        "--sections",
+        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
+        "same); reading another is an error. Default: all",
+    )
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
     r.add_argument("--campaign", required=True)
@@ -248,6 +255,11 @@ def parser() -> argparse.ArgumentParser:
     ce.add_argument("--summary", required=True)
     ce.add_argument("--html", required=True)
     ce.add_argument("--pdf")
+    ce.add_argument(
+        "--sections",
+        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
+        "same); reading another is an error. Default: all",
+    )
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

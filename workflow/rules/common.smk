@@ -128,6 +128,14 @@ def section(step, *keys):
     return _digest
 
 
+def reads(step, *keys):
+    """The params of a rule whose job reads the campaign sections ``keys``: ``sections``, handed
+    to the job (``--sections``; it cannot read another, calflow.campaign.Campaign.only), and
+    ``digest``, of the same sections and the step's code (:func:`section`). Use as
+    ``params: **reads("certificate", "stage", "start")``."""
+    return {"sections": ",".join(keys), "digest": section(step, *keys)}
+
+
 def rig_digest(run_id):
     """Digest of what a run's acquisition depends on: the rig, the campaign's clock, the code."""
 

@@ -33,14 +33,10 @@ rule summarise:
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
         settings=lambda w: shlex.quote(certificate_settings(w.campaign)),
-        digest=section(
-            "summarise",
-            "description",
-            "robot",
-            "seed",
-            "rig",
-            "uncertainty",
-            "reference",
+        # the summary reads the whole campaign (each family's its own sections, the stage and
+        # the reference values), so every section is handed to it and digested
+        digest=lambda w: digest(
+            [code_digest("summarise", robot(w)), CAMPAIGN[w.campaign]]
         ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"

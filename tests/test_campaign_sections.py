@@ -1,0 +1,66 @@
+"""Each rule hands its job the campaign sections it reads and digests the same: the job
+cannot read another (calflow.campaign.Campaign.only), and Snakemake reruns it when a section
+it reads changes, not when another does."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import ROOT, snakemake
+
+from calflow.campaign import SectionNotHanded, load
+
+FOLDER = ROOT / "config" / "campaigns"
+
+
+def test_a_step_reads_only_the_sections_its_rule_hands_it():
+    c = load(FOLDER / "demo-sn0042-2026-01.yaml")
+    seen = c.only(["stage", "start"], "calflow certificate")
+    assert seen["stage"] == c["stage"] and seen.get("start") == c["start"] and seen["name"] == c.name
+    for read in (lambda: seen["models"], lambda: seen.get("rig"), lambda: "description" in seen):
+        with pytest.raises(
+            SectionNotHanded, match=r"calflow certificate read section '(models|rig|description)'"
+        ):
+            read()
+    assert set(seen) == {"stage", "start", "name"}
+    assert c.digest(["stage", "start"]) == load(FOLDER / "demo-sn0042-2026-01.yaml").digest(
+        ["stage", "start"]
+    )
+
+
+def test_the_certificate_rule_hands_what_it_digests():
+    rule = (ROOT / "workflow" / "rules" / "certificate.smk").read_text()
+    assert re.search(r'\*\*reads\("certificate", "stage", "start"\)', rule)
+    assert "--sections {params.sections" in rule
+
+
+def _changed(work: Path) -> set[str]:
+    proc = snakemake(work, "--list-changes", "params")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return {
+        line.strip() for line in proc.stdout.splitlines() if line.strip().startswith(("results/", "reports/"))
+    }
+
+
+def _edit(work: Path, **sections) -> None:
+    path = work / "config" / "campaigns" / "c.yaml"
+    data = yaml.safe_load(path.read_text())
+    path.write_text(yaml.safe_dump({**data, **sections}, sort_keys=False))
+
+
+def test_a_section_a_step_reads_reruns_it_and_another_does_not(reduced_run, tmp_path):
+    work = tmp_path / "project"
+    shutil.copytree(reduced_run, work, symlinks=True)
+    assert _changed(work) == set()
+    _edit(work, description="another description")  # the summary and report read it, the certificate not
+    changed = _changed(work)
+    assert "results/c/summary.json" in changed and "reports/c/report.html" in changed
+    assert "reports/c/certificate.html" not in changed
+    assert not any("/runs/" in f or "/models/" in f for f in changed)
+    _edit(work, start="2026-03-02T09:00:00+01:00")  # the certificate reads it (as do the acquisitions)
+    changed = _changed(work)
+    assert "reports/c/certificate.html" in changed and "results/c/runs/identification.nc" in changed
