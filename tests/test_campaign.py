@@ -136,3 +136,8 @@ def test_freeze_keeps_the_data_and_thaw_gives_it_back(value):
         assert isinstance(frozen, (FrozenDict, FrozenList))
         with pytest.raises(TypeError):
             frozen.clear()
+
+
+def test_a_built_in_rig_is_validated_once_with_or_without_the_plug_ins(fresh):
+    path = FOLDER / "nano1d-thesis.yaml"
+    assert load(path, []) is load(path) is load(path, ["some.module"])

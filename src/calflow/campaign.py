@@ -300,6 +300,7 @@ def load(path: str | Path, rig_plugins: list[str] | str | None = None) -> Campai
     given; otherwise no plug-in code is imported. Raises :class:`ConfigError` in one line.
     """
     from calflow.family import family_of, resolve
+    from calflow.rigs.plugin import builtin
 
     path = Path(path)
     check_campaign_name(path.stem)
@@ -307,6 +308,9 @@ def load(path: str | Path, rig_plugins: list[str] | str | None = None) -> Campai
     plugins = (
         None if rig_plugins is None else tuple([rig_plugins] if isinstance(rig_plugins, str) else rig_plugins)
     )
+    rig = data.get("rig") if isinstance(data, Mapping) else None
+    if isinstance(rig, Mapping) and builtin(str(rig.get("factory")), str(data.get("robot"))) is not None:
+        plugins = None  # a built-in rig is checked alike with or without the plug-ins' allow-list
     key = (str(path.resolve()), sha, plugins)
     if key in _LOADED:
         return _LOADED[key]
