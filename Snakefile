@@ -27,11 +27,11 @@ for _rules in FAMILY_RULES:
 
 rule all:
     input:
-        "reports/index.html",
-        expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
-        expand("reports/{campaign}/report.pdf", campaign=CAMPAIGNS),
-        expand("reports/{campaign}/certificate.html", campaign=CAMPAIGNS),
-        expand("reports/{campaign}/certificate.pdf", campaign=CAMPAIGNS),
-        expand("reports/studies/{study}.html", study=STUDIES),
-        expand("reports/stages/{stage}/history.html", stage=HISTORIES),
-        expand("reports/stages/{stage}/history.pdf", stage=HISTORIES),
+        layout.index(),
+        expand(layout.report("{campaign}"), campaign=CAMPAIGNS),
+        expand(layout.report("{campaign}", "pdf"), campaign=CAMPAIGNS),
+        expand(layout.certificate("{campaign}"), campaign=CAMPAIGNS),
+        expand(layout.certificate("{campaign}", "pdf"), campaign=CAMPAIGNS),
+        expand(layout.study_page("{study}"), study=STUDIES),
+        expand(layout.stage_history("{stage}"), stage=HISTORIES),
+        expand(layout.stage_history("{stage}", "pdf"), stage=HISTORIES),

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 LOAD = (
     "import sys\n"
-    "from calflow.config import load_campaign\n"
+    "from calflow.campaign import load as load_campaign\n"
     "from calflow.errors import ConfigError\n"
     "try:\n"
     "    load_campaign(sys.argv[1], [])\n"
@@ -66,7 +66,7 @@ def _outcome(proc, out: str, named: str, expected) -> str:
 
 BOMB_TIMER = (
     "import sys, time\n"
-    "from calflow.config import load_campaign\n"
+    "from calflow.campaign import load as load_campaign\n"
     "from calflow.errors import ConfigError\n"
     "best = float('inf')\n"
     "for _ in range(5):\n"

@@ -42,7 +42,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     import matplotlib  # noqa: F401  (import costs are reported separately)
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.report.render import render_campaign_pages, write_pdf
 
     import_s = time.perf_counter() - t0

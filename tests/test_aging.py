@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.errors import ConfigError
 from calflow.xytheta.stage.aging import DEFAULT_SINCE
 from calflow.xytheta.stage.aging import resolve as _resolve

@@ -13,8 +13,8 @@ import pytest
 import yaml
 from conftest import SMALL_NANO1D, SMALL_XYTHETA, make_workdir, snakemake
 
+from calflow.campaign import load as load_campaign
 from calflow.cli import main
-from calflow.config import load_campaign
 from calflow.errors import ConfigError
 
 NAN, INF = float("nan"), float("inf")

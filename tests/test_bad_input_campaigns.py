@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, snakemake
 
+from calflow.campaign import load as load_campaign
 from calflow.cli import main
-from calflow.config import load_campaign
 from calflow.errors import ConfigError
 
 CHECK = "demo-sn0042-2026-04-check"  # an interim check of ...

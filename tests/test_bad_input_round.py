@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from test_bad_input_campaigns import _project, case, write_case
 
+from calflow.campaign import load as load_campaign
 from calflow.cli import main
-from calflow.config import load_campaign
 from calflow.errors import ConfigError
 
 CAL = "demo-sn0042-2026-01"

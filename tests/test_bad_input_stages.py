@@ -12,7 +12,7 @@ import pytest
 import yaml
 from conftest import SMALL_NANO1D, SMALL_XYTHETA, make_workdir, snakemake
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.errors import ConfigError
 
 STAGE = "SN-9"

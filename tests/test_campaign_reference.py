@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from calflow.config import campaign_digest, load_campaign
+from calflow.campaign import load as load_campaign
+from calflow.config import campaign_digest
 from calflow.errors import ConfigError
 from calflow.nano.report.ordering import ordering_block
 from calflow.nano.report.reference import STAGE1D, STAGE2D

@@ -5,7 +5,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from calflow.config import check_campaign_name, load_campaign, load_workflow_config
+from calflow.campaign import load as load_campaign
+from calflow.config import check_campaign_name, load_workflow_config
 from calflow.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]

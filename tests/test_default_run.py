@@ -215,7 +215,7 @@ def test_the_oracle_is_accurate_and_validation_repeatability_is_the_rigs(thesis)
     """Commanded through the rig's exact inverse (test-only truth), the Table 4.7 targets are
     reached within noise; Model V's repeatability at them is the rig's own."""
     from calflow.acquisition.runner import acquire
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.data.runs import RunMetadata
     from calflow.xytheta.evaluation import xytheta_validation_metrics
     from calflow.xytheta.models.kinematics import inverse as nominal_inverse
@@ -288,7 +288,7 @@ def test_nano_validation_records_what_is_out_of_sample(thesis):
 
 
 def test_nano_summaries_and_reports_carry_iso9283_beyond_ap_rp(thesis):
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
 
     keys = {"vAP", "AD", "RD", "dAP", "dRP", "stabilisation_time_s", "overshoot"}
 

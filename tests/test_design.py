@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.identification.diagnostics import observability
 from calflow.xytheta.design import criteria as design
 from calflow.xytheta.design import plan as dp

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.identification import discrepancy as dc
 from calflow.xytheta.design import discrepancy as dd
 from calflow.xytheta.design import plan as dp

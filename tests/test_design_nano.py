@@ -1,5 +1,6 @@
 """Designed nano training plans (issue 15): the bound, the design, the plan, the summary block."""
 
+import copy
 import json
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.identification.design import criterion, information
 from calflow.nano.models.thermal import SingleModel
 from calflow.nano.plans import campaign as campaign_plans
@@ -22,7 +23,7 @@ STROKE = np.array([480.0])
 
 
 def _campaign(robot="nano1d", **training):
-    c = load_campaign(ROOT / "config" / "campaigns" / f"{robot}-thesis.yaml")
+    c = copy.deepcopy(load_campaign(ROOT / "config" / "campaigns" / f"{robot}-thesis.yaml"))  # a variant
     c["training"].update(training)
     return c
 

@@ -9,8 +9,8 @@ import xarray as xr
 import yaml
 
 import calflow.family as registry
+from calflow.campaign import load as load_campaign
 from calflow.cli import main
-from calflow.config import load_campaign
 from calflow.data.conventions import run_variables
 from calflow.errors import CalflowError, ConfigError, DataError
 from calflow.family_workflow import load_study

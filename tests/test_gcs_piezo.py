@@ -189,7 +189,7 @@ def test_nano2d_stage_reads_both_interferometer_axes_through_the_emulator():
 def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys, tmp_path):
     import yaml
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.nano.stage.emulate import main
 
     path = tmp_path / "small.yaml"

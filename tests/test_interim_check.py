@@ -13,7 +13,7 @@ from conftest import SMALL_XYTHETA, make_workdir, snakemake
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.errors import ConfigError
 from calflow.xytheta.models.kinematics import Parameters, forward
 from calflow.xytheta.plans.interim import candidates, scaled_jacobian, sensitive_poses, sensitive_targets

@@ -8,7 +8,7 @@ import pytest
 from conftest import ROOT
 
 from calflow import layout
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.family_workflow import hooks
 
 
@@ -54,3 +54,47 @@ def test_every_file_a_family_names_is_in_the_layout(path: Path):
     for f in named:
         assert any(f.startswith(folder + "/") for folder in folders), f
         assert ".." not in f.split("/")
+
+
+def _path_literals(path: Path, root: Path = ROOT):
+    """The string literals of a .py or .smk file that spell a path of results/ or reports/ (or
+    the folders themselves): ``"results/..."``, ``f"reports/..."``, ``"results"``."""
+    import io
+    import re
+    import tokenize
+
+    spelled = re.compile(r"""^[rRbBfFuU]*('''|\"\"\"|'|")(results|reports)(/|\1)""")
+    for tok in tokenize.generate_tokens(io.StringIO(path.read_text()).readline):
+        if tok.type == tokenize.STRING and spelled.match(tok.string):
+            yield f"{path.relative_to(root)}:{tok.start[0]}: {tok.string[:60]}"
+
+
+CODE = sorted(
+    p
+    for pattern in (
+        "src/**/*.py",
+        "src/**/*.smk",
+        "plugins/*/src/**/*.py",
+        "plugins/*/src/**/*.smk",
+        "workflow/**/*.smk",
+    )
+    for p in ROOT.glob(pattern)
+) + [ROOT / "Snakefile"]
+
+
+def test_no_results_or_reports_path_is_spelled_outside_layout():
+    """The rules (the core's, the families', the hexapod plug-in's) and the Python code name
+    results/ and reports/ paths through calflow.layout only; docs, tests, comments and
+    docstrings may spell them (a docstring or comment is no literal path here)."""
+    assert len(CODE) > 100 and any(p.suffix == ".smk" for p in CODE)
+    found = [hit for p in CODE if p.name != "layout.py" for hit in _path_literals(p)]
+    assert found == []
+
+
+def test_the_path_check_finds_a_spelled_path(tmp_path):
+    bad = tmp_path / "rules.smk"
+    bad.write_text(
+        'rule x:\n    output:\n        f"results/{w.campaign}/x.nc",\n    log:\n        "reports/a"\n'
+        '    params:\n        r="results",\n        ok=layout.log("{campaign}", "x"),  # not "results/x"\n'
+    )
+    assert len(list(_path_literals(bad, tmp_path))) == 3

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.errors import ConfigError
 from calflow.lifecycle.stages import stages_of
 

@@ -11,7 +11,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.errors import ConfigError, OptionError
 from calflow.lifecycle import history
 from calflow.nano.checks import check_campaign
@@ -218,8 +218,8 @@ def test_bad_ageing_refused_in_one_line_naming_the_field(tmp_path, aging, key):
 def test_the_world_behind_an_emulated_controller_ages_too(tmp_path):
     sensor = {"factory": "simulated_interferometer", "options": {"aging": {"seasonal_degC": 0}}}
     c = {"robot": "stage2d", "start": YEAR_LATER, "rig": {"factory": "gcs", "options": {"sensor": sensor}}}
-    check_campaign(c, tmp_path / "gcs.yaml")
-    aged = c["rig"]["options"]["sensor"]["options"]
+    aged = check_campaign(c, tmp_path / "gcs.yaml").rig["options"]["sensor"]["options"]
+    assert c["rig"]["options"]["sensor"] == sensor  # resolved, not changed in place
     assert aged == resolve({"aging": {"seasonal_degC": 0}}, YEAR_LATER, Nano2DRig) and aged["gain_pct"] < 0
     bad = {"factory": "simulated_interferometer", "options": {"aging": {"since": "soon"}}}
     c["rig"]["options"]["sensor"] = bad

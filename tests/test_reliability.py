@@ -213,7 +213,7 @@ def test_fuzzed_campaign_files_load_or_give_one_line(tmp_path_factory, edits):
 
     import yaml
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.errors import CalflowError
 
     c = copy.deepcopy(SMALL_XYTHETA)
@@ -238,7 +238,7 @@ def test_fuzzed_campaign_files_load_or_give_one_line(tmp_path_factory, edits):
 def test_fuzzed_yaml_text_loads_or_gives_one_line(tmp_path_factory, text):
     import yaml
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.errors import CalflowError
 
     f = tmp_path_factory.mktemp("yaml") / "fuzz.yaml"

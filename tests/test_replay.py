@@ -252,7 +252,7 @@ def test_an_instrument_recording_is_refused_where_it_cannot_stand(tmp_path, caps
 
 
 def test_the_config_check_names_a_bad_recording_entry(tmp_path):
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.errors import ConfigError
 
     for recordings, key in (

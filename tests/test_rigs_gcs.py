@@ -21,7 +21,7 @@ from conftest import ROOT, SMALL_XYTHETA, XY_NOISE_UM
 
 from calflow.acquisition.checkpoint import Journal, plan_digest
 from calflow.acquisition.runner import acquire
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.data.io import open_dataset
 from calflow.data.runs import RunMetadata
 from calflow.errors import RigError

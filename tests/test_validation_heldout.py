@@ -232,7 +232,7 @@ def test_intervals_cover_the_truth_on_a_rig_the_model_describes(tmp_path, model,
     import yaml
     from conftest import SMALL_XYTHETA
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.xytheta.studies.aggregate import aggregate
     from calflow.xytheta.studies.montecarlo import run_point
 
@@ -259,7 +259,7 @@ def test_intervals_do_not_cover_the_truth_when_the_model_is_wrong(tmp_path):
     import yaml
     from conftest import SMALL_XYTHETA
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.xytheta.studies.aggregate import aggregate
     from calflow.xytheta.studies.montecarlo import run_point
 

@@ -14,7 +14,7 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from calflow import __version__
+from calflow import __version__, layout
 from calflow.errors import CalflowError
 
 
@@ -25,7 +25,7 @@ def cmd_acquire(args) -> None:
 
 
 def _family(args):
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.family import family_of
 
     campaign = load_campaign(args.campaign)
@@ -41,9 +41,11 @@ def cmd_metrics(args) -> None:
 
 
 def cmd_summarise(args) -> None:
+    from calflow.commands.common import handed
     from calflow.data.io import write_json
 
     campaign, family = _family(args)
+    campaign = handed(campaign, args.sections, "calflow summarise")
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
@@ -55,7 +57,7 @@ def cmd_summarise(args) -> None:
 
 
 def cmd_report(args) -> None:
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import render_campaign_pages, write_pdf
 
@@ -127,7 +129,8 @@ def cmd_validate(args) -> int:
 
 
 def cmd_check_config(args) -> None:
-    from calflow.config import check_campaign_name, load_campaign, load_yaml
+    from calflow.campaign import load as load_campaign
+    from calflow.config import check_campaign_name, load_yaml
     from calflow.lifecycle.settings import check_stage_settings
     from calflow.lifecycle.stages import stages_of
     from calflow.workflow_config import load as load_config
@@ -205,6 +208,11 @@ def parser() -> argparse.ArgumentParser:
         "--settings", help="JSON: the stage's settings (config 'stages.<id>'): specification, decision rule"
     )
     s.add_argument("--out", required=True)
+    s.add_argument(
+        "--sections",
+        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
+        "same); reading another is an error. Default: all",
+    )
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
     r.add_argument("--campaign", required=True)
@@ -214,8 +222,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--pdf")
 
     x = _sub(sub, "index", cmd_index, "render reports/index.html over every campaign on disk (reruns none)")
-    x.add_argument("--results", default="results", help="the results folder (default: results)")
-    x.add_argument("--reports", default="reports", help="the reports folder (default: reports)")
+    x.add_argument("--results", default=layout.RESULTS, help="the results folder (default: results)")
+    x.add_argument("--reports", default=layout.REPORTS, help="the reports folder (default: reports)")
     x.add_argument(
         "--campaign-dir",
         default="config/campaigns",
@@ -247,6 +255,11 @@ def parser() -> argparse.ArgumentParser:
     ce.add_argument("--summary", required=True)
     ce.add_argument("--html", required=True)
     ce.add_argument("--pdf")
+    ce.add_argument(
+        "--sections",
+        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
+        "same); reading another is an error. Default: all",
+    )
 
     ic = _sub(
         sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"

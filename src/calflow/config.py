@@ -20,9 +20,9 @@ from typing import Any
 import jsonschema
 import yaml
 
-from calflow import yamlfile
+from calflow import layout, yamlfile
 from calflow.errors import ConfigError
-from calflow.family import family_of, missing_family, resolve, robots
+from calflow.family import family_of, missing_family, robots
 from calflow.reference import check as check_reference
 from calflow.rigs.plugin import check_rig
 
@@ -307,7 +307,7 @@ def _check_frame_recordings(campaign: dict, path: Path) -> None:
 
     joints = robot_joints(campaign["robot"])
     for run, spec in recordings.items():
-        if (Path("results") / path.stem / "decoded" / f"{run}.nc").is_file():
+        if Path(layout.decoded(path.stem, run)).is_file():
             continue
         where = f"rig.options.recordings.{run}"
         if not {"x", "y", "theta"} & set(joints):
@@ -321,8 +321,10 @@ def _check_frame_recordings(campaign: dict, path: Path) -> None:
             raise ConfigError(f"{path}: key '{where}': {exc}") from None
 
 
-def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) -> dict:
-    """Load and validate a campaign file; the campaign's name is the file's stem.
+def check_campaign_data(data: Any, path: Path, rig_plugins: list[str] | str | None = None) -> dict:
+    """A campaign file's data (``path``'s, already parsed) validated, with the defaults filled
+    in, as a new dict (``data`` is left as it is); the family's own ``check`` step is
+    :func:`calflow.campaign.load`'s.
 
     The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``). Numbers are
     finite, ranges ordered, ``start`` a real date, averaging windows within their dwell,
@@ -332,9 +334,6 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     ``rig_plugins``, the allow-list of plug-in modules, is given; otherwise no plug-in
     code is imported.
     """
-    path = Path(path)
-    check_campaign_name(path.stem)
-    data = load_yaml(path)
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: <top level>: expected a mapping of keys, got {type(data).__name__}")
     robot = data.get("robot")
@@ -354,10 +353,6 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     check_rig(campaign, path, rig_plugins, plugins=rig_plugins is not None)
     _check_frame_recordings(campaign, path)
     check_reference(campaign, path)
-    check = family_of(robot).steps.get("check")
-    if check:
-        resolve(check)(campaign, path)
-    campaign["name"] = path.stem
     return campaign
 
 

@@ -132,6 +132,7 @@ def frame_files(spec: Mapping) -> list[str]:
 def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") -> dict:
     """A study file (``config/studies/<name>.yaml``), loaded by the family of its base campaign
     (key ``campaign``) through the family's ``studies`` loader."""
+    from calflow.campaign import raw
     from calflow.config import load_yaml
     from calflow.family import family_of, resolve
 
@@ -145,7 +146,7 @@ def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") 
     base_file = Path(campaign_dir) / f"{base}.yaml"
     if not base_file.is_file():
         raise ConfigError(f"{path}: key 'campaign': expected a campaign of {campaign_dir}, got {base!r}")
-    campaign = load_yaml(base_file)
+    campaign = raw(base_file)
     robot = campaign.get("robot") if isinstance(campaign, dict) else None
     family = family_of(str(robot), campaign.get("distribution") if isinstance(campaign, dict) else None)
     if family.studies is None:

@@ -5,12 +5,12 @@ rule acquire:
     input:
         unpack(acquire_inputs),
     output:
-        run="results/{campaign}/runs/{run}.nc",
-        truth="results/{campaign}/truth/{run}.json",
+        run=layout.run("{campaign}", "{run}"),
+        truth=layout.truth("{campaign}", "{run}"),
     log:
-        "results/{campaign}/logs/acquire_{run}.log",
+        layout.log("{campaign}", "acquire_{run}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_{run}.tsv"
+        layout.benchmark("{campaign}", "acquire_{run}")
     group:
         "campaign"
     conda:
@@ -35,11 +35,11 @@ rule decode_frames:
     input:
         frames_of,
     output:
-        run="results/{campaign}/decoded/{run}.nc",
+        run=layout.decoded("{campaign}", "{run}"),
     log:
-        "results/{campaign}/logs/decode_frames_{run}.log",
+        layout.log("{campaign}", "decode_frames_{run}"),
     benchmark:
-        "results/{campaign}/benchmarks/decode_frames_{run}.tsv"
+        layout.benchmark("{campaign}", "decode_frames_{run}")
     group:
         "campaign"
     conda:

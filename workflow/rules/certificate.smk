@@ -4,14 +4,14 @@
 
 rule certificate:
     input:
-        summary="results/{campaign}/summary.json",
+        summary=layout.summary("{campaign}"),
     output:
-        html="reports/{campaign}/certificate.html",
-        pdf="reports/{campaign}/certificate.pdf",
+        html=layout.certificate("{campaign}"),
+        pdf=layout.certificate("{campaign}", "pdf"),
     log:
-        "results/{campaign}/logs/certificate.log",
+        layout.log("{campaign}", "certificate"),
     benchmark:
-        "results/{campaign}/benchmarks/certificate.tsv"
+        layout.benchmark("{campaign}", "certificate")
     group:
         "campaign"
     conda:
@@ -20,8 +20,9 @@ rule certificate:
         mem_mb=400,
         runtime=1,
     params:
+        **reads("certificate", "stage", "start"),
         campaign=campaign_file,
-        digest=lambda w: digest([code_digest("certificate", robot(w))]),
     shell:
-        "calflow certificate --campaign {params.campaign} --summary {input.summary}"
+        "calflow certificate --campaign {params.campaign} --sections {params.sections:q}"
+        " --summary {input.summary}"
         " --html {output.html} --pdf {output.pdf} > {log} 2>&1"

@@ -6,11 +6,9 @@ import shlex
 import sys
 
 from calflow import __version__ as CALFLOW_VERSION
-from calflow.config import (
-    check_campaign_name,
-    digest,
-    load_campaign,
-)
+from calflow import layout
+from calflow.campaign import load as load_campaign
+from calflow.config import check_campaign_name, digest
 from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
@@ -51,12 +49,12 @@ try:
     }
     # the campaigns of a stage whose results are on disk, whichever run made them: a history
     # holds them all, and a campaign that reads another's results reads them there
-    ON_DISK = on_disk("results", CAMPAIGN_DIR, tuple(CAMPAIGNS))
+    ON_DISK = on_disk(layout.results(), CAMPAIGN_DIR, tuple(CAMPAIGNS))
     STAGES = stages_of(CAMPAIGN, CAMPAIGN_DIR, ON_DISK)
     check_needs(CAMPAIGN, CAMPAIGN_DIR, lambda c: hooks(c).needs(c))
     # every stage's history is kept current, as the index is: the run's stages, and those
     # of the campaigns and histories on disk (rebuilt only when what they read changed)
-    DISK_STAGES = histories_on_disk("results", ON_DISK)
+    DISK_STAGES = histories_on_disk(layout.results(), ON_DISK)
     HISTORIES = sorted(set(STAGES) | set(DISK_STAGES))
     STAGE_SETTINGS_FILE = (
         "--config stages"
@@ -130,6 +128,14 @@ def section(step, *keys):
     return _digest
 
 
+def reads(step, *keys):
+    """The params of a rule whose job reads the campaign sections ``keys``: ``sections``, handed
+    to the job (``--sections``; it cannot read another, calflow.campaign.Campaign.only), and
+    ``digest``, of the same sections and the step's code (:func:`section`). Use as
+    ``params: **reads("certificate", "stage", "start")``."""
+    return {"sections": ",".join(keys), "digest": section(step, *keys)}
+
+
 def rig_digest(run_id):
     """Digest of what a run's acquisition depends on: the rig, the campaign's clock, the code."""
 
@@ -184,7 +190,7 @@ def acquire_inputs(w):
     files = hooks_of(w.campaign).acquire_inputs(c, w.run)
     inputs = {k: ancient(v) if k.startswith("after_") else v for k, v in files.items()}
     if w.run in frame_recordings(c):
-        inputs["decoded"] = f"results/{w.campaign}/decoded/{w.run}.nc"
+        inputs["decoded"] = layout.decoded(w.campaign, w.run)
     return inputs
 
 
@@ -271,7 +277,7 @@ def stage_members(stage):
 def stage_summaries(w):
     """Every member's summary: made by this run for its campaigns, else read as it is on disk
     (a newer one reruns the history)."""
-    return [f"results/{n}/summary.json" for n in stage_members(w.stage)]
+    return [layout.summary(n) for n in stage_members(w.stage)]
 
 
 def stage_robot(stage):
@@ -281,7 +287,7 @@ def stage_robot(stage):
         return CAMPAIGN[names[0]]["robot"]
     if stage not in DISK_STAGES:
         raise CalflowError(
-            f"results/stages/{stage}: expected a stage with campaigns in the run or on disk"
+            f"{layout.stage(stage)}: expected a stage with campaigns in the run or on disk"
         )
     return DISK_STAGES[stage]
 

@@ -5,14 +5,14 @@
 
 rule acquire_validation_heldout:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     output:
-        run="results/{campaign}/runs/validation_heldout_{model}.nc",
-        truth="results/{campaign}/truth/validation_heldout_{model}.json",
+        run=layout.run("{campaign}", "validation_heldout_{model}"),
+        truth=layout.truth("{campaign}", "validation_heldout_{model}"),
     log:
-        "results/{campaign}/logs/acquire_validation_heldout_{model}.log",
+        layout.log("{campaign}", "acquire_validation_heldout_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_validation_heldout_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_validation_heldout_{model}")
     group:
         "campaign"
     conda:

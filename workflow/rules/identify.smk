@@ -5,11 +5,11 @@ rule identify:
     input:
         unpack(identify_inputs),
     output:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     log:
-        "results/{campaign}/logs/identify_{model}.log",
+        layout.log("{campaign}", "identify_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/identify_{model}.tsv"
+        layout.benchmark("{campaign}", "identify_{model}")
     group:
         "campaign"
     conda:

@@ -4,13 +4,13 @@
 
 rule metrics:
     input:
-        run="results/{campaign}/runs/{name}.nc",
+        run=layout.run("{campaign}", "{name}"),
     output:
-        metrics="results/{campaign}/metrics/{name}.nc",
+        metrics=layout.metrics("{campaign}", "{name}"),
     log:
-        "results/{campaign}/logs/metrics_{name}.log",
+        layout.log("{campaign}", "metrics_{name}"),
     benchmark:
-        "results/{campaign}/benchmarks/metrics_{name}.tsv"
+        layout.benchmark("{campaign}", "metrics_{name}")
     wildcard_constraints:
         name=METRICS_RUNS,
     group:

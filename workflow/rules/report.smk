@@ -12,15 +12,15 @@ rule summarise:
         reference=lambda w: reference_files(CAMPAIGN[w.campaign]),
     output:
         summary=report(
-            "results/{campaign}/summary.json",
+            layout.summary("{campaign}"),
             caption="../report/summary.rst",
             category="Summaries",
             labels={"campaign": "{campaign}"},
         ),
     log:
-        "results/{campaign}/logs/summarise.log",
+        layout.log("{campaign}", "summarise"),
     benchmark:
-        "results/{campaign}/benchmarks/summarise.tsv"
+        layout.benchmark("{campaign}", "summarise")
     group:
         "campaign"
     conda:
@@ -33,14 +33,10 @@ rule summarise:
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
         settings=lambda w: shlex.quote(certificate_settings(w.campaign)),
-        digest=section(
-            "summarise",
-            "description",
-            "robot",
-            "seed",
-            "rig",
-            "uncertainty",
-            "reference",
+        # the summary reads the whole campaign (each family's its own sections, the stage and
+        # the reference values), so every section is handed to it and digested
+        digest=lambda w: digest(
+            [code_digest("summarise", robot(w)), CAMPAIGN[w.campaign]]
         ),
     shell:
         "calflow summarise --campaign {params.campaign} --files {input.files}"
@@ -50,25 +46,25 @@ rule summarise:
 
 rule report:
     input:
-        summary="results/{campaign}/summary.json",
+        summary=layout.summary("{campaign}"),
         files=lambda w: report_files(w.campaign),
     output:
         html=report(
-            "reports/{campaign}/report.html",
+            layout.report("{campaign}"),
             caption="../report/campaign_report.rst",
             category="Campaign reports",
             labels={"campaign": "{campaign}", "format": "HTML"},
         ),
         pdf=report(
-            "reports/{campaign}/report.pdf",
+            layout.report("{campaign}", "pdf"),
             caption="../report/campaign_pdf.rst",
             category="Campaign reports",
             labels={"campaign": "{campaign}", "format": "PDF"},
         ),
     log:
-        "results/{campaign}/logs/report.log",
+        layout.log("{campaign}", "report"),
     benchmark:
-        "results/{campaign}/benchmarks/report.tsv"
+        layout.benchmark("{campaign}", "report")
     group:
         "campaign"
     conda:
@@ -86,20 +82,20 @@ rule report:
 
 rule index:
     input:
-        summaries=expand("results/{campaign}/summary.json", campaign=CAMPAIGNS),
-        reports=expand("reports/{campaign}/report.html", campaign=CAMPAIGNS),
-        histories=expand("results/stages/{stage}/history.json", stage=HISTORIES),
+        summaries=expand(layout.summary("{campaign}"), campaign=CAMPAIGNS),
+        reports=expand(layout.report("{campaign}"), campaign=CAMPAIGNS),
+        histories=expand(layout.history("{stage}"), stage=HISTORIES),
     output:
         report(
-            "reports/index.html",
+            layout.index(),
             caption="../report/index.rst",
             category="Index",
             labels={"page": "all campaigns"},
         ),
     log:
-        "results/logs/index.log",
+        layout.results("logs", "index.log"),
     benchmark:
-        "results/benchmarks/index.tsv"
+        layout.results("benchmarks", "index.tsv")
     conda:
         "../envs/calflow.yaml"
     resources:
@@ -110,10 +106,12 @@ rule index:
         on_disk=lambda w: digest(
             [
                 code_digest("index"),
-                listing_digest("results", tuple(CAMPAIGNS)),
+                listing_digest(layout.results(), tuple(CAMPAIGNS)),
             ]
         ),
         campaign_dir=CAMPAIGN_DIR,
+        results=layout.results(),
+        reports=layout.reports(),
     shell:
-        "calflow index --results results --reports reports"
+        "calflow index --results {params.results} --reports {params.reports}"
         " --campaign-dir {params.campaign_dir} --out {output} > {log} 2>&1"

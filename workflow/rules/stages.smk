@@ -11,11 +11,11 @@ rule stage_history:
     input:
         summaries=stage_summaries,
     output:
-        update("results/stages/{stage}/history.json"),
+        update(layout.history("{stage}")),
     log:
-        "results/stages/{stage}/logs/history.log",
+        layout.stage("{stage}", "logs", "history.log"),
     benchmark:
-        "results/stages/{stage}/benchmarks/history.tsv"
+        layout.stage("{stage}", "benchmarks", "history.tsv")
     conda:
         "../envs/calflow.yaml"
     resources:
@@ -31,14 +31,14 @@ rule stage_history:
 
 rule stage_report:
     input:
-        "results/stages/{stage}/history.json",
+        layout.history("{stage}"),
     output:
-        html=update("reports/stages/{stage}/history.html"),
-        pdf=update("reports/stages/{stage}/history.pdf"),
+        html=update(layout.stage_history("{stage}")),
+        pdf=update(layout.stage_history("{stage}", "pdf")),
     log:
-        "results/stages/{stage}/logs/report.log",
+        layout.stage("{stage}", "logs", "report.log"),
     benchmark:
-        "results/stages/{stage}/benchmarks/report.tsv"
+        layout.stage("{stage}", "benchmarks", "report.tsv")
     conda:
         "../envs/calflow.yaml"
     resources:

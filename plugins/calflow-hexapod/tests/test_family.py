@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from calflow.config import load_campaign
+from calflow.campaign import load as load_campaign
 from calflow.family import family_of, joints
 from calflow_hexapod.steps import pose_metrics
 from calflow_hexapod.workflow import WORKFLOW
@@ -28,8 +28,8 @@ def test_the_demo_campaign_validates_and_lists_its_results():
     for model in c["models"]:
         assert f"results/hexapod-demo/metrics/validation_heldout_{model}.nc" in files
         assert f"results/hexapod-demo/metrics/iso9283_{model}.nc" in files
-    del c["iso9283"]
-    assert not any("iso9283" in f for f in WORKFLOW.results_of(c))
+    without = {k: v for k, v in c.items() if k != "iso9283"}  # a campaign is immutable: a variant
+    assert not any("iso9283" in f for f in WORKFLOW.results_of(without))
 
 
 def _run(target, attained) -> xr.Dataset:

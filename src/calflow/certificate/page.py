@@ -75,13 +75,15 @@ def render(summary: dict, campaign: dict, command: str) -> str:
 
 def run(args) -> None:
     """``calflow certificate``: the page from the campaign's summary."""
-    from calflow.config import load_campaign
+    from calflow import layout
+    from calflow.campaign import load as load_campaign
+    from calflow.commands.common import handed
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import write_pdf
 
-    campaign = load_campaign(args.campaign)
+    campaign = handed(load_campaign(args.campaign), getattr(args, "sections", None), "calflow certificate")
     summary = load_summary(args.summary)
-    command = f"snakemake --cores 2 reports/{campaign['name']}/certificate.html"
+    command = f"snakemake --cores 2 {layout.certificate(campaign['name'])}"
     html = render(summary, campaign, command)
     if args.pdf:
         pdf = write_pdf(html, Path(args.html).parent)

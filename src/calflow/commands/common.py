@@ -6,7 +6,9 @@ import shlex
 import sys
 
 from calflow import __version__
-from calflow.config import campaign_digest, load_campaign
+from calflow.campaign import Campaign, Sections
+from calflow.campaign import load as load_campaign
+from calflow.config import campaign_digest
 from calflow.data.runs import RunMetadata
 
 
@@ -14,6 +16,14 @@ def campaign(path: str, rig_plugins=None) -> dict:
     """The campaign at ``path``; with ``rig_plugins`` (the allow-list of plug-in modules) its
     ``module:callable`` rig factory is checked too (docs/rigs.md, "Plugins are code")."""
     return load_campaign(path, rig_plugins)
+
+
+def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
+    """Campaign ``c`` as a step sees it: only the ``sections`` its rule hands it (``--sections
+    a,b,c``; :meth:`calflow.campaign.Campaign.only`), or all of it when None."""
+    if sections is None:
+        return c
+    return c.only([s for s in sections.split(",") if s], step)
 
 
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:

@@ -21,10 +21,17 @@ from calflow.errors import CalflowError
 from calflow.gcs.emulator import GCSEmulator
 
 
+def _plain(value: Any) -> Any:
+    """A campaign's values as plain dicts and lists (for YAML's safe dumper)."""
+    from calflow.campaign import thaw
+
+    return thaw(value)
+
+
 def load_campaign_arg(campaign: Mapping[str, Any] | str | Path) -> dict:
     """A campaign given as a file (loaded and checked) or as a mapping (copied)."""
     if isinstance(campaign, (str, Path)):
-        from calflow.config import load_campaign
+        from calflow.campaign import load as load_campaign
 
         return load_campaign(campaign)
     return dict(campaign)
@@ -129,7 +136,7 @@ def serve_campaign(
         print(banner(emu, c, a.time_scale), flush=True)
         print(
             "campaign rig section for it:\n"
-            + yaml.safe_dump({"rig": rig_section(emu, c, a.time_scale)}, sort_keys=False),
+            + yaml.safe_dump(_plain({"rig": rig_section(emu, c, a.time_scale)}), sort_keys=False),
             flush=True,
         )
         while not stop_event.is_set() and (left := deadline - time.monotonic()) > 0:

@@ -25,7 +25,7 @@ def history_arguments(p: argparse.ArgumentParser) -> None:
         help="their campaign files, in the same order (default: <campaign-dir>/<campaign>.yaml)",
     )
     p.add_argument("--campaign-dir", default="config/campaigns", help="the folder of the campaign files")
-    p.add_argument("--results", default="results", help="the results folder the summaries are in")
+    p.add_argument("--results", default=layout.RESULTS, help="the results folder the summaries are in")
     p.add_argument("--settings", default="{}", help="JSON: the stage's settings (config 'stages.<id>')")
     p.add_argument(
         "--out",
@@ -102,7 +102,7 @@ def _summary(path: str, load) -> dict:
 def _campaign(file: Path, summary: Path, stage: str, results: Path, earlier: dict) -> dict:
     """A member of the stage's history: its campaign file, loaded and checked; else what is
     known of it on disk (calflow.lifecycle.members.describe), with a note saying whence."""
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.lifecycle.members import describe
     from calflow.lifecycle.stages import check_stage_id
 

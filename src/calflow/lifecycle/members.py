@@ -22,6 +22,7 @@ import datetime as dt
 import json
 from pathlib import Path
 
+from calflow import layout
 from calflow.errors import CalflowError
 from calflow.lifecycle.stages import STAGE_ID, takes_part
 from calflow.report.catalogue import RESERVED  # results/ folders that are no campaign
@@ -38,10 +39,10 @@ def previous(path: str | Path) -> dict:
 
 
 def _yaml(path: Path) -> dict | None:
-    from calflow.config import load_yaml
+    from calflow.campaign import raw
 
     try:
-        data = load_yaml(path)
+        data = raw(path)
     except CalflowError:
         return None
     return data if isinstance(data, dict) else None
@@ -96,7 +97,7 @@ def describe(
 
 
 def on_disk(
-    results: str | Path = "results",
+    results: str | Path = layout.RESULTS,
     campaign_dir: str | Path = "config/campaigns",
     exclude: tuple[str, ...] | frozenset = (),
 ) -> dict[str, dict]:

@@ -20,6 +20,7 @@ import re
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from calflow import layout
 from calflow.errors import ConfigError
 
 STAGE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -82,7 +83,8 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
     campaign of the same folder, not itself one that reads another (a chain, or a cycle of
     references, is refused here rather than loaded without end), of the same robot and stage,
     and starting before ``campaign`` (a check verifies a calibration made earlier)."""
-    from calflow.config import CAMPAIGN_NAME, load_yaml
+    from calflow.campaign import raw
+    from calflow.config import CAMPAIGN_NAME
 
     file = Path(file)
     if name == file.stem:
@@ -101,7 +103,7 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
             f"{file}: key '{key}': expected a campaign of {file.parent}, got {name!r} (no {path.name})"
         )
     try:
-        ref = load_yaml(path)
+        ref = raw(path)
     except ConfigError as exc:  # the reference's own line, after the key that reads it
         raise ConfigError(f"{file}: key '{key}': {exc}") from None
     if not isinstance(ref, dict):
@@ -139,7 +141,7 @@ def check_needs(
     campaigns: dict[str, dict],
     folder: str | Path,
     needs: Callable[[dict], Iterable[tuple[str, str, list[str]]]],
-    results: str | Path = "results",
+    results: str | Path = layout.RESULTS,
 ) -> None:
     """Every campaign of the run that reads another campaign's results finds them: the other is
     in the run (the workflow makes them), or its files are on disk. ``needs(c)`` gives, per

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
+from calflow.campaign import Resolution
 from calflow.errors import ConfigError, OptionError
 
 _SENSOR = "simulated_interferometer"  # the simulated world behind an emulated GCS controller
 
 
-def check_campaign(campaign: dict, path: Path) -> None:
+def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
     """Resolve ``aging`` of a simulated stage (``rig.options``, or the options of a ``gcs``
     rig's ``simulated_interferometer`` sensor) for the campaign's ``start`` into the rig's
     options (:func:`calflow.nano.stage.aging.resolve`), once, here: the rig, the error
-    budget's replays and the designed plans all read these options. Raises
+    budget's replays and the designed plans all read these options. Returns the rig section
+    so resolved (:class:`~calflow.campaign.Resolution`), or None; changes nothing. Raises
     :class:`ConfigError` naming the file and key."""
     _check_design(campaign, path)
     rig = campaign["rig"]
@@ -26,12 +29,12 @@ def check_campaign(campaign: dict, path: Path) -> None:
     options = rig.get("options") or {}
     sensor = options.get("sensor") if isinstance(options.get("sensor"), dict) else {}
     if rig["factory"] == "simulated":
-        holder, key, where = rig, "options", "rig.options"
+        where = "rig.options"
     elif rig["factory"] == "gcs" and sensor.get("factory") == _SENSOR:
-        holder, key, where = sensor, "options", "rig.options.sensor.options"
+        where = "rig.options.sensor.options"
         options = sensor.get("options") or {}
     else:
-        return
+        return None
     from calflow.nano.stage.aging import resolve
     from calflow.nano.stage.options import _COMMON
     from calflow.nano.stage.rig import Nano1DRig, Nano2DRig
@@ -54,8 +57,11 @@ def check_campaign(campaign: dict, path: Path) -> None:
                 f"the campaign's start ({campaign['start']}); aged, option {exc.option!r}: expected "
                 f"{exc.expected}, got {exc.value!r}"
             ) from None
-    if aged != options:
-        holder[key] = aged
+    if aged == options:
+        return None
+    if rig["factory"] == "simulated":
+        return Resolution(rig={**rig, "options": aged})
+    return Resolution(rig={**rig, "options": {**rig["options"], "sensor": {**sensor, "options": aged}}})
 
 
 def _check_design(campaign: dict, path: Path) -> None:

@@ -17,7 +17,8 @@ import datetime as dt
 import json
 from pathlib import Path
 
-from calflow import __version__, yamlfile
+from calflow import __version__, layout
+from calflow.campaign import raw as campaign_file
 from calflow.errors import CalflowError
 
 RESERVED = frozenset({"stages", "studies", "logs", "benchmarks"})  # results/ folders that are no campaign
@@ -127,7 +128,7 @@ def _campaign_yaml(campaign_dir: Path | None, name: str) -> tuple[Path | None, d
     if not path.is_file():
         return None, {}
     try:
-        data = yamlfile.load(path)
+        data = campaign_file(path)
     except CalflowError:  # the index lists what it can read; the config check names the fault
         data = None
     return path, data if isinstance(data, dict) else {}
@@ -210,7 +211,9 @@ def _start(value) -> float | None:
 
 
 def catalogue(
-    results: str | Path = "results", reports: str | Path = "reports", campaign_dir: str | Path | None = None
+    results: str | Path = layout.RESULTS,
+    reports: str | Path = layout.REPORTS,
+    campaign_dir: str | Path | None = None,
 ) -> dict:
     """``{"groups": [{"stage", "history", "campaigns"}], "histories"}``: every campaign on disk,
     newest first (by its ``start``, else when its results were written), grouped by the stage it names (a stage's history on disk, or the campaign's
@@ -240,7 +243,7 @@ def catalogue(
     }
 
 
-def listing_digest(results: str | Path = "results", exclude: tuple[str, ...] = ()) -> list:
+def listing_digest(results: str | Path = layout.RESULTS, exclude: tuple[str, ...] = ()) -> list:
     """What the index depends on beyond its inputs: the campaigns on disk other than ``exclude``
     (the run's own, which the index rule takes as inputs), each with the time of its summary
     and of its newest log — unchanged by a run that does nothing, changed by another run's

@@ -20,6 +20,7 @@ import jinja2
 import yaml
 
 from calflow import __version__, layout
+from calflow.campaign import thaw
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = (
@@ -164,7 +165,7 @@ def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -
         "versions": _versions(),
         "machine": _machine(),
         "campaign_yaml": yaml.safe_dump(
-            {k: v for k, v in campaign.items() if not str(k).startswith("_")},
+            {k: thaw(v) for k, v in campaign.items() if not str(k).startswith("_")},
             sort_keys=False,
             allow_unicode=True,
             width=90,

@@ -2,33 +2,42 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
+from calflow.campaign import Campaign, Interim, Resolution
 from calflow.errors import ConfigError, OptionError
 
 
-def check_campaign(campaign: dict, path: Path) -> None:
-    """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
+def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
+    """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent;
+    return what the check resolves (:class:`~calflow.campaign.Resolution`: the simulated
+    stage as it has aged by the campaign's start, an interim check's reference), changing
+    nothing."""
+    rig = None
     if campaign["rig"]["factory"] == "simulated":  # the stage as it has aged by the campaign's start
         from calflow.xytheta.stage.aging import resolve
         from calflow.xytheta.stage.physics import XYThetaTruth
 
         options = campaign["rig"].get("options") or {}
         try:
-            campaign["rig"]["options"] = resolve(options, campaign["start"], XYThetaTruth())
+            rig = {**campaign["rig"], "options": resolve(options, campaign["start"], XYThetaTruth())}
         except OptionError as exc:
             raise ConfigError(exc.at(path, "rig.options")) from None
+        campaign = {**campaign, "rig": rig}  # the later checks see the stage as aged
     if "as_found" in campaign:  # the compensation in use, measured before the recalibration
         from calflow.xytheta.plans.as_found import check
 
         check(campaign, Path(path))
     if "interim_check" in campaign:
-        _check_interim(campaign, Path(path))
+        interim, ref = _check_interim(campaign, Path(path))
         from calflow.xytheta.plans.interim_load import check_rig_time, check_tolerance
 
-        check_tolerance(campaign, Path(path))
-        check_rig_time(campaign, Path(path))
-        return
+        section = {**campaign["interim_check"], "dwell_s": interim.dwell_s}
+        resolved = {**campaign, "models": {}, "interim_check": section}
+        check_tolerance(resolved, Path(path))
+        check_rig_time(resolved, Path(path), ref)
+        return Resolution(rig=rig, models={}, interim=interim, reference=ref)
     if "models" not in campaign:
         raise ConfigError(
             f"{path}: key 'models': missing, it is required (the models to identify), unless the "
@@ -46,6 +55,7 @@ def check_campaign(campaign: dict, path: Path) -> None:
                     f"(characterisation.{axis}_stop_um = {char[f'{axis}_stop_um']}) for the position tables, "
                     f"got up to {ident[f'{axis}_um'][1]}"
                 )
+    return Resolution(rig=rig) if rig is not None else None
 
 
 def _check_recordings(campaign: dict, path: Path) -> None:
@@ -117,23 +127,23 @@ def _check_design(campaign: dict, path: Path) -> None:
             )
 
 
-def _check_interim(campaign: dict, path: Path) -> None:
+def _check_interim(campaign: Mapping, path: Path) -> tuple[Interim, Campaign]:
     """An interim check identifies nothing; its reference is an earlier calibration of the same
     stage and robot, in the same folder, that identifies ``interim_check.model``. Resolved
-    here, as the rig's ageing is: the reference's identification workspace (where the check's targets are chosen) and every run
-    of the reference (its rig time), in ``interim_check.resolved``."""
-    from calflow.config import load_campaign
+    here, as the rig's ageing is: the reference's identification workspace (where the check's
+    targets are chosen), every run of the reference (its rig time) and the dwell (the
+    reference's validation dwell unless given); returned with the reference."""
+    from calflow.campaign import load
     from calflow.lifecycle.stages import check_after, check_reference
     from calflow.xytheta.plans.workflow import WORKFLOW
 
     if campaign.get("models"):
         raise ConfigError(f"{path}: key 'models': an interim check identifies no model; remove the key")
-    campaign["models"] = {}
     check = campaign["interim_check"]
     # itself, a missing file, another check, robot, stage, a reference that starts later:
     # refused on the raw file, before loading it (a cycle of references would load forever)
     check_reference(campaign, path, "interim_check.reference", check["reference"])
-    ref = load_campaign(path.parent / f"{check['reference']}.yaml")
+    ref = load(path.parent / f"{check['reference']}.yaml")
     check_after(campaign, path, check["reference"], ref["start"])  # its start may be the default
     if check["model"] not in ref["models"]:
         raise ConfigError(
@@ -141,8 +151,11 @@ def _check_interim(campaign: dict, path: Path) -> None:
             f"{sorted(ref['models'])}, got {check['model']!r}"
         )
     ident = ref["identification"]
-    check.setdefault("dwell_s", ref["validation"]["dwell_s"])  # visits settle as the reference's did
-    check["resolved"] = {
-        "workspace": {k: list(ident[k]) for k in ("x_um", "y_um", "theta_deg")},
-        "runs": WORKFLOW.all_runs(ref),
-    }
+    interim = Interim(
+        reference=check["reference"],
+        model=check["model"],
+        dwell_s=check.get("dwell_s", ref["validation"]["dwell_s"]),  # visits settle as the reference's did
+        workspace={k: list(ident[k]) for k in ("x_um", "y_um", "theta_deg")},
+        runs=tuple(WORKFLOW.all_runs(ref)),
+    )
+    return interim, ref

@@ -3,12 +3,12 @@
 
 rule acquire_step_response:
     output:
-        run="results/{campaign}/runs/step_response.nc",
-        truth="results/{campaign}/truth/step_response.json",
+        run=layout.run("{campaign}", "step_response"),
+        truth=layout.truth("{campaign}", "step_response"),
     log:
-        "results/{campaign}/logs/acquire_step_response.log",
+        layout.log("{campaign}", "acquire_step_response"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_step_response.tsv"
+        layout.benchmark("{campaign}", "acquire_step_response")
     group:
         "campaign"
     conda:

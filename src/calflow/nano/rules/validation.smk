@@ -4,17 +4,17 @@
 rule acquire_validation_tests:
     input:
         models=lambda w: expand(
-            "results/{c}/models/{m}.nc",
+            layout.model("{c}", "{m}"),
             c=w.campaign,
             m=models_of(CAMPAIGN[w.campaign]),
         ),
     output:
-        run="results/{campaign}/runs/validation.nc",
-        truth="results/{campaign}/truth/validation.json",
+        run=layout.run("{campaign}", "validation"),
+        truth=layout.truth("{campaign}", "validation"),
     log:
-        "results/{campaign}/logs/acquire_validation.log",
+        layout.log("{campaign}", "acquire_validation"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_validation.tsv"
+        layout.benchmark("{campaign}", "acquire_validation")
     group:
         "campaign"
     conda:

@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from calflow import layout
 from calflow.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -69,8 +71,8 @@ def check_tolerance(campaign: dict, path: Path) -> None:
             f"{path}: key 'interim_check.tolerance_um': missing; expected the rms visit error (µm) "
             "at which to recalibrate, here or as the campaign's tolerance_um"
         )
-    reference = f"results/{check['reference']}/runs/export_{check['model']}.nc"
-    if not os.path.exists(reference) or os.path.exists(f"results/{path.stem}/runs/interim_check.nc"):
+    reference = layout.run(check["reference"], f"export_{check['model']}")
+    if not os.path.exists(reference) or os.path.exists(layout.run(path.stem, "interim_check")):
         return  # not yet known, or the check has run (a rerun's acquisition checks it again)
     from calflow.data.io import open_dataset
 
@@ -110,13 +112,11 @@ def planned_visits(ref: dict) -> list[tuple[int, float]]:
     return out
 
 
-def check_rig_time(campaign: dict, path: Path) -> None:
-    """The check's worst case, dwell alone, within the budget of the reference's rig time."""
-    from calflow.config import load_campaign
-
+def check_rig_time(campaign: Mapping, path: Path, ref: Mapping) -> None:
+    """The check's worst case, dwell alone, within the budget of the reference's rig time
+    (``ref``, the reference campaign)."""
     check = campaign["interim_check"]
     asked = check["targets"] * check["cycles"] * float(check["dwell_s"])
-    ref = load_campaign(path.parent / f"{check['reference']}.yaml")
     reference = sum(n * (dwell + MOVE_S) for n, dwell in planned_visits(ref))
     how = f"at most, each planned visit its dwell plus {MOVE_S:g} s of motion"
     if asked > BUDGET * reference:

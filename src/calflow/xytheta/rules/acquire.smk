@@ -9,16 +9,14 @@ wildcard_constraints:
 
 rule acquire_xy_test:
     input:
-        luts=lambda w: (
-            [] if w.comp == "none" else f"results/{w.campaign}/luts/position.nc"
-        ),
+        luts=lambda w: ([] if w.comp == "none" else layout.luts(w.campaign)),
     output:
-        run="results/{campaign}/runs/{test}_{comp}.nc",
-        truth="results/{campaign}/truth/{test}_{comp}.json",
+        run=layout.run("{campaign}", "{test}_{comp}"),
+        truth=layout.truth("{campaign}", "{test}_{comp}"),
     log:
-        "results/{campaign}/logs/acquire_{test}_{comp}.log",
+        layout.log("{campaign}", "acquire_{test}_{comp}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_{test}_{comp}.tsv"
+        layout.benchmark("{campaign}", "acquire_{test}_{comp}")
     group:
         "campaign"
     conda:
@@ -41,14 +39,14 @@ rule acquire_xy_test:
 
 rule acquire_angle_residuals:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     output:
-        run="results/{campaign}/runs/angle_residuals_{model}.nc",
-        truth="results/{campaign}/truth/angle_residuals_{model}.json",
+        run=layout.run("{campaign}", "angle_residuals_{model}"),
+        truth=layout.truth("{campaign}", "angle_residuals_{model}"),
     log:
-        "results/{campaign}/logs/acquire_angle_residuals_{model}.log",
+        layout.log("{campaign}", "acquire_angle_residuals_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_angle_residuals_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_angle_residuals_{model}")
     group:
         "campaign"
     conda:

@@ -8,12 +8,12 @@ rule acquire_as_found:
     input:
         manifest=as_found_export,
     output:
-        run="results/{campaign}/runs/as_found.nc",
-        truth="results/{campaign}/truth/as_found.json",
+        run=layout.run("{campaign}", "as_found"),
+        truth=layout.truth("{campaign}", "as_found"),
     log:
-        "results/{campaign}/logs/acquire_as_found.log",
+        layout.log("{campaign}", "acquire_as_found"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_as_found.tsv"
+        layout.benchmark("{campaign}", "acquire_as_found")
     group:
         "campaign"
     conda:

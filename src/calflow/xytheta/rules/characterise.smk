@@ -3,14 +3,14 @@
 
 rule characterise:
     input:
-        x="results/{campaign}/runs/characterisation_x.nc",
-        y="results/{campaign}/runs/characterisation_y.nc",
+        x=layout.run("{campaign}", "characterisation_x"),
+        y=layout.run("{campaign}", "characterisation_y"),
     output:
-        luts="results/{campaign}/luts/position.nc",
+        luts=layout.luts("{campaign}", "position"),
     log:
-        "results/{campaign}/logs/characterise.log",
+        layout.log("{campaign}", "characterise"),
     benchmark:
-        "results/{campaign}/benchmarks/characterise.tsv"
+        layout.benchmark("{campaign}", "characterise")
     group:
         "campaign"
     conda:
@@ -28,11 +28,11 @@ rule characterise:
 
 rule observability:
     output:
-        "results/{campaign}/metrics/observability.nc",
+        layout.metrics("{campaign}", "observability"),
     log:
-        "results/{campaign}/logs/observability.log",
+        layout.log("{campaign}", "observability"),
     benchmark:
-        "results/{campaign}/benchmarks/observability.tsv"
+        layout.benchmark("{campaign}", "observability")
     group:
         "campaign"
     conda:
@@ -49,11 +49,11 @@ rule observability:
 
 rule design_study:
     output:
-        "results/{campaign}/metrics/design_study.nc",
+        layout.metrics("{campaign}", "design_study"),
     log:
-        "results/{campaign}/logs/design_study.log",
+        layout.log("{campaign}", "design_study"),
     benchmark:
-        "results/{campaign}/benchmarks/design_study.tsv"
+        layout.benchmark("{campaign}", "design_study")
     group:
         "campaign"
     conda:

@@ -6,16 +6,16 @@
 rule export_models:
     input:
         models=lambda w: expand(
-            "results/{c}/models/{m}.nc",
+            layout.model("{c}", "{m}"),
             c=w.campaign,
             m=models_of(CAMPAIGN[w.campaign]),
         ),
     output:
-        manifest="results/{campaign}/export/manifest.json",
+        manifest=layout.campaign("{campaign}", "export", "manifest.json"),
     log:
-        "results/{campaign}/logs/export.log",
+        layout.log("{campaign}", "export"),
     benchmark:
-        "results/{campaign}/benchmarks/export.tsv"
+        layout.benchmark("{campaign}", "export")
     group:
         "campaign"
     conda:
@@ -34,14 +34,14 @@ rule export_models:
 
 rule acquire_validation_export:
     input:
-        model="results/{campaign}/models/{model}.nc",
-        manifest="results/{campaign}/export/manifest.json",
+        model=layout.model("{campaign}", "{model}"),
+        manifest=layout.campaign("{campaign}", "export", "manifest.json"),
     output:
-        run="results/{campaign}/runs/export_{model}.nc",
+        run=layout.run("{campaign}", "export_{model}"),
     log:
-        "results/{campaign}/logs/acquire_export_{model}.log",
+        layout.log("{campaign}", "acquire_export_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_export_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_export_{model}")
     group:
         "campaign"
     conda:
@@ -68,14 +68,14 @@ rule acquire_validation_export:
 
 rule export_verify:
     input:
-        run="results/{campaign}/runs/export_{model}.nc",
-        heldout="results/{campaign}/metrics/validation_heldout_{model}.nc",
+        run=layout.run("{campaign}", "export_{model}"),
+        heldout=layout.metrics("{campaign}", "validation_heldout_{model}"),
     output:
-        metrics="results/{campaign}/metrics/export_{model}.nc",
+        metrics=layout.metrics("{campaign}", "export_{model}"),
     log:
-        "results/{campaign}/logs/export_verify_{model}.log",
+        layout.log("{campaign}", "export_verify_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/export_verify_{model}.tsv"
+        layout.benchmark("{campaign}", "export_verify_{model}")
     group:
         "campaign"
     conda:

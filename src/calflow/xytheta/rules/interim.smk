@@ -8,12 +8,12 @@ rule acquire_interim_check:
         manifest=interim_export,
         reference_run=interim_reference_run,
     output:
-        run="results/{campaign}/runs/interim_check.nc",
-        truth="results/{campaign}/truth/interim_check.json",
+        run=layout.run("{campaign}", "interim_check"),
+        truth=layout.truth("{campaign}", "interim_check"),
     log:
-        "results/{campaign}/logs/acquire_interim_check.log",
+        layout.log("{campaign}", "acquire_interim_check"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_interim_check.tsv"
+        layout.benchmark("{campaign}", "acquire_interim_check")
     group:
         "campaign"
     conda:

@@ -14,11 +14,11 @@ wildcard_constraints:
 
 rule mc_point:
     output:
-        point="results/studies/{study}/points/{seeds}_{noise}_{poses}.json",
+        point=layout.study_point("{study}", "{seeds}", "{noise}", "{poses}"),
     log:
-        "results/studies/{study}/logs/point_{seeds}_{noise}_{poses}.log",
+        layout.study("{study}", "logs", "point_{seeds}_{noise}_{poses}.log"),
     benchmark:
-        "results/studies/{study}/benchmarks/point_{seeds}_{noise}_{poses}.tsv"
+        layout.study("{study}", "benchmarks", "point_{seeds}_{noise}_{poses}.tsv")
     group:
         "study_points"
     conda:
@@ -39,11 +39,11 @@ rule mc_aggregate:
     input:
         points=lambda w: mc.point_files(STUDY[w.study]),
     output:
-        aggregate="results/studies/{study}/aggregate.json",
+        aggregate=layout.study("{study}", "aggregate.json"),
     log:
-        "results/studies/{study}/logs/aggregate.log",
+        layout.study("{study}", "logs", "aggregate.log"),
     benchmark:
-        "results/studies/{study}/benchmarks/aggregate.tsv"
+        layout.study("{study}", "benchmarks", "aggregate.tsv")
     group:
         "study"
     conda:
@@ -62,18 +62,18 @@ rule mc_aggregate:
 
 rule mc_report:
     input:
-        aggregate="results/studies/{study}/aggregate.json",
+        aggregate=layout.study("{study}", "aggregate.json"),
     output:
         html=report(
-            "reports/studies/{study}.html",
+            layout.study_page("{study}"),
             caption=os.path.join(REPORT_DIR, "study.rst"),
             category="Studies",
             labels={"study": "{study}"},
         ),
     log:
-        "results/studies/{study}/logs/report.log",
+        layout.study("{study}", "logs", "report.log"),
     benchmark:
-        "results/studies/{study}/benchmarks/report.tsv"
+        layout.study("{study}", "benchmarks", "report.tsv")
     group:
         "study"
     conda:

@@ -7,14 +7,14 @@ ruleorder: acquire_validation_heldout > acquire_validation_model
 
 rule acquire_validation_model:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     output:
-        run="results/{campaign}/runs/validation_{model}.nc",
-        truth="results/{campaign}/truth/validation_{model}.json",
+        run=layout.run("{campaign}", "validation_{model}"),
+        truth=layout.truth("{campaign}", "validation_{model}"),
     log:
-        "results/{campaign}/logs/acquire_validation_{model}.log",
+        layout.log("{campaign}", "acquire_validation_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_validation_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_validation_{model}")
     group:
         "campaign"
     conda:
@@ -38,11 +38,11 @@ rule acquire_validation_model:
 
 rule error_budget:
     output:
-        budget="results/{campaign}/truth/error_budget.json",
+        budget=layout.truth("{campaign}", "error_budget"),
     log:
-        "results/{campaign}/logs/error_budget.log",
+        layout.log("{campaign}", "error_budget"),
     benchmark:
-        "results/{campaign}/benchmarks/error_budget.tsv"
+        layout.benchmark("{campaign}", "error_budget")
     group:
         "campaign"
     conda:
@@ -63,12 +63,14 @@ rule error_budget:
 # report's measurement-system section (calflow.instruments.bench).
 rule instrument_bench:
     output:
-        bench="results/{campaign}/metrics/instrument.nc",
-        throughput="results/{campaign}/benchmarks/instrument_throughput.json",
+        bench=layout.metrics("{campaign}", "instrument"),
+        throughput=layout.campaign(
+            "{campaign}", "benchmarks", "instrument_throughput.json"
+        ),
     log:
-        "results/{campaign}/logs/instrument_bench.log",
+        layout.log("{campaign}", "instrument_bench"),
     benchmark:
-        "results/{campaign}/benchmarks/instrument_bench.tsv"
+        layout.benchmark("{campaign}", "instrument_bench")
     group:
         "campaign"
     conda:

@@ -41,7 +41,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from calflow.config import load_yaml
+from calflow.campaign import raw as campaign_file
+from calflow.campaign import thaw
 from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
 
 EXTRA = {"lost_motion": {"lost_motion": False}, "gross_errors": {"gross_error_rate": 0.0}}  # beyond EFFECTS
@@ -109,7 +110,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     from calflow.data.io import open_dataset, write_dataset
     from calflow.xytheta import steps as commands
 
-    raw = load_yaml(campaign_path)
+    raw = thaw(campaign_file(campaign_path))
     raw.setdefault("rig", {})
     raw["rig"]["options"] = {**(raw["rig"].get("options") or {}), **rig_options}
     work.mkdir(parents=True, exist_ok=True)

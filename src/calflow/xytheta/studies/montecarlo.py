@@ -48,7 +48,8 @@ def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") 
     an XYΘ campaign on the simulated rig (the study scores estimates against the rig's
     truth), and ``model`` one of its identified models without a position table.
     """
-    from calflow.config import check_campaign_name, load_campaign, load_yaml, validate
+    from calflow.campaign import load as load_campaign
+    from calflow.config import check_campaign_name, load_yaml, validate
 
     path = Path(path)
     check_campaign_name(path.stem)

@@ -7,14 +7,14 @@
 
 rule acquire_hexapod_iso9283:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     output:
-        run="results/{campaign}/runs/iso9283_{model}.nc",
-        truth="results/{campaign}/truth/iso9283_{model}.json",
+        run=layout.run("{campaign}", "iso9283_{model}"),
+        truth=layout.truth("{campaign}", "iso9283_{model}"),
     log:
-        "results/{campaign}/logs/acquire_iso9283_{model}.log",
+        layout.log("{campaign}", "acquire_iso9283_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_iso9283_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_iso9283_{model}")
     group:
         "campaign"
     conda:
@@ -38,11 +38,11 @@ rule acquire_hexapod_iso9283:
 
 rule hexapod_error_budget:
     output:
-        budget="results/{campaign}/truth/hexapod_error_budget.json",
+        budget=layout.truth("{campaign}", "hexapod_error_budget"),
     log:
-        "results/{campaign}/logs/hexapod_error_budget.log",
+        layout.log("{campaign}", "hexapod_error_budget"),
     benchmark:
-        "results/{campaign}/benchmarks/hexapod_error_budget.tsv"
+        layout.benchmark("{campaign}", "hexapod_error_budget")
     group:
         "campaign"
     conda:
@@ -70,13 +70,13 @@ rule hexapod_error_budget:
 # (closed loop); the core metrics rule scores the run like the held-out one.
 rule hexapod_export:
     input:
-        model="results/{campaign}/models/{model}.nc",
+        model=layout.model("{campaign}", "{model}"),
     output:
-        bundle="results/{campaign}/export/{model}/bundle.json",
+        bundle=layout.campaign("{campaign}", "export", "{model}", "bundle.json"),
     log:
-        "results/{campaign}/logs/hexapod_export_{model}.log",
+        layout.log("{campaign}", "hexapod_export_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/hexapod_export_{model}.tsv"
+        layout.benchmark("{campaign}", "hexapod_export_{model}")
     group:
         "campaign"
     conda:
@@ -94,15 +94,15 @@ rule hexapod_export:
 
 rule acquire_hexapod_closed_loop:
     input:
-        model="results/{campaign}/models/{model}.nc",
-        bundle="results/{campaign}/export/{model}/bundle.json",
+        model=layout.model("{campaign}", "{model}"),
+        bundle=layout.campaign("{campaign}", "export", "{model}", "bundle.json"),
     output:
-        run="results/{campaign}/runs/closed_loop_{model}.nc",
-        truth="results/{campaign}/truth/closed_loop_{model}.json",
+        run=layout.run("{campaign}", "closed_loop_{model}"),
+        truth=layout.truth("{campaign}", "closed_loop_{model}"),
     log:
-        "results/{campaign}/logs/acquire_closed_loop_{model}.log",
+        layout.log("{campaign}", "acquire_closed_loop_{model}"),
     benchmark:
-        "results/{campaign}/benchmarks/acquire_closed_loop_{model}.tsv"
+        layout.benchmark("{campaign}", "acquire_closed_loop_{model}")
     group:
         "campaign"
     conda:
