@@ -106,9 +106,9 @@ EMULATOR = Emulator(
     time_scale=1000.0,
     prog="python -m calflow.nano.stage.emulate",
 )
-campaign_emulator = EMULATOR.campaign_emulator  # (campaign, *, port, time_scale, faults): unstarted
-rig_options = EMULATOR.rig_options  # (address, campaign, *, time_scale, ...): the gcs rig's options
-emulated_rig_options = EMULATOR.emulated_rig_options  # started, with its rig options (tests)
+#: started, with its ``gcs`` rig options (for a campaign file's ``rig:`` section: :func:`campaign_rig`);
+#: the caller stops it
+emulated_rig_options = EMULATOR.emulated_rig_options
 main = EMULATOR.main  # ``calflow emulate gcs`` of a nano campaign (the family's emulator)
 
 
