@@ -125,10 +125,10 @@ class SwitchedTruth:
     rig's options and whose class attribute ``EFFECTS`` is its :class:`Effects` table: its
     ``unmodelled`` field is the switch of the table's unmodelled effects."""
 
-    def __post_init__(self) -> None:
-        if not getattr(self, "unmodelled", True):  # one key switches off every effect no model represents
-            for name in self.EFFECTS.unmodelled_fields:
-                object.__setattr__(self, name, off(getattr(self, name)))
+    def __post_init__(self) -> None:  # the table's switch (:meth:`Effects.unmodelled_off`) on the fields
+        fields = {name: getattr(self, name) for name in (*self.EFFECTS.unmodelled_fields, "unmodelled")}
+        for name, value in self.EFFECTS.unmodelled_off(fields).items():
+            object.__setattr__(self, name, value)
 
     def without(self, *fields: str):
         """The same physics with ``fields`` (field names) switched off."""

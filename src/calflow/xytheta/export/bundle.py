@@ -46,7 +46,7 @@ def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> 
             for name in kin.PARAMETER_NAMES
         }
         tables = {name: write_tables(ds, folder, name) for name, ds in model.groups().items()}
-        doc = {
+        return {
             "format": FORMAT,
             "version": VERSION,
             "model": model.name,
@@ -64,7 +64,6 @@ def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> 
             "limits": LIMITS,
             "controllers": jsonable(controllers or {}),
         }
-        return doc
 
     return write_bundle_json(folder, document)
 
