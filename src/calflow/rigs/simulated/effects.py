@@ -46,7 +46,7 @@ class Effects(Mapping[str, tuple[str, ...]]):
 
     def __init__(self, table: Mapping[str, Effect], kind: str = "") -> None:
         self.table = dict(table)
-        self.kind = kind  # how errors name the stage ("nano effect(s)")
+        self.kind = kind  # how errors name the stage's effects ("<kind> effect(s)")
 
     def __getitem__(self, name: str) -> tuple[str, ...]:
         return self.table[name].fields
