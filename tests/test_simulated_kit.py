@@ -200,3 +200,19 @@ def test_a_bundle_read_back_names_file_and_field(tmp_path):
         read_model = staticmethod(lambda p: Model(read_bundle(p, "toy", 1, ("a",))[1]))
 
     assert ToyCompensator.load(tmp_path).parameters == {"a": 2.5}
+
+
+def test_joint_commands_of_move_and_visit_name_the_rig():
+    from calflow.errors import RigError
+    from calflow.rigs.simulated.commands import joint_commands
+
+    assert joint_commands("toy rig", "move", False, ("x", "y"), {"x": 1, "y": 2.5, "z": 9}).tolist() == [
+        1.0,
+        2.5,
+    ]
+    rows = joint_commands("toy rig", "visit", False, ("x", "y"), {"x": [1, 2], "y": [3, 4]})
+    assert rows.shape == (2, 2) and rows[1].tolist() == [2.0, 4.0]
+    with pytest.raises(RigError, match=r"^toy rig: command lacks joint 'y'$"):
+        joint_commands("toy rig", "visit", False, ("x", "y"), {"x": [1.0]})
+    with pytest.raises(RigError, match=r"^toy rig: move\(\) after close\(\)$"):
+        joint_commands("toy rig", "move", True, ("x",), {"x": 1.0})
