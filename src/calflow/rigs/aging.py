@@ -14,6 +14,39 @@ import math
 from calflow.errors import OptionError
 
 YEAR_D = 365.25  # days in a year (Julian year)
+DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"  # the stages' commissioning when a campaign gives none
+
+
+def defaults(**stage) -> dict:
+    """The defaults of a stage's ``aging`` option: the commissioning date (``since``), what
+    the stage's ``stage`` fields age, a yearly room season of ±1 °C peaking mid-July (day
+    196: an air-conditioned lab, ISO 230-3 Annex A), no events."""
+    return {"since": DEFAULT_SINCE, **stage, "seasonal_degC": 1.0, "seasonal_peak_day": 196, "events": []}
+
+
+def checked(aging, defaults: dict, event_keys: tuple[str, ...]) -> dict | None:
+    """The ``aging`` option with its ``defaults`` (:func:`options`), its shared fields checked
+    (``since``, the season, ``events`` moving some of ``event_keys``); None when ageing is off.
+    The stage checks its own fields."""
+    a = options(aging, defaults)
+    if a is None:
+        return None
+    date(a["since"], "aging.since")
+    number(a["seasonal_degC"], "aging.seasonal_degC")
+    number(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
+    events(a["events"], event_keys)
+    return a
+
+
+def split(options: dict, start: str, check) -> tuple[dict, dict | None]:
+    """A rig's ``options`` without ``aging``, and that option checked (``check(aging)``, the
+    stage's) against the campaign's ``start`` (:func:`lifetime`); None when ageing is off."""
+    options = dict(options)
+    given = options.pop("aging", None)
+    a = check(given)
+    if a is not None:
+        lifetime(a, given, start)
+    return options, a
 
 
 def options(aging, defaults: dict) -> dict | None:

@@ -53,41 +53,33 @@ from __future__ import annotations
 import math
 
 from calflow.errors import OptionError
-from calflow.rigs.aging import YEAR_D, date, events, lifetime, number, season
-from calflow.rigs.aging import options as with_defaults
+from calflow.rigs.aging import YEAR_D, checked, date, defaults, number, season, split
 
-DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
 #: what an event may move, and the rig option it adds to
 EVENT_KEYS = ("gain_pct", "offset_nm", "cosine_deg", "abbe_offset_mm")
-DEFAULTS = {
-    "since": DEFAULT_SINCE,
-    "piezo_pct_per_decade": 1.0,
-    "poled_days_before": 365.0,
-    "depolarisation_pct_per_year": 0.1,
-    "gain_seen": 1.0,
-    "sensor_drift_nm_per_month": 2.0,
-    "seasonal_degC": 1.0,
-    "seasonal_peak_day": 196,
-    "events": [],
-}
+DEFAULTS = defaults(
+    piezo_pct_per_decade=1.0,
+    poled_days_before=365.0,
+    depolarisation_pct_per_year=0.1,
+    gain_seen=1.0,
+    sensor_drift_nm_per_month=2.0,
+)
 _MONTH_D = YEAR_D / 12.0
+DEFAULT_SINCE = DEFAULTS["since"]  # the commissioning when a campaign gives none
 
 
 def check(aging) -> dict | None:
     """The ``aging`` option checked, with its defaults; None when ageing is off. Raises
     :class:`~calflow.errors.OptionError` naming the field (``aging.<field>``)."""
-    a = with_defaults(aging, DEFAULTS)
+    a = checked(aging, DEFAULTS, EVENT_KEYS)
     if a is None:
         return None
-    date(a["since"], "aging.since")
-    for key in ("piezo_pct_per_decade", "depolarisation_pct_per_year", "seasonal_degC"):
+    for key in ("piezo_pct_per_decade", "depolarisation_pct_per_year"):
         number(a[key], f"aging.{key}")
     if number(a["poled_days_before"], "aging.poled_days_before") <= 0:
         raise OptionError("aging.poled_days_before", "a finite number > 0", a["poled_days_before"])
     number(a["gain_seen"], "aging.gain_seen", 0.0, 1.0)
     number(a["sensor_drift_nm_per_month"], "aging.sensor_drift_nm_per_month", None)
-    number(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
-    events(a["events"], EVENT_KEYS)
     return a
 
 
@@ -128,12 +120,9 @@ def resolve(options: dict, start: str, defaults: dict, axes: tuple) -> dict:
     with the aged values of the options ageing moves (only those that differ from the
     unaged rig). ``defaults``: the rig's own option defaults; ``axes``: the joint each sensor
     measures along (None: across; the drift and a re-mount's offset move the on-axis ones)."""
-    options = dict(options)
-    given = options.pop("aging", None)
-    a = check(given)
+    options, a = split(options, start, check)
     if a is None:
         return options
-    lifetime(a, given, start)
     e = effects(a, start)
     get = lambda k: options.get(k, defaults[k])  # noqa: E731
     out = dict(options)

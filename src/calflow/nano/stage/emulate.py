@@ -24,22 +24,18 @@ as on the simulated rig.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
-from calflow.gcs.emulator import Faults, GCSEmulator
 from calflow.gcs.piezo import PiezoAxisConfig, piezo_emulator
+from calflow.rigs.simulated.campaign import simulated_options
+from calflow.rigs.simulated.emulator import Emulator
 
 STAGES = {"stage1d": "nano1d", "stage2d": "nano2d"}
 JOINT_AXES = {"x": "1", "y": "2"}
 RATE_HZ = 10.0  # data recorder rate of the high-rate dwells (the simulated rig's default)
-
-
-_load = load_campaign_arg
+SENSOR = "simulated_interferometer"
 
 
 def stage_of(campaign: Mapping[str, Any]) -> str:
@@ -52,14 +48,8 @@ def stage_of(campaign: Mapping[str, Any]) -> str:
 def physics_options(campaign: Mapping[str, Any], run: str | None = None) -> dict[str, Any]:
     """The simulated rig's options of a campaign (its ``simulated`` rig options and run
     overrides, or its ``simulated_interferometer`` sensor options), seeds removed."""
-    rig = campaign.get("rig") or {}
-    options = {**(rig.get("options") or {}), **((rig.get("runs") or {}).get(run) or {})}
-    if rig.get("factory", "simulated") != "simulated":
-        sensor = options.get("sensor") or {}
-        options = (
-            dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_interferometer" else {}
-        )
-    return {k: v for k, v in options.items() if k not in ("seed", "world_seed", "start_offset_s", "stage")}
+    drop = ("seed", "world_seed", "start_offset_s", "stage")
+    return simulated_options(campaign, (SENSOR,), drop, run) or {}
 
 
 def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
@@ -84,52 +74,8 @@ def axis_configs(campaign: Mapping[str, Any]) -> dict[str, PiezoAxisConfig]:
     }
 
 
-def campaign_emulator(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 1.0,
-    faults: Faults | None = None,
-) -> GCSEmulator:
-    """An (unstarted) E-727-class emulator with the campaign's stage axes."""
-    c = _load(campaign)
-    try:
-        axes = axis_configs(c)
-    except (TypeError, ValueError) as exc:
-        raise CalflowError(f"emulate piezo: campaign rig options: {exc}") from None
-    return piezo_emulator(axes, port=port, time_scale=time_scale, faults=faults, seed=int(c.get("seed", 0)))
-
-
-def rig_options(
-    address: tuple[str, int],
-    campaign: Mapping[str, Any],
-    *,
-    time_scale: float = 1.0,
-    timeout: float = 5.0,
-    tries: int = 5,
-    backoff_s: float = 0.2,
-) -> dict[str, Any]:
-    """Options of the ``gcs`` rig that drives a nano campaign emulator at ``address``."""
-    joints = ("x",) if stage_of(campaign) == "nano1d" else ("x", "y")
-    return link_options(
-        address,
-        {j: JOINT_AXES[j] for j in joints},
-        _sensor(campaign),
-        reference=False,
-        poll_s=0.002,
-        recorder={"rate_hz": RATE_HZ},
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-    )
-
-
 def _sensor(campaign: Mapping[str, Any], run: str | None = None) -> dict[str, Any]:
-    return {
-        "factory": "simulated_interferometer",
-        "options": {"stage": stage_of(campaign), **physics_options(campaign, run)},
-    }
+    return {"factory": SENSOR, "options": {"stage": stage_of(campaign), **physics_options(campaign, run)}}
 
 
 def campaign_rig(options: Mapping[str, Any], campaign: Mapping[str, Any]) -> dict[str, Any]:
@@ -143,56 +89,27 @@ def campaign_rig(options: Mapping[str, Any], campaign: Mapping[str, Any]) -> dic
     }
 
 
-def emulated_rig_options(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 1000.0,
-    timeout: float = 1.0,
-    tries: int = 5,
-    backoff_s: float = 0.05,
-    faults: Faults | None = None,
-) -> tuple[GCSEmulator, dict[str, Any]]:
-    """Start a nano campaign emulator; return it and the ``gcs`` rig options (for a campaign
-    file: :func:`campaign_rig`). The caller stops it."""
-    return start_emulated(
-        campaign,
-        campaign_emulator,
-        rig_options,
-        port=port,
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-        faults=faults,
-    )
-
-
-def main(
-    argv: list[str] | None = None,
-    stop_event: threading.Event | None = None,
-    prog: str = "python -m calflow.nano.stage.emulate",
-) -> int:
-    """``calflow emulate gcs`` of a nano campaign (or ``python -m calflow.nano.stage.emulate``):
-    serve its stage until Ctrl-C or --duration."""
-
-    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
-        host, port = emu.address
-        return (
-            f"E-727-class emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
-            f"(axes {', '.join(emu.controller.axes)}, um; time scale {time_scale:g})"
-        )
-
-    return serve_campaign(
-        argv,
-        prog=prog,
-        stop_event=stop_event,
-        description="Serve a nano campaign's stage as an E-727-class PI GCS 2.0 controller on "
-        "127.0.0.1 (docs/gcs.md).",
-        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
-        banner=banner,
-        rig_section=lambda emu, c, ts: campaign_rig(rig_options(emu.address, c, time_scale=ts), c),
-    )
+EMULATOR = Emulator(
+    name="emulate piezo",
+    title="E-727-class emulator",
+    axes="axes {axes}, um",
+    description="Serve a nano campaign's stage as an E-727-class PI GCS 2.0 controller on "
+    "127.0.0.1 (docs/gcs.md).",
+    physics=axis_configs,
+    controller=lambda axes, c, port, time_scale, faults: piezo_emulator(
+        axes, port=port, time_scale=time_scale, faults=faults, seed=int(c.get("seed", 0))
+    ),
+    joint_axes=lambda c: {j: JOINT_AXES[j] for j in (("x",) if stage_of(c) == "nano1d" else ("x", "y"))},
+    sensor=_sensor,
+    link={"reference": False, "poll_s": 0.002, "recorder": {"rate_hz": RATE_HZ}},
+    rig_section=campaign_rig,
+    time_scale=1000.0,
+    prog="python -m calflow.nano.stage.emulate",
+)
+#: started, with its ``gcs`` rig options (for a campaign file's ``rig:`` section: :func:`campaign_rig`);
+#: the caller stops it
+emulated_rig_options = EMULATOR.emulated_rig_options
+main = EMULATOR.main  # ``calflow emulate gcs`` of a nano campaign (the family's emulator)
 
 
 if __name__ == "__main__":

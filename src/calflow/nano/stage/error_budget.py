@@ -42,6 +42,7 @@ import xarray as xr
 from calflow.nano.evaluation import run_seconds
 from calflow.nano.stage.options import EFFECTS, NOISE
 from calflow.nano.stage.unseen.options import TC_ERRORS
+from calflow.rigs.simulated.budget import signed_root
 
 __all__ = ["rig_from_truth", "effect_samples", "error_budget"]
 
@@ -243,7 +244,7 @@ def _combine(u: dict, err: np.ndarray) -> dict:
     out["noise_and_estimation"] = _rms(rest)
     total = _rms(err[good])
     ss = sum(c * c for c in out.values())
-    out["interaction"] = float(np.sign(total**2 - ss) * np.sqrt(abs(total**2 - ss)))
+    out["interaction"] = signed_root(total**2 - ss)
     out["total"] = total
     return out
 

@@ -9,6 +9,7 @@ import numpy as np
 from calflow.errors import OptionError, UnknownOptionError
 from calflow.nano.stage.aging import check as check_aging
 from calflow.nano.stage.unseen.options import UNSEEN, UNSEEN_EFFECTS, UNSEEN_NON_NEGATIVE, UNSEEN_POSITIVE
+from calflow.rigs.simulated.effects import Effect, Effects
 
 _DAY = 86400.0
 
@@ -111,36 +112,47 @@ _NON_NEGATIVE = (
     "step_natural_hz",
 )
 
-# Each effect of the nano rigs: its option keys (all off = effect off) and whether a calflow
-# nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials in the
-# position, linear in the thermocouples, an offset). docs/rigs.md has the sources.
-EFFECTS = {
-    "geometry": ("geometric_scale", "gain_pct", "offset_nm"),
-    "coupling": ("coupling_y_nm", "coupling_scale"),
-    "sensor_nonlinearity": ("sensor_linearity_pct",),
-    "hysteresis": ("hysteresis_nm",),
-    "creep": ("creep_pct_per_decade",),
-    "stage_drift": ("stage_coeff_um_per_c",),
-    "expansion": ("expansion_ppm_per_c",),
-    "optics_drift": ("optics_drift_um_per_c",),
-    "deadpath": ("deadpath_m",),
-    "compensation": (
-        "compensation_bias_k",
-        "compensation_bias_pa",
-        "compensation_bias_pct",
-        "compensation_sensor_tau_s",
-    ),
-    "cosine": ("cosine_deg",),
-    "abbe": ("abbe_pitch_urad",),
-    "walk": ("drift_walk_nm_per_sqrt_day",),
-    "interferometer_noise": ("interferometer_noise_nm",),
-    "wavelength_stability": ("wavelength_stability_ppm",),
-    "repeatability": ("repeatability_nm",),
-    "settling": ("settle_fraction",),
-    "step_response": ("step_natural_hz",),
-    "thermocouple_noise": ("thermocouple_noise_mk",),
-    **UNSEEN_EFFECTS,
-}
+# Each effect of the nano rigs: its option keys (all off = effect off), its source, and whether
+# a calflow nano model represents it (single Eq. 5.3, KMZ Eq. 5.6, 2-DoF Eq. 5.10: polynomials
+# in the position, linear in the thermocouples, an offset). docs/rigs.md has the laws and figures.
+EFFECTS = Effects(
+    {
+        "geometry": Effect(("geometric_scale", "gain_pct", "offset_nm"), "Table 5.1, Fig. 5.1"),
+        "coupling": Effect(("coupling_y_nm", "coupling_scale"), "Fig. 5.1 b; Sec. 5.4"),
+        "sensor_nonlinearity": Effect(("sensor_linearity_pct",), "PI capacitive sensors: linearity 0.02 %"),
+        "hysteresis": Effect(("hysteresis_nm",), "Sec. 5.3.3", modelled=False),
+        "creep": Effect(
+            ("creep_pct_per_decade",), "PI piezo tutorial: log creep 1-2 %/decade", modelled=False
+        ),
+        "stage_drift": Effect(("stage_coeff_um_per_c",), "Fig. 5.2, Sec. 5.1"),
+        "expansion": Effect(("expansion_ppm_per_c",), "aluminium body, 23 ppm/degC", modelled=False),
+        "optics_drift": Effect(("optics_drift_um_per_c",), "Table 3.4, U5"),
+        "deadpath": Effect(("deadpath_m",), "Table 3.4; Sec. 3.5.2", modelled=False),
+        "compensation": Effect(
+            (
+                "compensation_bias_k",
+                "compensation_bias_pa",
+                "compensation_bias_pct",
+                "compensation_sensor_tau_s",
+            ),
+            "Table 3.4 bounds / sqrt(3)",
+            modelled=False,
+        ),
+        "cosine": Effect(("cosine_deg",), "Table 3.4, U8"),
+        "abbe": Effect(("abbe_pitch_urad",), "Table 3.4, U7"),
+        "walk": Effect(
+            ("drift_walk_nm_per_sqrt_day",), "no physical source: robustness studies", modelled=False
+        ),
+        "interferometer_noise": Effect(("interferometer_noise_nm",), "Table 3.4, U3"),
+        "wavelength_stability": Effect(("wavelength_stability_ppm",), "Table 3.4, U1"),
+        "repeatability": Effect(("repeatability_nm",), "Sec. 5.3.3: RP about 35 nm"),
+        "settling": Effect(("settle_fraction",), "settled within the 4 s rise (Fig. 5.8)"),
+        "step_response": Effect(("step_natural_hz",), "closed-loop step of PI piezo stages"),
+        "thermocouple_noise": Effect(("thermocouple_noise_mk",), "K-type thermocouples and their logger"),
+        **UNSEEN_EFFECTS.table,
+    },
+    kind="nano",
+)
 # noise and the transients of a move: not terms of effect_terms (the rig's _state adds them)
 NOISE = (
     "interferometer_noise",
@@ -150,27 +162,8 @@ NOISE = (
     "step_response",
     "thermocouple_noise",
 )
-UNMODELLED = ("hysteresis", "creep", "expansion", "deadpath", "compensation", "walk", *UNSEEN_EFFECTS)
-
-
-def _off(value):
-    """The switched-off value of an option: False, 0.0, or a tuple of zeros."""
-    if isinstance(value, bool):
-        return False
-    return tuple(0.0 for _ in value) if isinstance(value, tuple) else 0.0
-
-
-def without(options: dict, *effects: str) -> dict:
-    """``options`` with ``effects`` (names of :data:`EFFECTS`) switched off; keys a rig lacks are skipped."""
-    unknown = [e for e in effects if e not in EFFECTS]
-    if unknown:
-        raise ValueError(f"unknown nano effect(s) {unknown}; expected some of {sorted(EFFECTS)}")
-    out = dict(options)
-    for e in effects:
-        for key in EFFECTS[e]:
-            if key in out:
-                out[key] = _off(out[key])
-    return out
+UNMODELLED = EFFECTS.unmodelled  # the effects no calflow nano model represents
+without = EFFECTS.without  # (options, *effects): those effects switched off; keys a rig lacks skipped
 
 
 class _Walk:
@@ -291,8 +284,7 @@ def check_options(name: str, defaults: dict, n_sensors: int, options: dict) -> d
     swing = o["humidity_swing_pct"] + o["humidity_weather_pct"]
     if not (0.0 <= o["humidity_pct"] - swing and o["humidity_pct"] + swing <= 100.0):
         raise OptionError("humidity_pct", "humidity +- its swings within 0-100 %", o["humidity_pct"])
-    if not o["unmodelled"]:  # one key switches off every effect no calflow model represents
-        o = without(o, *UNMODELLED)
+    o = EFFECTS.unmodelled_off(o)  # one key switches off every effect no calflow model represents
     from calflow.rigs.thermal import _DEFAULTS, PROFILES
 
     if o["profile"] not in PROFILES:

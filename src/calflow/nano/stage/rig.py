@@ -5,22 +5,12 @@ virtual clock, plus ``stream`` (raw high-rate samples of a dwell), ``truth()``,
 ``true_position()`` and ``effect_terms()`` for tests and the summary step. Lengths in um,
 temperatures in degC, time in s.
 
-A reading of sensor k is the commanded position plus one named term per effect
-(:data:`calflow.nano.stage.options.EFFECTS`, each switched off in ``options``):
-
-    geometry, coupling        lever/flexure errors and cross-axis coupling (Fig. 5.1, Sec. 5.4)
-    sensor_nonlinearity       capacitive sensor left after linearisation (calflow.nano.stage.piezo)
-    hysteresis, creep         what the closed loop leaves of the piezo's (calflow.nano.stage.piezo)
-    stage_drift, expansion    the stage's thermal expansion: offset and along the stroke
-    optics_drift              the interferometer optics on the base (Table 3.4, U5)
-    deadpath, compensation    the air's refractive index (calflow.nano.stage.interferometer)
-    cosine, abbe              installation (Table 3.4, U7, U8)
-    walk                      a random walk, off by default (no physical source)
-    piezo_heating ... turbulence   drift the thermocouples do not see (calflow.nano.stage.unseen)
-
-plus per-move repeatability, the closed loop's step response (``record_move`` sees it), the
-settling tail, white interferometer noise and the laser's wavelength instability (noise),
-quantised to the interferometer resolution (0.3 nm).
+A reading of sensor k is the commanded position plus one named term per effect (geometry,
+coupling, the piezo's and the sensor's, thermal, the air's, installation, the drift the
+thermocouples do not see: :data:`calflow.nano.stage.options.EFFECTS`, with their sources,
+each switched off in ``options``), plus per-move repeatability, the closed loop's step
+response (``record_move`` sees it), the settling tail, white interferometer noise and the
+laser's wavelength instability (noise), quantised to the interferometer resolution (0.3 nm).
 Temperatures come from the lumped thermal network (:mod:`calflow.nano.stage.thermal_network`)
 driven by the room profile; thermocouple j reads its own node plus its offset, the heat
 sources' share and its own errors (calflow.nano.stage.unseen) and noise, quantised to 1 mK. Thermal terms are relative to the node temperatures at campaign time 0,
@@ -70,8 +60,13 @@ class _NanoRig(HighRateRecords, RigTruth):
     _REP_FACTOR: tuple[float, ...] = ()  # repeatability per sensor, relative
     _AXIS: tuple = ()  # joint index each sensor measures along (None: across)
 
+    @classmethod
+    def check(cls, **options) -> dict:
+        """The stage's options checked with its defaults, no rig built (the family's option check)."""
+        return check_options(cls._NAME, {**_COMMON, **cls._EXTRA}, len(cls.sensors), options)
+
     def __init__(self, **options):
-        o = check_options(self._NAME, {**_COMMON, **self._EXTRA}, len(self.sensors), options)
+        o = self.check(**options)
         n_tc = len(o["thermocouple_tau_s"])
         self.options = o
         self.thermometers = tuple(f"T{j + 1}" for j in range(n_tc))
@@ -399,15 +394,6 @@ def nano2d(**options) -> Nano2DRig:
     return Nano2DRig(**options)
 
 
-def check_nano1d(**options) -> dict:
-    """The 1-DoF stage's options checked, no rig built (the family's option check)."""
-    return check_options("nano1d", {**_COMMON, **Nano1DRig._EXTRA}, 2, options)
-
-
-def check_nano2d(**options) -> dict:
-    """The 2-DoF stage's options checked, no rig built (the family's option check)."""
-    return check_options("nano2d", {**_COMMON, **Nano2DRig._EXTRA}, 2, options)
-
-
+check_nano1d, check_nano2d = Nano1DRig.check, Nano2DRig.check  # the family's option checks
 nano1d.check_options = check_nano1d  # the options with the rig's defaults (designed plans read them)
 nano2d.check_options = check_nano2d

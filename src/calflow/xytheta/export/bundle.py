@@ -10,20 +10,18 @@ the same inverse (Eq. 4.19) — for :class:`calflow.xytheta.export.Compensator`.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from calflow import __version__
-from calflow.data.io import jsonable, sha256_file, write_json
-from calflow.errors import DataError
+from calflow.data.io import jsonable
+from calflow.rigs.simulated.bundle import read_bundle
+from calflow.rigs.simulated.bundle import write_bundle as write_bundle_json
 from calflow.xytheta.export.tables import rebuild, write_tables
 from calflow.xytheta.models import kinematics as kin
 
 FORMAT = "calflow-xytheta-bundle"
 VERSION = 1
-BUNDLE = "bundle.json"
 
 LIMITS = (
     "The bundle is the whole model: parameters, position tables (own-axis and cross-axis terms) and the "
@@ -32,80 +30,47 @@ LIMITS = (
 )
 
 
-def provenance(model_path) -> dict:
-    """Where the model came from: the model file's metadata and hash, and this calflow."""
-    import xarray as xr
-
-    with xr.open_dataset(model_path, engine="netcdf4", decode_times=False) as ds:
-        attrs = dict(ds.attrs)
-    return {
-        "campaign": attrs.get("campaign"),
-        "config_sha256": attrs.get("config_sha256"),
-        "source": attrs.get("source"),
-        "model_created": attrs.get("created"),
-        "model_calflow_version": attrs.get("calflow_version"),
-        "export_calflow_version": __version__,
-        "model_file": Path(model_path).name,
-        "model_sha256": sha256_file(model_path),
-    }
-
-
 def write_bundle(model, folder, prov: dict, controllers: dict | None = None) -> Path:
     """Write ``model`` (a :class:`MicroModel`) as a bundle in ``folder``; returns bundle.json.
 
     ``controllers``: what the controller files written beside it hold (:mod:`.writer`)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    params = {
-        name: {
-            "value": float(getattr(model.parameters, name)),
-            "std": jsonable(model.std.get(name, np.nan)),
-            "units": kin.PARAMETER_UNITS[name],
-            "free": name in model.free,
+
+    def document(folder: Path) -> dict:
+        params = {
+            name: {
+                "value": float(getattr(model.parameters, name)),
+                "std": jsonable(model.std.get(name, np.nan)),
+                "units": kin.PARAMETER_UNITS[name],
+                "free": name in model.free,
+            }
+            for name in kin.PARAMETER_NAMES
         }
-        for name in kin.PARAMETER_NAMES
-    }
-    tables = {name: write_tables(ds, folder, name) for name, ds in model.groups().items()}
-    doc = {
-        "format": FORMAT,
-        "version": VERSION,
-        "model": model.name,
-        "parameters": params,
-        "free": list(model.free),
-        "correlation": jsonable(np.asarray(model.correlation, dtype=float)),
-        "interpolation": model.method,
-        "tables": tables,
-        "provenance": jsonable(prov),
-        "conventions": {
-            "units": "um for positions and errors, degree for angles",
-            "errors": "target - measured; joint command = inverse kinematics + table error (Eq. 4.19)",
-            "kinematics": "thesis Eq. 4.18 (forward) and 4.19 (inverse)",
-        },
-        "limits": LIMITS,
-        "controllers": jsonable(controllers or {}),
-    }
-    return write_json(doc, folder / BUNDLE)
+        tables = {name: write_tables(ds, folder, name) for name, ds in model.groups().items()}
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "model": model.name,
+            "parameters": params,
+            "free": list(model.free),
+            "correlation": jsonable(np.asarray(model.correlation, dtype=float)),
+            "interpolation": model.method,
+            "tables": tables,
+            "provenance": jsonable(prov),
+            "conventions": {
+                "units": "um for positions and errors, degree for angles",
+                "errors": "target - measured; joint command = inverse kinematics + table error (Eq. 4.19)",
+                "kinematics": "thesis Eq. 4.18 (forward) and 4.19 (inverse)",
+            },
+            "limits": LIMITS,
+            "controllers": jsonable(controllers or {}),
+        }
+
+    return write_bundle_json(folder, document)
 
 
 def load(folder) -> dict:
     """``bundle.json`` of ``folder`` (or the file itself), checked for format and version."""
-    path = Path(folder)
-    path = path / BUNDLE if path.is_dir() else path
-    if not path.exists():
-        raise DataError(f"{path}: file not found")
-    try:
-        doc = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{path}: not JSON ({exc})") from None
-    if doc.get("format") != FORMAT or doc.get("version") != VERSION:
-        raise DataError(
-            f"{path}: fields 'format', 'version': expected {FORMAT!r} {VERSION}, "
-            f"got {doc.get('format')!r} {doc.get('version')!r}"
-        )
-    for name in kin.PARAMETER_NAMES:
-        if not isinstance(doc.get("parameters", {}).get(name, {}).get("value"), (int, float)):
-            raise DataError(f"{path}: field 'parameters.{name}.value': expected a number")
-    return doc
+    return read_bundle(folder, FORMAT, VERSION, kin.PARAMETER_NAMES)[1]
 
 
 def read_model(folder):

@@ -6,10 +6,11 @@ import dataclasses
 
 import numpy as np
 
+from calflow.rigs.simulated.bundle import Compensator as CompensatorShell
 from calflow.xytheta.export.bundle import read_model
 
 
-class Compensator:
+class Compensator(CompensatorShell):
     """The inverse kinematics of an exported model with every table (Eq. 4.19).
 
     ``Compensator.load("results/<campaign>/export/<model>")`` reads the bundle;
@@ -19,17 +20,7 @@ class Compensator:
     ``start``, and the angle table by the direction of Θ.
     """
 
-    def __init__(self, model):
-        self.model = model
-
-    @classmethod
-    def load(cls, path) -> Compensator:
-        return cls(read_model(path))
-
-    @property
-    def parameters(self) -> dict[str, float]:
-        """x_R, y_R (µm), alpha, beta (degree)."""
-        return self.model.parameters.as_dict()
+    read_model = staticmethod(read_model)
 
     def joints(self, x_T, y_T, theta_T, start=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint commands X, Y (µm), Θ (degree) for targets commanded in this order from ``start``."""

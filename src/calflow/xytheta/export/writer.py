@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from calflow.data.io import write_text
+from calflow.rigs.simulated.bundle import provenance
 from calflow.xytheta.export import controllers as ctl
-from calflow.xytheta.export.bundle import provenance, write_bundle
+from calflow.xytheta.export.bundle import write_bundle
 from calflow.xytheta.export.verification import LINUXCNC, TWINCAT
 
 AXIS_NUMBER = {"x": 1, "y": 2}  # TwinCAT logical axis numbers (kopf.achs_nr) written by default

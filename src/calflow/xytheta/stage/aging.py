@@ -33,36 +33,24 @@ Each effect, with where its rate comes from, and how it combines with the rig's 
 from __future__ import annotations
 
 from calflow.errors import OptionError
-from calflow.rigs.aging import YEAR_D, date, events, lifetime, number, season
-from calflow.rigs.aging import options as with_defaults
+from calflow.rigs.aging import YEAR_D, checked, date, defaults, number, season, split
 
-DEFAULT_SINCE = "2026-01-05T08:00:00+00:00"
 GEOMETRY = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
-DEFAULTS = {
-    "since": DEFAULT_SINCE,
-    "wear_per_year": 0.05,
-    "seasonal_degC": 1.0,
-    "seasonal_peak_day": 196,
-    "sensor_drift_um_per_year": [0.5, 0.5],
-    "events": [],
-}
+DEFAULTS = defaults(wear_per_year=0.05, sensor_drift_um_per_year=[0.5, 0.5])
+DEFAULT_SINCE = DEFAULTS["since"]  # the commissioning when a campaign gives none
 
 
 def check(aging) -> dict | None:
     """The ``aging`` option checked, with its defaults; None when ageing is off."""
-    a = with_defaults(aging, DEFAULTS)
+    a = checked(aging, DEFAULTS, GEOMETRY)
     if a is None:
         return None
-    date(a["since"], "aging.since")
     number(a["wear_per_year"], "aging.wear_per_year")
-    number(a["seasonal_degC"], "aging.seasonal_degC")
-    number(a["seasonal_peak_day"], "aging.seasonal_peak_day", None)
     drift = a["sensor_drift_um_per_year"]
     if not isinstance(drift, (list, tuple)) or len(drift) != 2:
         raise OptionError("aging.sensor_drift_um_per_year", "a list of 2 numbers (µm/year, x and y)", drift)
     for v in drift:
         number(v, "aging.sensor_drift_um_per_year", None)
-    events(a["events"], GEOMETRY)
     return a
 
 
@@ -70,12 +58,9 @@ def resolve(physics: dict, start: str, base=None) -> dict:
     """The rig's physics options for a campaign starting at ``start``: ``physics`` without
     ``aging``, with the aged values of the fields ageing moves (only those that differ).
     ``base``: the rig's defaults (an :class:`~calflow.xytheta.stage.physics.XYThetaTruth`)."""
-    physics = dict(physics)
-    given = physics.pop("aging", None)
-    a = check(given)
+    physics, a = split(physics, start, check)
     if a is None:
         return physics
-    lifetime(a, given, start)
     t, t0 = date(start, "start"), date(a["since"], "aging.since")
     years = (t - t0).total_seconds() / (YEAR_D * 86400.0)
     if base is None:

@@ -26,15 +26,14 @@ stages' timing, limits and faults of a controller (the emulator's ``faults``).
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.gcs.axis import AxisConfig
-from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
 from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
+from calflow.rigs.simulated.campaign import simulated_options
+from calflow.rigs.simulated.emulator import Emulator
 from calflow.xytheta.stage.rig import XYThetaTruth
 from calflow.xytheta.stage.vision_sensor import truth_from_options
 
@@ -68,9 +67,6 @@ class StagePhysics:
         return float(q) / SCALE[joint]
 
 
-_load = load_campaign_arg
-
-
 def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`XYThetaTruth` overrides of a campaign: the simulated rig's options, or the
     ``simulated_vision`` sensor options of a ``gcs`` rig, or its ``camera`` sensor's
@@ -80,34 +76,18 @@ def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
             f"emulate gcs: robot {campaign.get('robot')!r}: only xytheta campaigns "
             "have simulated stages to serve"
         )
-    rig = campaign.get("rig") or {}
-    options = dict(rig.get("options") or {})
-    if rig.get("factory", "simulated") != "simulated":
-        sensor = options.get("sensor") or {}
-        options = dict(sensor.get("options") or {}) if sensor.get("factory") == "simulated_vision" else {}
+    options = simulated_options(campaign, ("simulated_vision",))
+    if options is None:  # another sensor: an emulated camera's physics, read through images
+        sensor = (campaign["rig"].get("options") or {}).get("sensor") or {}
         source = (
             (sensor.get("options") or {}).get("source") or {} if sensor.get("factory") == "camera" else {}
         )
-        if (
-            source.get("factory") == "simulated_camera"
-        ):  # an emulated camera: its physics, read through images
-            options = {**(source.get("options") or {}), "sensor": "images"}
+        camera = source.get("factory") == "simulated_camera"
+        options = {**(source.get("options") or {}), "sensor": "images"} if camera else {}
     return {k: v for k, v in options.items() if k not in ("seed", "stream")}
 
 
-def campaign_emulator(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 1.0,
-    faults: Faults | None = None,
-) -> GCSEmulator:
-    """An (unstarted) emulator with axes 1, 2, 3 backed by the campaign's XYΘ physics."""
-    c = _load(campaign)
-    try:
-        physics = StagePhysics(truth_from_options(physics_options(c)))
-    except (TypeError, ValueError) as exc:
-        raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
+def _controller(physics: StagePhysics, c: dict, port: int, time_scale: float, faults: Faults | None):
     emu = GCSEmulator(
         axes=dict(AXIS_CONFIGS), port=port, faults=faults, time_scale=time_scale, true_position=physics
     )
@@ -115,16 +95,7 @@ def campaign_emulator(
     return emu
 
 
-def rig_options(
-    address: tuple[str, int],
-    campaign: Mapping[str, Any],
-    *,
-    time_scale: float = 1.0,
-    timeout: float = 5.0,
-    tries: int = 5,
-    backoff_s: float = 0.2,
-) -> dict[str, Any]:
-    """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
+def _sensor(campaign: Mapping[str, Any]) -> dict[str, Any]:
     physics = physics_options(campaign)
     sensor = {
         "factory": "simulated_vision",
@@ -137,73 +108,25 @@ def rig_options(
             "factory": "camera",
             "options": {"source": {"factory": "simulated_camera", "options": source}},
         }
-    return link_options(
-        address,
-        JOINT_AXES,
-        sensor,
-        scale=SCALE,
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-    )
+    return sensor
 
 
-def emulated_rig_options(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 100.0,
-    timeout: float = 1.0,
-    tries: int = 5,
-    backoff_s: float = 0.05,
-    faults: Faults | None = None,
-) -> tuple[GCSEmulator, dict[str, Any]]:
-    """Start a campaign emulator; return it and the ``gcs`` rig options that drive it.
-
-    For tests: the caller stops it (``emu.stop()``). The rig's ``time_scale`` equals the
-    emulator's, so dwell and reported times are in simulation seconds.
-    """
-    return start_emulated(
-        campaign,
-        campaign_emulator,
-        rig_options,
-        port=port,
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-        faults=faults,
-    )
-
-
-def emulate_main(
-    argv: list[str] | None = None,
-    stop_event: threading.Event | None = None,
-    prog: str = "calflow emulate gcs",
-) -> int:
-    """``calflow emulate gcs`` of an XYΘ campaign: serve its simulated stages until Ctrl-C or --duration."""
-
-    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
-        host, port = emu.address
-        return (
-            f"GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
-            f"(axes 1=x mm, 2=y mm, 3=theta degree; time scale {time_scale:g})"
-        )
-
-    return serve_campaign(
-        argv,
-        prog=prog,
-        stop_event=stop_event,
-        description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
-        "127.0.0.1 (docs/gcs.md).",
-        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
-        banner=banner,
-        rig_section=lambda emu, c, ts: {
-            "factory": "gcs",
-            "options": rig_options(emu.address, c, time_scale=ts),
-        },
-    )
+EMULATOR = Emulator(
+    name="emulate gcs",
+    title="GCS emulator",
+    axes="axes 1=x mm, 2=y mm, 3=theta degree",
+    description="Serve a campaign's simulated XYΘ stages as a PI GCS 2.0 controller on "
+    "127.0.0.1 (docs/gcs.md).",
+    physics=lambda c: StagePhysics(truth_from_options(physics_options(c))),
+    controller=_controller,
+    joint_axes=lambda c: JOINT_AXES,
+    sensor=_sensor,
+    link={"scale": SCALE},
+)
+campaign_emulator = EMULATOR.campaign_emulator  # (campaign, *, port, time_scale, faults): unstarted
+rig_options = EMULATOR.rig_options  # (address, campaign, *, time_scale, ...): the gcs rig's options
+emulated_rig_options = EMULATOR.emulated_rig_options  # started, with its rig options (tests)
+emulate_main = EMULATOR.main  # ``calflow emulate gcs`` of an XYΘ campaign (the family's emulator)
 
 
 if __name__ == "__main__":

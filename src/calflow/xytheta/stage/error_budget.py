@@ -43,10 +43,17 @@ import yaml
 
 from calflow.campaign import raw as campaign_file
 from calflow.campaign import thaw
-from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+from calflow.rigs.simulated.budget import (
+    Replays,
+    budget_command,
+    decompose,
+    effects_of,
+    require_simulated,
+    signed_root,
+)
+from calflow.xytheta.stage.physics import EFFECTS, XYThetaTruth, options_off, truth_from_options
 
-EXTRA = {"lost_motion": {"lost_motion": False}, "gross_errors": {"gross_error_rate": 0.0}}  # beyond EFFECTS
-REPLAYS = ("baseline", *EFFECTS, *EXTRA)  # "baseline": every effect off; any other: that effect off
+REPLAYS = ("baseline", *EFFECTS)  # "baseline": every effect off; any other: that effect off
 NOISE_MODEL = {"sensor": "model", "camera": None, "pattern": None}  # an images rig read by the noise model
 IDEAL_SENSOR = {  # the camera point read exactly: the "sensor" effect of an images rig switched off
     **NOISE_MODEL,
@@ -75,14 +82,10 @@ def budget_replays(campaign: dict) -> tuple[str, ...]:
 
 
 def active_effects(truth: XYThetaTruth, images: bool = False) -> list[str]:
-    """The effects (names of :data:`EFFECTS` and ``lost_motion``, ``gross_errors``) that
-    ``truth`` has switched on; on a rig that reads through images (``images``), the
-    noise model's own (:data:`MODEL_ONLY`) are not and ``sensor`` is."""
-    names = [e for e, fs in EFFECTS.items() if any(np.any(np.asarray(getattr(truth, f)) != 0) for f in fs)]
-    if truth.lost_motion:
-        names.append("lost_motion")
-    if truth.gross_error_rate > 0:
-        names.append("gross_errors")
+    """The effects (names of :data:`EFFECTS`) that ``truth`` has switched on; on a rig that
+    reads through images (``images``), the noise model's own (:data:`MODEL_ONLY`) are not
+    and ``sensor`` is."""
+    names = EFFECTS.active(truth)
     if images:
         names = [n for n in names if n not in MODEL_ONLY] + ["sensor"]
     return names
@@ -98,7 +101,7 @@ def replay_options(replay: str) -> dict:
         return options_off()
     if replay in IMAGES_ONLY:
         return dict(IMAGES_ONLY[replay])
-    return dict(EXTRA[replay]) if replay in EXTRA else options_off(replay)
+    return options_off(replay)
 
 
 def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> dict[str, list[float]]:
@@ -161,54 +164,44 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     return out
 
 
-def replay(campaign_path: str | Path, name: str) -> dict:
-    """One replay of the budget (:data:`REPLAYS`, or ``none``): its per-target held-out AP
-    by model, or ``active: false`` when the campaign's rig has that effect off already."""
+def _active(campaign_path) -> list[str]:
     from calflow.commands.common import campaign as load
 
     options = dict(load(campaign_path)["rig"].get("options") or {})
-    truth = truth_from_options(options)
-    if name not in ("baseline", "none", "noise_model") and name not in active_effects(
-        truth, reads_images(options)
-    ):
-        return {"replay": name, "active": False}
+    return active_effects(truth_from_options(options), reads_images(options))
+
+
+def _heldout(campaign_path, options: dict) -> dict[str, list[float]]:
     with tempfile.TemporaryDirectory(prefix="calflow-budget-") as tmp:
-        ap = replay_heldout(campaign_path, replay_options(name), Path(tmp))
-    return {"replay": name, "active": True, "options": replay_options(name), "ap_um": ap}
+        return replay_heldout(campaign_path, options, Path(tmp))
+
+
+BUDGET = Replays(replay_options, _active, _heldout, key="ap_um", always=("baseline", "none", "noise_model"))
+
+
+def replay(campaign_path: str | Path, name: str) -> dict:
+    """One replay of the budget (:data:`REPLAYS`, or ``none``): its per-target held-out AP
+    by model, or ``active: false`` when the campaign's rig has that effect off already."""
+    return BUDGET.replay(campaign_path, name)
 
 
 def replays(campaign_path: str | Path, names=REPLAYS, workers: int = 1) -> list[dict]:
     """:func:`replay` of each of ``names``, over ``workers`` processes (no more than replays)."""
-    if min(workers, len(names)) <= 1:
-        return [replay(campaign_path, n) for n in names]
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(replay, [str(campaign_path)] * len(names), names))
+    return BUDGET.run(str(campaign_path) if workers > 1 else campaign_path, names, workers)
 
 
 def combine(heldout_ap: dict[str, np.ndarray], records: list[dict]) -> dict:
     """The budget of every model from the campaign's own held-out per-target AP (µm) and the
     replays' (module docstring): per model ``rms_ap_um`` and ``error_budget_um`` (effect →
     signed µm, with ``baseline`` and ``interaction``); Σ sign·v² over it = rms_ap_um²."""
-    by = {r["replay"]: r for r in records if r.get("active") and r["replay"] != "noise_model"}
-    effects = [n for n in by if n not in ("baseline", "none")]
+    by, effects = effects_of(records, skip=("noise_model",))
     models = {}
     for name, ap in heldout_ap.items():
-        ms = float(np.mean(np.asarray(ap, dtype=float) ** 2))
-        delta = {e: ms - float(np.mean(np.asarray(by[e]["ap_um"][name]) ** 2)) for e in effects}
-        ms_base = float(np.mean(np.asarray(by["baseline"]["ap_um"][name]) ** 2))
-        budget = {
-            "baseline": float(np.sqrt(ms_base)),
-            **{e: _signed_root(d) for e, d in delta.items()},
-            "interaction": _signed_root(ms - ms_base - sum(delta.values())),
-        }
-        models[name] = {"rms_ap_um": float(np.sqrt(ms)), "error_budget_um": budget}
+        rms, budget = decompose(ap, by["baseline"]["ap_um"][name], {e: by[e]["ap_um"][name] for e in effects})
+        models[name] = {"rms_ap_um": rms, "error_budget_um": budget}
     return {
         "effects": effects,
-        "unmodelled": [
-            e for e in effects if e in EXTRA or e in IMAGES_ONLY or set(EFFECTS[e]) & set(UNMODELLED)
-        ],
+        "unmodelled": [e for e in effects if e in IMAGES_ONLY or not EFFECTS.modelled(e)],
         "combination": "rms_ap_um^2 = sum over error_budget_um of sign(v)*v^2, where rms_ap_um^2 is the mean "
         "over held-out targets of AP_k^2; an effect's entry is sign*sqrt(rms_ap_um^2 - the same "
         "mean after a calibration on the rig without it); baseline: every effect off; "
@@ -222,7 +215,7 @@ def groups(budget_um: dict[str, float], unmodelled: list[str]) -> dict[str, floa
     ``modelled`` (effects some calflow model represents), ``unmodelled``, ``interaction``."""
 
     def part(names):
-        return _signed_root(sum(np.sign(budget_um[n]) * budget_um[n] ** 2 for n in names))
+        return signed_root(sum(np.sign(budget_um[n]) * budget_um[n] ** 2 for n in names))
 
     effects = [n for n in budget_um if n not in ("baseline", "interaction")]
     return {
@@ -233,25 +226,11 @@ def groups(budget_um: dict[str, float], unmodelled: list[str]) -> dict[str, floa
     }
 
 
-def _signed_root(value: float) -> float:
-    return float(np.sign(value) * np.sqrt(abs(value)))
+def _budget(campaign_path: str, c: dict, jobs: int) -> dict:
+    require_simulated(c, campaign_path, family=c["robot"] == "xytheta")
+    return {"campaign": c["name"], "replays": replays(campaign_path, budget_replays(c), jobs)}
 
 
-def error_budget_command(args) -> None:
-    """``calflow error-budget``: the budget's replays of a campaign on its simulated rig,
-    written as JSON for the summary step (tests and reports only)."""
-    from calflow.commands.common import campaign as load
-    from calflow.data.io import output_folder, write_json
-    from calflow.errors import CalflowError
-
-    c = load(args.campaign)
-    if c["robot"] != "xytheta" or c["rig"]["factory"] != "simulated":
-        raise CalflowError(
-            f"{args.campaign}: key 'rig.factory': the error budget needs the simulated rig "
-            f"(it replays the calibration on the rig's truth), got {c['rig']['factory']!r}"
-        )
-    output_folder(args.out)
-    names = budget_replays(c)
-    write_json(
-        {"campaign": c["name"], "replays": replays(args.campaign, names, max(1, int(args.jobs)))}, args.out
-    )
+#: ``calflow error-budget``: the budget's replays of a campaign on its simulated rig, written as
+#: JSON for the summary step (tests and reports only)
+error_budget_command = budget_command(_budget)

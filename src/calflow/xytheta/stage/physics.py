@@ -14,35 +14,53 @@ stage. None is chosen to land on a result of the thesis.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from calflow.errors import OptionError, UnknownOptionError
+from calflow.errors import OptionError
+from calflow.rigs.simulated.checks import Bounds, check_physics
+from calflow.rigs.simulated.effects import Effect, Effects, SwitchedTruth
 from calflow.xytheta.models.kinematics import Parameters, forward, pattern_from_world
 
 TRAVEL_UM = 15000.0  # Table 4.1: travel range of the M-111.1DG
-UNMODELLED = (
-    "lost_motion",
-    "yaw_urad",
-    "expansion_ppm_per_degC",
-    "decode_error_um",
-    "gross_error_rate",
-    "drift_um_per_degC",
-)  # effects no calflow model represents
 SENSOR_OPTIONS = ("sensor", "camera", "pattern")  # how the vision sensor reads: stage.images
 
-
-def _off(value):
-    """The switched-off value of an effect's field: False, 0.0, or a tuple of zeros."""
-    if isinstance(value, bool):
-        return False
-    return tuple(0.0 for _ in value) if isinstance(value, tuple) else 0.0
+EFFECTS = Effects(  # each effect: the fields that switch it off, its source, whether a model represents it
+    {
+        "lead_screw": Effect(("lead_fwd_um", "lead_bwd_um"), "Table 4.1 pitch; Fig. 4.8; Sec. 4.4.2"),
+        "backlash": Effect(("backlash_um",), "Table 4.1"),
+        "coupling": Effect(("coupling_um",), "Fig. 4.9"),
+        "scale": Effect(("scale_ppm",), "precision lead screws, ISO 3408 classes 3-5"),
+        "straightness": Effect(("straightness_um",), "ball-guided miniature stages, class figure"),
+        "yaw": Effect(("yaw_urad",), "Table 4.1", modelled=False),
+        "expansion": Effect(("expansion_ppm_per_degC",), "aluminium carriages, 23 ppm/degC", modelled=False),
+        "theta_scale": Effect(("theta_scale_ppm",), "rotary stick-slip stages, class figure"),
+        "theta_periodic": Effect(("theta_periodic_mdeg",), "Table 4.2: one stick-slip step"),
+        "theta_backlash": Effect(("theta_backlash_mdeg",), "Table 4.2: a stop within one step"),
+        "axis_runout": Effect(("axis_runout_um",), "miniature rotary stages, class figure"),
+        "decode": Effect(
+            ("decode_error_um",), "per-pose phase error of the pattern (Sec. 3.3)", modelled=False
+        ),
+        "drift": Effect(("drift_um_per_degC",), "Table 3.3", modelled=False),
+        "lost_motion": Effect(
+            ("lost_motion",), "nut play taken up after a reversal (Table 4.1)", modelled=False
+        ),
+        "gross_errors": Effect(
+            ("gross_error_rate",), "a misread LFSR bit of the pattern (Sec. 3.3)", modelled=False
+        ),
+    }
+)
+UNMODELLED = EFFECTS.unmodelled_fields  # the fields of the effects no calflow model represents
 
 
 @dataclass(frozen=True)
-class XYThetaTruth:
-    """True physics of the simulated XYΘ rig (units in the field names)."""
+class XYThetaTruth(SwitchedTruth):
+    """True physics of the simulated XYΘ rig (units in the field names); ``unmodelled`` switches
+    the table's unmodelled effects (:data:`EFFECTS`)."""
+
+    EFFECTS: ClassVar[Effects] = EFFECTS
 
     # geometry: the real rig's, as the thesis identified it (Table 4.6, Model II)
     x_R_um: float = 9572.902
@@ -87,19 +105,9 @@ class XYThetaTruth:
     settle_s: float = 0.5
     unmodelled: bool = True
 
-    def __post_init__(self) -> None:
-        if not self.unmodelled:  # one key switches off every effect no model represents
-            off = {name: _off(getattr(self, name)) for name in UNMODELLED}
-            for name, value in off.items():
-                object.__setattr__(self, name, value)
-
     @property
     def parameters(self) -> Parameters:
         return Parameters(self.x_R_um, self.y_R_um, self.alpha_deg, self.beta_deg)
-
-    def without(self, *effects: str) -> XYThetaTruth:
-        """The same physics with ``effects`` (field names) switched off."""
-        return replace(self, **{name: _off(getattr(self, name)) for name in effects})
 
     # ------------------------------------------------------------------ X and Y stages
     def lead_error(self, axis: int, q, direction):
@@ -289,57 +297,29 @@ class XYThetaTruth:
             2 * np.pi * np.asarray(t_s) / 86400.0
         )
 
-    def as_dict(self) -> dict:
-        return asdict(self)
 
-
-EFFECTS = {  # effect name → the fields that switch it off, for the error budget and the tests
-    "lead_screw": ("lead_fwd_um", "lead_bwd_um"),
-    "backlash": ("backlash_um",),
-    "coupling": ("coupling_um",),
-    "scale": ("scale_ppm",),
-    "straightness": ("straightness_um",),
-    "yaw": ("yaw_urad",),
-    "expansion": ("expansion_ppm_per_degC",),
-    "theta_scale": ("theta_scale_ppm",),
-    "theta_periodic": ("theta_periodic_mdeg",),
-    "theta_backlash": ("theta_backlash_mdeg",),
-    "axis_runout": ("axis_runout_um",),
-    "decode": ("decode_error_um",),
-    "drift": ("drift_um_per_degC",),
-}
-
-
-_NON_NEGATIVE = (
-    "backlash_um",
-    "stage_repeatability_um",
-    "sensor_noise_um",
-    "sensor_theta_noise_deg",
-    "room_swing_degC",
-    "settle_s",
-    "decode_error_um",
-    "gross_error_rate",
-    "theta_backlash_mdeg",
+BOUNDS = Bounds(
+    non_negative=(
+        "backlash_um",
+        "stage_repeatability_um",
+        "sensor_noise_um",
+        "sensor_theta_noise_deg",
+        "room_swing_degC",
+        "settle_s",
+        "decode_error_um",
+        "gross_error_rate",
+        "theta_backlash_mdeg",
+    ),
+    positive=(
+        "thread_pitch_um",
+        "sensor_resolution_um",
+        "velocity_um_s",
+        "velocity_deg_s",
+        "pattern_range_um",
+        "pattern_period_um",
+        "theta_period_deg",
+    ),
 )
-_POSITIVE = (
-    "thread_pitch_um",
-    "sensor_resolution_um",
-    "velocity_um_s",
-    "velocity_deg_s",
-    "pattern_range_um",
-    "pattern_period_um",
-    "theta_period_deg",
-)
-
-
-def _number(key: str, value, bound: str | None):
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    ok = ok and bool(np.isfinite(value))
-    ok = ok and (bound is None or (value > 0 if bound == ">" else value >= 0))
-    if not ok:
-        expected = {None: "a finite number", ">": "a finite number > 0", ">=": "a finite number >= 0"}[bound]
-        raise OptionError(key, expected, value)
-    return float(value)
 
 
 def check_options(seed=0, stream: str = "", **physics) -> dict:
@@ -349,7 +329,6 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
     and ranges, switches that are not true/false. The vision sensor's options (``sensor``,
     ``camera``, ``pattern``: :mod:`calflow.xytheta.stage.images`), when given, come back
     checked under ``sensor``."""
-    known = {f.name: f.default for f in fields(XYThetaTruth)}
     if "aging" in physics:  # checked here, resolved for the campaign's start by the loader (stage.aging)
         from calflow.xytheta.stage.aging import check as check_aging
 
@@ -357,43 +336,15 @@ def check_options(seed=0, stream: str = "", **physics) -> dict:
         check_aging(physics.pop("aging"))
     sensor = {k: physics[k] for k in SENSOR_OPTIONS if k in physics}
     physics = {k: v for k, v in physics.items() if k not in SENSOR_OPTIONS}
-    for key in physics:
-        if key not in known:
-            names = sorted([*known, *SENSOR_OPTIONS])
-            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(names)}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise OptionError("seed", "an integer >= 0", seed)
-    if not isinstance(stream, str):
-        raise OptionError("stream", "a string", stream)
-    out = {}
-    for key, value in physics.items():
-        bound = ">" if key in _POSITIVE else ">=" if key in _NON_NEGATIVE else None
-        default = known[key]
-        if isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise OptionError(key, "true or false", value)
-            out[key] = value
-        elif isinstance(default, tuple):
-            if not isinstance(value, (list, tuple)) or len(value) != len(default):
-                raise OptionError(key, f"a list of {len(default)} numbers", value)
-            for v in value:
-                try:
-                    _number(key, v, bound)
-                except OptionError:
-                    expected = {None: "finite", ">": "finite and > 0", ">=": "finite and >= 0"}[bound]
-                    raise OptionError(
-                        key, f"a list of {len(default)} numbers, each {expected}", value
-                    ) from None
-            out[key] = tuple(float(v) for v in value)
-        else:
-            out[key] = _number(key, value, bound)
+    out = check_physics(XYThetaTruth, BOUNDS, seed, stream, physics, also=SENSOR_OPTIONS)
     if sensor:  # how the vision sensor reads (stage.images): not physics
         from calflow.xytheta.stage.images import check as check_sensor
 
-        sensor = check_sensor(**sensor, range_um=out.get("pattern_range_um", known["pattern_range_um"]))
+        range_um = out.get("pattern_range_um", XYThetaTruth.pattern_range_um)
+        sensor = check_sensor(**sensor, range_um=range_um)
     if out.get("gross_error_rate", 0.0) > 1:
         raise OptionError("gross_error_rate", "a probability between 0 and 1", physics["gross_error_rate"])
-    return {"seed": int(seed), "stream": stream, **out, **({"sensor": sensor} if sensor else {})}
+    return {**out, **({"sensor": sensor} if sensor else {})}
 
 
 def truth_from_options(physics) -> XYThetaTruth:
@@ -406,14 +357,6 @@ def truth_from_options(physics) -> XYThetaTruth:
 
 
 def options_off(*effects: str) -> dict:
-    """Rig options that switch off ``effects`` (names of :data:`EFFECTS`; all of them, the
-    lost motion and the gross errors when none is named) — for tests and studies on a rig
-    whose only errors are those a model represents."""
-    names = effects or tuple(EFFECTS)
-    out: dict = {} if effects else {"gross_error_rate": 0.0, "lost_motion": False}
-    defaults = XYThetaTruth()
-    for name in names:
-        for f in EFFECTS[name]:
-            value = _off(getattr(defaults, f))
-            out[f] = list(value) if isinstance(value, tuple) else value
-    return out
+    """Rig options that switch off ``effects`` (names of :data:`EFFECTS`; all of them when none
+    is named) — for tests and studies on a rig whose only errors are those a model represents."""
+    return EFFECTS.options_off(XYThetaTruth().as_dict(), *effects)

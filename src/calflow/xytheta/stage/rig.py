@@ -22,8 +22,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from calflow.errors import RigError
+from calflow.rigs.simulated.commands import joint_commands
 from calflow.xytheta.stage.physics import XYThetaTruth, check_options
+
+NAME = "simulated xytheta rig"  # how its errors name it
 
 __all__ = ["SimulatedXYTheta", "XYThetaTruth", "check_options", "simulated_xytheta"]
 
@@ -96,12 +98,7 @@ class SimulatedXYTheta:
         self._cmd = new
 
     def move(self, command: Mapping[str, float]) -> None:
-        if self._closed:
-            raise RigError("simulated xytheta rig: move() after close()")
-        try:
-            new = np.array([float(command[j]) for j in self.joints])
-        except KeyError as exc:
-            raise RigError(f"simulated xytheta rig: command lacks joint {exc.args[0]!r}") from None
+        new = joint_commands(NAME, "move", self._closed, self.joints, command)
         self._step(new)
         self._pose = self._attain(new)
 
@@ -152,12 +149,7 @@ class SimulatedXYTheta:
         the same readings (arrays by key), final state and random draws as those calls one
         by one, with the physics computed once over all rows (the acquisition runner's fast
         path for open-loop plans)."""
-        if self._closed:
-            raise RigError("simulated xytheta rig: visit() after close()")
-        try:
-            cmd = np.column_stack([np.asarray(commands[j], dtype=float) for j in self.joints])
-        except KeyError as exc:
-            raise RigError(f"simulated xytheta rig: command lacks joint {exc.args[0]!r}") from None
+        cmd = joint_commands(NAME, "visit", self._closed, self.joints, commands)
         n = len(cmd)
         dir_theta, lash, t_move, t_read = np.empty(n), np.empty((n, 2)), np.empty(n), np.empty(n)
         jitter, noise, u, w = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))

@@ -15,21 +15,21 @@ parameters to the bit.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from calflow import __version__
-from calflow.data.io import jsonable, sha256_file, write_json
+from calflow.data.io import jsonable
 from calflow.errors import DataError
+from calflow.rigs.simulated.bundle import provenance as provenance  # the export step calls it from here
+from calflow.rigs.simulated.bundle import read_bundle
+from calflow.rigs.simulated.bundle import write_bundle as write_bundle_json
 from calflow_hexapod.models.calibration import HexapodModel
 from calflow_hexapod.models.geometry import Geometry
 from calflow_hexapod.models.ladder import NAMES, Parameters, long_name, unit
 
 FORMAT = "calflow-hexapod-bundle"
 VERSION = 1
-BUNDLE = "bundle.json"
 NETCDF = "geometry.nc"
 
 CONVENTIONS = {
@@ -41,24 +41,6 @@ CONVENTIONS = {
     "command": "for a wanted reading M: legs l of P through the identified joints, lambda = l^-1(l), and the "
     "pose to command is the controller's forward kinematics of lambda (its nominal geometry, pivot)",
 }
-
-
-def provenance(model_path) -> dict:
-    """Where the model came from: the model file's metadata and hash, and this calflow."""
-    import xarray as xr
-
-    with xr.open_dataset(model_path, engine="netcdf4", decode_times=False) as ds:
-        attrs = dict(ds.attrs)
-    return {
-        "campaign": attrs.get("campaign"),
-        "config_sha256": attrs.get("config_sha256"),
-        "source": attrs.get("source"),
-        "model_created": attrs.get("created"),
-        "model_calflow_version": attrs.get("calflow_version"),
-        "export_calflow_version": __version__,
-        "model_file": Path(model_path).name,
-        "model_sha256": sha256_file(model_path),
-    }
 
 
 def _rows(a: np.ndarray) -> list:
@@ -106,31 +88,17 @@ def document(model: HexapodModel, prov: dict) -> dict:
 
 def write_bundle(model: HexapodModel, folder, prov: dict, meta) -> Path:
     """Write ``geometry.nc`` then ``bundle.json`` (last: the marker of a complete export)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    model.write(folder / NETCDF, meta)
-    return write_json(document(model, prov), folder / BUNDLE)
+
+    def content(folder: Path) -> dict:
+        model.write(folder / NETCDF, meta)
+        return document(model, prov)
+
+    return write_bundle_json(folder, content)
 
 
 def load(path) -> dict:
     """``bundle.json`` of a folder (or the file itself), checked for format, version and fields."""
-    path = Path(path)
-    path = path / BUNDLE if path.is_dir() else path
-    if not path.exists():
-        raise DataError(f"{path}: file not found")
-    try:
-        doc = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{path}: not JSON ({exc})") from None
-    if doc.get("format") != FORMAT or doc.get("version") != VERSION:
-        raise DataError(
-            f"{path}: fields 'format', 'version': expected {FORMAT!r} {VERSION}, "
-            f"got {doc.get('format')!r} {doc.get('version')!r}"
-        )
-    params = doc.get("parameters") or {}
-    for name in NAMES:
-        if not isinstance((params.get(name) or {}).get("value"), (int, float)):
-            raise DataError(f"{path}: field 'parameters.{name}.value': expected a number")
+    path, doc = read_bundle(path, FORMAT, VERSION, NAMES)
     pivot = (doc.get("controller") or {}).get("pivot_um")
     if not (isinstance(pivot, list) and len(pivot) == 3):
         raise DataError(f"{path}: field 'controller.pivot_um': expected 3 numbers (um)")

@@ -14,24 +14,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from calflow.rigs.simulated.bundle import Compensator as CompensatorShell
 from calflow_hexapod.export.bundle import read_model
 
 
-class Compensator:
+class Compensator(CompensatorShell):
     """The inverse of an exported hexapod model (µm, degree)."""
 
-    def __init__(self, model):
-        self.model = model
-
-    @classmethod
-    def load(cls, path) -> Compensator:
-        """From an export folder or its ``bundle.json``."""
-        return cls(read_model(path))
-
-    @property
-    def parameters(self) -> dict[str, float]:
-        """Every identified parameter (µm, degree, 1, 1/K) by name."""
-        return self.model.parameters.as_dict()
+    read_model = staticmethod(read_model)
 
     @property
     def pivot_um(self) -> np.ndarray:

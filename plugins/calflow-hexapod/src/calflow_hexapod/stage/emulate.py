@@ -14,17 +14,14 @@ limits and faults (:class:`calflow.gcs.emulator.Faults`).
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
-from calflow.errors import CalflowError
-from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
 from calflow.gcs.emulator import Faults, GCSEmulator
+from calflow.rigs.simulated.emulator import Emulator
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.stage.c887 import AXIS_IDS, SCALE, HexapodController
-from calflow_hexapod.stage.physics import truth_from_options
+from calflow_hexapod.stage.physics import HexapodTruth, truth_from_options
 from calflow_hexapod.stage.run_options import simulated_physics
 
 SENSOR = "simulated_tracker"  # the gcs rig's sensor, as the family registers it
@@ -39,20 +36,8 @@ def physics_options(campaign: Mapping[str, Any]) -> dict[str, Any]:
     return simulated_physics(dict(campaign)) or {}
 
 
-def campaign_emulator(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 1.0,
-    faults: Faults | None = None,
-) -> GCSEmulator:
-    """An (unstarted) emulator of the campaign's hexapod: the C-887 with the campaign's encoder
-    resolution and travel velocities."""
-    c = load_campaign_arg(campaign)
-    try:
-        truth = truth_from_options(physics_options(c))
-    except (TypeError, ValueError) as exc:
-        raise CalflowError(f"emulate gcs: campaign rig options: {exc}") from None
+def _controller(truth: HexapodTruth, c: dict, port: int, time_scale: float, faults: Faults | None):
+    """The C-887 with the campaign's encoder resolution and travel velocities."""
     controller = HexapodController(
         time_scale=time_scale,
         resolution_um=truth.encoder_resolution_um,
@@ -62,83 +47,24 @@ def campaign_emulator(
     return GCSEmulator(port=port, faults=faults, controller=controller)
 
 
-def rig_options(
-    address: tuple[str, int],
-    campaign: Mapping[str, Any],
-    *,
-    time_scale: float = 1.0,
-    timeout: float = 5.0,
-    tries: int = 5,
-    backoff_s: float = 0.2,
-) -> dict[str, Any]:
-    """Options of the ``gcs`` rig that drives a campaign emulator at ``address``."""
-    sensor = {
+EMULATOR = Emulator(
+    name="emulate gcs",
+    title="C-887 GCS emulator",
+    axes="axes X Y Z mm, U V W degree",
+    description="Serve a campaign's simulated hexapod as a C-887-class PI GCS 2.0 controller on 127.0.0.1.",
+    physics=lambda c: truth_from_options(physics_options(c)),
+    controller=_controller,
+    joint_axes=lambda c: JOINT_AXES,
+    sensor=lambda c: {
         "factory": SENSOR,
-        "options": {"seed": int(campaign.get("seed", 0)), "stream": "gcs", **physics_options(campaign)},
-    }
-    return link_options(
-        address,
-        JOINT_AXES,
-        sensor,
-        scale=SCALE,
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-    )
-
-
-def emulated_rig_options(
-    campaign: Mapping[str, Any] | str | Path,
-    *,
-    port: int = 0,
-    time_scale: float = 100.0,
-    timeout: float = 1.0,
-    tries: int = 5,
-    backoff_s: float = 0.05,
-    faults: Faults | None = None,
-) -> tuple[GCSEmulator, dict[str, Any]]:
-    """Start a campaign emulator; return it and the ``gcs`` rig options that drive it (for
-    tests: the caller stops it). The rig's ``time_scale`` equals the emulator's."""
-    return start_emulated(
-        campaign,
-        campaign_emulator,
-        rig_options,
-        port=port,
-        time_scale=time_scale,
-        timeout=timeout,
-        tries=tries,
-        backoff_s=backoff_s,
-        faults=faults,
-    )
-
-
-def emulate_main(
-    argv: list[str] | None = None,
-    stop_event: threading.Event | None = None,
-    prog: str = "calflow emulate gcs",
-) -> int:
-    """``calflow emulate gcs`` of a hexapod campaign: serve its C-887 until Ctrl-C or --duration."""
-
-    def banner(emu: GCSEmulator, c: dict, time_scale: float) -> str:
-        host, port = emu.address
-        return (
-            f"C-887 GCS emulator of campaign {c.get('name', '?')!r} on {host}:{port} "
-            f"(axes X Y Z mm, U V W degree; time scale {time_scale:g})"
-        )
-
-    return serve_campaign(
-        argv,
-        prog=prog,
-        stop_event=stop_event,
-        description="Serve a campaign's simulated hexapod as a C-887-class PI GCS 2.0 controller on 127.0.0.1.",
-        start=lambda c, port, ts: campaign_emulator(c, port=port, time_scale=ts).start(),
-        banner=banner,
-        rig_section=lambda emu, c, ts: {
-            "factory": "gcs",
-            "options": rig_options(emu.address, c, time_scale=ts),
-        },
-    )
+        "options": {"seed": int(c.get("seed", 0)), "stream": "gcs", **physics_options(c)},
+    },
+    link={"scale": SCALE},
+)
+campaign_emulator = EMULATOR.campaign_emulator  # (campaign, *, port, time_scale, faults): unstarted
+rig_options = EMULATOR.rig_options  # (address, campaign, *, time_scale, ...): the gcs rig's options
+emulated_rig_options = EMULATOR.emulated_rig_options  # started, with its rig options (tests)
+emulate_main = EMULATOR.main  # ``calflow emulate gcs`` of a hexapod campaign (the family's emulator)
 
 
 if __name__ == "__main__":

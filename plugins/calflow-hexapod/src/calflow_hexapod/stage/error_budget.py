@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.errors import CalflowError
+from calflow.rigs.simulated.budget import Replays, budget_command, decompose, effects_of, require_simulated
 from calflow_hexapod.models.calibration import HexapodModel, command
 from calflow_hexapod.models.geometry import AXES, h811
 from calflow_hexapod.models.identification import identify, run_inputs
@@ -35,7 +35,7 @@ from calflow_hexapod.models.ladder import LADDER
 from calflow_hexapod.plans import campaign as campaign_plans
 from calflow_hexapod.plans import design as design_plan
 from calflow_hexapod.plans.poses import validation
-from calflow_hexapod.stage.physics import EFFECTS, UNMODELLED, options_off, truth_from_options
+from calflow_hexapod.stage.physics import EFFECTS, options_off, truth_from_options
 from calflow_hexapod.stage.rig import simulated_hexapod, truth_parameters
 
 REPLAYS = ("baseline", *EFFECTS)  # "baseline": every effect off; any other: that effect off
@@ -47,8 +47,9 @@ def _options(c: dict) -> dict:
 
 def active_effects(c: dict) -> list[str]:
     """The effects the campaign's simulated rig has switched on."""
-    t = truth_from_options({k: v for k, v in _options(c).items() if k not in ("seed", "stream")})
-    return [e for e, fs in EFFECTS.items() if any(np.any(np.asarray(getattr(t, f)) != 0) for f in fs)]
+    return EFFECTS.active(
+        truth_from_options({k: v for k, v in _options(c).items() if k not in ("seed", "stream")})
+    )
 
 
 def replay_options(name: str) -> dict:
@@ -139,17 +140,13 @@ def replay_heldout(c: dict, overrides: dict, acquire=_acquire) -> dict[str, dict
     return out
 
 
+BUDGET = Replays(replay_options, active_effects, lambda c, options: replay_heldout(c, options))
+
+
 def replay(c: dict, name: str) -> dict:
     """One replay of the budget (:data:`REPLAYS`, or ``none``): per-target held-out AP by model,
     or ``active: false`` when the campaign's rig has that effect off already."""
-    if name not in ("baseline", "none") and name not in active_effects(c):
-        return {"replay": name, "active": False}
-    return {
-        "replay": name,
-        "active": True,
-        "options": replay_options(name),
-        "ap": replay_heldout(c, replay_options(name)),
-    }
+    return BUDGET.replay(c, name)
 
 
 def floor(c: dict, noise_of: str = "truth") -> dict:
@@ -175,51 +172,27 @@ def combine(heldout: dict[str, dict[str, list[float]]], records: list[dict]) -> 
     """The budget of every model from the campaign's own held-out per-target AP and the replays'
     (module docstring): per model and quantity (``um``, ``deg``), ``rms_ap`` and ``budget``
     (effect → signed entry, with ``baseline`` and ``interaction``); Σ sign·v² = rms_ap²."""
-    by = {r["replay"]: r for r in records if r.get("active")}
-    effects = [n for n in by if n not in ("baseline", "none")]
+    by, effects = effects_of(records)
     models: dict = {}
     for name, ap in heldout.items():
         models[name] = {}
         for unit in ("um", "deg"):
-
-            def ms(values):
-                return float(np.mean(np.asarray(values, dtype=float) ** 2))
-
-            full, base = ms(ap[f"ap_{unit}"]), ms(by["baseline"]["ap"][name][f"ap_{unit}"])
-            delta = {e: full - ms(by[e]["ap"][name][f"ap_{unit}"]) for e in effects}
-            budget = {
-                "baseline": float(np.sqrt(base)),
-                **{e: _signed_root(d) for e, d in delta.items()},
-                "interaction": _signed_root(full - base - sum(delta.values())),
-            }
-            models[name][unit] = {"rms_ap": float(np.sqrt(full)), "budget": budget}
-    unmodelled = [e for e in effects if set(EFFECTS[e]) & set(UNMODELLED)]
+            without = {e: by[e]["ap"][name][f"ap_{unit}"] for e in effects}
+            rms, budget = decompose(ap[f"ap_{unit}"], by["baseline"]["ap"][name][f"ap_{unit}"], without)
+            models[name][unit] = {"rms_ap": rms, "budget": budget}
+    unmodelled = [e for e in effects if not EFFECTS.modelled(e)]
     return {"effects": effects, "unmodelled": unmodelled, "models": models}
-
-
-def _signed_root(value: float) -> float:
-    return float(np.sign(value) * np.sqrt(abs(value)))
 
 
 def error_budget(c: dict, names=REPLAYS) -> dict:
     """The whole budget of a campaign on its simulated rig: the campaign's own held-out AP, each
     replay, their combination and the floor."""
-    if c["rig"]["factory"] != "simulated":
-        raise CalflowError(
-            f"campaign {c['name']}: key 'rig.factory': the error budget needs the simulated "
-            f"rig (it replays the calibration on the rig's truth), got {c['rig']['factory']!r}"
-        )
-    records = [replay(c, n) for n in names]
+    require_simulated(c, f"campaign {c['name']}")
+    records = BUDGET.run(c, names)
     full = replay(c, "none")["ap"]
     return {"campaign": c["name"], "replays": records, "budget": combine(full, records), "floor": floor(c)}
 
 
-def error_budget_command(args) -> None:
-    """``calflow error-budget --campaign FILE --out FILE.json`` for a hexapod campaign: the
-    budget's replays, combination and floor, written as JSON for the summary (tests and reports)."""
-    from calflow.commands.common import campaign as load
-    from calflow.data.io import output_folder, write_json
-
-    c = load(args.campaign)
-    output_folder(args.out)
-    write_json(error_budget(c), args.out)
+#: ``calflow hexapod-error-budget --campaign FILE --out FILE.json`` for a hexapod campaign: the
+#: budget's replays, combination and floor, written as JSON for the summary (tests and reports)
+error_budget_command = budget_command(lambda path, c, jobs: error_budget(c))

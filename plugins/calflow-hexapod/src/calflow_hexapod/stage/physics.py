@@ -36,28 +36,48 @@ noise from the rig's own seed. Lengths µm, angles degree, temperatures degC.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from calflow.errors import OptionError, UnknownOptionError
+from calflow.rigs.simulated.checks import Bounds, check_physics
+from calflow.rigs.simulated.effects import Effect, Effects, SwitchedTruth
 from calflow_hexapod.models.geometry import Geometry, h811, rotation
 
 G = 9.80665  # standard gravity, m/s²
-# no hexapod model represents these (the encoders' rounding is a deterministic function of each pose)
-UNMODELLED = ("joint_play_um", "payload_kg", "tracker_systematic_um", "encoder_resolution_um")
-
-
-def _off(value):
-    """The switched-off value of an effect's field: False, 0.0, or a tuple of zeros."""
-    if isinstance(value, bool):
-        return False
-    return tuple(0.0 for _ in value) if isinstance(value, tuple) else 0.0
+EFFECTS = (
+    Effects(  # each effect: the fields that switch it off, its source, whether a hexapod model represents it
+        {
+            "joint_errors": Effect(("joint_error_um",), "ISO 2768-f tolerances of the joints' features"),
+            "leg_offsets": Effect(("leg_offset_um",), "each leg's length at its reference switch"),
+            "leg_scale": Effect(("leg_scale_ppm",), "ISO 3408-3 class 3-5 ball screws"),
+            "joint_play": Effect(("joint_play_um",), "play of the drive train and joints", modelled=False),
+            "compliance": Effect(
+                ("payload_kg",), "H-811.I2 stiffness; Merlet 2006, Sec. 6.1", modelled=False
+            ),
+            "expansion": Effect(("expansion_ppm_per_degC",), "steel screws, 11.5 ppm/degC"),
+            # the encoders' rounding is a deterministic function of each pose, yet no model holds it
+            "quantisation": Effect(
+                ("encoder_resolution_um",), "H-811.I2: 5 nm design resolution", modelled=False
+            ),
+            "tracker_systematic": Effect(
+                ("tracker_systematic_um",),
+                "the tracker's systematic error (calflow_hexapod.stage.tracker)",
+                modelled=False,
+            ),
+        }
+    )
+)
+UNMODELLED = EFFECTS.unmodelled_fields  # the fields of the effects no hexapod model represents
 
 
 @dataclass(frozen=True)
-class HexapodTruth:
-    """True physics of the simulated hexapod (units in the field names)."""
+class HexapodTruth(SwitchedTruth):
+    """True physics of the simulated hexapod (units in the field names); ``unmodelled`` switches
+    the table's unmodelled effects (:data:`EFFECTS`)."""
+
+    EFFECTS: ClassVar[Effects] = EFFECTS
 
     # geometric errors about the nominal H-811-class geometry (calflow_hexapod.models.geometry.h811), drawn from geometry_seed
     geometry_seed: int = 811
@@ -104,18 +124,6 @@ class HexapodTruth:
     velocity_deg_s: float = 5.0
     settle_s: float = 0.3
     unmodelled: bool = True
-
-    def __post_init__(self) -> None:
-        if not self.unmodelled:  # one key switches off every effect no model represents
-            for name in UNMODELLED:
-                object.__setattr__(self, name, _off(getattr(self, name)))
-
-    def without(self, *effects: str) -> HexapodTruth:
-        """The same physics with ``effects`` (field names) switched off."""
-        return replace(self, **{name: _off(getattr(self, name)) for name in effects})
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
     # ------------------------------------------------------------------ geometry
     @staticmethod
@@ -212,16 +220,6 @@ class HexapodTruth:
         return legs + self.expansion(legs, leg_temperature_degC) + self.compliance(pose_guess)
 
 
-EFFECTS = {  # effect name → the fields that switch it off, for the error budget and the tests
-    "joint_errors": ("joint_error_um",),
-    "leg_offsets": ("leg_offset_um",),
-    "leg_scale": ("leg_scale_ppm",),
-    "joint_play": ("joint_play_um",),
-    "compliance": ("payload_kg",),
-    "expansion": ("expansion_ppm_per_degC",),
-    "quantisation": ("encoder_resolution_um",),
-    "tracker_systematic": ("tracker_systematic_um",),
-}
 NOISE = (
     "leg_repeatability_um",
     "tracker_adm_um",
@@ -232,81 +230,28 @@ NOISE = (
     "tracker_resolution_um",
 )  # random, not effects
 
-_POSITIVE = (
-    "stiffness_z_n_per_um",
-    "leg_lag_s",
-    "tracker_distance_m",
-    "velocity_um_s",
-    "velocity_deg_s",
+BOUNDS = Bounds(
+    positive=("stiffness_z_n_per_um", "leg_lag_s", "tracker_distance_m", "velocity_um_s", "velocity_deg_s"),
+    signed=(
+        "start_offset_s",
+        "payload_com_um",
+        "frame_offset_um",
+        "frame_rotation_deg",
+        "tool_offset_um",
+        "tool_rotation_deg",
+        "reference_temperature_degC",
+        "room_base_degC",
+    ),
+    default=">=",  # magnitudes
+    choices={"room_profile": ("constant", "metrology", "lab5day")},
 )
-_STRINGS = {"room_profile": ("constant", "metrology", "lab5day")}
-_INTEGERS = ("geometry_seed", "room_seed")
-_SIGNED = (
-    "start_offset_s",
-    "payload_com_um",
-    "frame_offset_um",
-    "frame_rotation_deg",
-    "tool_offset_um",
-    "tool_rotation_deg",
-    "reference_temperature_degC",
-    "room_base_degC",
-)
-
-
-def _number(key: str, value, bound: str | None) -> float:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    ok = ok and bool(np.isfinite(value)) and (bound is None or (value > 0 if bound == ">" else value >= 0))
-    if not ok:
-        raise OptionError(
-            key,
-            {
-                None: "a finite number",
-                ">": "a finite number > 0",
-                ">=": "a finite number >= 0",
-            }[bound],
-            value,
-        )
-    return float(value)
 
 
 def check_options(seed=0, stream: str = "", **physics) -> dict:
     """The options of the simulated hexapod checked and converted; raises :class:`OptionError`
     naming the option: unknown names, non-numbers, NaN/inf, negative magnitudes, non-positive
     sizes and velocities, switches that are not true/false, an unknown room profile."""
-    known = {f.name: f.default for f in fields(HexapodTruth)}
-    for key in physics:
-        if key not in known:
-            raise UnknownOptionError(key, f"expected one of: seed, stream, {', '.join(sorted(known))}")
-    for key in ("seed", *[k for k in _INTEGERS if k in physics]):
-        value = seed if key == "seed" else physics[key]
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise OptionError(key, "an integer >= 0", value)
-    if not isinstance(stream, str):
-        raise OptionError("stream", "a string", stream)
-    out: dict = {}
-    for key, value in physics.items():
-        default = known[key]
-        if key in _INTEGERS:
-            out[key] = int(value)
-        elif key in _STRINGS:
-            if value not in _STRINGS[key]:
-                raise OptionError(key, f"one of {', '.join(_STRINGS[key])}", value)
-            out[key] = value
-        elif isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise OptionError(key, "true or false", value)
-            out[key] = value
-        elif isinstance(default, tuple):
-            if not isinstance(value, (list, tuple)) or len(value) != len(default):
-                raise OptionError(key, f"a list of {len(default)} numbers", value)
-            out[key] = tuple(_number(key, v, None) for v in value)
-        else:
-            out[key] = _number(
-                key,
-                value,
-                ">" if key in _POSITIVE else None if key in _SIGNED else ">=",
-            )
-    return {"seed": int(seed), "stream": stream, **out}
+    return check_physics(HexapodTruth, BOUNDS, seed, stream, physics)
 
 
 def truth_from_options(physics) -> HexapodTruth:
@@ -319,10 +264,4 @@ def truth_from_options(physics) -> HexapodTruth:
 def options_off(*effects: str) -> dict:
     """Rig options that switch off ``effects`` (names of :data:`EFFECTS`; all of them when
     none is named) — a rig whose only errors are those a model represents, and noise."""
-    defaults = HexapodTruth()
-    out: dict = {}
-    for name in effects or tuple(EFFECTS):
-        for f in EFFECTS[name]:
-            value = _off(getattr(defaults, f))
-            out[f] = list(value) if isinstance(value, tuple) else value
-    return out
+    return EFFECTS.options_off(HexapodTruth().as_dict(), *effects)

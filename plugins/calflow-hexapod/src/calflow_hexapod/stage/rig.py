@@ -27,12 +27,15 @@ from collections.abc import Mapping
 import numpy as np
 
 from calflow.errors import RigError
+from calflow.rigs.simulated.commands import joint_commands
 from calflow.rigs.thermal import LagBank, room_profile
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.models.kinematics import forward, inverse
 from calflow_hexapod.stage import tracker
 from calflow_hexapod.stage.physics import HexapodTruth, check_options
 from calflow_hexapod.stage.workspace import reachable
+
+NAME = "simulated hexapod rig"  # how its errors name it
 
 __all__ = [
     "SENSORS",
@@ -148,12 +151,7 @@ class SimulatedHexapod:
         )
 
     def _command(self, command: Mapping[str, float]) -> np.ndarray:
-        if self._closed:
-            raise RigError("simulated hexapod rig: move() after close()")
-        try:
-            return np.array([float(command[j]) for j in self.joints])
-        except KeyError as exc:
-            raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
+        return joint_commands(NAME, "move", self._closed, self.joints, command)
 
     def _check_reachable(self, cmd: np.ndarray) -> None:
         """Refuse commands outside the workspace, as the C-887 does (GCS error 7)."""
@@ -205,12 +203,7 @@ class SimulatedHexapod:
         """``move`` to each row of ``commands`` (arrays by joint), ``wait(dwell_s)``, ``read``:
         the same readings, final state and random draws as those calls one by one, with the
         kinematics solved once over all rows (the acquisition runner's fast path)."""
-        if self._closed:
-            raise RigError("simulated hexapod rig: visit() after close()")
-        try:
-            cmd = np.column_stack([np.asarray(commands[j], dtype=float) for j in self.joints])
-        except KeyError as exc:
-            raise RigError(f"simulated hexapod rig: command lacks joint {exc.args[0]!r}") from None
+        cmd = joint_commands(NAME, "visit", self._closed, self.joints, commands)
         if len(cmd):
             self._check_reachable(cmd)
         n, s, rng = len(cmd), self._state, self._rng

@@ -9,6 +9,8 @@ gets the same seed, stream and start. Kept free of numerical imports.
 
 from __future__ import annotations
 
+from calflow.rigs.simulated.campaign import simulated_options
+
 SENSORS = ("simulated_tracker", "calflow_hexapod.stage.sensor:simulated_tracker")
 #: Run ids of the closed-loop runs through an exported bundle, and of the held-out runs.
 CLOSED_LOOP, HELDOUT = "closed_loop_", "validation_heldout_"
@@ -28,14 +30,7 @@ def simulated_physics(campaign: dict) -> dict | None:
     """The :class:`~calflow_hexapod.stage.physics.HexapodTruth` overrides of a campaign whose
     hexapod is simulated — the simulated rig's options, or the tracker sensor's options of a
     ``gcs`` rig (an emulated controller) — without seed, stream and pivot; None for a real rig."""
-    rig = campaign.get("rig") or {}
-    options = dict(rig.get("options") or {})
-    if rig.get("factory", "simulated") != "simulated":
-        sensor = options.get("sensor") or {}
-        if sensor.get("factory") not in SENSORS:
-            return None
-        options = dict(sensor.get("options") or {})
-    return {k: v for k, v in options.items() if k not in ("seed", "stream", "pivot_um", "start_offset_s")}
+    return simulated_options(campaign, SENSORS, ("seed", "stream", "pivot_um", "start_offset_s"))
 
 
 def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: float) -> dict:

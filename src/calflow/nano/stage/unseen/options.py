@@ -14,6 +14,7 @@ and, if it errs the thermocouples rather than the position, its name to :data:`T
 from __future__ import annotations
 
 from calflow.nano.stage.interferometer import HENE_VACUUM_UM
+from calflow.rigs.simulated.effects import Effect, Effects
 
 __all__ = ["UNSEEN", "UNSEEN_EFFECTS", "TC_ERRORS", "HEAT_SOURCES", "UNSEEN_POSITIVE", "UNSEEN_NON_NEGATIVE"]
 
@@ -51,23 +52,29 @@ UNSEEN = {
     "turbulence_mk": 3.0,  # rms temperature fluctuation of the air along the beam (shielded)
 }
 
-# effect -> the option(s) that switch it off (all of them 0)
-UNSEEN_EFFECTS = {
-    "piezo_heating": ("piezo_loss_factor",),
-    "electronics_heating": ("electronics_w",),
-    "lighting": ("lighting_w",),
-    "people": ("people_w",),
-    "mount_settling": ("mount_settling_nm_per_decade",),
-    "move_settling": ("move_settling_ppm_per_decade",),
-    "humidity_swelling": ("bond_swelling_nm_per_pct",),
-    "sensor_air": ("sensor_gap_um",),
-    "thermocouple_calibration": ("thermocouple_drift_mk_per_day",),
-    "reference_junction": ("cjc_lag_s",),
-    "junction_lag": ("junction_glue_tau_s",),
-    "laser_wander": ("laser_wander_ppm",),
-    "periodic_nonlinearity": ("periodic_error_nm",),
-    "turbulence": ("turbulence_mk",),
-}
+# effect -> the option(s) that switch it off (all of them 0), its source; no calflow model
+# represents any of them (docs/rigs.md has the laws and the figures)
+UNSEEN_EFFECTS = Effects(
+    {
+        name: Effect(fields, source, modelled=False)
+        for name, fields, source in (
+            ("piezo_heating", ("piezo_loss_factor",), "dielectric loss of the piezo stack (Noliac tutorial)"),
+            ("electronics_heating", ("electronics_w",), "a controller on the same table (assumption)"),
+            ("lighting", ("lighting_w",), "500 lx on the work plane, EN 12464-1"),
+            ("people", ("people_w",), "sensible heat of people, ASHRAE Handbook Fundamentals Ch. 18"),
+            ("mount_settling", ("mount_settling_nm_per_decade",), "log-time relaxation of bolted joints"),
+            ("move_settling", ("move_settling_ppm_per_decade",), "creep law of PI's piezo tutorial"),
+            ("humidity_swelling", ("bond_swelling_nm_per_pct",), "hygroscopic swelling of epoxy bonds"),
+            ("sensor_air", ("sensor_gap_um",), "refractivity of moist air, Smith & Weintraub 1953"),
+            ("thermocouple_calibration", ("thermocouple_drift_mk_per_day",), "NIST Monograph 175"),
+            ("reference_junction", ("cjc_lag_s",), "isothermal-block gradients of a logger's CJC"),
+            ("junction_lag", ("junction_glue_tau_s",), "a glued junction's contact (assumption)"),
+            ("laser_wander", ("laser_wander_ppm",), "Table 3.4, U1: its slow part"),
+            ("periodic_nonlinearity", ("periodic_error_nm",), "Table 3.4, U3; Bobroff 1993"),
+            ("turbulence", ("turbulence_mk",), "Bobroff, Appl. Opt. 26 (1987)"),
+        )
+    }
+)
 # effects that err the thermocouples' readings, not the position: the models see them
 # through their regressors (the error budget treats them so)
 TC_ERRORS = ("thermocouple_calibration", "reference_junction", "junction_lag")
