@@ -18,7 +18,6 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from calflow import __version__
 from calflow.data.io import (
     jsonable,  # noqa: F401 (re-exported)
     sha256_file,
@@ -27,6 +26,7 @@ from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
 from calflow.nano.robustness import robustness_by_mode
 from calflow.reference import declared
+from calflow.summary_routing import summary_head
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 
@@ -227,12 +227,7 @@ def unsupported_sections(robot: str, plans, temperatures: bool, budget: bool = T
 
 def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str]) -> dict:
     return {
-        "campaign": campaign["name"],
-        "robot": robot,
-        "description": campaign.get("description", ""),
-        "calflow_version": __version__,
-        "seed": campaign.get("seed"),
-        "rig": (campaign.get("rig") or {}).get("factory"),
+        **summary_head(campaign, robot),
         "models": models,
         "budget": _budget(budget),
         "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
