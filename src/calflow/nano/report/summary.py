@@ -273,20 +273,19 @@ def stage1d_summary(
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
     the ``validation_run`` is given (stabilisation time and overshoot from ``step_response_run``).
     """
-    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage1d", models, budget, inputs)
-    summary.update(
-        intrinsic=_headline(metrology_metrics) if metrology_metrics is not None else None,
-        training=_headline(training_metrics) if training_metrics is not None else None,
-        validation=validation,
-        tests=tests,
-        robustness=robustness,
+    summary["intrinsic"] = _headline(metrology_metrics) if metrology_metrics is not None else None
+    return _validated(
+        summary,
+        campaign,
+        validation_metrics,
+        training_metrics,
+        training_range_c,
+        validation_run,
+        step_response_run,
+        error_budget,
         iso230_2=iso230_2,
     )
-    if validation_run is not None:
-        summary["iso9283"] = iso9283_block(validation_run, step_response_run)
-    _physics_blocks(summary, error_budget, campaign)
-    return jsonable(summary)
 
 
 def stage2d_summary(
@@ -306,13 +305,39 @@ def stage2d_summary(
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = the declared values (``thesis-sec5.4``), or ``{}``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
+    return _validated(
+        _common(campaign, "stage2d", models, budget, inputs),
+        campaign,
+        validation_metrics,
+        training_metrics,
+        training_range_c,
+        validation_run,
+        step_response_run,
+        error_budget,
+    )
+
+
+def _validated(
+    summary: dict,
+    campaign: dict,
+    validation_metrics: xr.Dataset | None,
+    training_metrics: xr.Dataset | None,
+    training_range_c: tuple[float, float] | None,
+    validation_run: xr.Dataset | None,
+    step_response_run: xr.Dataset | None,
+    error_budget: dict | None,
+    **more,
+) -> dict:
+    """The blocks both nano summaries hold after their own: ``training``, ``validation``,
+    ``tests``, ``robustness`` (:func:`_validation`), ``more`` as given, ``iso9283`` when
+    the ``validation_run`` is given and the rig physics' blocks; as JSON values."""
     tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
-    summary = _common(campaign, "stage2d", models, budget, inputs)
     summary.update(
         training=_headline(training_metrics) if training_metrics is not None else None,
         validation=validation,
         tests=tests,
         robustness=robustness,
+        **more,
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run, step_response_run)
