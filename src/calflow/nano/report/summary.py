@@ -275,17 +275,8 @@ def stage1d_summary(
     """
     summary = _common(campaign, "stage1d", models, budget, inputs)
     summary["intrinsic"] = _headline(metrology_metrics) if metrology_metrics is not None else None
-    return _validated(
-        summary,
-        campaign,
-        validation_metrics,
-        training_metrics,
-        training_range_c,
-        validation_run,
-        step_response_run,
-        error_budget,
-        iso230_2=iso230_2,
-    )
+    runs = (validation_metrics, training_metrics, training_range_c, validation_run, step_response_run)
+    return _validated(summary, campaign, *runs, error_budget, iso230_2=iso230_2)
 
 
 def stage2d_summary(
@@ -305,16 +296,9 @@ def stage2d_summary(
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = the declared values (``thesis-sec5.4``), or ``{}``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
-    return _validated(
-        _common(campaign, "stage2d", models, budget, inputs),
-        campaign,
-        validation_metrics,
-        training_metrics,
-        training_range_c,
-        validation_run,
-        step_response_run,
-        error_budget,
-    )
+    summary = _common(campaign, "stage2d", models, budget, inputs)
+    runs = (validation_metrics, training_metrics, training_range_c, validation_run, step_response_run)
+    return _validated(summary, campaign, *runs, error_budget)
 
 
 def _validated(
