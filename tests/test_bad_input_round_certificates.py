@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 import pytest
-from test_bad_input_campaigns import _project
+from test_bad_input_campaigns import _project, assert_refused_by_check_config
 
 from calflow.cli import main
 
@@ -137,12 +137,7 @@ def test_a_bad_certificate_setting_is_refused_by_check_config(tmp_path, monkeypa
     for robot in ("nano1d", "nano2d"):  # a nano stage for each nano family's figures
         base = (folder / f"{robot}-thesis.yaml").read_text(encoding="utf-8")
         (folder / f"{robot}-stage.yaml").write_text(base + "stage: NX-1\n", encoding="utf-8")
-    (tmp_path / "config" / "config.yaml").write_text(text, encoding="utf-8")
-    status = main(["check-config", "config/config.yaml"])
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert status != 0 and len(err) == 1 and "config/config.yaml" in err[0], err
-    for part in expected:
-        assert part in err[0], err[0]
+    assert_refused_by_check_config(tmp_path, capsys, text, expected)
 
 
 def test_the_default_certificate_settings_pass_check_config(tmp_path, monkeypatch, capsys):
