@@ -588,6 +588,12 @@ def test_a_bad_workflow_config_is_refused_by_check_config_in_one_line(
     tmp_path, monkeypatch, capsys, text, expected
 ):
     _project(tmp_path, monkeypatch)
+    assert_refused_by_check_config(tmp_path, capsys, text, expected)
+
+
+def assert_refused_by_check_config(tmp_path, capsys, text: str, expected) -> None:
+    """``calflow check-config`` of ``text`` as config/config.yaml fails in one line naming the
+    file, with every part of ``expected``."""
     (tmp_path / "config" / "config.yaml").write_text(text, encoding="utf-8")
     status = main(["check-config", "config/config.yaml"])
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]

@@ -386,7 +386,7 @@ def test_a_key_with_a_line_break_is_named_in_one_line(tmp_path, key):
 
     import yaml
 
-    from calflow.config import load_campaign
+    from calflow.campaign import load as load_campaign
     from calflow.errors import CalflowError
 
     c = copy.deepcopy(SMALL_XYTHETA)

@@ -169,14 +169,19 @@ def _sub(sub, name, func, help_):
     return p
 
 
+def _required(p, *options: str) -> None:
+    """Options ``p`` cannot run without (each one value)."""
+    for option in options:
+        p.add_argument(option, required=True)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calflow", description=__doc__.splitlines()[0])
     p.add_argument("--version", action="version", version=f"calflow {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     a = _sub(sub, "acquire", cmd_acquire, "run a plan on the campaign's rig and write the run dataset")
-    a.add_argument("--campaign", required=True)
-    a.add_argument("--plan", required=True)
+    _required(a, "--campaign", "--plan")
     a.add_argument("--model", action="append", help="model file(s) whose inverse commands the run")
     a.add_argument("--out", required=True)
     a.add_argument("--truth", help="where to write the rig's truth (simulated rigs), for tests and reports")
@@ -189,15 +194,12 @@ def parser() -> argparse.ArgumentParser:
     )
 
     i = _sub(sub, "identify", cmd_identify, "identify one calibration model")
-    i.add_argument("--campaign", required=True)
-    i.add_argument("--model-name", required=True)
+    _required(i, "--campaign", "--model-name")
     i.add_argument("--run", help="the run the model is identified from (its family's identification run)")
     i.add_argument("--out", required=True)
 
     m = _sub(sub, "metrics", cmd_metrics, "ISO 9283 accuracy and repeatability of a run")
-    m.add_argument("--campaign", required=True)
-    m.add_argument("--run", required=True)
-    m.add_argument("--out", required=True)
+    _required(m, "--campaign", "--run", "--out")
 
     s = _sub(sub, "summarise", cmd_summarise, "write the campaign's summary.json")
     s.add_argument("--campaign", required=True)
@@ -215,8 +217,7 @@ def parser() -> argparse.ArgumentParser:
     )
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
-    r.add_argument("--campaign", required=True)
-    r.add_argument("--summary", required=True)
+    _required(r, "--campaign", "--summary")
     r.add_argument("--files", nargs="*", help="run, table and metrics files the figures draw on")
     r.add_argument("--html", required=True)
     r.add_argument("--pdf")
@@ -251,9 +252,7 @@ def parser() -> argparse.ArgumentParser:
         _run("calflow.certificate.page:run"),
         "render a campaign's certificate (HTML and PDF): U, decisions, as found and as left",
     )
-    ce.add_argument("--campaign", required=True)
-    ce.add_argument("--summary", required=True)
-    ce.add_argument("--html", required=True)
+    _required(ce, "--campaign", "--summary", "--html")
     ce.add_argument("--pdf")
     ce.add_argument(
         "--sections",
@@ -268,8 +267,7 @@ def parser() -> argparse.ArgumentParser:
     ic.add_argument(
         "--mapping", required=True, help="YAML file: which column gives which run variable (docs/data.md)"
     )
-    ic.add_argument("--campaign", required=True)
-    ic.add_argument("--out", required=True)
+    _required(ic, "--campaign", "--out")
 
     ir = _sub(
         sub,
@@ -286,8 +284,7 @@ def parser() -> argparse.ArgumentParser:
     )
     ir.add_argument("--mapping", help="column mapping of a csv recording")
     ir.add_argument("--plan", required=True, help="the run's plan (e.g. metrology, training)")
-    ir.add_argument("--campaign", required=True)
-    ir.add_argument("--out", required=True)
+    _required(ir, "--campaign", "--out")
 
     dr = _sub(
         sub,

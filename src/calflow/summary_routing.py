@@ -6,14 +6,30 @@ A campaign's summary is assembled from its result files, recognised by their att
 feeds, as ``"kind:plan"`` (one plan) or ``"kind"`` (any plan of that kind, when no
 ``"kind:plan"`` entry matches), e.g. ``{"model": "models", "metrics:validation":
 "reference_targets"}``. :func:`route` opens the files once and groups them by section, so
-the family's summary reads sections, not an if/elif chain over plan names.
+the family's summary reads sections, not an if/elif chain over plan names;
+:func:`summary_head` is the part every summary shares.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
+from calflow import __version__
 from calflow.errors import DataError
+
+
+def summary_head(campaign: Mapping, robot: str | None = None) -> dict:
+    """The fields every campaign summary opens with: the campaign's name, its robot (the
+    campaign's unless a family names its own), description, the calflow version that wrote
+    it, the seed and the rig's factory."""
+    return {
+        "campaign": campaign["name"],
+        "robot": campaign["robot"] if robot is None else robot,
+        "description": campaign.get("description", ""),
+        "calflow_version": __version__,
+        "seed": campaign.get("seed"),
+        "rig": (campaign.get("rig") or {}).get("factory"),
+    }
 
 
 def section_of(kind: str | None, plan: str | None, sections: Mapping[str, str]) -> str | None:

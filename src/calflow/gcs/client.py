@@ -24,6 +24,7 @@ from typing import Any
 
 from tenacity import RetryError, Retrying, retry_if_exception_type, stop_after_attempt, wait_exponential
 
+from calflow.gcs.datarecorder import RecorderCommands
 from calflow.gcs.protocol import (
     MOTION_STATUS,
     READY_STATUS,
@@ -59,8 +60,12 @@ def _axis_list(axes: Axes) -> list[str]:
     return [check_axis(axes)] if isinstance(axes, str) else [check_axis(a) for a in axes]
 
 
-class GCSController:
-    """A GCS 2.0 controller (e.g. C-863 Mercury, E-709/E-727 piezo) seen through a transport."""
+class GCSController(RecorderCommands):
+    """A GCS 2.0 controller (e.g. C-863 Mercury, E-709/E-727 piezo) seen through a transport.
+
+    The data recorder's commands (``DRC``, ``DRT``, ``DRL?``, ``DRR?``) come from
+    :class:`calflow.gcs.datarecorder.RecorderCommands`.
+    """
 
     def __init__(self, opener: Callable[[], Transport], timeout: float = 5.0) -> None:
         self.timeout = float(timeout)
@@ -332,36 +337,6 @@ class GCSController:
     def set_parameter(self, axis: str, pid: int, value: float) -> None:
         """``SPA <axis> <pid> <value>`` (volatile memory), then the ERR? check."""
         self.command("SPA", check_axis(axis), f"0x{int(pid):X}", float(value), axes=[axis])
-
-    # ------------------------------------------------------------------ data recorder
-    def configure_recorder(self, tables: Mapping[int, tuple[str, int]], rate: int | None = None) -> None:
-        """``DRC`` table -> (axis, option: 1 target, 2 current position); ``RTR`` rate."""
-        args = [x for t, (axis, opt) in tables.items() for x in (int(t), check_axis(axis), int(opt))]
-        self.command("DRC", *args)
-        if rate is not None:
-            self.command("RTR", int(rate))
-
-    def arm_recorder(self, trigger: int = 2) -> None:
-        """``DRT 0 <trigger> 0``: 2 starts recording with the next command (the ERR? check)."""
-        self.command("DRT", 0, int(trigger), 0)
-
-    def recorded_points(self, table: int = 1) -> int:
-        """``DRL? <table>``: points recorded so far."""
-        return parse_axis_values(self.query("DRL?", int(table)), int, command="DRL?")[str(table)]
-
-    def read_recorder(
-        self, tables: Iterable[int], first: int = 1, count: int | None = None
-    ) -> tuple[dict[str, str], Any]:
-        """``DRR?``: (header, points x tables array) in the GCS array format."""
-        from calflow.gcs.datarecorder import parse_array
-
-        tables = [int(t) for t in tables]
-        n = self.recorded_points(tables[0]) - first + 1 if count is None else int(count)
-        lines = self.query("DRR?", int(first), n, *tables)
-        try:
-            return parse_array(lines)
-        except ValueError as exc:
-            raise GCSProtocolError(f"reply to DRR?: {exc}", command="DRR?") from None
 
     def wait_on_target(
         self, timeout: float = 30.0, poll: float = 0.05, axes: Axes = None

@@ -17,15 +17,19 @@ descriptions DRC, DRC?, DRT, DRT?, RTR, RTR?, DRL?, DRR?, TNR?):
   spaces; every line but the last ends with "SP LF" (MS249E §8.2).
 
 :func:`format_array` and :func:`parse_array` are the two sides of that format; the
-recorder state (:class:`DataRecorder`) is pure and driven by the emulated controller.
+recorder state (:class:`DataRecorder`) is pure and driven by the emulated controller;
+:class:`RecorderCommands` sends the commands from the client's side.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from calflow.gcs.protocol import GCSProtocolError, check_axis, parse_axis_values
 
 OPTIONS = {0: "Nothing", 1: "Target Position", 2: "Current Position"}
 
@@ -142,3 +146,38 @@ def parse_array(lines: list[str]) -> tuple[dict[str, str], np.ndarray]:
     if "NDATA" in header and int(header["NDATA"]) != len(rows):
         raise ValueError(f"GCS array: NDATA = {header['NDATA']} but {len(rows)} rows")
     return header, data
+
+
+class RecorderCommands:
+    """The data recorder as a client drives it: ``DRC``/``RTR``, ``DRT``, ``DRL?``, ``DRR?``.
+
+    A mixin of :class:`calflow.gcs.client.GCSController`, which provides ``command`` (a
+    non-query command followed by the ``ERR?`` check) and ``query`` (reply lines).
+    """
+
+    def configure_recorder(self, tables: Mapping[int, tuple[str, int]], rate: int | None = None) -> None:
+        """``DRC`` table -> (axis, option: 1 target, 2 current position); ``RTR`` rate."""
+        args = [x for t, (axis, opt) in tables.items() for x in (int(t), check_axis(axis), int(opt))]
+        self.command("DRC", *args)
+        if rate is not None:
+            self.command("RTR", int(rate))
+
+    def arm_recorder(self, trigger: int = 2) -> None:
+        """``DRT 0 <trigger> 0``: 2 starts recording with the next command (the ERR? check)."""
+        self.command("DRT", 0, int(trigger), 0)
+
+    def recorded_points(self, table: int = 1) -> int:
+        """``DRL? <table>``: points recorded so far."""
+        return parse_axis_values(self.query("DRL?", int(table)), int, command="DRL?")[str(table)]
+
+    def read_recorder(
+        self, tables: Iterable[int], first: int = 1, count: int | None = None
+    ) -> tuple[dict[str, str], np.ndarray]:
+        """``DRR?``: (header, points x tables array) in the GCS array format."""
+        tables = [int(t) for t in tables]
+        n = self.recorded_points(tables[0]) - first + 1 if count is None else int(count)
+        lines = self.query("DRR?", int(first), n, *tables)
+        try:
+            return parse_array(lines)
+        except ValueError as exc:
+            raise GCSProtocolError(f"reply to DRR?: {exc}", command="DRR?") from None

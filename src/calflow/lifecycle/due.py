@@ -98,15 +98,10 @@ def due_date(
         + ([np.zeros_like(grid)] if offset else [])
         + [grid]
     )
-    frame = fit.get_prediction(Xg).summary_frame(alpha=2 * (1 - reliability))
-    upper = frame["obs_ci_upper"].to_numpy()
-    hit = np.flatnonzero(upper >= tolerance_um)
-    # the projection the report draws: mean and upper bound weekly, up to the due date or a year
-    end = int(hit[0]) if hit.size else min(365, grid.size - 1)
-    weeks = np.unique(np.r_[np.arange(0, end + 1, 7), end])
+    mean, upper, hit, weeks = bound_crossing(fit, Xg, grid.size, reliability, tolerance_um)
     base["trend"] = {
         "dates": [(t0 + dt.timedelta(days=float(grid[i]))).date().isoformat() for i in weeks],
-        "mean_um": frame["mean"].to_numpy()[weeks].tolist(),
+        "mean_um": mean[weeks].tolist(),
         "upper_um": upper[weeks].tolist(),
     }
     if hit.size == 0:
@@ -131,3 +126,21 @@ def due_date(
         "days_after_last": after,
         "statement": f"the upper {reliability:.0%} prediction bound reaches {tolerance_um:g} µm {words}",
     }
+
+
+def bound_crossing(fit, Xg: np.ndarray, days: int, reliability: float, tolerance_um: float, offset_um=None):
+    """Where the one-sided upper prediction bound of an OLS drift fit first reaches the
+    tolerance, on a grid of ``days`` whole days (the rows of the design matrix ``Xg``).
+
+    Returns ``(mean, upper, hit, weeks)``: the predicted mean and upper bound at each day
+    (µm; ``offset_um`` added to both when given, e.g. an as-left value under a drift), the
+    indices where the bound is at or above ``tolerance_um`` and the weekly indices the
+    report draws, up to the first crossing or a year.
+    """
+    frame = fit.get_prediction(Xg).summary_frame(alpha=2 * (1 - reliability))
+    mean, upper = frame["mean"].to_numpy(), frame["obs_ci_upper"].to_numpy()
+    if offset_um is not None:
+        mean, upper = offset_um + mean, offset_um + upper
+    hit = np.flatnonzero(upper >= tolerance_um)
+    end = int(hit[0]) if hit.size else min(365, days - 1)
+    return mean, upper, hit, np.unique(np.r_[np.arange(0, end + 1, 7), end])

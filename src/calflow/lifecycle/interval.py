@@ -34,6 +34,8 @@ import datetime as dt
 import numpy as np
 from scipy import optimize, stats
 
+from calflow.lifecycle.due import bound_crossing
+
 VARIABLES = (
     "NCSLI RP-1 variables method (V1): OLS through the origin of as-found minus as-left on the days "
     "since the adjustment, pooled over the stage's intervals (a level per detected change, an offset "
@@ -150,14 +152,10 @@ def variables(
     grid = np.arange(0.0, horizon_days + 1.0, 1.0)
     Xg = np.zeros((grid.size, X.shape[1]))
     Xg[:, 0] = grid
-    frame = fit.get_prediction(Xg).summary_frame(alpha=2 * (1 - reliability))
-    bound = as_left_um + frame["obs_ci_upper"].to_numpy()
-    hit = np.flatnonzero(bound >= tolerance_um)
-    end = int(hit[0]) if hit.size else min(365, grid.size - 1)
-    weeks = np.unique(np.r_[np.arange(0, end + 1, 7), end])
+    mean, bound, hit, weeks = bound_crossing(fit, Xg, grid.size, reliability, tolerance_um, as_left_um)
     out["trend"] = {
         "days": grid[weeks].tolist(),
-        "mean_um": (as_left_um + frame["mean"].to_numpy()[weeks]).tolist(),
+        "mean_um": mean[weeks].tolist(),
         "upper_um": bound[weeks].tolist(),
     }
     if hit.size == 0:

@@ -79,17 +79,10 @@ class SPRT:
         for i, s in enumerate(steps):
             if not looks[i]:
                 continue
-            if s >= high:
+            decision = "recalibrate" if s >= high else "within tolerance" if s <= low else None
+            if decision is not None:
                 return {
-                    "decision": "recalibrate",
-                    "visits": i + 1,
-                    "planned": planned,
-                    "llr": float(s),
-                    "bounds": [low, high],
-                }
-            if s <= low:
-                return {
-                    "decision": "within tolerance",
+                    "decision": decision,
                     "visits": i + 1,
                     "planned": planned,
                     "llr": float(s),

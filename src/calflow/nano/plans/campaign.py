@@ -71,19 +71,25 @@ def _controller(plan, c: dict, args):
     return nano_validation_controller(plan, args.model or [], c)
 
 
-def validation_1d(c: dict, args) -> Acquisition:
-    """The five-day validation: every test through each mode's run-time controller (Fig. 5.9)."""
+def _validation(sequence, targets, c: dict, args) -> Acquisition:
+    """The validation ``sequence`` (1-DoF or 2-DoF) over ``targets`` as the campaign's
+    ``validation`` section sets it, every test through its mode's run-time controller."""
     v = c["validation"]
-    plan = plans.validation_1d(
-        _grid(v),
-        v["cycles"],
-        v["dwell_s"],
-        v["tests"],
-        tuple(v["order"]),
-        v["average_last_s"],
+    plan = sequence(
+        targets,
+        cycles=v["cycles"],
+        dwell_s=v["dwell_s"],
+        tests=v["tests"],
+        order=tuple(v["order"]),
+        average_last_s=v["average_last_s"],
         start_s=v["start_h"] * 3600.0,
     )
     return Acquisition(plan, "validation", controller=_controller(plan, c, args))
+
+
+def validation_1d(c: dict, args) -> Acquisition:
+    """The five-day validation: every test through each mode's run-time controller (Fig. 5.9)."""
+    return _validation(plans.validation_1d, _grid(c["validation"]), c, args)
 
 
 def training_2d(c: dict, args) -> Acquisition:
@@ -109,16 +115,7 @@ def training_2d(c: dict, args) -> Acquisition:
 def validation_2d(c: dict, args) -> Acquisition:
     """The six validation points of Sec. 5.4.2 (Fig. 5.22) through the run-time controllers."""
     v = c["validation"]
-    plan = plans.validation_2d(
-        np.asarray(v["points_um"], dtype=float),
-        v["cycles"],
-        v["tests"],
-        v["dwell_s"],
-        tuple(v["order"]),
-        v["average_last_s"],
-        start_s=v["start_h"] * 3600.0,
-    )
-    return Acquisition(plan, "validation", controller=_controller(plan, c, args))
+    return _validation(plans.validation_2d, np.asarray(v["points_um"], dtype=float), c, args)
 
 
 def step_response(c: dict, args) -> Acquisition:

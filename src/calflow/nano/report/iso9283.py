@@ -118,24 +118,19 @@ def _distance(meas, tgt, cycle, pose, test, tests):
         }
     over = "pair of poses and test with the largest value"
     return {
-        "AD": _entry(
-            ad[0] * NM_PER_UM,
+        key: _entry(
+            value * NM_PER_UM,
             "nm",
-            "7.4.1",
-            pair_targets_um=ad[1],
-            test=ad[2],
-            command_distance_um=ad[3],
-            over=over + " in magnitude (signed)",
-        ),
-        "RD": _entry(
-            rd[0] * NM_PER_UM,
-            "nm",
-            "7.4.2",
-            pair_targets_um=rd[1],
-            test=rd[2],
-            command_distance_um=rd[3],
-            over=over,
-        ),
+            clause,
+            pair_targets_um=pair,
+            test=test,
+            command_distance_um=distance,
+            over=o,
+        )
+        for key, (value, pair, test, distance), clause, o in (
+            ("AD", ad, "7.4.1", over + " in magnitude (signed)"),
+            ("RD", rd, "7.4.2", over),
+        )
     }
 
 

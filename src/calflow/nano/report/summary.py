@@ -18,7 +18,6 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from calflow import __version__
 from calflow.data.io import (
     jsonable,  # noqa: F401 (re-exported)
     sha256_file,
@@ -27,6 +26,7 @@ from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
 from calflow.nano.robustness import robustness_by_mode
 from calflow.reference import declared
+from calflow.summary_routing import summary_head
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
 
@@ -227,12 +227,7 @@ def unsupported_sections(robot: str, plans, temperatures: bool, budget: bool = T
 
 def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str]) -> dict:
     return {
-        "campaign": campaign["name"],
-        "robot": robot,
-        "description": campaign.get("description", ""),
-        "calflow_version": __version__,
-        "seed": campaign.get("seed"),
-        "rig": (campaign.get("rig") or {}).get("factory"),
+        **summary_head(campaign, robot),
         "models": models,
         "budget": _budget(budget),
         "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
@@ -278,20 +273,10 @@ def stage1d_summary(
     RD, dAP, dRP, stabilisation time, overshoot per test type, :func:`iso9283_block`) when
     the ``validation_run`` is given (stabilisation time and overshoot from ``step_response_run``).
     """
-    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage1d", models, budget, inputs)
-    summary.update(
-        intrinsic=_headline(metrology_metrics) if metrology_metrics is not None else None,
-        training=_headline(training_metrics) if training_metrics is not None else None,
-        validation=validation,
-        tests=tests,
-        robustness=robustness,
-        iso230_2=iso230_2,
-    )
-    if validation_run is not None:
-        summary["iso9283"] = iso9283_block(validation_run, step_response_run)
-    _physics_blocks(summary, error_budget, campaign)
-    return jsonable(summary)
+    summary["intrinsic"] = _headline(metrology_metrics) if metrology_metrics is not None else None
+    runs = (validation_metrics, training_metrics, training_range_c, validation_run, step_response_run)
+    return _validated(summary, campaign, *runs, error_budget, iso230_2=iso230_2)
 
 
 def stage2d_summary(
@@ -311,13 +296,32 @@ def stage2d_summary(
     single>`` (AP/RP over x, y in nm, :func:`mode_block`), ``robustness`` as for 1-DoF,
     ``training`` (training-run AP/RP) when given, ``reference`` = the declared values (``thesis-sec5.4``), or ``{}``,
     ``iso9283`` (:func:`iso9283_block`) when the ``validation_run`` is given."""
-    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary = _common(campaign, "stage2d", models, budget, inputs)
+    runs = (validation_metrics, training_metrics, training_range_c, validation_run, step_response_run)
+    return _validated(summary, campaign, *runs, error_budget)
+
+
+def _validated(
+    summary: dict,
+    campaign: dict,
+    validation_metrics: xr.Dataset | None,
+    training_metrics: xr.Dataset | None,
+    training_range_c: tuple[float, float] | None,
+    validation_run: xr.Dataset | None,
+    step_response_run: xr.Dataset | None,
+    error_budget: dict | None,
+    **more,
+) -> dict:
+    """The blocks both nano summaries hold after their own: ``training``, ``validation``,
+    ``tests``, ``robustness`` (:func:`_validation`), ``more`` as given, ``iso9283`` when
+    the ``validation_run`` is given and the rig physics' blocks; as JSON values."""
+    tests, validation, robustness = _validation(validation_metrics, training_metrics, training_range_c)
     summary.update(
         training=_headline(training_metrics) if training_metrics is not None else None,
         validation=validation,
         tests=tests,
         robustness=robustness,
+        **more,
     )
     if validation_run is not None:
         summary["iso9283"] = iso9283_block(validation_run, step_response_run)

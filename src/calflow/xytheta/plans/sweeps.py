@@ -182,20 +182,9 @@ def square(
     segment = (pose - 1) // N (0 AB, 1 BC, 2 CD, 3 DA). Direction column: 0.
     """
     t = square_targets(side_um, origin_um, points_per_segment)
-    m = len(t)
     if cycles < 1:
         raise ValueError(f"square.cycles: expected at least 1, got {cycles}")
-    tt = np.tile(t, (cycles, 1))
-    return _xy_plan(
-        "square",
-        tt[:, 0],
-        tt[:, 1],
-        np.tile(np.arange(1, m + 1), cycles),
-        np.repeat(np.arange(cycles), m),
-        compensate,
-        directions,
-        dwell_s,
-    )
+    return _cycled(t, cycles, "square", compensate, directions, dwell_s)
 
 
 def random_points(
@@ -215,10 +204,18 @@ def random_points(
         raise ValueError(f"random_points.targets: expected rows of [x_um, y_um], got shape {t.shape}")
     if cycles < 1:
         raise ValueError(f"random_points.cycles: expected at least 1, got {cycles}")
+    return _cycled(t, cycles, "random_points", compensate, directions, dwell_s)
+
+
+def _cycled(
+    t: np.ndarray, cycles: int, kind: str, compensate: Compensate | None, directions: str, dwell_s: float
+) -> Plan:
+    """The M targets ``t`` (M, 2) visited in sequence ``cycles`` times: pose i is target i
+    (1..M), cycle c (0-based)."""
     m = len(t)
     tt = np.tile(t, (cycles, 1))
     return _xy_plan(
-        "random_points",
+        kind,
         tt[:, 0],
         tt[:, 1],
         np.tile(np.arange(1, m + 1), cycles),

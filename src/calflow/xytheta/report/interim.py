@@ -28,10 +28,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from calflow import __version__, layout
+from calflow import layout
 from calflow.errors import CalflowError, ConfigError
 from calflow.lifecycle.sprt import SPRT
 from calflow.reference import declared
+from calflow.summary_routing import summary_head
 
 # the check's rig time budget, a run's rig time and H0, defined beside the check at load
 from calflow.xytheta.plans.interim_load import BUDGET, reference_rms_um, rig_time_s, visit_errors  # noqa: F401
@@ -137,12 +138,7 @@ def interim_summary(campaign: dict, files: list[str], truth: dict | None = None)
         "reference": ref,
     }
     summary = {
-        "campaign": name,
-        "robot": campaign["robot"],
-        "description": campaign.get("description", ""),
-        "calflow_version": __version__,
-        "seed": campaign["seed"],
-        "rig": campaign["rig"]["factory"],
+        **summary_head(campaign),
         "start": campaign["start"],
         "stage": campaign.get("stage"),
         "models": {},

@@ -12,10 +12,9 @@ import json
 import numpy as np
 import xarray as xr
 
-from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
 from calflow.reference import declared
-from calflow.summary_routing import route
+from calflow.summary_routing import route, summary_head
 from calflow.xytheta.family import FAMILY
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS
 from calflow.xytheta.report.heldout import adequacy, disjointness, repeatability_floor
@@ -229,12 +228,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     floor = repeatability_floor(list(heldout.values()) + list(ref.values()))
     reference = declared(campaign)
     summary = {
-        "campaign": campaign["name"],
-        "robot": campaign["robot"],
-        "description": campaign.get("description", ""),
-        "calflow_version": __version__,
-        "seed": campaign.get("seed"),
-        "rig": campaign.get("rig", {}).get("factory"),
+        **summary_head(campaign),
         "models": {
             name: _model_entry(
                 name,

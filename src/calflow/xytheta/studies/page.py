@@ -107,6 +107,12 @@ def _env() -> jinja2.Environment:
     return env
 
 
+def _figure(fig, key: str, caption: str) -> dict:
+    """A figure of the page: laid out, drawn as SVG under ``key``, with its caption."""
+    fig.tight_layout(pad=0.4)
+    return {"key": key, "svg": to_svg(fig, key), "caption": caption}
+
+
 def to_svg(fig, key: str) -> Markup:
     """One ``<svg>`` element (no prolog, no date); ids prefixed with ``key`` so inline figures never clash."""
     buf = io.StringIO()
@@ -175,16 +181,15 @@ def _figures(agg: dict) -> list[dict]:
             ax.set_yscale("log")
             ax.set_title(f"|Δ{LABELS[k][0]}| ({LABELS[k][1]})")
         axes[0][0].legend(title="sensor noise")
-        fig.tight_layout(pad=0.4)
         figs.append(
-            {
-                "key": "fig-error",
-                "svg": to_svg(fig, "fig-error"),
-                "caption": "Identification error |estimate − truth| against the number of poses, per sensor noise: "
+            _figure(
+                fig,
+                "fig-error",
+                "Identification error |estimate − truth| against the number of poses, per sensor noise: "
                 "median over seeds (line), 25–75 % (band), and the RMS of the std the identification reported "
                 "(dotted). An error that stops falling while the reported std does is a bias: errors the "
                 "model does not describe (e.g. the angle-dependent errors of Sec. 4.5.5).",
-            }
+            )
         )
 
         fig, axes = plt.subplots(1, len(params), figsize=(7.0, 2.2), squeeze=False)
@@ -198,15 +203,14 @@ def _figures(agg: dict) -> list[dict]:
             ax.set_title(LABELS[k][0])
         axes[0][0].set_ylabel("error / reported std")
         axes[0][0].legend(title="sensor noise")
-        fig.tight_layout(pad=0.4)
         figs.append(
-            {
-                "key": "fig-std",
-                "svg": to_svg(fig, "fig-std"),
-                "caption": "Honesty of the reported uncertainty: sample std of the error over seeds divided by the RMS "
+            _figure(
+                fig,
+                "fig-std",
+                "Honesty of the reported uncertainty: sample std of the error over seeds divided by the RMS "
                 "of the reported std (solid), and RMS of error/std, which includes the bias (dotted). 1 "
                 "(dashed) is honest; above 1 the reported std is optimistic.",
-            }
+            )
         )
 
         fig, ax = plt.subplots(figsize=(4.2, 2.6))
@@ -218,14 +222,13 @@ def _figures(agg: dict) -> list[dict]:
             )
         ax.set_ylabel("ISO 9283 AP, max over targets (µm)")
         ax.legend()
-        fig.tight_layout(pad=0.4)
         figs.append(
-            {
-                "key": "fig-accuracy",
-                "svg": to_svg(fig, "fig-accuracy"),
-                "caption": f"Validation accuracy of Model {agg['model']} (ISO 9283 AP, max over the Table 4.7 targets) "
+            _figure(
+                fig,
+                "fig-accuracy",
+                f"Validation accuracy of Model {agg['model']} (ISO 9283 AP, max over the Table 4.7 targets) "
                 "against the number of identification poses: median over seeds, 5–95 % band.",
-            }
+            )
         )
 
         fig, (a, b) = plt.subplots(1, 2, figsize=(7.0, 2.5))
@@ -247,15 +250,14 @@ def _figures(agg: dict) -> list[dict]:
         b.set_xlabel("identification poses")
         b.set_title(f"median error / error at {int(agg['poses'][0])} poses ({low:g} µm noise)")
         b.legend()
-        fig.tight_layout(pad=0.4)
         figs.append(
-            {
-                "key": "fig-observability",
-                "svg": to_svg(fig, "fig-observability"),
-                "caption": "What the observability indices predict: O2 and O4 of the identification Jacobian (median "
+            _figure(
+                fig,
+                "fig-observability",
+                "What the observability indices predict: O2 and O4 of the identification Jacobian (median "
                 "over seeds, normalised to their maximum) beside the identification error they stand for, "
                 "at the lowest noise level.",
-            }
+            )
         )
     return figs
 

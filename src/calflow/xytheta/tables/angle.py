@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from calflow.xytheta.tables.angle_residuals import joint_increments
+from calflow.xytheta.tables.angle_residuals import angle_fields, joint_increments
 
 DIRECTIONS = (1, -1)  # rows of the tables: forward, backward
 
@@ -294,11 +294,4 @@ class AngleTable:
                 sweep_f_ax=ds["sweep_f_ax"].values,
                 sweep_f_ay=ds["sweep_f_ay"].values,
             )
-        return cls(
-            ds["theta"].values.astype(float),
-            ds["f_ax"].values.astype(float),
-            ds["f_ay"].values.astype(float),
-            float(ds["alpha"]),
-            float(ds["beta"]),
-            info,
-        )
+        return cls(*angle_fields(ds), info)

@@ -156,11 +156,15 @@ class AngleLUT:
 
     @classmethod
     def from_dataset(cls, ds: xr.Dataset, bounds: str = "error") -> AngleLUT:
-        return cls(
-            ds["theta"].values.astype(float),
-            ds["f_ax"].values.astype(float),
-            ds["f_ay"].values.astype(float),
-            float(ds["alpha"]),
-            float(ds["beta"]),
-            bounds,
-        )
+        return cls(*angle_fields(ds), bounds)
+
+
+def angle_fields(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """(theta in degrees, f_ax, f_ay in µm, alpha, beta in degrees) of a stored angle table."""
+    return (
+        ds["theta"].values.astype(float),
+        ds["f_ax"].values.astype(float),
+        ds["f_ay"].values.astype(float),
+        float(ds["alpha"]),
+        float(ds["beta"]),
+    )

@@ -15,10 +15,9 @@ import json
 
 import numpy as np
 
-from calflow import __version__
 from calflow.data.io import jsonable, sha256_file
 from calflow.reference import declared
-from calflow.summary_routing import route
+from calflow.summary_routing import route, summary_head
 from calflow_hexapod.family import FAMILY
 
 _ORIENT = ("a", "b", "c")
@@ -174,12 +173,7 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
     for name in order:
         models[name]["statement"] = _statement(name, models[name], best)
     summary = {
-        "campaign": campaign["name"],
-        "robot": campaign["robot"],
-        "description": campaign.get("description", ""),
-        "calflow_version": __version__,
-        "seed": campaign.get("seed"),
-        "rig": campaign.get("rig", {}).get("factory"),
+        **summary_head(campaign),
         "models": {name: models[name] for name in order},
         "model_order": order,  # the ladder's order (the summary's keys are written sorted)
         "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
