@@ -339,7 +339,7 @@ class Draws:
             if only not in (None, t.name):
                 continue
             e = self.noise[t.name]
-            out = out + (e * 1e-6 * positions[None, :, :] if t.relative else e)
+            out += e * 1e-6 * positions[None, :, :] if t.relative else e  # in place: (M, cells, d) is large
         return out
 
 

@@ -152,7 +152,8 @@ def iso230_2_uncertainty(
     draws = Draws(s, dof, (2 * P, 1), terms, trials, seed)
 
     def cells(only=None):
-        mu = mean[None, :] + draws.error(pos, n, only)[:, :, 0]
+        mu = draws.error(pos, n, only)[:, :, 0]
+        mu += mean[None, :]  # in place: an (M, 2P) array is 1.5 GB for a 5 µm sweep of 9.45 mm
         return mu, (mu[:, :P] + mu[:, P:]) / 2.0, mu[:, :P] - mu[:, P:]
 
     def span(est, dr, add_est=0.0, add_dr=0.0):
@@ -203,13 +204,15 @@ def iso230_2_uncertainty(
         c = cells(name)
         return {key: fn(*c) for key, fn in stats_of.items()}
 
+    full = {key: fn(mu, mid, rev) for key, fn in stats_of.items()}
+    del mu, mid, rev  # the cells of one term at a time from here
     parts_of = {"sample": reduced("sample"), **{term.name: reduced(term.name) for term in draws.terms}}
 
     from calflow.metrics.iso230_2 import iso230_2
 
     iso = iso230_2(t, f, b)
     out: dict[str, Uncertainty] = {}
-    for key, fn in stats_of.items():
+    for key in stats_of:
         reported = float(getattr(iso, key))
         lo, hi, t_eff = bounds[key]
         note = ""
@@ -218,7 +221,7 @@ def iso230_2_uncertainty(
         parts = {name: stat[key] for name, stat in parts_of.items()}
         out[key] = mc_result(
             reported,
-            fn(mu, mid, rev),
+            full[key],
             parts,
             {"sample": float(dof)},
             (max(lo, 0.0), hi),
