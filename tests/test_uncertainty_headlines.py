@@ -15,6 +15,7 @@ from calflow.metrics.uncertainty import (
     chi_rp_factor,
     coverage_factor,
     gum_linear,
+    largest_bounds,
     maximum_interval,
     pooled_scatter,
     welch_satterthwaite,
@@ -89,6 +90,28 @@ def test_maximum_interval_widens_with_ties():
     lo, hi, t_eff = maximum_interval(np.zeros(6), draws)
     assert t_eff > 4
     assert hi - lo > hi1 - lo1
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    cells=st.integers(1, 12),
+    spread=st.floats(0.0, 5.0),
+    shift=st.floats(-1e3, 1e3),
+    t_eff=st.floats(1.0, 12.0),
+    seed=st.integers(0, 2**16),
+)
+def test_largest_bounds_skips_only_cells_that_cannot_set_them(cells, spread, shift, t_eff, seed):
+    """The pruned search gives exactly the largest bounds over every cell's percentiles."""
+    from scipy.special import ndtr, ndtri
+
+    rng = np.random.default_rng(seed)
+    y = shift + spread * rng.standard_normal(cells)
+    d = y + rng.standard_normal((2000, cells)) * rng.uniform(0.1, 2.0, cells)
+    za = ndtri(1.0 - (1.0 - 0.025) ** (1.0 / t_eff))
+    z0 = ndtri(np.clip(np.mean(d < y, axis=0), 1 / 2000, 1 - 1 / 2000))
+    lo = max(np.quantile(d[:, j], ndtr(2 * z0[j] + za)) for j in range(cells))
+    hi = max(np.quantile(d[:, j], ndtr(2 * z0[j] - za)) for j in range(cells))
+    assert largest_bounds(y, lambda j: d[:, j], d.max(axis=0), 2000, 0.95, t_eff) == (lo, hi)
 
 
 def test_ap_interval_covers_the_truth_on_synthetic_stages():

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from calflow.metrics.uncertainty import Term
+if TYPE_CHECKING:  # the workflow imports this package at load: no numpy there
+    from calflow.metrics.uncertainty import Term
 
 KINDS = ("iso9283", "iso230_2", "none")
 

@@ -18,13 +18,15 @@ result files only, never the simulated truth.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from calflow import conformity
-from calflow.certificate import Measurement
 from calflow.errors import ConfigError
 from calflow.family import family_of, resolve
-from calflow.metrics.uncertainty import Uncertainty
-from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
+
+if TYPE_CHECKING:  # the workflow imports this module to check settings at load: no numpy there
+    from calflow.certificate import Measurement
+    from calflow.metrics.uncertainty import Uncertainty
 
 ORDER = ("pass", "conditional pass", "conditional fail", "fail")
 
@@ -58,6 +60,8 @@ def _dig(summary: dict, path: tuple[str, ...]):
 
 def uncertainties(m: Measurement) -> dict[str, Uncertainty]:
     """The U of a measurement's figures (its family's data and terms)."""
+    from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
+
     d = m.data
     if m.kind == "iso9283":
         return iso9283_uncertainty(d["command"], d["attained"], m.terms, origin=d.get("origin"))

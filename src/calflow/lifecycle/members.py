@@ -25,7 +25,6 @@ from pathlib import Path
 from calflow import layout
 from calflow.errors import CalflowError
 from calflow.lifecycle.stages import STAGE_ID, takes_part
-from calflow.report.catalogue import RESERVED  # results/ folders that are no campaign
 
 
 def previous(path: str | Path) -> dict:
@@ -103,6 +102,9 @@ def on_disk(
 ) -> dict[str, dict]:
     """Every campaign with a ``summary.json`` under ``results`` (other than ``exclude``, the
     run's own) that names a stage: name → :func:`describe`."""
+    # results/ folders that are no campaign (imported here: the workflow's load needs no jinja2)
+    from calflow.report.catalogue import RESERVED
+
     results = Path(results)
     if not results.is_dir():
         return {}

@@ -47,7 +47,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special, stats
 
 __all__ = [
     "Draws",
@@ -57,6 +56,7 @@ __all__ = [
     "check_terms",
     "coverage_factor",
     "gum_linear",
+    "largest_bounds",
     "maximum_interval",
     "mc_result",
     "pooled_scatter",
@@ -147,6 +147,8 @@ def welch_satterthwaite(u: Sequence[float], dof: Sequence[float]) -> float:
 
 def coverage_factor(dof: float, p: float = P95) -> float:
     """k = t_{(1+p)/2}(ν) (JCGM 100 G.3.4); the normal quantile for ν = ∞."""
+    from scipy import stats
+
     q = (1.0 + p) / 2.0
     return float(stats.norm.ppf(q) if not math.isfinite(dof) else stats.t.ppf(q, dof))
 
@@ -199,6 +201,8 @@ def pooled_scatter(groups: Sequence[np.ndarray]) -> tuple[np.ndarray, int]:
 
 def chi_rp_factor(d: int) -> float:
     """E[χ_d] + 3 SD[χ_d]: RP∞ / σ of an isotropic normal scatter in d axes (Eq. 3.5–3.8, n → ∞)."""
+    from scipy import special
+
     mean = math.sqrt(2.0) * math.exp(special.gammaln((d + 1) / 2) - special.gammaln(d / 2))
     return mean + 3.0 * math.sqrt(max(d - mean * mean, 0.0))
 
@@ -227,12 +231,39 @@ def maximum_interval(
     y = np.atleast_1d(np.asarray(estimates, float))
     d = np.asarray(draws, float).reshape(len(draws), y.size)
     t_eff = effective_count(d) if t_eff is None else float(t_eff)
-    alpha = 1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / t_eff)
-    z0 = stats.norm.ppf(np.clip(np.mean(d < y, axis=0), 1.0 / len(d), 1.0 - 1.0 / len(d)))
-    za = stats.norm.ppf(alpha)
-    lo = [np.quantile(d[:, j], stats.norm.cdf(2 * z0[j] + za)) for j in range(y.size)]
-    hi = [np.quantile(d[:, j], stats.norm.cdf(2 * z0[j] - za)) for j in range(y.size)]
-    return float(max(lo)), float(max(hi)), t_eff
+    lo, hi = largest_bounds(y, lambda j: np.ascontiguousarray(d[:, j]), d.max(axis=0), len(d), level, t_eff)
+    return lo, hi, t_eff
+
+
+def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: float) -> tuple[float, float]:
+    """The largest of the cells' bias-corrected bounds (:func:`maximum_interval`), cell by cell.
+
+    ``column(j)``: cell j's draws (M,); ``upper`` (T,): a number no smaller than any of
+    them (their maximum). A percentile of a cell's draws is at most their maximum, so a cell
+    whose ``upper`` lies below both bounds found so far cannot change them and its
+    percentiles are not computed: the result is the same as from every cell, at the cost of
+    the few cells near the top (and the draws of a range's many pairs of cells need never be
+    in memory at once, :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`).
+    """
+    y = np.atleast_1d(np.asarray(estimates, float))
+    upper = np.asarray(upper, float)
+    # a percentile may round one ulp above the draws' maximum: a margin far above that
+    upper = upper + 1e-12 * np.abs(upper) + 1e-300
+    from scipy.special import ndtr, ndtri  # stats.norm's cdf and ppf, without its per-call checks
+
+    za = ndtri(1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / t_eff))
+    first = int(np.argmax(y))  # usually the maximum's bounds: the rest is pruned against them
+    lo = hi = -math.inf
+    for j in [first, *(int(i) for i in np.argsort(-upper, kind="stable") if i != first)]:
+        if upper[j] < lo and upper[j] < hi:
+            break
+        x = column(j)
+        z0 = ndtri(np.clip(np.mean(x < y[j]), 1.0 / trials, 1.0 - 1.0 / trials))
+        if upper[j] >= lo:
+            lo = max(lo, float(np.quantile(x, ndtr(2 * z0 + za))))
+        if upper[j] >= hi:
+            hi = max(hi, float(np.quantile(x, ndtr(2 * z0 - za))))
+    return lo, hi
 
 
 MAX_METHOD = (
@@ -246,6 +277,8 @@ def robust_sd(x) -> float:
     """Half the central 68.27 % range of ``x``: the standard deviation of a normal, and finite
     for the heavy tails of a scatter known from few readings (a variance with ν ≤ 4 dof has
     no finite variance of its own)."""
+    from scipy import stats
+
     lo, hi = np.quantile(np.asarray(x, float), [stats.norm.cdf(-1.0), stats.norm.cdf(1.0)])
     return float(hi - lo) / 2.0
 
@@ -306,7 +339,7 @@ class Draws:
             if only not in (None, t.name):
                 continue
             e = self.noise[t.name]
-            out = out + (e * 1e-6 * positions[None, :, :] if t.relative else e)
+            out += e * 1e-6 * positions[None, :, :] if t.relative else e  # in place: (M, cells, d) is large
         return out
 
 
@@ -325,5 +358,7 @@ def reading_budget(terms: Sequence[Term]) -> dict:
 
 def sigma_interval(s: float, dof: int, level: float = P95) -> tuple[float, float]:
     """Exact interval of a normal σ from its estimate s with ν dof (χ² quantiles)."""
+    from scipy import stats
+
     a = (1.0 - level) / 2.0
     return s * math.sqrt(dof / stats.chi2.ppf(1 - a, dof)), s * math.sqrt(dof / stats.chi2.ppf(a, dof))

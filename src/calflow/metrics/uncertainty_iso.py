@@ -9,6 +9,7 @@ import numpy as np
 
 from calflow.metrics.uncertainty import (
     MAX_METHOD,
+    P95,
     TRIALS,
     Draws,
     Term,
@@ -17,6 +18,7 @@ from calflow.metrics.uncertainty import (
     chi_rp_factor,
     effective_count,
     gum_linear,
+    largest_bounds,
     maximum_interval,
     mc_result,
     pooled_scatter,
@@ -115,10 +117,6 @@ def iso9283_uncertainty(
     return {"accuracy": accuracy, "repeatability": repeatability}
 
 
-def _span_interval(estimates, draws, t_eff):
-    return maximum_interval(estimates, draws, t_eff=t_eff)
-
-
 def iso230_2_uncertainty(
     targets,
     forward,
@@ -154,31 +152,42 @@ def iso230_2_uncertainty(
     draws = Draws(s, dof, (2 * P, 1), terms, trials, seed)
 
     def cells(only=None):
-        mu = mean[None, :] + draws.error(pos, n, only)[:, :, 0]
+        mu = draws.error(pos, n, only)[:, :, 0]
+        mu += mean[None, :]  # in place: an (M, 2P) array is 1.5 GB for a 5 µm sweep of 9.45 mm
         return mu, (mu[:, :P] + mu[:, P:]) / 2.0, mu[:, :P] - mu[:, P:]
 
-    def spans(est, dr, add_est=0.0, add_dr=0.0):
-        """A range as a maximum over pairs: max_{i,j} (μ_i − μ_j) over the cells that can be
-        the maximum (i) or the minimum (j) in some trial; estimates and draws of each pair,
-        and the number of candidates."""
+    def span(est, dr, add_est=0.0, add_dr=0.0):
+        """95 % interval of a range as a maximum over pairs: max_{i,j} (μ_i − μ_j) over the
+        cells that can be the maximum (i) or the minimum (j) in some trial. A pair's draws
+        are made when its percentiles are needed (:func:`largest_bounds`), never all at once."""
         top = np.unique(np.argmax(dr, axis=1))
         bottom = np.unique(np.argmin(dr, axis=1))
         e = (est[top][:, None] - est[bottom][None, :]).ravel() + add_est
-        d = (dr[:, top][:, :, None] - dr[:, bottom][:, None, :]).reshape(len(dr), -1) + np.reshape(
-            add_dr, (-1, 1)
-        )
+        add = np.reshape(add_dr, -1)
+        hi_top, lo_bottom = dr[:, top].max(axis=0), dr[:, bottom].min(axis=0)
+        # no pair's draw exceeds this (with a margin for the rounding of the differences)
+        size = np.abs(hi_top)[:, None] + np.abs(lo_bottom)[None, :] + np.abs(add).max()
+        upper = ((hi_top[:, None] - lo_bottom[None, :]) + add.max() + 1e-12 * size).ravel()
+        nb = bottom.size
+        # the candidates' draws as rows: a pair's draws are then two contiguous rows apart
+        rows_top, rows_bottom = np.ascontiguousarray(dr[:, top].T), np.ascontiguousarray(dr[:, bottom].T)
+
+        def column(k):
+            return (rows_top[k // nb] - rows_bottom[k % nb]) + add
+
         # the pairs share their cells: as many candidates as the maximum's and the minimum's
-        return e, d, effective_count(dr) + effective_count(-dr) - 1.0
+        t_eff = effective_count(dr) + effective_count(-dr) - 1.0
+        return (*largest_bounds(e, column, upper, len(dr), P95, t_eff), t_eff)
 
     mu, mid, rev = cells()
     est_mid, est_rev = (mean[:P] + mean[P:]) / 2.0, mean[:P] - mean[P:]
     # the estimator's σ̂ around the pooled s (the cells' bias-corrected intervals need it)
     sig_hat = sigma * np.sqrt(draws.rng.chisquare(dof, size=trials) / dof)
     bounds = {
-        "E": _span_interval(*spans(mean, mu)),
-        "M": _span_interval(*spans(est_mid, mid)),
+        "E": span(mean, mu),
+        "M": span(est_mid, mid),
         "B": maximum_interval(np.abs(est_rev), np.abs(rev)),
-        "A": _span_interval(*spans(mean, mu, 4 * sigma, 4 * sig_hat)),
+        "A": span(mean, mu, 4 * sigma, 4 * sig_hat),
         "R": maximum_interval(np.abs(est_rev) + 4 * sigma, np.abs(rev) + 4 * sig_hat[:, None]),
     }
     stats_of = {
@@ -188,24 +197,31 @@ def iso230_2_uncertainty(
         "A": lambda m, md, r: m.max(1) - m.min(1) + 4 * sig_hat,
         "R": lambda m, md, r: np.abs(r).max(1) + 4 * sig_hat,
     }
-    parts_cells = {"sample": cells("sample"), **{term.name: cells(term.name) for term in draws.terms}}
+
+    def reduced(name):
+        """The five statistics of the cells with one term alone (the cells themselves are
+        (M, 2P) arrays: one term's at a time)."""
+        c = cells(name)
+        return {key: fn(*c) for key, fn in stats_of.items()}
+
+    full = {key: fn(mu, mid, rev) for key, fn in stats_of.items()}
+    del mu, mid, rev  # the cells of one term at a time from here
+    parts_of = {"sample": reduced("sample"), **{term.name: reduced(term.name) for term in draws.terms}}
 
     from calflow.metrics.iso230_2 import iso230_2
 
     iso = iso230_2(t, f, b)
     out: dict[str, Uncertainty] = {}
-    for key, fn in stats_of.items():
+    for key in stats_of:
         reported = float(getattr(iso, key))
         lo, hi, t_eff = bounds[key]
         note = ""
         if not lo <= reported <= hi:
             note = f"the standard's value ({reported:.4g}, per-target s) lies outside the interval of the measurand"
-        parts = {name: fn(*c) for name, c in parts_cells.items()}
-        if key in ("A", "R"):  # σ's own share: the sample term
-            parts = {**parts, "sample": fn(*parts_cells["sample"])}
+        parts = {name: stat[key] for name, stat in parts_of.items()}
         out[key] = mc_result(
             reported,
-            fn(mu, mid, rev),
+            full[key],
             parts,
             {"sample": float(dof)},
             (max(lo, 0.0), hi),
