@@ -7,6 +7,7 @@ bounded, duplicate keys and look-alike characters refused); nothing from a confi
 
 from __future__ import annotations
 
+import argparse
 import copy
 import datetime as dt
 import hashlib
@@ -355,8 +356,8 @@ def load_campaign(path: str | Path, rig_plugins: list[str] | str | None = None) 
     _check_frame_recordings(campaign, path)
     check_reference(campaign, path)
     check = family_of(robot).steps.get("check")
-    if check:
-        resolve(check)(campaign, path)
+    if check:  # a step hook: check(c, args), args.campaign the file (calflow.family_contract)
+        resolve(check)(campaign, argparse.Namespace(campaign=path))
     campaign["name"] = path.stem
     return campaign
 

@@ -9,6 +9,12 @@ from calflow.errors import ConfigError, OptionError
 _SENSOR = "simulated_interferometer"  # the simulated world behind an emulated GCS controller
 
 
+def check(c, args) -> None:
+    """The family's step hook ``check(c, args)`` (:mod:`calflow.family_contract`): the campaign
+    ``c`` loaded from the file ``args.campaign``, checked beyond its schema."""
+    check_campaign(c, args.campaign)
+
+
 def check_campaign(campaign: dict, path: Path) -> None:
     """Resolve ``aging`` of a simulated stage (``rig.options``, or the options of a ``gcs``
     rig's ``simulated_interferometer`` sensor) for the campaign's ``start`` into the rig's

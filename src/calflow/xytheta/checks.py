@@ -7,6 +7,12 @@ from pathlib import Path
 from calflow.errors import ConfigError, OptionError
 
 
+def check(c, args) -> None:
+    """The family's step hook ``check(c, args)`` (:mod:`calflow.family_contract`): the campaign
+    ``c`` loaded from the file ``args.campaign``, checked beyond its schema."""
+    check_campaign(c, args.campaign)
+
+
 def check_campaign(campaign: dict, path: Path) -> None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent."""
     if campaign["rig"]["factory"] == "simulated":  # the stage as it has aged by the campaign's start
