@@ -47,7 +47,8 @@ class Hook:
     options of a campaign as keyword arguments (``factory(**options)``); ``shape``: ``one``
     (a ``"module:attr"``), ``by_name`` (name → ``"module:attr"``), ``by_robot`` (robot → name
     → ``"module:attr"``) or ``object`` (a callable held directly, e.g. argparse hooks);
-    ``returns``: what the core expects back, in words.
+    ``label``: what the docs call it (``factory``, ``builder``); ``returns``: what the core
+    expects back, in words.
     """
 
     name: str
@@ -57,8 +58,14 @@ class Hook:
     returns: str
     required: bool = False
     shape: str = "one"
+    label: str = ""
     keywords: tuple[str, ...] = ()
     options: bool = False
+
+    @property
+    def call(self) -> str:
+        """The hook's call as docs/families.md shows it: ``identify(c, args)``, ``factory(**options)``."""
+        return self.expected(self.label or self.name.rpartition(".")[2])
 
     def expected(self, attr: str) -> str:
         """The hook's call as the core makes it, e.g. ``identify(c, args)``."""
@@ -71,54 +78,33 @@ class Hook:
 #: The contribution kinds, in the order docs/families.md describes them.
 KINDS = ("rig", "plans", "steps", "report", "certificate", "lifecycle", "workflow", "commands")
 
-#: Every hook, declared once.
+#: Every hook, declared once: name, Family field, kind, parameters (None: a value), what it
+#: returns, required, shape, the name the docs call it by, keywords, takes **options.
+# fmt: off
 HOOKS: tuple[Hook, ...] = (
     # rig: what the family's robots are driven and measured with
-    Hook("rigs", "rigs", "rig", (), "a Rig (calflow.rigs.protocol)", True, "by_robot", options=True),
-    Hook("rig_options", "rig_options", "rig", ("c", "factory", "run_id", "options", "start_s"), "dict", True),
-    Hook(
-        "options",
-        "options",
-        "rig",
-        (),
-        "the checked options; OptionError naming one",
-        False,
-        "by_name",
-        options=True,
-    ),
-    Hook("sensors", "sensors", "rig", (), "a sensor of the gcs rig", False, "by_name", options=True),
+    Hook("rigs", "rigs", "rig", (), "a Rig (calflow.rigs.protocol)", True, "by_robot", "factory", options=True),
+    Hook("rig_options", "rig_options", "rig", ("c", "factory", "run_id", "options", "start_s"), "the run's options", True),
+    Hook("options", "options", "rig", (), "the checked options; OptionError naming one", False, "by_name", "check", options=True),
+    Hook("sensors", "sensors", "rig", (), "a sensor of the gcs rig", False, "by_name", "factory", options=True),
     Hook("emulator", "emulator", "rig", ("argv",), "exit status", False, keywords=("prog",)),
     # plans: what a run commands
-    Hook("plans", "plans", "plans", ("c", "args"), "calflow.plan.Acquisition", True, "by_robot"),
+    Hook("plans", "plans", "plans", ("c", "args"), "a calflow.plan.Acquisition", True, "by_robot", "builder"),
     Hook("acquire_arguments", "acquire_arguments", "plans", ("p",), "None", False, "object"),
     # steps: one calling convention, hook(c, args)
     Hook("steps.check", "steps", "steps", ("c", "args"), "None; ConfigError naming file and key"),
-    Hook("steps.identify", "steps", "steps", ("c", "args"), "None (writes args.out)", True),
-    Hook("steps.metrics", "steps", "steps", ("c", "args"), "None (writes args.out)", True),
+    Hook("steps.identify", "steps", "steps", ("c", "args"), "None; writes args.out", True),
+    Hook("steps.metrics", "steps", "steps", ("c", "args"), "None; writes args.out", True),
     Hook("steps.summarise", "steps", "steps", ("c", "args"), "the summary, a JSON-able dict", True),
     Hook("steps.figures", "steps", "steps", ("c", "args"), "(figures, notes)", True),
     Hook("identify_arguments", "identify_arguments", "steps", ("p",), "None", False, "object"),
     # report
     Hook("headline", "headline", "report", ("summary",), "{label, key, unit} or None"),
-    Hook(
-        "reference", "reference", "report", None, "dict of published values with a source", False, "by_name"
-    ),
+    Hook("reference", "reference", "report", None, "a dict of published values with a source", False, "by_name"),
     # certificate
-    Hook(
-        "uncertainty",
-        "uncertainty",
-        "certificate",
-        ("campaign", "files"),
-        "list[calflow.certificate.Measurement]",
-    ),
+    Hook("uncertainty", "uncertainty", "certificate", ("campaign", "files"), "list[calflow.certificate.Measurement]"),
     # lifecycle
-    Hook(
-        "history_entry",
-        "history_entry",
-        "lifecycle",
-        ("summary",),
-        "{model: {parameters, correlation, accuracy_um}}",
-    ),
+    Hook("history_entry", "history_entry", "lifecycle", ("summary",), "{model: {parameters, correlation, accuracy_um}}"),
     # workflow
     Hook("workflow", "workflow", "workflow", None, "a calflow.family_workflow.FamilyWorkflow"),
     Hook("studies", "studies", "workflow", ("path", "campaign_dir"), "the study, a dict"),
@@ -126,6 +112,7 @@ HOOKS: tuple[Hook, ...] = (
     Hook("commands.arguments", "commands", "commands", ("p",), "None", False, "object"),
     Hook("commands.run", "commands", "commands", ("args",), "exit status or None"),
 )
+# fmt: on
 
 #: The inputs each step hook finds on ``args`` (besides the subcommand's own options).
 STEP_ARGS: Mapping[str, tuple[str, ...]] = {
@@ -227,7 +214,7 @@ def check_family(fam: Any) -> None:
         value = getattr(fam, h.field)
         targets = _targets(h, value)
         if h.required and not targets:
-            refuse(h.name, f"missing; expected {h.expected(h.name.rpartition('.')[2])} -> {h.returns}")
+            refuse(h.name, f"missing; expected {h.call} -> {h.returns}")
         for where, target in targets:
             if h.shape == "object":
                 _check_object(where, target, h, refuse)
@@ -244,14 +231,14 @@ def check_family(fam: Any) -> None:
 
 def _check_object(where: str, target: Any, h: Hook, refuse) -> None:
     if not callable(target):
-        refuse(where, f"expected a callable {h.expected(where.rpartition('.')[2])}, got {target!r}")
+        refuse(where, f"expected a callable {h.call}, got {target!r}")
     try:
         sig = inspect.signature(target)
     except (TypeError, ValueError):
         return
     problem = _mismatch(from_signature(sig), h)
     if problem:
-        refuse(where, f"expected {h.expected(getattr(target, '__name__', 'hook'))}, got {problem}")
+        refuse(where, f"expected {h.call}, got {problem}")
 
 
 def _check_target(where: str, target: Any, h: Hook, refuse) -> None:
@@ -269,18 +256,18 @@ def _check_target(where: str, target: Any, h: Hook, refuse) -> None:
             _check_workflow(where, target, refuse)
         return
     if kind == "value":
-        refuse(where, f"{target!r}: expected a callable {h.expected(attr)}, got a value that is not callable")
+        refuse(where, f"{target!r}: expected a callable {h.call}, got a value that is not callable")
     if params is None:  # built at import (a call's result): the object itself tells
         obj = getattr(importlib.import_module(module), attr)
         if not callable(obj):
-            refuse(where, f"{target!r}: expected a callable {h.expected(attr)}, got {type(obj).__name__}")
+            refuse(where, f"{target!r}: expected a callable {h.call}, got {type(obj).__name__}")
         try:
             params = from_signature(inspect.signature(obj))
         except (TypeError, ValueError):
             return
     problem = _mismatch(params, h)
     if problem:
-        refuse(where, f"{target!r}: expected {h.expected(attr)}, got {problem}")
+        refuse(where, f"{target!r}: expected {h.call}, got {problem}")
 
 
 def _check_workflow(where: str, target: str, refuse) -> None:
