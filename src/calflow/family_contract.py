@@ -128,16 +128,21 @@ TEMPLATE = "{robot}.html.j2"
 #: The campaign schema of a robot in its family's ``schemas`` package (``schemas/`` folder).
 SCHEMA = "campaign-{robot}.schema.yaml"
 
-#: What a family's rules files may use, defined by ``workflow/rules/common.smk`` before them.
+#: What a family's rules files may use of the core rules (``workflow/rules/common.smk``, read
+#: before them); a test checks they use nothing else of the core's.
 RULE_GLOBALS = (
-    "CAMPAIGN",
-    "campaign_file",
-    "section",
-    "rig_digest",
-    "rig_slots",
-    "models_of",
-    "CONDA_ENV",
-    "REPORT_DIR",
+    "CAMPAIGN",  # campaign name -> the loaded campaign, of the run's campaigns
+    "CAMPAIGN_DIR",  # the folder of the campaign files
+    "STUDY",  # study name -> the loaded study, of the run's studies
+    "CONDA_ENV",  # the environment file, an absolute path
+    "REPORT_DIR",  # the captions of report() outputs
+    "campaign_file",  # wildcards -> the campaign's file
+    "section",  # section(command, *keys): a rule's rerun digest
+    "rig_digest",  # rig_digest(run_id): an acquisition's rerun digest
+    "rig_slots",  # wildcards -> the rig's resource slots (one run at a time per real rig)
+    "models_of",  # models_of(campaign): the models it identifies
+    "code_digest",  # code_digest(command, robot): the digest of a subcommand's code
+    "digest",  # digest(obj): SHA-256 of its canonical JSON
 )
 
 #: What a family outside calflow imports from the core: module → the public names it may import

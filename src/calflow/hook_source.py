@@ -49,7 +49,7 @@ def _bindings(tree: ast.Module) -> dict[str, list]:
     ``["class", params | None]``, ``["alias", name]``, ``["import", level, module, name]``,
     ``["object"]`` (built by a call) or ``["value"]``."""
     found: dict[str, list] = {}
-    for node in tree.body:
+    for node in _statements(tree.body):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             found[node.name] = ["function", _from_ast(node.args)]
         elif isinstance(node, ast.ClassDef):
@@ -74,6 +74,21 @@ def _bindings(tree: ast.Module) -> dict[str, list]:
     return found
 
 
+def _statements(body: list[ast.stmt]) -> list[ast.stmt]:
+    """The module's top-level statements, those inside its top-level ``try`` and ``if``
+    blocks included (``try: __version__ = ... except ...: __version__ = ...``)."""
+    out: list[ast.stmt] = []
+    for node in body:
+        if isinstance(node, ast.Try):
+            blocks = [node.body, *(h.body for h in node.handlers), node.orelse, node.finalbody]
+            out += [n for block in blocks for n in _statements(block)]
+        elif isinstance(node, ast.If):
+            out += _statements(node.body) + _statements(node.orelse)
+        else:
+            out.append(node)
+    return out
+
+
 @cache
 def _summary(path: str) -> dict[str, list]:
     """:func:`_bindings` of the module at ``path``: computed, or read from the cache by the
@@ -88,7 +103,7 @@ def _summary(path: str) -> dict[str, list]:
     folder = os.environ.get("CALFLOW_CACHE_DIR")
     if folder is None:
         folder = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "calflow")
-    key = hashlib.sha256(f"contract v1 {sys.version_info[:2]}\n".encode() + raw).hexdigest()
+    key = hashlib.sha256(f"contract v2 {sys.version_info[:2]}\n".encode() + raw).hexdigest()
     cached = Path(folder) / "contract" / f"{key}.json" if folder else None
     if cached is not None:
         try:
