@@ -18,7 +18,6 @@ from calflow.family_contract import HOOKS, FamilyError, check_family
 def module(tmp_path, monkeypatch):
     """Write a module of hooks on the path: ``module(source)`` -> its name."""
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setenv("CALFLOW_CACHE_DIR", "")  # nothing cached outside the test
 
     def write(source: str, name: str = "lab_hooks") -> str:
         (tmp_path / f"{name}.py").write_text(textwrap.dedent(source))

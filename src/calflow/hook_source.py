@@ -91,35 +91,17 @@ def _statements(body: list[ast.stmt]) -> list[ast.stmt]:
 
 @cache
 def _summary(path: str) -> dict[str, list]:
-    """:func:`_bindings` of the module at ``path``: computed, or read from the cache by the
-    hash of the source (``$CALFLOW_CACHE_DIR``, else ``~/.cache/calflow``; empty: none), so
-    registering the families parses no module twice on a machine."""
+    """:func:`_bindings` of the module at ``path``: computed, or read from calflow's cache by
+    the hash of the source (:func:`calflow.provenance.modules.cached_json`), so registering
+    the families parses no module twice on a machine."""
     import hashlib
-    import json
-    import os
     import sys
 
+    from calflow.provenance.modules import cached_json
+
     raw = Path(path).read_bytes()
-    folder = os.environ.get("CALFLOW_CACHE_DIR")
-    if folder is None:
-        folder = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "calflow")
     key = hashlib.sha256(f"contract v2 {sys.version_info[:2]}\n".encode() + raw).hexdigest()
-    cached = Path(folder) / "contract" / f"{key}.json" if folder else None
-    if cached is not None:
-        try:
-            return json.loads(cached.read_text())
-        except (OSError, ValueError):
-            pass
-    found = _bindings(ast.parse(raw, path))
-    if cached is not None:
-        try:
-            cached.parent.mkdir(parents=True, exist_ok=True)
-            tmp = cached.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps(found))
-            tmp.replace(cached)
-        except OSError:  # a read-only home: parsed again next time
-            pass
-    return found
+    return cached_json(key, lambda: _bindings(ast.parse(raw, path)))
 
 
 def _params(found: list | None) -> Params | None:

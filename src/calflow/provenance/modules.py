@@ -195,13 +195,31 @@ def _cache_dir() -> Path | None:
 def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
     """``{"digest", "functions"}`` of a module's source: computed, or read from the cache
     by the hash of the source itself."""
-    import json
     import sys
 
     raw = path.read_bytes()
     key = hashlib.sha256(
         f"v3 {sys.version_info[:2]} {module} {package} {strings}\n".encode() + raw
     ).hexdigest()
+
+    def compute() -> dict:
+        tree = ast.parse(raw, str(path))
+        scanned = scan(tree, module, package, strings)
+        return {
+            "digest": hashlib.sha256(ast.dump(tree).encode()).hexdigest(),
+            "functions": {
+                k: [sorted({tuple(x) for x in i}, key=str), sorted(set(n))] for k, (i, n) in scanned.items()
+            },
+        }
+
+    return cached_json(key, compute)
+
+
+def cached_json(key: str, compute) -> dict:
+    """``compute()``, a JSON-able dict, kept between processes under ``key`` (a hash of all it
+    depends on, so never stale) in :func:`_cache_dir`; computed each time without one."""
+    import json
+
     folder = _cache_dir()
     cached = folder / f"{key}.json" if folder else None
     if cached is not None:
@@ -209,14 +227,7 @@ def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
             return json.loads(cached.read_text())
         except (OSError, ValueError):
             pass
-    tree = ast.parse(raw, str(path))
-    scanned = scan(tree, module, package, strings)
-    found = {
-        "digest": hashlib.sha256(ast.dump(tree).encode()).hexdigest(),
-        "functions": {
-            k: [sorted({tuple(x) for x in i}, key=str), sorted(set(n))] for k, (i, n) in scanned.items()
-        },
-    }
+    found = compute()
     if cached is not None:
         try:
             folder.mkdir(parents=True, exist_ok=True)
