@@ -22,11 +22,13 @@ def module(tmp_path, monkeypatch):
     def write(source: str, name: str = "lab_hooks") -> str:
         (tmp_path / f"{name}.py").write_text(textwrap.dedent(source))
         hook_source._summary.cache_clear()
+        hook_source.locate.cache_clear()
         sys.modules.pop(name, None)
         return name
 
     yield write
     hook_source._summary.cache_clear()
+    hook_source.locate.cache_clear()
 
 
 def _xytheta():

@@ -15,6 +15,7 @@ import ast
 import importlib
 import importlib.util
 import inspect
+import os
 from functools import cache
 from pathlib import Path
 
@@ -91,17 +92,18 @@ def _statements(body: list[ast.stmt]) -> list[ast.stmt]:
 
 @cache
 def _summary(path: str) -> dict[str, list]:
-    """:func:`_bindings` of the module at ``path``: computed, or read from calflow's cache by
-    the hash of the source (:func:`calflow.provenance.modules.cached_json`), so registering
-    the families parses no module twice on a machine."""
+    """:func:`_bindings` of the module at ``path``: computed, or read from calflow's cache
+    (:func:`calflow.cache.cached_json`) by the file's path, size and modification time, as
+    Python keeps its bytecode, so registering the families parses no module twice."""
     import hashlib
     import sys
 
-    from calflow.provenance.modules import cached_json
+    from calflow.cache import cached_json
 
-    raw = Path(path).read_bytes()
-    key = hashlib.sha256(f"contract v2 {sys.version_info[:2]}\n".encode() + raw).hexdigest()
-    return cached_json(key, lambda: _bindings(ast.parse(raw, path)))
+    st = os.stat(path)
+    stamp = f"contract v3 {sys.version_info[:2]} {os.path.abspath(path)} {st.st_size} {st.st_mtime_ns}"
+    key = hashlib.sha256(stamp.encode()).hexdigest()
+    return cached_json("contract", key, lambda: _bindings(ast.parse(Path(path).read_bytes(), path)))
 
 
 def _params(found: list | None) -> Params | None:
@@ -112,37 +114,30 @@ def _params(found: list | None) -> Params | None:
     return tuple(pos), required, tuple(kwonly), tuple(kw_required), varargs, varkw
 
 
+@cache
 def locate(module: str) -> tuple[Path, bool] | str:
     """The source file of ``module`` and whether it is a package, found on the file system
     without importing it or its parent packages (a parent's ``__init__`` may be heavy); a
     string saying why when there is none."""
-    top, *rest = module.split(".")
-    try:
-        spec = importlib.util.find_spec(top)
-    except (ImportError, ValueError) as exc:
-        return f"module {module!r} cannot be found ({exc})"
-    if spec is None:
-        return f"no module {module!r}"
-    if not rest:
-        if spec.submodule_search_locations:
-            return Path(next(iter(spec.submodule_search_locations))) / "__init__.py", True
-        return (Path(spec.origin), False) if spec.origin and spec.origin.endswith(".py") else "compiled"
-    folders = [Path(p) for p in spec.submodule_search_locations or ()]
-    for i, part in enumerate(rest):
-        last = i == len(rest) - 1
-        found = None
-        for folder in folders:
-            if (folder / part / "__init__.py").is_file():
-                found = (folder / part / "__init__.py", True)
-                break
-            if last and (folder / f"{part}.py").is_file():
-                found = (folder / f"{part}.py", False)
-                break
-        if found is None:
+    parent, _, part = module.rpartition(".")
+    if not parent:
+        try:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError) as exc:
+            return f"module {module!r} cannot be found ({exc})"
+        if spec is None:
             return f"no module {module!r}"
-        if last:
-            return found
-        folders = [found[0].parent]
+        if spec.submodule_search_locations:
+            return Path(next(iter(spec.submodule_search_locations)), "__init__.py"), True
+        return (Path(spec.origin), False) if spec.origin and spec.origin.endswith(".py") else "compiled"
+    above = locate(parent)
+    if isinstance(above, str) or not above[1]:
+        return f"no module {module!r}"
+    folder = os.path.dirname(above[0])
+    if os.path.isfile(os.path.join(folder, part, "__init__.py")):
+        return Path(folder, part, "__init__.py"), True
+    if os.path.isfile(os.path.join(folder, f"{part}.py")):
+        return Path(folder, f"{part}.py"), False
     return f"no module {module!r}"
 
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+from calflow.cache import cached_json
+
 #: Files of a package that are data its code reads (templates, styles, schemas).
 DATA_SUFFIXES = (".j2", ".css", ".yaml", ".yml", ".json")
 
@@ -181,17 +183,6 @@ def _visit(
 _BODIES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
 
 
-@cache
-def _cache_dir() -> Path | None:
-    """Where normalised digests are kept between processes (content-addressed, so never
-    stale): ``$CALFLOW_CACHE_DIR``, else ``$XDG_CACHE_HOME/calflow`` or ``~/.cache/calflow``;
-    empty ``CALFLOW_CACHE_DIR``: none."""
-    folder = os.environ.get("CALFLOW_CACHE_DIR")
-    if folder is None:
-        folder = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "calflow")
-    return Path(folder) / "provenance" if folder else None
-
-
 def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
     """``{"digest", "functions"}`` of a module's source: computed, or read from the cache
     by the hash of the source itself."""
@@ -212,31 +203,7 @@ def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
             },
         }
 
-    return cached_json(key, compute)
-
-
-def cached_json(key: str, compute) -> dict:
-    """``compute()``, a JSON-able dict, kept between processes under ``key`` (a hash of all it
-    depends on, so never stale) in :func:`_cache_dir`; computed each time without one."""
-    import json
-
-    folder = _cache_dir()
-    cached = folder / f"{key}.json" if folder else None
-    if cached is not None:
-        try:
-            return json.loads(cached.read_text())
-        except (OSError, ValueError):
-            pass
-    found = compute()
-    if cached is not None:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            tmp = cached.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps(found))
-            tmp.replace(cached)
-        except OSError:  # a read-only home: computed again next time
-            pass
-    return found
+    return cached_json("provenance", key, compute)
 
 
 @cache
