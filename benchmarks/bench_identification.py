@@ -89,7 +89,8 @@ def five_models(results: Path, repeats: int) -> dict:
     from calflow.xytheta.models.ladder import MicroModel
 
     campaign = ROOT / "config/campaigns" / f"{CAMPAIGN}.yaml"
-    models = load_campaign(campaign)["models"]
+    c = load_campaign(campaign)  # the step hook gets the loaded campaign (identify(c, args))
+    models = c["models"]
     if not (results / "runs/identification.nc").exists():
         raise SystemExit(
             f"{results}: no runs/identification.nc; run the {CAMPAIGN} campaign first "
@@ -99,8 +100,10 @@ def five_models(results: Path, repeats: int) -> dict:
         out = Path(tmp)
         args = {name: _step_args(results, campaign, name, spec, out) for name, spec in models.items()}
         for a in args.values():  # bases first (the campaign's order), also warms the imports
-            commands.identify(a)
-        io_ms = {name: 1e3 * _best(lambda a=a: commands.identify(a), repeats)[0] for name, a in args.items()}
+            commands.identify(c, a)
+        io_ms = {
+            name: 1e3 * _best(lambda a=a: commands.identify(c, a), repeats)[0] for name, a in args.items()
+        }
         datasets, bases, configs = {}, {}, {}
 
         def cached_open(path, kind=None):
@@ -126,8 +129,8 @@ def five_models(results: Path, repeats: int) -> dict:
             mock.patch.object(MicroModel, "write", lambda self, path, meta: None),
         ):
             for name, a in args.items():
-                commands.identify(a)  # fill the cache
-                compute_ms[name] = [1e3 * v for v in _best(lambda a=a: commands.identify(a), repeats)]
+                commands.identify(c, a)  # fill the cache
+                compute_ms[name] = [1e3 * v for v in _best(lambda a=a: commands.identify(c, a), repeats)]
     return {
         "compute_ms": {k: v[0] for k, v in compute_ms.items()},
         "compute_cpu_ms": {k: v[1] for k, v in compute_ms.items()},

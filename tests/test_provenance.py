@@ -87,9 +87,12 @@ def test_every_core_look_up_of_a_family_hook_is_declared():
         if module.split(".")[1:2] in (["xytheta"], ["nano"]) or not lookups.search(path.read_text()):
             continue
         found.add(module)
-    # calflow.family resolves what it is given; calflow.provenance only names the look-ups
+    # calflow.family and its contract check (family_contract, hook_source) resolve what they
+    # are given; calflow.provenance only names the look-ups
     declared = {k.partition(":")[0] for k in FAMILY_HOOKS} | {
         "calflow.family",
+        "calflow.family_contract",
+        "calflow.hook_source",
         "calflow.provenance",
         "calflow.provenance.modules",
     }

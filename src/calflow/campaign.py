@@ -22,6 +22,8 @@ variant of the campaign, e.g. a study's); so does :func:`thaw`.
 
 from __future__ import annotations
 
+from argparse import Namespace
+
 import hashlib
 from collections import Counter
 from collections.abc import Mapping
@@ -316,7 +318,7 @@ def load(path: str | Path, rig_plugins: list[str] | str | None = None) -> Campai
         return _LOADED[key]
     sections = freeze(check_campaign_data(thaw(data), path, rig_plugins))
     check = family_of(sections["robot"]).steps.get("check")
-    resolution = (resolve(check)(sections, path) if check else None) or Resolution()
+    resolution = (resolve(check)(sections, Namespace(campaign=path)) if check else None) or Resolution()
     if not isinstance(resolution, Resolution):
         raise TypeError(
             f"{check}: expected a calflow.campaign.Resolution or None, got {type(resolution).__name__}"

@@ -33,11 +33,13 @@ def _family(args):
 
 
 def cmd_identify(args) -> None:
-    _family(args)[1].step("identify")(args)
+    campaign, family = _family(args)
+    family.step("identify")(campaign, args)
 
 
 def cmd_metrics(args) -> None:
-    _family(args)[1].step("metrics")(args)
+    campaign, family = _family(args)
+    family.step("metrics")(campaign, args)
 
 
 def cmd_summarise(args) -> None:
@@ -49,7 +51,7 @@ def cmd_summarise(args) -> None:
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
-    summary = family.step("summarise")(campaign, args.files, truth)
+    summary = family.step("summarise")(campaign, argparse.Namespace(**{**vars(args), "truth": truth}))
     from calflow.certificate.annotate import annotate, stage_settings_or_fail
 
     summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))

@@ -36,7 +36,8 @@ class Command:
     """A CLI subcommand a family adds: ``calflow <name> ...``.
 
     ``arguments(parser)`` declares its options (argparse only, nothing heavy);
-    ``run`` names the function ``run(args) -> int | None`` it calls.
+    ``run`` names the function ``run(args) -> int | None`` it calls (hooks ``commands.arguments``
+    and ``commands.run`` of :data:`calflow.family_contract.HOOKS`).
     """
 
     name: str
@@ -47,65 +48,28 @@ class Command:
 
 @dataclass(frozen=True)
 class Family:
-    """One family of robots and what it brings to each workflow step.
+    """One family of robots: what it contributes to each part of the workflow.
 
-    * ``robots``: the campaign ``robot`` values it serves (``xytheta``; ``stage1d``, ``stage2d``).
-    * ``rigs``: built-in rig short names per robot, ``{robot: {"simulated": "module:factory"}}``.
-    * ``plans``: per robot, plan name → ``"module:builder"``, ``builder(campaign, args)`` →
-      :class:`calflow.plan.Acquisition`. ``calflow acquire --plan NAME`` looks the plan up here.
-    * ``rig_options``: ``"module:function"``, ``function(campaign, factory, run_id, options,
-      start_s) -> options``: what a run adds to the campaign's rig options (seeds, streams).
-    * ``steps``: ``identify``, ``metrics`` (``function(args)``), ``summarise``
-      (``function(campaign, files, truth) -> dict``) and ``figures`` (``function(summary,
-      inputs) -> (figures, notes)``).
-    * ``templates``: the package whose ``templates/`` folder holds ``<robot>.html.j2``.
-    * ``acquire_arguments``, ``identify_arguments``: options the family's plans read from
-      ``calflow acquire``, and its identification from ``calflow identify``.
-    * ``commands``: the family's own subcommands.
-    * ``sensors``: short names of sensor factories for the ``gcs`` rig.
-    * ``emulator``: ``"module:function"``, ``function(argv, prog=...) -> int`` serving a
-      campaign's stages as a GCS controller (``calflow emulate gcs --campaign FILE``).
-    * ``joints``: per robot, the joint (axis) names of its runs, in order: a run of that
-      robot has ``cmd_<joint>`` and ``meas_<joint>`` (validation, import and replay read it).
-    * ``axes``: axis name → ``(units, long_name)`` for joints the core does not define
-      (the core knows ``x``, ``y``, ``z`` in µm and ``theta`` in degree).
-    * ``reference``: the named reference sets the family provides, name → ``"module:attribute"``
-      of the published values (a dict with a ``source``); a campaign that reproduces one
-      declares it (``reference: <name>``) and its summary puts them beside calflow's
-      (``summary["reference"]``, :mod:`calflow.reference`).
-    * ``headline``: ``"module:function"``, ``function(summary) -> {"label", "key", "unit"}``
-      or None: the one figure the cross-campaign index lists for a campaign (``key``
-      dotted into the summary).
-    * ``modes``: report label of each name of a test mode or model (``adaptive_kmz`` →
-      "adaptive model (KMZ)"), the report's ``mode`` filter.
-    * ``index_row``: template in ``templates/`` drawing a campaign's headline rows in the
-      cross-campaign index (it receives ``s``, the summary, and ``ref``, its reference).
-    * ``summary_sections``: ``"kind"`` or ``"kind:plan"`` → section name: which summary
-      section each result file feeds (:func:`calflow.summary_routing.route`).
-    * ``rules``: ``("package", "file.smk", ...)``: the family's Snakemake rules files inside
-      ``package``, included by the Snakefile for every installed family.
-    * ``workflow``: ``"module:attribute"``, a :class:`calflow.family_workflow.FamilyWorkflow`
-      answering what the core rules ask about a campaign (its result files, models,
-      identification inputs, the runs its ``acquire`` rule serves).
-    * ``studies``: ``"module:function"``, ``function(path, campaign_dir) -> dict`` loading a
-      study file over a base campaign of the family (``config/studies``).
-    * ``schemas``: the package whose ``schemas/`` folder holds ``campaign-<robot>.schema.yaml``
-      (``None``: the core's ``workflow/schemas``); the common keys are merged in.
-    * ``options``: the option check of each rig and sensor factory the family provides,
-      factory ``"module:callable"`` → ``"module:function"``: ``function(**options)`` checks the
-      options without building anything and raises :class:`~calflow.errors.OptionError`
-      naming the option; the config check runs it when a campaign is loaded
-      (:func:`calflow.rigs.plugin.check_rig`, and for a ``gcs`` rig's sensor
-      :func:`calflow.gcs.rig_options.check_options`).
-    * ``history_entry``: ``"module:function"``, ``function(summary) -> {model: {parameters:
-      {p: {value, std}}, correlation, accuracy_um}}``: what one campaign brings to its stage's
-      history (:mod:`calflow.lifecycle.history`); None: the family's campaigns cannot name a stage.
-    * ``uncertainty``: ``"module:function"``, ``function(campaign, files) ->
-      list[calflow.certificate.Measurement]``: where its headline figures are in its summary,
-      the data they come from and its sensor's declared uncertainty terms; the core computes
-      U and the decisions (:mod:`calflow.certificate`). None: no figure has a U.
-    * ``certified``: per robot, figure key → whether calflow gives its U (``accuracy_um``:
-      True): the figures a stage's ``specification`` may name.
+    Its fields fall into the contract's contribution kinds (:data:`calflow.family_contract.KINDS`);
+    every hook — a ``"module:attribute"`` string, or an argparse hook held directly — has its
+    signature declared once in :data:`calflow.family_contract.HOOKS` and is checked when the
+    family registers. docs/families.md describes each field and hook.
+
+    * who: ``name``, ``robots`` (the campaign ``robot`` values it serves), ``joints`` (per robot,
+      the joint names of its runs, in order), ``axes`` (units and long name of joints the core
+      does not define), ``schemas`` (the package whose ``schemas/`` holds
+      ``campaign-<robot>.schema.yaml``; ``None``: the core's).
+    * rig: ``rigs`` (robot → short name → factory), ``rig_options`` (what a run adds to the rig
+      options), ``options`` (factory → its option check; every rig factory has one), ``sensors``
+      (of the ``gcs`` rig), ``emulator``.
+    * plans: ``plans`` (robot → plan name → builder), ``acquire_arguments``.
+    * steps: ``steps`` (``check``, ``identify``, ``metrics``, ``summarise``, ``figures``, each
+      ``hook(c, args)``), ``identify_arguments``.
+    * report: ``templates`` (the package whose ``templates/`` holds ``<robot>.html.j2``),
+      ``index_row``, ``headline``, ``modes``, ``reference``, ``summary_sections``.
+    * certificate: ``uncertainty``, ``certified``. lifecycle: ``history_entry``.
+    * workflow: ``workflow`` (a :class:`calflow.family_workflow.FamilyWorkflow`), ``rules``
+      (``("package", "file.smk", ...)``), ``studies``. commands: ``commands``.
     """
 
     name: str
@@ -156,7 +120,9 @@ class Family:
 
     def hooks(self) -> Any:
         """The family's :class:`calflow.family_workflow.FamilyWorkflow` (the core's defaults when none)."""
-        return resolve(self.workflow or "calflow.family_workflow:DEFAULT")
+        from calflow.family_contract import workflow_of
+
+        return workflow_of(self)
 
     def rules_files(self) -> list[str]:
         """Absolute paths of the family's Snakemake rules files (``rules``)."""
@@ -176,12 +142,17 @@ def resolve(target: str) -> Any:
 
 @lru_cache(maxsize=1)
 def families() -> tuple[Family, ...]:
-    """Every installed family, in entry-point name order."""
+    """Every installed family, in entry-point name order, each checked against the contract
+    when it registers (:func:`calflow.family_contract.check_family`): a family that does not
+    keep it is refused with one line naming it, the hook and what was expected."""
+    from calflow.family_contract import check_family
+
     found = []
     for ep in sorted(entry_points(group=GROUP), key=lambda e: e.name):
         fam = ep.load()
         if not isinstance(fam, Family):
             raise CalflowError(f"entry point {GROUP}:{ep.name}: {ep.value} is not a calflow.family.Family")
+        check_family(fam)
         found.append(fam)
     return tuple(found)
 

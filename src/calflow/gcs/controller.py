@@ -44,6 +44,11 @@ class _Err(Exception):
     """A GCS error code raised inside a handler; stored in the error register."""
 
 
+#: The public name of the error an emulated controller's handler raises (a family's own
+#: controller, e.g. a hexapod's, subclasses :class:`EmulatedController` and raises it).
+GCSCommandError = _Err
+
+
 class EmulatedController:
     """Controller state and GCS command semantics, independent of the transport."""
 

@@ -380,9 +380,3 @@ def gcs(
     rig._locks = locks
     rig.recorder = dict(recorder or {})
     return rig
-
-
-# The config check calls this (calflow.rigs.plugin.check_rig): options checked, nothing opened.
-from calflow.gcs.rig_options import check_options as _check_options  # noqa: E402
-
-gcs.check_options = _check_options

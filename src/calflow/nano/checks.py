@@ -11,6 +11,13 @@ from calflow.errors import ConfigError, OptionError
 _SENSOR = "simulated_interferometer"  # the simulated world behind an emulated GCS controller
 
 
+def check(c, args) -> Resolution | None:
+    """The family's step hook ``check(c, args)`` (:mod:`calflow.family_contract`): the campaign
+    ``c`` loaded from the file ``args.campaign``, checked beyond its schema; returns what it
+    resolves."""
+    return check_campaign(c, args.campaign)
+
+
 def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
     """Resolve ``aging`` of a simulated stage (``rig.options``, or the options of a ``gcs``
     rig's ``simulated_interferometer`` sensor) for the campaign's ``start`` into the rig's

@@ -1,20 +1,21 @@
-"""Nano steps: training the models (Sec. 5.2) and scoring runs (Sec. 5.3, 5.4)."""
+"""Nano steps: training the models (Sec. 5.2) and scoring runs (Sec. 5.3, 5.4).
+
+The family's step hooks, each called as ``hook(c, args)`` (:mod:`calflow.family_contract`):
+``c`` the loaded campaign, ``args`` the step's inputs."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from calflow.commands.common import campaign as load
 from calflow.commands.common import meta
 from calflow.data.io import open_dataset, write_dataset
 
 
-def identify(args) -> None:
+def identify(c, args) -> None:
     """Train the single model (Eq. 5.3–5.5) and its KMZ variant (5.6), or the 2-DoF model (5.10)."""
     from calflow.nano.models.kmz import AdaptiveKMZModel
     from calflow.nano.models.thermal import SingleModel, TwoDoFModel
 
-    c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
     temps = run["temperature"].values if "temperature" in run else None  # a recording may have none
     s = c["model"]
@@ -38,20 +39,21 @@ def identify(args) -> None:
     write_dataset(model.to_dataset(meta(c, run.attrs["source"], "training", args.model_name)), args.out)
 
 
-def metrics(args) -> None:
+def metrics(c, args) -> None:
     """Per-test, per-pose AP and RP of a training, metrology or validation run."""
     from calflow.nano.evaluation import pose_metrics_1d, pose_metrics_2d
 
-    c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
     ds = pose_metrics_1d(run) if c["robot"] == "stage1d" else pose_metrics_2d(run)
     ds.attrs.update(meta(c, run.attrs["source"], run.attrs["plan"]).attrs("metrics"))
     write_dataset(ds, args.out)
 
 
-def summarise(c: dict, files: list[str], truth: dict | None = None) -> dict:
-    """The stage1d / stage2d summary from the campaign's model, metrics and run files; with the
-    simulated rig's ``truth``, each test type's error budget (:mod:`calflow.nano.stage.error_budget`)."""
+def summarise(c, args) -> dict:
+    """The stage1d / stage2d summary from the campaign's model, metrics and run files
+    (``args.files``); with the simulated rig's ``args.truth``, each test type's error budget
+    (:mod:`calflow.nano.stage.error_budget`)."""
+    files, truth = args.files, args.truth
     from calflow.nano.evaluation import iso230_2_of_run, temperature_range
     from calflow.nano.family import FAMILY
     from calflow.nano.models.registry import model_from_dataset

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+from calflow.cache import cached_json
+
 #: Files of a package that are data its code reads (templates, styles, schemas).
 DATA_SUFFIXES = (".j2", ".css", ".yaml", ".yml", ".json")
 
@@ -181,51 +183,27 @@ def _visit(
 _BODIES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
 
 
-@cache
-def _cache_dir() -> Path | None:
-    """Where normalised digests are kept between processes (content-addressed, so never
-    stale): ``$CALFLOW_CACHE_DIR``, else ``$XDG_CACHE_HOME/calflow`` or ``~/.cache/calflow``;
-    empty ``CALFLOW_CACHE_DIR``: none."""
-    folder = os.environ.get("CALFLOW_CACHE_DIR")
-    if folder is None:
-        folder = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "calflow")
-    return Path(folder) / "provenance" if folder else None
-
-
 def _normalised(module: str, path: Path, package: bool, strings: bool) -> dict:
     """``{"digest", "functions"}`` of a module's source: computed, or read from the cache
     by the hash of the source itself."""
-    import json
     import sys
 
     raw = path.read_bytes()
     key = hashlib.sha256(
         f"v3 {sys.version_info[:2]} {module} {package} {strings}\n".encode() + raw
     ).hexdigest()
-    folder = _cache_dir()
-    cached = folder / f"{key}.json" if folder else None
-    if cached is not None:
-        try:
-            return json.loads(cached.read_text())
-        except (OSError, ValueError):
-            pass
-    tree = ast.parse(raw, str(path))
-    scanned = scan(tree, module, package, strings)
-    found = {
-        "digest": hashlib.sha256(ast.dump(tree).encode()).hexdigest(),
-        "functions": {
-            k: [sorted({tuple(x) for x in i}, key=str), sorted(set(n))] for k, (i, n) in scanned.items()
-        },
-    }
-    if cached is not None:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            tmp = cached.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps(found))
-            tmp.replace(cached)
-        except OSError:  # a read-only home: computed again next time
-            pass
-    return found
+
+    def compute() -> dict:
+        tree = ast.parse(raw, str(path))
+        scanned = scan(tree, module, package, strings)
+        return {
+            "digest": hashlib.sha256(ast.dump(tree).encode()).hexdigest(),
+            "functions": {
+                k: [sorted({tuple(x) for x in i}, key=str), sorted(set(n))] for k, (i, n) in scanned.items()
+            },
+        }
+
+    return cached_json("provenance", key, compute)
 
 
 @cache

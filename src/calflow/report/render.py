@@ -9,6 +9,7 @@ are formatted from the summary, so a test can read them back and compare.
 
 from __future__ import annotations
 
+import argparse
 import math
 import platform
 import shlex
@@ -178,13 +179,14 @@ def _provenance(summary: dict, campaign: dict, command: str, files: list[str]) -
     }
 
 
-def figures_for(summary: dict, files: list[str] | None):
+def figures_for(summary: dict, files: list[str] | None, campaign: dict | None = None):
     """The numbered figures of a campaign's report, by section, and notes on omitted ones."""
     from calflow.family import family_of
     from calflow.report import figures as common
 
     inputs = common.classify(files)
-    figs, notes = family_of(summary["robot"]).step("figures")(summary, inputs)
+    step = family_of(summary["robot"]).step("figures")  # a step hook: figures(c, args)
+    figs, notes = step(campaign, argparse.Namespace(summary=summary, inputs=inputs))
     return common.by_section(common.number(figs)), notes
 
 
@@ -204,10 +206,12 @@ def render_campaign_pages(
 
     token = RASTER.set(pdf)
     try:
-        figures, notes = figures_for(summary, files)
+        figures, notes = figures_for(summary, files, campaign)
     finally:
         RASTER.reset(token)
-    template = environment().get_template(f"{summary['robot']}.html.j2")
+    from calflow.family_contract import TEMPLATE
+
+    template = environment().get_template(TEMPLATE.format(robot=summary["robot"]))
     declared = campaign.get("reference")
     context = dict(
         s=summary,

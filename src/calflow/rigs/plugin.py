@@ -38,6 +38,11 @@ _FACTORY_RE = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 # Built-in rigs every robot has: replay of recordings and PI GCS controllers. The robot
 # families add their own short names (``simulated``), :class:`calflow.family.Family`.
 CORE_RIGS = {"replay": "calflow.rigs.replay:replay", "gcs": "calflow.gcs.rig:gcs"}
+# Their option checks, declared as a family declares its own (:attr:`calflow.family.Family.options`).
+CORE_OPTION_CHECKS = {
+    "calflow.rigs.replay:replay": "calflow.rigs.replay:check_options",
+    "calflow.gcs.rig:gcs": "calflow.gcs.rig_options:check_options",
+}
 GROUP = "calflow.rigs"  # entry points of installed rig plug-ins: name -> "module:callable"
 ENV = "CALFLOW_RIG_PLUGINS"  # the allow-list given to a job: module names, comma-separated
 HOW_TO_ALLOW = (
@@ -154,8 +159,9 @@ def check_rig(
     ``path`` and the key.
 
     The factory must be built in, registered, or (with ``plugins``) an allowed, importable
-    callable. The option check its family declares (:attr:`calflow.family.Family.options`), else
-    a ``check_options(**options)`` attribute of the factory (a third-party plug-in's), has its
+    callable. The option check declared for it (the core's :data:`CORE_OPTION_CHECKS`, its
+    family's :attr:`calflow.family.Family.options`), else a ``check_options(**options)``
+    attribute of the factory (a rig plug-in outside any family, docs/rigs.md), has its
     options checked for every run (``rig.options`` merged with ``rig.runs.<run>``)
     without building the rig. With ``plugins=False``, a ``module:callable`` factory is left
     alone: no plug-in module is imported (commands that do not open the rig).
@@ -170,9 +176,10 @@ def check_rig(
     except RigError as exc:
         detail = str(exc).removeprefix("rig.factory: ")
         raise ConfigError(f"{path}: key 'rig.factory': {detail}") from None
-    from calflow.family import option_check
+    from calflow.family import option_check, resolve
 
-    check = option_check(target) or getattr(factory, "check_options", None)
+    declared = CORE_OPTION_CHECKS.get(target)
+    check = resolve(declared) if declared else option_check(target) or getattr(factory, "check_options", None)
     if check is None:
         return
     options = dict(rig.get("options") or {})

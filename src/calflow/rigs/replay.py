@@ -300,6 +300,3 @@ def check_options(
         raise OptionError("stream", "a run id (string)", stream)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
         raise OptionError("seed", "an integer", seed)
-
-
-replay.check_options = check_options

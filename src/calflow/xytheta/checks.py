@@ -9,6 +9,13 @@ from calflow.campaign import Campaign, Interim, Resolution
 from calflow.errors import ConfigError, OptionError
 
 
+def check(c, args) -> Resolution | None:
+    """The family's step hook ``check(c, args)`` (:mod:`calflow.family_contract`): the campaign
+    ``c`` loaded from the file ``args.campaign``, checked beyond its schema; returns what it
+    resolves."""
+    return check_campaign(c, args.campaign)
+
+
 def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent;
     return what the check resolves (:class:`~calflow.campaign.Resolution`: the simulated

@@ -149,9 +149,9 @@ FAMILY = Family(
     steps={
         "identify": f"{_C}:identify",
         "metrics": f"{_C}:metrics",
-        "summarise": "calflow.xytheta.report.summary:xytheta_summary",
-        "figures": "calflow.xytheta.report.figures:build",
-        "check": "calflow.xytheta.checks:check_campaign",
+        "summarise": "calflow.xytheta.report.summary:summarise",
+        "figures": "calflow.xytheta.report.figures:figures",
+        "check": "calflow.xytheta.checks:check",
     },
     templates="calflow.xytheta.report",
     schemas="calflow.xytheta",

@@ -1,5 +1,9 @@
 """XYΘ steps: characterisation (Sec. 4.4), identification of Models I–V (Sec. 4.5),
-observability (Fig. 4.21) and scoring of validation and XY compensation runs."""
+observability (Fig. 4.21) and scoring of validation and XY compensation runs.
+
+``identify`` and ``metrics`` are the family's step hooks, called as
+``hook(c, args)`` (:mod:`calflow.family_contract`): ``c`` the loaded campaign, ``args`` the
+step's inputs."""
 
 from __future__ import annotations
 
@@ -58,7 +62,7 @@ def _fit_quality(c: dict, X, Y, theta, P_mx, P_my, free, initial, ex, ey, f_ax=0
     return out
 
 
-def identify(args) -> None:
+def identify(c, args) -> None:
     """One model of the campaign's ``models`` table (Table 4.4).
 
     ``free``/``fixed`` parameters are identified on the identification run with the
@@ -78,7 +82,6 @@ def identify(args) -> None:
     from calflow.xytheta.models.resampling import bootstrap_std
     from calflow.xytheta.tables.position import PositionLUT, infer_directions
 
-    c = load(args.campaign)
     spec = c["models"].get(args.model_name)
     if spec is None:
         raise CalflowError(f"{args.campaign}: key 'models.{args.model_name}': missing")
@@ -213,12 +216,11 @@ def _angle_model(c: dict, args, base):
     )
 
 
-def metrics(args) -> None:
+def metrics(c, args) -> None:
     """ISO 9283 of a validation run (world frame) or of a square/random-points run (stage frame)."""
     from calflow.xytheta.evaluation import xytheta_validation_metrics
     from calflow.xytheta.tables.characterisation import xy_positioning_metrics
 
-    c = load(args.campaign)
     run = open_dataset(args.run, kind="run")
     m = meta(c, run.attrs["source"], run.attrs["plan"], run.attrs.get("model"))
     if run.attrs["plan"] in ("validation", "validation_heldout", "interim_check", "as_found"):

@@ -23,6 +23,13 @@ import numpy as np
 from calflow.errors import ConfigError
 
 
+def check(c, args) -> None:
+    """The family's step hook ``check(c, args)`` (:mod:`calflow.family_contract`): the campaign
+    ``c`` loaded from the file ``args.campaign``, checked beyond its schema (it resolves
+    nothing: None)."""
+    check_campaign(c, args.campaign)
+
+
 def check_campaign(campaign: dict, path: Path) -> None:
     """Raise :class:`ConfigError` naming the file and key when the campaign cannot run."""
     from calflow_hexapod.models.ladder import LADDER

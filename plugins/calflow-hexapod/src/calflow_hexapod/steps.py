@@ -1,5 +1,8 @@
 """The hexapod's workflow steps behind ``calflow identify`` and ``calflow metrics``.
 
+Step hooks, each called as ``hook(c, args)`` (:mod:`calflow.family_contract`): ``c`` the loaded
+campaign, ``args`` the step's inputs.
+
 ``identify``: one model of the ladder (campaign ``models.<name>.rung``) from the identification
 run, by inverse-kinematic residuals weighted as implicit loops (:mod:`calflow_hexapod.models.identification`).
 ``metrics``: ISO 9283 pose accuracy and repeatability of a validation run (held-out targets or
@@ -12,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from calflow.commands.common import campaign, meta
+from calflow.commands.common import meta
 from calflow.data.io import open_dataset, write_dataset
 from calflow.errors import CalflowError
 from calflow_hexapod.models.geometry import AXES
@@ -20,7 +23,7 @@ from calflow_hexapod.models.geometry import AXES
 POSITION, ORIENTATION = AXES[:3], AXES[3:]
 
 
-def identify(args) -> None:
+def identify(c, args) -> None:
     """``calflow identify --campaign FILE --model-name NAME --run RUN --out MODEL.nc``."""
     from calflow.identification.robust import Robust
     from calflow_hexapod.models.calibration import HexapodModel
@@ -30,7 +33,6 @@ def identify(args) -> None:
     from calflow_hexapod.models.ladder import LADDER
     from calflow_hexapod.plans.design import noise_model, nominal_parameters
 
-    c = campaign(args.campaign)
     spec = c["models"].get(args.model_name)
     if spec is None:
         raise CalflowError(
@@ -96,9 +98,8 @@ def pose_metrics(run: xr.Dataset) -> dict[str, np.ndarray]:
     return {k: np.asarray(v) for k, v in rows.items()}
 
 
-def metrics(args) -> None:
+def metrics(c, args) -> None:
     """``calflow metrics --campaign FILE --run RUN --out METRICS.nc`` of a validation run."""
-    c = campaign(args.campaign)
     run = open_dataset(args.run, kind="run")
     m = pose_metrics(run)
     dims = ("target",)

@@ -49,8 +49,8 @@ def noise_model(c: dict) -> dict | None:
         return None
     from calflow.nano.stage import rig
 
-    factory = rig.nano1d if c["robot"] == "stage1d" else rig.nano2d
-    o = factory.check_options(**(c["rig"].get("options") or {}))  # the options with the rig's defaults
+    check = rig.check_nano1d if c["robot"] == "stage1d" else rig.check_nano2d  # the family's declared check
+    o = check(**(c["rig"].get("options") or {}))  # the options with the rig's defaults
     return {
         "pose": float(o["repeatability_nm"]),
         "sample": float(

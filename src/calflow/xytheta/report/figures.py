@@ -329,3 +329,9 @@ def build(summary: dict, inputs: Inputs) -> tuple[list[Figure], list[str]]:
         draw(instrument.period_error, bench, instrument.throughput(inputs)),
     ]
     return [f for f in figures if f is not None], notes
+
+
+def figures(c, args) -> tuple[list, list[str]]:
+    """The family's step hook ``figures(c, args)`` (:mod:`calflow.family_contract`): the
+    report's figures of ``args.summary`` and notes on omitted ones, from ``args.inputs``."""
+    return build(args.summary, args.inputs)

@@ -389,3 +389,10 @@ def _crlb_block(summary: dict, campaign: dict, training_runs: list[xr.Dataset]) 
                 rig_time_h=record.get("rig_time_h"),
                 rig_time_h_achieved=jsonable(achieved_h),
             )
+
+
+def summarise(c, args) -> dict:
+    """The family's step hook ``summarise(c, args)`` (:mod:`calflow.family_contract`): the
+    summary of the campaign's result files ``args.files``, with the rig's ``args.truth``
+    (simulated rigs; tests and reports only) or None."""
+    return xytheta_summary(c, args.files, args.truth)

@@ -136,7 +136,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
             residuals=None,
             out=f(f"{name}.nc"),
         )
-        commands.identify(argparse.Namespace(**{**ns, **{k: f(v) for k, v in files.items()}}))
+        commands.identify(c, argparse.Namespace(**{**ns, **{k: f(v) for k, v in files.items()}}))
 
     models = c["models"]
     if any(s.get("position_table") for s in models.values()):
@@ -158,7 +158,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     for name in models:
         run("validation_heldout", f"heldout_{name}.nc", f"{name}.nc")
         commands.metrics(
-            argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
+            c, argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
         )
         out[name] = [float(v) for v in open_dataset(f(f"m_{name}.nc"))["ap"].values]
     return out

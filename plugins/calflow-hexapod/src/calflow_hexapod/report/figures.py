@@ -47,3 +47,9 @@ def build(summary: dict, inputs) -> tuple[list, list[str]]:
         return [], ["No model was validated on held-out targets: no accuracy figure."]
     fig = guarded(notes)(heldout_accuracy, summary, names)
     return [f for f in (fig,) if f is not None], notes
+
+
+def figures(c, args) -> tuple[list, list[str]]:
+    """The family's step hook ``figures(c, args)`` (:mod:`calflow.family_contract`): the
+    report's figures of ``args.summary`` and notes on omitted ones, from ``args.inputs``."""
+    return build(args.summary, args.inputs)

@@ -194,3 +194,10 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             summary["identification_design"] = json.loads(run.attrs["design"])
         summary["identification_poses"] = int((np.asarray(run["pose"].values) > 0).sum())
     return summary
+
+
+def summarise(c, args) -> dict:
+    """The family's step hook ``summarise(c, args)`` (:mod:`calflow.family_contract`): the
+    summary of the campaign's result files ``args.files``, with the rig's ``args.truth``
+    (simulated rigs; tests and reports only) or None."""
+    return hexapod_summary(c, args.files, args.truth)

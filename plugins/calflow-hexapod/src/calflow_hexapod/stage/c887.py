@@ -38,7 +38,8 @@ from typing import ClassVar
 import numpy as np
 
 from calflow.gcs.axis import AxisConfig, SimAxis
-from calflow.gcs.controller import EmulatedController, _Err
+from calflow.gcs.controller import EmulatedController
+from calflow.gcs.controller import GCSCommandError as _Err
 from calflow_hexapod.models.geometry import AXES, H811_TRAVEL, Geometry, h811
 from calflow_hexapod.models.kinematics import forward, inverse
 from calflow_hexapod.stage.workspace import leg_stroke_um
