@@ -19,7 +19,6 @@ import pytest
 from test_bad_input_campaigns import _project, case, write_case
 
 from calflow.campaign import load as load_campaign
-from calflow.cli import main
 from calflow.errors import ConfigError
 
 CAL = "demo-sn0042-2026-01"

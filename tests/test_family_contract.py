@@ -174,3 +174,26 @@ def test_registration_refuses_a_family_that_breaks_the_contract(module, tmp_path
     assert str(err.value).startswith(
         "family 'lab': hook steps.metrics: 'lab_steps:metrics': expected metrics(c, args)"
     )
+
+
+def test_hooks_bound_in_ways_the_source_does_not_show_plainly_are_read_from_python(module):
+    """``a, b = ...`` or a loop binds a hook too: the check asks Python, so a right hook
+    registers and a wrong one is still refused by its signature."""
+    name = module(
+        """
+        def _make(n):
+            def step(c, args):
+                return None
+            def other(args):
+                return None
+            return step if n else other
+
+        identify, metrics = _make(1), _make(0)
+        for _name in ("summarise",):
+            globals()[_name] = _make(1)
+        """
+    )
+    check_family(_with_step("identify", f"{name}:identify"))
+    check_family(_with_step("summarise", f"{name}:summarise"))
+    line = _refused(_with_step("metrics", f"{name}:metrics"))
+    assert "steps.metrics" in line and "(args)" in line

@@ -13,8 +13,8 @@ import yaml
 
 import calflow.family as registry
 from calflow import layout
+from calflow.campaign import load as load_campaign
 from calflow.cli import main
-from calflow.config import load_campaign
 from calflow.data.io import open_dataset
 from calflow.family_contract import check_family
 from calflow.family_workflow import hooks

@@ -22,9 +22,8 @@ variant of the campaign, e.g. a study's); so does :func:`thaw`.
 
 from __future__ import annotations
 
-from argparse import Namespace
-
 import hashlib
+from argparse import Namespace
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass

@@ -7,7 +7,6 @@ bounded, duplicate keys and look-alike characters refused); nothing from a confi
 
 from __future__ import annotations
 
-import argparse
 import copy
 import datetime as dt
 import hashlib

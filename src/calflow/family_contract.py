@@ -143,6 +143,7 @@ RULE_GLOBALS = (
     "models_of",  # models_of(campaign): the models it identifies
     "code_digest",  # code_digest(command, robot): the digest of a subcommand's code
     "digest",  # digest(obj): SHA-256 of its canonical JSON
+    "layout",  # calflow.layout: every path under results/ and reports/
 )
 
 #: What a family outside calflow imports from the core: module → the public names it may import
@@ -167,7 +168,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
         "sha256_file",
     ),
     "calflow.data.runs": ("RunMetadata",),
-    "calflow.summary_routing": ("route",),
+    "calflow.summary_routing": ("route", "summary_head"),
     "calflow.reference": ("declared",),
     "calflow.certificate": ("Measurement",),
     "calflow.metrics.uncertainty": ("Term",),
@@ -184,6 +185,19 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow.gcs.controller": ("EmulatedController", "GCSCommandError"),
     "calflow.gcs.emulator": ("GCSEmulator", "Faults"),
     "calflow.gcs.campaign_server": ("load_campaign_arg", "link_options", "serve_campaign", "start_emulated"),
+    "calflow.rigs.simulated.effects": ("Effect", "Effects", "SwitchedTruth"),
+    "calflow.rigs.simulated.checks": ("Bounds", "check_physics"),
+    "calflow.rigs.simulated.campaign": ("simulated_options",),
+    "calflow.rigs.simulated.commands": ("joint_commands",),
+    "calflow.rigs.simulated.budget": (
+        "Replays",
+        "budget_command",
+        "decompose",
+        "effects_of",
+        "require_simulated",
+    ),
+    "calflow.rigs.simulated.bundle": ("provenance", "read_bundle", "write_bundle", "Compensator"),
+    "calflow.rigs.simulated.emulator": ("Emulator",),
 }
 
 

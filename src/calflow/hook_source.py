@@ -69,6 +69,11 @@ def _bindings(tree: ast.Module) -> dict[str, list]:
             else:
                 what = ["value"]
             found.update((t.id, what) for t in targets if isinstance(t, ast.Name))
+            for t in targets:  # a, b = ...: what each name is, Python says (binding imports it)
+                if isinstance(t, (ast.Tuple, ast.List)):
+                    for name in t.elts:
+                        if isinstance(name, ast.Name):
+                            found.pop(name.id, None)
         elif isinstance(node, ast.ImportFrom):
             for alias in node.names:
                 found[alias.asname or alias.name] = ["import", node.level, node.module or "", alias.name]
@@ -101,7 +106,7 @@ def _summary(path: str) -> dict[str, list]:
     from calflow.cache import cached_json
 
     st = os.stat(path)
-    stamp = f"contract v3 {sys.version_info[:2]} {os.path.abspath(path)} {st.st_size} {st.st_mtime_ns}"
+    stamp = f"contract v4 {sys.version_info[:2]} {os.path.abspath(path)} {st.st_size} {st.st_mtime_ns}"
     key = hashlib.sha256(stamp.encode()).hexdigest()
     return cached_json("contract", key, lambda: _bindings(ast.parse(Path(path).read_bytes(), path)))
 
@@ -147,17 +152,14 @@ def binding(module: str, attr: str, depth: int = 0) -> str | tuple[str, Params |
     call: unknown until imported), or a string saying why it does not resolve."""
     located = locate(module)
     if located == "compiled" or depth > 8:
-        obj = getattr(importlib.import_module(module), attr, None)
-        if obj is None:
-            return f"module {module!r} has no attribute {attr!r}"
-        return ("function", from_signature(inspect.signature(obj))) if callable(obj) else ("value", None)
+        return _imported(module, attr)
     if isinstance(located, str):
         return located
     path, is_package = located
     package = module if is_package else module.rpartition(".")[0]
     what = _summary(str(path)).get(attr)
-    if what is None:
-        return f"module {module!r} has no attribute {attr!r}"
+    if what is None:  # bound in a way the source does not show plainly (a, b = ..., a loop): ask Python
+        return _imported(module, attr)
     if what[0] in ("function", "class"):
         return what[0], _params(what[1])
     if what[0] == "alias":
@@ -170,6 +172,23 @@ def binding(module: str, attr: str, depth: int = 0) -> str | tuple[str, Params |
             return "value", None  # a submodule
         return binding(source, name, depth + 1)
     return what[0], None
+
+
+def _imported(module: str, attr: str) -> str | tuple[str, Params | None]:
+    """What ``module:attr`` is once the module is imported (the slow path: only for what the
+    module's source does not bind plainly)."""
+    try:
+        obj = getattr(importlib.import_module(module), attr, None)
+    except Exception as exc:  # the module fails on import: say so, in one line
+        return f"module {module!r} cannot be imported ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})"
+    if obj is None:
+        return f"module {module!r} has no attribute {attr!r}"
+    if not callable(obj):
+        return "value", None
+    try:
+        return ("class" if inspect.isclass(obj) else "function"), from_signature(inspect.signature(obj))
+    except (TypeError, ValueError):  # a builtin without a signature
+        return "object", None
 
 
 def _made_by(tree: ast.Module, call: ast.Call) -> tuple[str, Params | None]:
