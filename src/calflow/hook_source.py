@@ -180,7 +180,9 @@ def _imported(module: str, attr: str) -> str | tuple[str, Params | None]:
     try:
         obj = getattr(importlib.import_module(module), attr, None)
     except Exception as exc:  # the module fails on import: say so, in one line
-        return f"module {module!r} cannot be imported ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})"
+        return (
+            f"module {module!r} cannot be imported ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})"
+        )
     if obj is None:
         return f"module {module!r} has no attribute {attr!r}"
     if not callable(obj):
