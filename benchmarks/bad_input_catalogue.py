@@ -1,4 +1,4 @@
-"""Run the bad-input catalogue of campaign and workflow files (tests/test_bad_input_campaigns.py)
+"""Run the bad-input catalogue of campaign and workflow files (tests/bad_input/test_bad_input_campaigns.py)
 case by case in subprocesses, with a time limit, and count how many are refused at load —
 before any job — in one line naming the file and what the catalogue expects.
 
@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 LOAD = (
     "import sys\n"
-    "from calflow.campaign import load as load_campaign\n"
+    "from calflow.configuration.campaign import load as load_campaign\n"
     "from calflow.errors import ConfigError\n"
     "try:\n"
     "    load_campaign(sys.argv[1], [])\n"
@@ -66,7 +66,7 @@ def _outcome(proc, out: str, named: str, expected) -> str:
 
 BOMB_TIMER = (
     "import sys, time\n"
-    "from calflow.campaign import load as load_campaign\n"
+    "from calflow.configuration.campaign import load as load_campaign\n"
     "from calflow.errors import ConfigError\n"
     "best = float('inf')\n"
     "for _ in range(5):\n"
@@ -83,7 +83,7 @@ BOMB_TIMER = (
 def _bomb_in_process(env, timeout) -> float | None:
     """Seconds to load (and refuse) a campaign with the alias bomb, in process, best of 5;
     None on timeout."""
-    from test_bad_input_campaigns import BOMB
+    from bad_input.test_bad_input_campaigns import BOMB
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bomb.yaml"
@@ -94,7 +94,7 @@ def _bomb_in_process(env, timeout) -> float | None:
 
 def main(argv=None) -> int:
     import pytest
-    from test_bad_input_campaigns import CAMPAIGNS, CONFIGS, _project, write_case  # noqa: F401
+    from bad_input.test_bad_input_campaigns import CAMPAIGNS, CONFIGS, _project, write_case  # noqa: F401
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--src", action="append", default=[], help="a source tree put first on the path")

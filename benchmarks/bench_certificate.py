@@ -107,8 +107,8 @@ def xytheta_case(rng, trials, bias_sd=1.5, bias=None):
 
 
 def nano_case(rng, trials):
+    from calflow.instruments.interferometer import interferometer_budget
     from calflow.nano.certificate import interferometer_terms
-    from calflow.uncertainty import interferometer_budget
 
     budget = interferometer_budget()
     terms = interferometer_terms(budget)
@@ -210,7 +210,7 @@ def coverage(seeds: int, trials: int) -> dict:
 
 
 def decision_risk(stages: int, trials: int) -> dict:
-    from calflow.conformity import decide
+    from calflow.certificate.conformity import decide
 
     accepted = false_accept = 0
     pfas, t0 = [], time.perf_counter()

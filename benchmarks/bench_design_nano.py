@@ -55,7 +55,7 @@ def _variant(text: str, training: str, tests: int | None, seed: int | None = Non
 
 
 def _run(work: Path, name: str, text: str, two_dof: bool) -> dict:
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.data.io import open_dataset
     from calflow.nano.models.registry import model_from_dataset
     from calflow.nano.report.summary import heldout_block, mode_block
@@ -161,7 +161,7 @@ def main() -> None:
             ),
             two_dof,
         )
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.nano.plans.designed import design_study
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{args.campaign}.yaml")

@@ -83,7 +83,7 @@ def _best(fn, repeats: int) -> tuple[float, float]:
 
 def five_models(results: Path, repeats: int) -> dict:
     """ms per model of the identify step without file I/O, and the whole step with it."""
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.data.io import open_dataset
     from calflow.xytheta import steps as commands
     from calflow.xytheta.models.ladder import MicroModel
@@ -140,7 +140,7 @@ def five_models(results: Path, repeats: int) -> dict:
 
 def model_ii(n: int, repeats: int, seed: int = 1) -> dict:
     """Seconds and traced peak MB of a Model II identification from ``n`` poses."""
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.identification.robust import Robust
     from calflow.xytheta.models.identification import identify
     from calflow.xytheta.models.kinematics import Parameters, forward
@@ -179,7 +179,7 @@ def crlb_ratio(seeds: int, noise_um: float = 0.5, poses: int = 100) -> dict:
     """Monte-Carlo σ_empirical / Cramér–Rao bound of Model II over ``seeds`` simulated
     campaigns on the thesis rig with every error Model II does not represent switched off
     (the stage's repeatability and the angle reading's noise stay)."""
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.xytheta.stage.physics import options_off
     from calflow.xytheta.studies.aggregate import aggregate
     from calflow.xytheta.studies.montecarlo import run_point

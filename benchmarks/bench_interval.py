@@ -6,7 +6,7 @@ value found through that compensation t days later is a + r·t + e_found (the sa
 history is ``--intervals`` such intervals of random lengths (60–180 days: a lab's practice
 varies); each calibration records its as-found value (through the previous compensation)
 and its as-left value, as the workflow writes them to the summary. The due date is the
-workflow's own decision code (:func:`calflow.lifecycle.as_found.from_history`, on the same
+workflow's own decision code (:func:`calflow.lifecycle.decisions.as_found.from_history`, on the same
 history entries :mod:`calflow.lifecycle.history` builds it from); nothing downstream reads
 the simulated truth, the measures below do.
 
@@ -40,7 +40,7 @@ import time
 import numpy as np
 from scipy import stats
 
-from calflow.lifecycle import as_found
+from calflow.lifecycle.decisions import as_found
 
 T0 = dt.datetime(2026, 1, 5, 8, tzinfo=dt.UTC)
 

@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-from calflow.lifecycle import change, due
-from calflow.lifecycle.sprt import SPRT
+from calflow.lifecycle.decisions import change, due
+from calflow.lifecycle.decisions.sprt import SPRT
 
 NAMES = ("x_R_um", "y_R_um", "alpha_deg", "beta_deg")
 TRUE = np.array([9572.902, 7795.830, 177.689, -0.132])

@@ -45,7 +45,7 @@ def stream_peak_memory(rate_hz: float) -> tuple[float, float, int]:
     code = f"""
 import resource, time
 from calflow.acquisition.runner import acquire
-from calflow.campaign import load as load_campaign
+from calflow.configuration.campaign import load as load_campaign
 from calflow.commands.common import meta
 from calflow.nano.plans import sequences as nano
 from calflow.nano.stage.rig import nano1d

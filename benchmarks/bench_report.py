@@ -42,7 +42,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     import matplotlib  # noqa: F401  (import costs are reported separately)
 
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.report.render import render_campaign_pages, write_pdf
 
     import_s = time.perf_counter() - t0
@@ -56,7 +56,7 @@ def main(argv=None) -> int:
         f"Python {platform.python_version()}; {platform.processor() or 'cpu n/a'}"
     )
     print(
-        f"imports (calflow.config, calflow.report, matplotlib): {import_s:.2f} s; the figure modules load in the first HTML"
+        f"imports (calflow.configuration.config, calflow.report, matplotlib): {import_s:.2f} s; the figure modules load in the first HTML"
     )
     print(f"{'campaign':<18} {'HTML (s)':>9} {'PDF (s)':>9} {'total (s)':>10} {'HTML kB':>8} {'pages':>6}")
     total = 0.0

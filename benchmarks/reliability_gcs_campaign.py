@@ -57,8 +57,8 @@ def _cells(ds, sensors):
 
 def compare(campaign: str, time_scale: float) -> dict:
     from calflow.acquisition.runner import acquire
-    from calflow.campaign import load as load_campaign
     from calflow.commands.common import meta
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.family import family_of
     from calflow.gcs.rig import gcs
     from calflow.nano.stage.emulate import emulated_rig_options
@@ -112,8 +112,8 @@ def compare_xytheta(campaign: str, time_scale: float) -> dict:
     """The identification run of an XYΘ campaign through the C-863 campaign emulator vs the
     simulated rig: Model II identified on both, parameters compared in combined sigma."""
     from calflow.acquisition.runner import acquire
-    from calflow.campaign import load as load_campaign
     from calflow.commands.common import meta
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.family import family_of, resolve
     from calflow.gcs.rig import gcs
     from calflow.rigs import load_rig

@@ -93,8 +93,8 @@ def _uninterrupted(campaign: Path):
     import argparse
 
     from calflow.acquisition.runner import acquire
-    from calflow.campaign import load as load_campaign
     from calflow.commands.common import meta, open_rig
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.family import family_of
 
     c = load_campaign(campaign, ["toyrigs"])

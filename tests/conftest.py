@@ -109,7 +109,7 @@ def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subproce
 def module_log(work: Path) -> dict:
     """Environment under which each ``calflow`` job of a run in ``work`` records the calflow
     and family modules it imported, in ``work/module-log`` (tests/module_log, read by
-    tests/test_provenance.py)."""
+    tests/project/test_provenance.py)."""
     (work / "module-log").mkdir(exist_ok=True)
     paths = [str(ROOT / "tests" / "module_log"), str(ROOT / "tests"), os.environ.get("PYTHONPATH")]
     return {

@@ -14,7 +14,8 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from calflow import __version__, layout
+from calflow import __version__
+from calflow.configuration import layout
 from calflow.errors import CalflowError
 
 
@@ -25,7 +26,7 @@ def cmd_acquire(args) -> None:
 
 
 def _family(args):
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.family import family_of
 
     campaign = load_campaign(args.campaign)
@@ -59,7 +60,7 @@ def cmd_summarise(args) -> None:
 
 
 def cmd_report(args) -> None:
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import render_campaign_pages, write_pdf
 
@@ -131,11 +132,11 @@ def cmd_validate(args) -> int:
 
 
 def cmd_check_config(args) -> None:
-    from calflow.campaign import load as load_campaign
-    from calflow.config import check_campaign_name, load_yaml
+    from calflow.configuration.campaign import load as load_campaign
+    from calflow.configuration.config import check_campaign_name, load_yaml
+    from calflow.configuration.workflow_config import load as load_config
     from calflow.lifecycle.settings import check_stage_settings
     from calflow.lifecycle.stages import stages_of
-    from calflow.workflow_config import load as load_config
 
     cfg = load_config(load_yaml(args.config) or {}, [args.config])
 
@@ -308,7 +309,7 @@ def parser() -> argparse.ArgumentParser:
     e = _sub(
         sub,
         "emulate",
-        _run("calflow.gcs.campaign_server:emulate_command"),
+        _run("calflow.gcs.emulation.campaign_server:emulate_command"),
         "serve a campaign's stages as a PI GCS 2.0 controller on 127.0.0.1, with the emulator "
         "its robot family registers (docs/gcs.md)",
     )

@@ -92,7 +92,7 @@ HOOKS: tuple[Hook, ...] = (
     Hook("plans", "plans", "plans", ("c", "args"), "a calflow.plan.Acquisition", True, "by_robot", "builder"),
     Hook("acquire_arguments", "acquire_arguments", "plans", ("p",), "None", False, "object"),
     # steps: one calling convention, hook(c, args)
-    Hook("steps.check", "steps", "steps", ("c", "args"), "a calflow.campaign.Resolution or None; ConfigError naming file and key"),
+    Hook("steps.check", "steps", "steps", ("c", "args"), "a calflow.configuration.campaign.Resolution or None; ConfigError naming file and key"),
     Hook("steps.identify", "steps", "steps", ("c", "args"), "None; writes args.out", True),
     Hook("steps.metrics", "steps", "steps", ("c", "args"), "None; writes args.out", True),
     Hook("steps.summarise", "steps", "steps", ("c", "args"), "the summary, a JSON-able dict", True),
@@ -143,7 +143,7 @@ RULE_GLOBALS = (
     "models_of",  # models_of(campaign): the models it identifies
     "code_digest",  # code_digest(command, robot): the digest of a subcommand's code
     "digest",  # digest(obj): SHA-256 of its canonical JSON
-    "layout",  # calflow.layout: every path under results/ and reports/
+    "layout",  # calflow.configuration.layout: every path under results/ and reports/
 )
 
 #: What a family outside calflow imports from the core: module → the public names it may import
@@ -154,7 +154,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow.family": ("Family", "Command"),
     "calflow.family_contract": ("*",),
     "calflow.family_workflow": ("FamilyWorkflow",),
-    "calflow.layout": ("*",),
+    "calflow.configuration.layout": ("*",),
     "calflow.errors": ("*",),
     "calflow.plan": ("Plan", "Acquisition"),
     "calflow.commands.common": ("campaign", "meta"),
@@ -181,10 +181,15 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow.identification.robust": ("Robust", "mad_sigma", "outliers"),
     "calflow.report.figures": ("new_figure", "finish", "guarded"),
     "calflow.rigs.thermal": ("LagBank", "room_profile"),
-    "calflow.gcs.axis": ("AxisConfig", "SimAxis"),
-    "calflow.gcs.controller": ("EmulatedController", "GCSCommandError"),
-    "calflow.gcs.emulator": ("GCSEmulator", "Faults"),
-    "calflow.gcs.campaign_server": ("load_campaign_arg", "link_options", "serve_campaign", "start_emulated"),
+    "calflow.gcs.emulation.axis": ("AxisConfig", "SimAxis"),
+    "calflow.gcs.emulation.controller": ("EmulatedController", "GCSCommandError"),
+    "calflow.gcs.emulation.emulator": ("GCSEmulator", "Faults"),
+    "calflow.gcs.emulation.campaign_server": (
+        "load_campaign_arg",
+        "link_options",
+        "serve_campaign",
+        "start_emulated",
+    ),
     "calflow.rigs.simulated.effects": ("Effect", "Effects", "SwitchedTruth"),
     "calflow.rigs.simulated.checks": ("Bounds", "check_physics"),
     "calflow.rigs.simulated.campaign": ("simulated_options",),

@@ -132,8 +132,8 @@ def frame_files(spec: Mapping) -> list[str]:
 def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") -> dict:
     """A study file (``config/studies/<name>.yaml``), loaded by the family of its base campaign
     (key ``campaign``) through the family's ``studies`` loader."""
-    from calflow.campaign import raw
-    from calflow.config import load_yaml
+    from calflow.configuration.campaign import raw
+    from calflow.configuration.config import load_yaml
     from calflow.family import family_of, resolve
 
     path = Path(path)

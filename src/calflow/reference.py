@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from calflow import yamlfile
+from calflow.configuration import yamlfile
 from calflow.errors import ConfigError
 
 

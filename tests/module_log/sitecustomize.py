@@ -1,6 +1,6 @@
 """Test hook: each ``calflow`` process of a test's workflow run records, as it exits, the
 calflow and family modules it imported (``$CALFLOW_MODULE_LOG/<pid>.json``), so
-tests/test_provenance.py can check that each job's rerun digest covers all of them.
+tests/project/test_provenance.py can check that each job's rerun digest covers all of them.
 
 On ``PYTHONPATH`` only in the workflow runs of tests/conftest.py; does nothing unless
 ``CALFLOW_MODULE_LOG`` names a folder.

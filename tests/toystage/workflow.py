@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.family_workflow import FamilyWorkflow
 
 

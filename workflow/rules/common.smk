@@ -6,9 +6,9 @@ import shlex
 import sys
 
 from calflow import __version__ as CALFLOW_VERSION
-from calflow import layout
-from calflow.campaign import load as load_campaign
-from calflow.config import check_campaign_name, digest
+from calflow.configuration import layout
+from calflow.configuration.campaign import load as load_campaign
+from calflow.configuration.config import check_campaign_name, digest
 from calflow.provenance import code_digest
 from calflow.errors import CalflowError
 from calflow.family import all_rules_files, families
@@ -16,7 +16,7 @@ from calflow.family_workflow import frame_files, frame_recordings, hooks, load_s
 from calflow.lifecycle.settings import check_stage_settings
 from calflow.lifecycle.members import histories_on_disk, on_disk
 from calflow.lifecycle.stages import check_needs, stages_of
-from calflow.workflow_config import load as load_checked_config
+from calflow.configuration.workflow_config import load as load_checked_config
 from calflow.certificate.annotate import check_stages
 
 
@@ -130,7 +130,7 @@ def section(step, *keys):
 
 def reads(step, *keys):
     """The params of a rule whose job reads the campaign sections ``keys``: ``sections``, handed
-    to the job (``--sections``; it cannot read another, calflow.campaign.Campaign.only), and
+    to the job (``--sections``; it cannot read another, calflow.configuration.campaign.Campaign.only), and
     ``digest``, of the same sections and the step's code (:func:`section`). Use as
     ``params: **reads("certificate", "stage", "start")``."""
     return {"sections": ",".join(keys), "digest": section(step, *keys)}

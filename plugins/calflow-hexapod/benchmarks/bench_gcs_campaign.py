@@ -152,7 +152,7 @@ def main() -> None:
     p.add_argument("--same", default=str(ROOT / "results" / "hexapod-demo" / "summary.json"))
     p.add_argument("--json", action="store_true")
     a = p.parse_args()
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow_hexapod.stage.emulate import campaign_emulator
 
     folder = Path(a.campaign_dir)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from calflow.gcs import GCSController, GCSControllerError
-from calflow.gcs.emulator import GCSEmulator
+from calflow.gcs.emulation.emulator import GCSEmulator
 from calflow_hexapod.models.geometry import h811
 from calflow_hexapod.models.kinematics import forward, inverse
 from calflow_hexapod.stage.c887 import AXIS_IDS, HexapodController
@@ -192,7 +192,7 @@ def test_lines_as_pipython_formats_them():
     line, and checks each command with ERR?; queries answer one 'axis=value' line per axis."""
     import socket
 
-    from calflow.gcs.protocol import ReplyFramer
+    from calflow.gcs.wire.protocol import ReplyFramer
 
     with GCSEmulator(controller=HexapodController(time_scale=50.0)) as emu:
         sock = socket.create_connection(emu.address, timeout=2)

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from calflow.campaign import load as load_campaign
+from calflow.configuration.campaign import load as load_campaign
 from calflow.family import family_of, joints
 from calflow_hexapod.steps import pose_metrics
 from calflow_hexapod.workflow import WORKFLOW

@@ -5,7 +5,7 @@ contributes to their uncertainty (``Family.uncertainty``: ``function(campaign, f
 list[Measurement]``), and which figures it computes with and without U
 (``Family.certified``). The core does the rest: the budgets and U
 (:mod:`calflow.metrics.uncertainty`), the decisions against the stage's specification
-(:mod:`calflow.conformity`), the summary keys (:mod:`calflow.certificate.annotate`) and the
+(:mod:`calflow.certificate.conformity`), the summary keys (:mod:`calflow.certificate.annotate`) and the
 certificate page (:mod:`calflow.certificate.page`).
 """
 

@@ -6,7 +6,7 @@ Beside each headline figure its family measures (``Family.uncertainty``), the su
   method, value, notes}`` in the figure's unit (:mod:`calflow.metrics.uncertainty`), and,
   when the stage's settings state a specification,
 * ``<parent>.conformity.<key> = {rule, spec, decision, pfa, pfr, guard_band}``
-  (:mod:`calflow.conformity`); a model's ``as_found`` values (when the summary has them)
+  (:mod:`calflow.certificate.conformity`); a model's ``as_found`` values (when the summary has them)
   get theirs in ``as_found.conformity``;
 * ``certificate = {specification, decision_rule, rule_text, decision, figures}`` at the top:
   the campaign's worst decision and the list of figures with a U.
@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from calflow import conformity
+from calflow.certificate import conformity
 from calflow.errors import ConfigError
 from calflow.family import family_of, resolve
 

@@ -75,9 +75,9 @@ def render(summary: dict, campaign: dict, command: str) -> str:
 
 def run(args) -> None:
     """``calflow certificate``: the page from the campaign's summary."""
-    from calflow import layout
-    from calflow.campaign import load as load_campaign
     from calflow.commands.common import handed
+    from calflow.configuration import layout
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import write_pdf
 

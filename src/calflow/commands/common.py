@@ -6,9 +6,9 @@ import shlex
 import sys
 
 from calflow import __version__
-from calflow.campaign import Campaign, Sections
-from calflow.campaign import load as load_campaign
-from calflow.config import campaign_digest
+from calflow.configuration.campaign import Campaign, Sections
+from calflow.configuration.campaign import load as load_campaign
+from calflow.configuration.config import campaign_digest
 from calflow.data.runs import RunMetadata
 
 
@@ -20,7 +20,7 @@ def campaign(path: str, rig_plugins=None) -> dict:
 
 def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
     """Campaign ``c`` as a step sees it: only the ``sections`` its rule hands it (``--sections
-    a,b,c``; :meth:`calflow.campaign.Campaign.only`), or all of it when None."""
+    a,b,c``; :meth:`calflow.configuration.campaign.Campaign.only`), or all of it when None."""
     if sections is None:
         return c
     return c.only([s for s in sections.split(",") if s], step)

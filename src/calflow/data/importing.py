@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from calflow import yamlfile
+from calflow.configuration import yamlfile
 from calflow.data.conventions import robot_joints, robots, run_variables
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import ConfigError, DataError

@@ -43,9 +43,9 @@ from calflow.gcs import (
     GCSProtocolError,
     GCSTimeout,
 )
-from calflow.gcs.link import Link, connection, lock_controllers, prepare, unlock
 from calflow.gcs.rig_records import RecordedMoves
 from calflow.gcs.sensors import load_sensor
+from calflow.gcs.wire.link import Link, connection, lock_controllers, prepare, unlock
 
 log = logging.getLogger("calflow.gcs.rig")
 T = TypeVar("T")

@@ -15,8 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from calflow.errors import OptionError, UnknownOptionError
-from calflow.gcs.controller import parse_parameter_id
-from calflow.gcs.protocol import check_axis
+from calflow.gcs.emulation.controller import parse_parameter_id
+from calflow.gcs.wire.protocol import check_axis
 
 OPTIONS = (
     "axes",

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import ConfigError
 
 
@@ -60,7 +60,7 @@ def run_history(args) -> None:
         raise ConfigError(
             f"calflow history: --settings: expected JSON, got {args.settings!r} ({exc})"
         ) from None
-    from calflow.lifecycle.interval import check_settings
+    from calflow.lifecycle.decisions.interval import check_settings
 
     if not isinstance(settings, dict):
         raise ConfigError(f"calflow history: --settings: expected a JSON object, got {args.settings!r}")
@@ -102,7 +102,7 @@ def _summary(path: str, load) -> dict:
 def _campaign(file: Path, summary: Path, stage: str, results: Path, earlier: dict) -> dict:
     """A member of the stage's history: its campaign file, loaded and checked; else what is
     known of it on disk (calflow.lifecycle.members.describe), with a note saying whence."""
-    from calflow.campaign import load as load_campaign
+    from calflow.configuration.campaign import load as load_campaign
     from calflow.lifecycle.members import describe
     from calflow.lifecycle.stages import check_stage_id
 

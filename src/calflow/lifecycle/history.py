@@ -8,8 +8,8 @@ correlation, accuracy_um}}`` where ``correlation`` is over the parameters with a
 
 The history holds, in time order, every campaign of the stage whose results are on disk
 (:mod:`calflow.lifecycle.members`), and those that left it with the reason; between consecutive calibrations the
-change test (:mod:`calflow.lifecycle.change`); control charts (:mod:`calflow.lifecycle.charts`);
-and the due date (:mod:`calflow.lifecycle.due`).
+change test (:mod:`calflow.lifecycle.decisions.change`); control charts (:mod:`calflow.lifecycle.decisions.charts`);
+and the due date (:mod:`calflow.lifecycle.decisions.due`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from calflow.errors import CalflowError
 from calflow.family import family_of, resolve
-from calflow.lifecycle import as_found, change, charts, due, interval
+from calflow.lifecycle.decisions import as_found, change, charts, due, interval
 
 DEFAULTS = {"alpha": 0.05, "reliability": 0.95, "min_pairs": 3, "model": None, "tolerance_um": None}
 

@@ -1,4 +1,4 @@
-"""The history page's figure of the interval from as-found drift (:mod:`calflow.lifecycle.interval`)."""
+"""The history page's figure of the interval from as-found drift (:mod:`calflow.lifecycle.decisions.interval`)."""
 
 from __future__ import annotations
 

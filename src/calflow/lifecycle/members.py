@@ -22,7 +22,7 @@ import datetime as dt
 import json
 from pathlib import Path
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import CalflowError
 from calflow.lifecycle.stages import STAGE_ID, takes_part
 
@@ -38,7 +38,7 @@ def previous(path: str | Path) -> dict:
 
 
 def _yaml(path: Path) -> dict | None:
-    from calflow.campaign import raw
+    from calflow.configuration.campaign import raw
 
     try:
         data = raw(path)

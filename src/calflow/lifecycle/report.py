@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from calflow.lifecycle.due import parse
+from calflow.lifecycle.decisions.due import parse
 from calflow.report import figures as common
 
 COLORS = common.CYCLE

@@ -21,7 +21,7 @@ from calflow.errors import CalflowError, ConfigError
 def _on_disk(folder: Path) -> dict[str, dict]:
     """Campaign name → its data, for the campaign files of ``folder`` that read as a mapping
     (a file that does not is refused where it is used, not here)."""
-    from calflow.campaign import raw
+    from calflow.configuration.campaign import raw
 
     out = {}
     for path in sorted(folder.glob("*.yaml")) if folder.is_dir() else ():

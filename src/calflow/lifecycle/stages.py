@@ -20,7 +20,7 @@ import re
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import ConfigError
 
 STAGE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -83,8 +83,8 @@ def check_reference(campaign: dict, file: str | Path, key: str, name: str) -> di
     campaign of the same folder, not itself one that reads another (a chain, or a cycle of
     references, is refused here rather than loaded without end), of the same robot and stage,
     and starting before ``campaign`` (a check verifies a calibration made earlier)."""
-    from calflow.campaign import raw
-    from calflow.config import CAMPAIGN_NAME
+    from calflow.configuration.campaign import raw
+    from calflow.configuration.config import CAMPAIGN_NAME
 
     file = Path(file)
     if name == file.stem:

@@ -288,7 +288,7 @@ def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertain
 
     ν_eff is the Welch–Satterthwaite dof of the budget, whose terms are the robust standard
     deviations (:func:`robust_sd`) of the metric with each term alone; u = U/k makes the
-    Student's t that the decisions use (:mod:`calflow.conformity`) reproduce the Monte
+    Student's t that the decisions use (:mod:`calflow.certificate.conformity`) reproduce the Monte
     Carlo interval's half-width.
     """
     lo, hi = interval

@@ -3,7 +3,7 @@
 The 1-DoF stage's intrinsic AP and RP (metrology run) and training AP and RP (ISO 9283,
 max over the run's poses; thesis Sec. 5.3.3) and ISO 230-2 of its training run (or of a
 recorded ISO 230-2 test). The interferometer's terms are its Table 3.4 budget
-(:func:`calflow.uncertainty.interferometer_budget`, with the campaign's ``uncertainty``
+(:func:`calflow.instruments.interferometer.interferometer_budget`, with the campaign's ``uncertainty``
 inputs), each given the way it acts on a mean reading:
 
 * U_1 laser wavelength, U_4 atmospheric compensation, U_8 cosine: proportional to the
@@ -67,10 +67,10 @@ def _cells(run):
 
 def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
     """The stage1d figures with a U (:class:`calflow.certificate.Measurement`)."""
+    from calflow.instruments.interferometer import interferometer_budget
     from calflow.metrics.iso230_2_runs import tables_of_run
     from calflow.nano.family import FAMILY
     from calflow.summary_routing import route
-    from calflow.uncertainty import interferometer_budget
 
     if campaign["robot"] != "stage1d":
         return []

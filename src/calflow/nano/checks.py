@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from calflow.campaign import Resolution
+from calflow.configuration.campaign import Resolution
 from calflow.errors import ConfigError, OptionError
 
 _SENSOR = "simulated_interferometer"  # the simulated world behind an emulated GCS controller
@@ -23,7 +23,7 @@ def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
     rig's ``simulated_interferometer`` sensor) for the campaign's ``start`` into the rig's
     options (:func:`calflow.nano.stage.aging.resolve`), once, here: the rig, the error
     budget's replays and the designed plans all read these options. Returns the rig section
-    so resolved (:class:`~calflow.campaign.Resolution`), or None; changes nothing. Raises
+    so resolved (:class:`~calflow.configuration.campaign.Resolution`), or None; changes nothing. Raises
     :class:`ConfigError` naming the file and key."""
     _check_design(campaign, path)
     rig = campaign["rig"]

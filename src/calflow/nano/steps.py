@@ -54,12 +54,12 @@ def summarise(c, args) -> dict:
     (``args.files``); with the simulated rig's ``args.truth``, each test type's error budget
     (:mod:`calflow.nano.stage.error_budget`)."""
     files, truth = args.files, args.truth
+    from calflow.instruments.interferometer import interferometer_budget
     from calflow.nano.evaluation import iso230_2_of_run, temperature_range
     from calflow.nano.family import FAMILY
     from calflow.nano.models.registry import model_from_dataset
     from calflow.nano.report.summary import stage1d_summary, stage2d_summary, unsupported_sections
     from calflow.summary_routing import route
-    from calflow.uncertainty import interferometer_budget
 
     found = route(files, FAMILY.summary_sections, "nano family")
     metrics = {ds.attrs["plan"]: ds for _, ds in found.get("metrics", [])}

@@ -35,14 +35,14 @@ from calflow.provenance.modules import find, registrations, source, under
 #: them up with ``family_of(robot)``); ``"*FIELD"``: every family's (the report's template
 #: folders are searched together).
 FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
-    "calflow.config": ("schemas", "steps:check"),
+    "calflow.configuration.config": ("schemas", "steps:check"),
     "calflow.reference": ("reference",),
     "calflow.rigs.plugin": ("rigs",),
     "calflow.commands.common": ("rig_options",),
     "calflow.commands.acquire": ("plans",),
     "calflow.gcs.sensors": ("sensors",),
     "calflow.gcs.camera": ("sensors",),  # a family's registered camera (frame source)
-    "calflow.gcs.campaign_server": ("emulator",),
+    "calflow.gcs.emulation.campaign_server": ("emulator",),
     "calflow.family_workflow": ("workflow", "studies"),
     "calflow.report.render": ("*templates", "steps:figures"),
     "calflow.report.catalogue": ("headline",),

@@ -17,8 +17,9 @@ import datetime as dt
 import json
 from pathlib import Path
 
-from calflow import __version__, layout
-from calflow.campaign import raw as campaign_file
+from calflow import __version__
+from calflow.configuration import layout
+from calflow.configuration.campaign import raw as campaign_file
 from calflow.errors import CalflowError
 
 RESERVED = frozenset({"stages", "studies", "logs", "benchmarks"})  # results/ folders that are no campaign

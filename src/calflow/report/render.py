@@ -20,8 +20,9 @@ from pathlib import Path
 import jinja2
 import yaml
 
-from calflow import __version__, layout
-from calflow.campaign import thaw
+from calflow import __version__
+from calflow.configuration import layout
+from calflow.configuration.campaign import thaw
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = (

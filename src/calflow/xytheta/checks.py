@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from calflow.campaign import Campaign, Interim, Resolution
+from calflow.configuration.campaign import Campaign, Interim, Resolution
 from calflow.errors import ConfigError, OptionError
 
 
@@ -18,7 +18,7 @@ def check(c, args) -> Resolution | None:
 
 def check_campaign(campaign: Mapping, path: Path) -> Resolution | None:
     """Raise :class:`ConfigError` naming the file and key when the campaign is inconsistent;
-    return what the check resolves (:class:`~calflow.campaign.Resolution`: the simulated
+    return what the check resolves (:class:`~calflow.configuration.campaign.Resolution`: the simulated
     stage as it has aged by the campaign's start, an interim check's reference), changing
     nothing."""
     rig = None
@@ -140,7 +140,7 @@ def _check_interim(campaign: Mapping, path: Path) -> tuple[Interim, Campaign]:
     here, as the rig's ageing is: the reference's identification workspace (where the check's
     targets are chosen), every run of the reference (its rig time) and the dwell (the
     reference's validation dwell unless given); returned with the reference."""
-    from calflow.campaign import load
+    from calflow.configuration.campaign import load
     from calflow.lifecycle.stages import check_after, check_reference
     from calflow.xytheta.plans.workflow import WORKFLOW
 

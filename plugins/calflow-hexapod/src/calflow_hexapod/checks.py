@@ -1,5 +1,5 @@
 """Checks of a hexapod campaign beyond its JSON Schema, run when the campaign is loaded
-(the family's ``check`` step, :func:`calflow.campaign.load`) — what would otherwise
+(the family's ``check`` step, :func:`calflow.configuration.campaign.load`) — what would otherwise
 fail in a job after earlier jobs ran. Each raises :class:`~calflow.errors.ConfigError`
 naming the file, the key and what was expected:
 

@@ -12,7 +12,7 @@ Compensator (``rules/hexapod.smk``, run ``closed_loop_<model>``) → the summary
 
 from __future__ import annotations
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.family_workflow import FamilyWorkflow
 
 

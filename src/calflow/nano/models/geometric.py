@@ -21,7 +21,7 @@ Common interface of the 1-DoF models: ``command(target, temperatures=None, refer
 q = x_T, is predicted to make: position(x_T) - x_T, um), ``residuals(command, measured, ...)``
 (training residual q - q_model, um), ``coefficients`` (a Table 5.1 analog),
 ``to_dataset()`` / ``from_dataset()``. Identification goes through
-:func:`calflow.stepwise.stepwisefit` (the thesis uses MATLAB's ``stepwisefit``); with
+:func:`calflow.identification.stepwise.stepwisefit` (the thesis uses MATLAB's ``stepwisefit``); with
 ``select="all"`` it is plain least squares with every term kept in.
 
 NaN policy: ``fit`` omits rows with a NaN anywhere (as MATLAB's ``stepwisefit`` does; the

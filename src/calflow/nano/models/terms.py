@@ -2,7 +2,7 @@
 
 A model is a sum of :class:`Term` columns (powers of the position, Eq. (5.1); temperature
 differences, Eq. (5.2)-(5.5)) whose coefficients :func:`identify` selects and fits with
-:func:`calflow.stepwise.stepwisefit`; the input checks every model shares.
+:func:`calflow.identification.stepwise.stepwisefit`; the input checks every model shares.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calflow.errors import CalflowError
-from calflow.stepwise import stepwisefit
+from calflow.identification.stepwise import stepwisefit
 
 
 class ModelInputError(CalflowError, ValueError):

@@ -10,7 +10,7 @@ are in this family's ``rules/`` files.
 
 from __future__ import annotations
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.family_workflow import FamilyWorkflow, recorded_runs
 
 

@@ -2,7 +2,7 @@
 nano campaign").
 
 ``calflow emulate gcs --campaign config/campaigns/nano1d-thesis.yaml --port 50000
---time-scale 1000`` (or ``python -m calflow.nano.stage.emulate ...``) starts an E-727-class controller emulation (:mod:`calflow.gcs.piezo`)
+--time-scale 1000`` (or ``python -m calflow.nano.stage.emulate ...``) starts an E-727-class controller emulation (:mod:`calflow.gcs.emulation.piezo`)
 on 127.0.0.1 with one closed-loop axis per joint of the campaign's stage (``1`` = x,
 ``2`` = y; µm, 0 to the stroke with the simulated rig's margins) and prints the ``rig:``
 section that drives it with the ``gcs`` rig:
@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.piezo import PiezoAxisConfig, piezo_emulator
+from calflow.gcs.emulation.piezo import PiezoAxisConfig, piezo_emulator
 from calflow.rigs.simulated.campaign import simulated_options
 from calflow.rigs.simulated.emulator import Emulator
 

@@ -2,7 +2,7 @@
 
 ``simulated_interferometer`` (registered by the nano family as a built-in sensor of the
 ``gcs`` rig, :mod:`calflow.gcs.sensors`) is the physical world behind the piezo controller
-emulation (:mod:`calflow.gcs.piezo`, :mod:`calflow.nano.stage.emulate`): a simulated nano rig
+emulation (:mod:`calflow.gcs.emulation.piezo`, :mod:`calflow.nano.stage.emulate`): a simulated nano rig
 (:func:`calflow.nano.stage.rig.nano1d` / :func:`~calflow.nano.stage.rig.nano2d`, the same physics as the
 ``simulated`` rig — geometry, hysteresis, thermal drift, walk, creep, repeatability,
 settling, interferometer noise, Sec. 5.2-5.4) moved to the positions the controller's

@@ -6,7 +6,7 @@ settings, and the words of its banner — and gets from it the ``gcs`` rig optio
 running emulator (:meth:`Emulator.rig_options`), an emulator started for tests
 (:meth:`Emulator.emulated_rig_options`) and the ``calflow emulate gcs`` main
 (:meth:`Emulator.main`, the family's ``emulator`` hook). The command-line side is
-:func:`calflow.gcs.campaign_server.serve_campaign`.
+:func:`calflow.gcs.emulation.campaign_server.serve_campaign`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,13 @@ from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.campaign_server import link_options, load_campaign_arg, serve_campaign, start_emulated
-from calflow.gcs.emulator import Faults, GCSEmulator
+from calflow.gcs.emulation.campaign_server import (
+    link_options,
+    load_campaign_arg,
+    serve_campaign,
+    start_emulated,
+)
+from calflow.gcs.emulation.emulator import Faults, GCSEmulator
 
 
 def _gcs_section(options: dict[str, Any], campaign: Mapping[str, Any]) -> dict[str, Any]:
@@ -35,7 +40,7 @@ class Emulator:
     ``controller(physics, campaign, port, time_scale, faults)`` builds the unstarted
     :class:`GCSEmulator`; ``joint_axes(campaign)`` and ``sensor(campaign)`` are the ``gcs``
     rig's joint → axis map and sensor section, ``link`` its further
-    :func:`~calflow.gcs.campaign_server.link_options` (scale, reference, poll, recorder);
+    :func:`~calflow.gcs.emulation.campaign_server.link_options` (scale, reference, poll, recorder);
     ``rig_section(options, campaign)`` the campaign ``rig:`` section the main prints.
     ``name`` prefixes errors (``emulate gcs``), ``title`` and ``axes`` make the banner
     (``axes`` may hold ``{axes}``: the controller's axis names), ``description`` the help.

@@ -33,7 +33,7 @@ import os
 
 import numpy as np
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import CalflowError
 from calflow.plan import Acquisition
 

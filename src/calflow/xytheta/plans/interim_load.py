@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import ConfigError
 
 if TYPE_CHECKING:

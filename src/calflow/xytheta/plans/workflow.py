@@ -15,7 +15,7 @@ identifies no model.
 
 from __future__ import annotations
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.family_workflow import FamilyWorkflow, replayed_runs
 
 

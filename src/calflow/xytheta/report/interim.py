@@ -2,7 +2,7 @@
 
 Per visit of the check run (:mod:`calflow.xytheta.plans.interim`), the error e (µm) is the
 attained tool point (Eq. 4.27) minus the target. The decision is Wald's SPRT on the scale of
-e (:class:`calflow.lifecycle.sprt.SPRT`) with
+e (:class:`calflow.lifecycle.decisions.sprt.SPRT`) with
 
 * H0: r0, the rms visit error of the reference calibration through the same bundle — its
   export's closed-loop check (``results/<reference>/runs/export_<model>.nc``, bundle segment);
@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import CalflowError, ConfigError
-from calflow.lifecycle.sprt import SPRT
+from calflow.lifecycle.decisions.sprt import SPRT
 from calflow.reference import declared
 from calflow.summary_routing import summary_head
 
@@ -66,7 +66,7 @@ def check_test(campaign: dict, r0: float) -> SPRT:
 def indifference_rms_um(r0: float, r1: float) -> float:
     """The rms error (µm) at which a visit's expected log-likelihood ratio is zero: the SPRT
     drifts to "recalibrate" above it, to "within tolerance" below — √(ln(r1²/r0²) /
-    (1/r0² − 1/r1²)), from the per-visit ratio of :mod:`calflow.lifecycle.sprt`."""
+    (1/r0² − 1/r1²)), from the per-visit ratio of :mod:`calflow.lifecycle.decisions.sprt`."""
     return float(np.sqrt(np.log(r1**2 / r0**2) / (1 / r0**2 - 1 / r1**2)))
 
 

@@ -11,7 +11,7 @@ def decision_figure(summary: dict, inputs: Inputs) -> Figure | None:
     """Left: each visit's error (µm) through the reference's bundle, with circles of the
     reference's rms error (H0) and of the tolerance (H1). Right: the SPRT's cumulative
     log-likelihood ratio against the visit, between Wald's bounds (ln B, ln A)."""
-    from calflow.lifecycle.sprt import SPRT
+    from calflow.lifecycle.decisions.sprt import SPRT
     from calflow.xytheta.report.interim import visit_errors
 
     run = inputs.runs.get("interim_check")

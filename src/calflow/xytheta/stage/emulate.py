@@ -1,7 +1,7 @@
 """A GCS emulator serving the simulated stages of a campaign (docs/gcs.md, "Emulating a campaign").
 
 ``calflow emulate gcs --campaign config/campaigns/X.yaml --port 50000 [--time-scale 100]``
-starts :class:`calflow.gcs.emulator.GCSEmulator` on 127.0.0.1 with one axis per joint of
+starts :class:`calflow.gcs.emulation.emulator.GCSEmulator` on 127.0.0.1 with one axis per joint of
 the campaign's XYΘ robot and prints the ``rig:`` section that drives it with the ``gcs``
 rig. The model is deliberately simple:
 
@@ -30,8 +30,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from calflow.errors import CalflowError
-from calflow.gcs.axis import AxisConfig
-from calflow.gcs.emulator import EmulatedController, Faults, GCSEmulator
+from calflow.gcs.emulation.axis import AxisConfig
+from calflow.gcs.emulation.emulator import EmulatedController, Faults, GCSEmulator
 from calflow.rigs.simulated.campaign import simulated_options
 from calflow.rigs.simulated.emulator import Emulator
 from calflow.xytheta.stage.rig import XYThetaTruth

@@ -41,8 +41,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from calflow.campaign import raw as campaign_file
-from calflow.campaign import thaw
+from calflow.configuration.campaign import raw as campaign_file
+from calflow.configuration.campaign import thaw
 from calflow.rigs.simulated.budget import (
     Replays,
     budget_command,

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calflow import layout
+from calflow.configuration import layout
 from calflow.errors import ConfigError
 
 #: Parameters of Eq. (4.18): (model name, summary key, units).
@@ -48,8 +48,8 @@ def load_study(path: str | Path, campaign_dir: str | Path = "config/campaigns") 
     an XYΘ campaign on the simulated rig (the study scores estimates against the rig's
     truth), and ``model`` one of its identified models without a position table.
     """
-    from calflow.campaign import load as load_campaign
-    from calflow.config import check_campaign_name, load_yaml, validate
+    from calflow.configuration.campaign import load as load_campaign
+    from calflow.configuration.config import check_campaign_name, load_yaml, validate
 
     path = Path(path)
     check_campaign_name(path.stem)
@@ -138,7 +138,7 @@ def point_digest(study: dict) -> str:
     """Rerun digest of a study's points: the code, the base campaign's rig, clock, identification,
     model and validation settings, and the study keys every point uses (not the grid: adding
     seeds, noise levels or pose counts runs only the new points)."""
-    from calflow.config import digest
+    from calflow.configuration.config import digest
 
     b = study["base"]
     v = b["validation"]
@@ -161,7 +161,7 @@ def point_digest(study: dict) -> str:
 
 def study_digest(study: dict) -> str:
     """Rerun digest of a study's aggregate and page: their code and the study file's keys."""
-    from calflow.config import digest
+    from calflow.configuration.config import digest
 
     return digest([code_digest("report"), {k: v for k, v in study.items() if k not in ("base", "file")}])
 

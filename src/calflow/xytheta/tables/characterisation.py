@@ -3,7 +3,7 @@
 Input: run datasets of ``calflow.xytheta.plans.sweeps.characterisation`` (one stage swept forward
 and backward, the other joints at 0, Θ = 0). Output: error tables for Eq. (4.14)/(4.15).
 
-Frames and signs (verified on the simulated rig, ``tests/test_characterisation.py``)
+Frames and signs (verified on the simulated rig, ``tests/xytheta/test_characterisation.py``)
 -----------------------------------------------------------------------------------
 With Θ = 0 the pattern frame is parallel to the world frame and Eq. (4.27) gives
 x_P = x_m0 - x_m, y_P = y_m0 - y_m. The *stage-frame measured position* is the

@@ -15,7 +15,7 @@ forward tables f_.. for d = +1, backward b_.. for d = -1. The stage reaches X - 
 convention). :meth:`PositionLUT.compensate` solves it by fixed-point iteration (the
 tables' slopes are ≲ 0.06, so it contracts); ``iterations=1`` is the thesis' one-shot
 ``x_T + ex(x_T, y_T)`` (tables read at the target), which on a rig whose stages are
-misaligned by a few degrees leaves µm-level residuals (see tests/test_lookup.py).
+misaligned by a few degrees leaves µm-level residuals (see tests/xytheta/test_lookup.py).
 
 Interpolation: ``"linear"`` (numpy.interp) or ``"cubic"`` (scipy CubicSpline, not-a-knot),
 over the finite table entries. Outside a table: ``bounds="error"`` (default) raises a

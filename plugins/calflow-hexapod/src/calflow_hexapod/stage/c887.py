@@ -1,6 +1,6 @@
 """A C-887-class hexapod controller emulation for calflow's GCS 2.0 emulator.
 
-What differs from the single-axis C-863 emulation (:mod:`calflow.gcs.controller`):
+What differs from the single-axis C-863 emulation (:mod:`calflow.gcs.emulation.controller`):
 
 * six pose axes ``X Y Z`` (mm) and ``U V W`` (degree) of one platform, with the H-811.I2
   datasheet travel per axis (``TMN?``/``TMX?``); the hexapod is referenced as a whole
@@ -37,9 +37,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from calflow.gcs.axis import AxisConfig, SimAxis
-from calflow.gcs.controller import EmulatedController
-from calflow.gcs.controller import GCSCommandError as _Err
+from calflow.gcs.emulation.axis import AxisConfig, SimAxis
+from calflow.gcs.emulation.controller import EmulatedController
+from calflow.gcs.emulation.controller import GCSCommandError as _Err
 from calflow_hexapod.models.geometry import AXES, H811_TRAVEL, Geometry, h811
 from calflow_hexapod.models.kinematics import forward, inverse
 from calflow_hexapod.stage.workspace import leg_stroke_um

@@ -1,7 +1,7 @@
 """A C-887-class GCS emulator serving a hexapod campaign's simulated hexapod.
 
 ``calflow emulate gcs --campaign config/campaigns/X.yaml --port 50000 [--time-scale 100]``
-(through the family's ``emulator``) starts :class:`calflow.gcs.emulator.GCSEmulator` on
+(through the family's ``emulator``) starts :class:`calflow.gcs.emulation.emulator.GCSEmulator` on
 127.0.0.1 around a :class:`calflow_hexapod.stage.c887.HexapodController` — axes X Y Z (mm) and
 U V W (degree), encoder-true ``POS?`` at the campaign's encoder resolution — and prints the
 ``rig:`` section that drives it with the ``gcs`` rig. The laser tracker is not served over
@@ -9,7 +9,7 @@ GCS: the rig's sensor ``simulated_tracker`` (the family registers it as the shor
 ``calflow_hexapod.stage.sensor:simulated_tracker``) is the physical world
 behind the controller (:mod:`calflow_hexapod.stage.sensor`), with the campaign's physics. So a
 run through the emulator sees the simulated rig's physics with a controller's timing,
-limits and faults (:class:`calflow.gcs.emulator.Faults`).
+limits and faults (:class:`calflow.gcs.emulation.emulator.Faults`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from calflow.gcs.emulator import Faults, GCSEmulator
+from calflow.gcs.emulation.emulator import Faults, GCSEmulator
 from calflow.rigs.simulated.emulator import Emulator
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.stage.c887 import AXIS_IDS, SCALE, HexapodController
