@@ -150,7 +150,8 @@ RULE_GLOBALS = (
 #: (``"*"``: every public name of the module). docs/families.md, "The public core", lists them;
 #: a test walks the hexapod plug-in's imports against it. Everything else is calflow's own.
 PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
-    "calflow": ("__version__", "layout"),
+    "calflow": ("__version__",),
+    "calflow.configuration": ("layout",),
     "calflow.family": ("Family", "Command"),
     "calflow.family_contract": ("*",),
     "calflow.family_workflow": ("FamilyWorkflow",),

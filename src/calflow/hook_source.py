@@ -60,24 +60,30 @@ def _bindings(tree: ast.Module) -> dict[str, list]:
             found[node.name] = ["class", _from_ast(init.args, skip_self=True) if init else None]
         elif isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None:
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
-            if isinstance(node.value, ast.Name):
-                what = ["alias", node.value.id]
-            elif isinstance(node.value, ast.Call):
-                what = list(_made_by(tree, node.value))
-            elif isinstance(node.value, (ast.Attribute, ast.Subscript, ast.Lambda)):
-                what = ["object"]
-            else:
-                what = ["value"]
-            found.update((t.id, what) for t in targets if isinstance(t, ast.Name))
-            for t in targets:  # a, b = ...: what each name is, Python says (binding imports it)
-                if isinstance(t, (ast.Tuple, ast.List)):
-                    for name in t.elts:
-                        if isinstance(name, ast.Name):
-                            found.pop(name.id, None)
+            for target in targets:
+                found.update(_assigned(tree, target, node.value))
         elif isinstance(node, ast.ImportFrom):
             for alias in node.names:
                 found[alias.asname or alias.name] = ["import", node.level, node.module or "", alias.name]
     return found
+
+
+def _assigned(tree: ast.Module, target: ast.expr, value: ast.expr) -> list[tuple[str, list]]:
+    """The names an assignment binds and what each is: ``a, b = f, g`` pairwise; a tuple
+    target the source does not pair (``a, b = make()``) binds objects known once imported."""
+    if isinstance(target, ast.Name):
+        if isinstance(value, ast.Name):
+            return [(target.id, ["alias", value.id])]
+        if isinstance(value, ast.Call):
+            return [(target.id, list(_made_by(tree, value)))]
+        if isinstance(value, (ast.Attribute, ast.Subscript, ast.Lambda)):
+            return [(target.id, ["object"])]
+        return [(target.id, ["value"])]
+    if isinstance(target, (ast.Tuple, ast.List)):
+        if isinstance(value, (ast.Tuple, ast.List)) and len(value.elts) == len(target.elts):
+            return [b for t, v in zip(target.elts, value.elts) for b in _assigned(tree, t, v)]
+        return [(t.id, ["object"]) for t in target.elts if isinstance(t, ast.Name)]
+    return []
 
 
 def _statements(body: list[ast.stmt]) -> list[ast.stmt]:
@@ -106,7 +112,7 @@ def _summary(path: str) -> dict[str, list]:
     from calflow.cache import cached_json
 
     st = os.stat(path)
-    stamp = f"contract v4 {sys.version_info[:2]} {os.path.abspath(path)} {st.st_size} {st.st_mtime_ns}"
+    stamp = f"contract v5 {sys.version_info[:2]} {os.path.abspath(path)} {st.st_size} {st.st_mtime_ns}"
     key = hashlib.sha256(stamp.encode()).hexdigest()
     return cached_json("contract", key, lambda: _bindings(ast.parse(Path(path).read_bytes(), path)))
 

@@ -180,24 +180,51 @@ def test_registration_refuses_a_family_that_breaks_the_contract(module, tmp_path
     )
 
 
-def test_hooks_bound_in_ways_the_source_does_not_show_plainly_are_read_from_python(module):
-    """``a, b = ...`` or a loop binds a hook too: the check asks Python, so a right hook
-    registers and a wrong one is still refused by its signature."""
+def test_hooks_bound_in_ways_the_source_does_not_show_plainly_are_still_checked(module):
+    """``a, b = f, g`` binds pairwise (read from the source); a name the source does not bind
+    plainly (a loop over ``globals()``) is asked of Python: a right hook registers, a wrong
+    one is refused by its signature either way."""
     name = module(
         """
-        def _make(n):
-            def step(c, args):
-                return None
-            def other(args):
-                return None
-            return step if n else other
+        def step(c, args):
+            return None
 
-        identify, metrics = _make(1), _make(0)
-        for _name in ("summarise",):
-            globals()[_name] = _make(1)
+        def other(args):
+            return None
+
+        identify, metrics = step, other
+        for _name in ("summarise", "figures"):
+            globals()[_name] = step if _name == "summarise" else other
         """
     )
     check_family(_with_step("identify", f"{name}:identify"))
     check_family(_with_step("summarise", f"{name}:summarise"))
-    line = _refused(_with_step("metrics", f"{name}:metrics"))
-    assert "steps.metrics" in line and "(args)" in line
+    for step in ("metrics", "figures"):
+        line = _refused(_with_step(step, f"{name}:{step}"))
+        assert f"steps.{step}" in line and "(args)" in line
+
+
+def test_registering_the_families_imports_none_of_their_code():
+    """The contract is read from the families' sources: registering them (what every calflow
+    command and every read of the Snakefile does) imports no module of theirs, so it stays
+    cheap and a step's rerun digest covers what its job imports."""
+    import subprocess
+
+    code = (
+        "import sys\nfrom calflow.family import families\nfamilies()\n"
+        "print(' '.join(m for m in sys.modules if m.startswith(('calflow.', 'calflow_'))))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"CALFLOW_CACHE_DIR": ""},
+    ).stdout.split()
+    families_code = [
+        m
+        for m in out
+        if m.split(".")[-1] != "family"
+        and m.startswith(("calflow.xytheta.", "calflow.nano.", "calflow_hexapod."))
+    ]
+    assert families_code == []

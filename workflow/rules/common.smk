@@ -129,7 +129,7 @@ def section(step, *keys):
 
 
 def reads(step, *keys):
-    """The params of a rule whose job reads the campaign sections ``keys``: ``sections``, handed
+    """The params of a step whose job reads the campaign sections ``keys``: ``sections``, handed
     to the job (``--sections``; it cannot read another, calflow.configuration.campaign.Campaign.only), and
     ``digest``, of the same sections and the step's code (:func:`section`). Use as
     ``params: **reads("certificate", "stage", "start")``."""

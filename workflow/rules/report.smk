@@ -110,8 +110,8 @@ rule index:
             ]
         ),
         campaign_dir=CAMPAIGN_DIR,
-        results=layout.results(),
-        reports=layout.reports(),
+        results=lambda w: layout.results(),
+        reports=lambda w: layout.reports(),
     shell:
         "calflow index --results {params.results} --reports {params.reports}"
         " --campaign-dir {params.campaign_dir} --out {output} > {log} 2>&1"

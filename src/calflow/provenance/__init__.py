@@ -35,7 +35,8 @@ from calflow.provenance.modules import find, registrations, source, under
 #: them up with ``family_of(robot)``); ``"*FIELD"``: every family's (the report's template
 #: folders are searched together).
 FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
-    "calflow.configuration.config": ("schemas", "steps:check"),
+    "calflow.configuration.config": ("schemas",),
+    "calflow.configuration.campaign": ("steps:check",),
     "calflow.reference": ("reference",),
     "calflow.rigs.plugin": ("rigs",),
     "calflow.commands.common": ("rig_options",),

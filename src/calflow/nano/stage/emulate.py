@@ -109,7 +109,12 @@ EMULATOR = Emulator(
 #: started, with its ``gcs`` rig options (for a campaign file's ``rig:`` section: :func:`campaign_rig`);
 #: the caller stops it
 emulated_rig_options = EMULATOR.emulated_rig_options
-main = EMULATOR.main  # ``calflow emulate gcs`` of a nano campaign (the family's emulator)
+
+
+def main(argv: list[str] | None = None, stop_event=None, prog: str | None = None) -> int:
+    """``calflow emulate gcs`` of a nano campaign (the family's emulator; a function, so the
+    family contract reads its signature without importing the module)."""
+    return EMULATOR.main(argv, stop_event, prog)
 
 
 if __name__ == "__main__":

@@ -394,6 +394,15 @@ def nano2d(**options) -> Nano2DRig:
     return Nano2DRig(**options)
 
 
-check_nano1d, check_nano2d = Nano1DRig.check, Nano2DRig.check  # the family's option checks
+def check_nano1d(**options) -> dict:
+    """The 1-DoF stage's options checked with its defaults (the family's option check)."""
+    return Nano1DRig.check(**options)
+
+
+def check_nano2d(**options) -> dict:
+    """The 2-DoF stage's options checked with its defaults (the family's option check)."""
+    return Nano2DRig.check(**options)
+
+
 nano1d.check_options = check_nano1d  # the options with the rig's defaults (designed plans read them)
 nano2d.check_options = check_nano2d

@@ -233,4 +233,5 @@ def _budget(campaign_path: str, c: dict, jobs: int) -> dict:
 
 #: ``calflow error-budget``: the budget's replays of a campaign on its simulated rig, written as
 #: JSON for the summary step (tests and reports only)
-error_budget_command = budget_command(_budget)
+def error_budget_command(args) -> None:
+    budget_command(_budget)(args)

@@ -195,4 +195,5 @@ def error_budget(c: dict, names=REPLAYS) -> dict:
 
 #: ``calflow hexapod-error-budget --campaign FILE --out FILE.json`` for a hexapod campaign: the
 #: budget's replays, combination and floor, written as JSON for the summary (tests and reports)
-error_budget_command = budget_command(lambda path, c, jobs: error_budget(c))
+def error_budget_command(args) -> None:
+    budget_command(lambda path, c, jobs: error_budget(c))(args)
