@@ -169,3 +169,46 @@ def test_rp_factor_of_unequal_axes_matches_simulation_and_reduces_to_chi():
     r = np.array([0.5, 1.2, 1.2]) / math.sqrt(np.mean(np.array([0.5, 1.2, 1.2]) ** 2))
     z = np.linalg.norm(np.random.default_rng(1).standard_normal((400_000, 3)) * r, axis=1)
     assert rp_factor(r) == pytest.approx(z.mean() + 3 * z.std(), rel=5e-3)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    trials=st.integers(1, 40),
+    cells=st.integers(1, 5),
+    d=st.integers(1, 3),
+    block=st.integers(1, 17),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_draws_in_blocks_are_the_draws_made_whole(trials, cells, d, block, seed):
+    """Draws keeps the generator's state, not the large inputs, and draws them again in
+    blocks: the error of every term, and the stream after it, are those of whole arrays."""
+    from calflow.metrics.uncertainty import Draws, Term
+
+    terms = [
+        Term("cal", 0.5, scope="common", relative=True),
+        Term("drift", 0.02, scope="target"),
+        Term("nonlin", 1.5, scope="target", relative=True),
+    ]
+    s, dof = np.linspace(0.1, 0.3, d), 4
+    pos, n = np.arange(cells * d, dtype=float).reshape(cells, d) + 10.0, np.arange(1, cells + 1.0)
+    Draws.BLOCK = block
+    try:
+        draws = Draws(s, dof, (cells, d), terms, trials, seed)
+        got = {only: draws.error(pos, n, only) for only in (None, "sample", "cal", "drift", "nonlin")}
+        after = draws.rng.standard_normal(3)
+    finally:
+        Draws.BLOCK = 1024
+    rng = np.random.default_rng(seed)
+    scale = np.sqrt(dof / rng.chisquare(dof, size=trials))[:, None]
+    z = rng.standard_normal((trials, cells, d))
+    noise = {
+        t.name: rng.standard_normal((trials, 1 if t.scope == "common" else cells, d)) * t.per_axis(d)
+        for t in terms
+    }
+    sample = z * ((s[None, :] * scale)[:, None, :] / np.sqrt(n)[None, :, None])
+    parts = {t.name: noise[t.name] * 1e-6 * pos[None] if t.relative else noise[t.name] for t in terms}
+    assert np.array_equal(got["sample"], sample)
+    for name, part in parts.items():
+        assert np.array_equal(got[name], np.zeros_like(sample) + part)
+    assert np.allclose(got[None], sample + sum(parts.values()), rtol=0, atol=1e-12)
+    assert np.array_equal(after, rng.standard_normal(3))

@@ -311,7 +311,17 @@ def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertain
 
 
 class Draws:
-    """Shared random inputs of one Monte Carlo: a sample term and the declared terms."""
+    """Shared random inputs of one Monte Carlo: a sample term and the declared terms.
+
+    The large inputs — the sample's standard normals and each per-target term's, (M, cells,
+    d) each, 1.5 GB for a 1890-target sweep at M = 50 000 — are not kept: the generator's
+    state where each begins is, and :meth:`error` draws them again, ``BLOCK`` trials at a
+    time, into its result. The numbers are those of drawing each array whole (a generator
+    fills an array element by element, so blocks continue one another), and the stream after
+    the constructor is where it would be; memory holds the result, not every input.
+    """
+
+    BLOCK = 1024  #: trials drawn at a time
 
     def __init__(self, s: np.ndarray, dof: int, shape: tuple[int, int], terms, trials: int, seed: int):
         self.rng = np.random.default_rng(seed)
@@ -319,12 +329,32 @@ class Draws:
         self.s, self.dof = np.asarray(s, float), dof
         # scaled inverse χ²: σ² = ν s² / χ²_ν, one per trial (the variance shared by the cells)
         self.scale = np.sqrt(dof / self.rng.chisquare(dof, size=trials))[:, None]
-        self.z = self.rng.standard_normal((trials, self.cells, self.d))
+        self._z = self._skip((self.cells, self.d))
         self.terms = [t for t in terms if t.scope != "reading"]
-        self.noise = {}
+        self._noise: dict[str, tuple] = {}
         for t in self.terms:
-            shape = (trials, 1, self.d) if t.scope == "common" else (trials, self.cells, self.d)
-            self.noise[t.name] = self.rng.standard_normal(shape) * t.per_axis(self.d)
+            if t.scope == "common":  # (M, 1, d): small, kept
+                self._noise[t.name] = self.rng.standard_normal((trials, 1, self.d)) * t.per_axis(self.d)
+            else:
+                self._noise[t.name] = self._skip((self.cells, self.d))
+
+    def _skip(self, shape: tuple[int, ...]) -> dict:
+        """The generator's state, then the stream moved past an (M, *shape) array of normals."""
+        state = self.rng.bit_generator.state
+        scratch = np.empty((min(self.BLOCK, self.trials), *shape))
+        for i in range(0, self.trials, self.BLOCK):
+            self.rng.standard_normal(out=scratch[: min(self.BLOCK, self.trials - i)])
+        return state
+
+    def _blocks(self, state: dict, shape: tuple[int, ...]):
+        """``(slice of trials, normals of those trials)`` of the array drawn from ``state``."""
+        rng = np.random.Generator(type(self.rng.bit_generator)())
+        rng.bit_generator.state = state
+        scratch = np.empty((min(self.BLOCK, self.trials), *shape))
+        for i in range(0, self.trials, self.BLOCK):
+            block = scratch[: min(self.BLOCK, self.trials - i)]
+            rng.standard_normal(out=block)
+            yield slice(i, i + len(block)), block
 
     def sigma(self) -> np.ndarray:
         """(M, d): the scatter's σ per axis in each trial."""
@@ -333,13 +363,22 @@ class Draws:
     def error(self, positions: np.ndarray, n: np.ndarray, only: str | None = None) -> np.ndarray:
         """(M, cells, d): the error of each cell's mean; ``only`` one term (or "sample")."""
         out = np.zeros((self.trials, self.cells, self.d))
+        shape = (self.cells, self.d)
         if only in (None, "sample"):
-            out += self.z * (self.sigma()[:, None, :] / np.sqrt(n)[None, :, None])
+            sigma, root_n = self.sigma(), np.sqrt(n)[None, :, None]
+            for rows, z in self._blocks(self._z, shape):
+                out[rows] += z * (sigma[rows][:, None, :] / root_n)
         for t in self.terms:
             if only not in (None, t.name):
                 continue
-            e = self.noise[t.name]
-            out += e * 1e-6 * positions[None, :, :] if t.relative else e  # in place: (M, cells, d) is large
+            if t.scope == "common":
+                e = self._noise[t.name]
+                out += e * 1e-6 * positions[None, :, :] if t.relative else e
+                continue
+            per_axis = t.per_axis(self.d)
+            for rows, z in self._blocks(self._noise[t.name], shape):
+                e = z * per_axis
+                out[rows] += e * 1e-6 * positions[None, :, :] if t.relative else e
         return out
 
 
