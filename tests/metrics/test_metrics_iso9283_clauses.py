@@ -257,7 +257,10 @@ def test_stabilisation_invariances_and_orderings(data, angle, shift, t0):
     a = iso9283_stabilisation(t, x, p, band)
     move = rigid(p.size, angle, shift[: p.size])
     b = iso9283_stabilisation(t + t0, move(x), move(p), band)
-    if a.stabilised and b.stabilised:  # a sample exactly on the band edge may flip after rounding
+    r_a = np.linalg.norm(x - p, axis=1)
+    rounding = 1e-9 * (1.0 + np.abs(shift).max() + np.abs(x).max())
+    on_edge = np.any(np.abs(r_a - band) <= rounding)  # such a sample may flip after the move
+    if a.stabilised and b.stabilised and not on_edge:
         assert b.stabilisation_time_s == pytest.approx(a.stabilisation_time_s, abs=1e-6)
     if a.stabilised:
         r = np.linalg.norm(x - p, axis=1)
@@ -266,3 +269,11 @@ def test_stabilisation_invariances_and_orderings(data, angle, shift, t0):
     if not math.isnan(a.overshoot):
         assert a.overshoot == 0.0 or a.overshoot > band
         assert a.max_excursion >= a.overshoot
+
+
+def test_stabilisation_of_a_sample_on_the_band_edge_is_inside():
+    """The fuzzer's find: r = B exactly is inside the band (r <= B); moved by a rigid shift
+    it may round to just outside, which is why the invariance test leaves edge samples out."""
+    t, x = np.array([0.001, 0.002, 0.003]), np.array([[0.0], [0.1], [0.0]])
+    a = iso9283_stabilisation(t, x, np.array([0.0]), 0.1)
+    assert a.stabilised and a.stabilisation_time_s == 0.0 and a.overshoot == 0.0
