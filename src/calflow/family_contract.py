@@ -202,7 +202,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
         "effects_of",
         "require_simulated",
     ),
-    "calflow.rigs.simulated.bundle": ("provenance", "read_bundle", "write_bundle", "Compensator"),
+    "calflow.data.bundle": ("provenance", "read_bundle", "write_bundle", "Compensator"),
     "calflow.rigs.simulated.emulator": ("Emulator",),
 }
 

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from calflow.data.bundle import Compensator, read_bundle
 from calflow.errors import DataError, OptionError, UnknownOptionError
 from calflow.rigs.simulated.budget import Replays, decompose, effects_of, require_simulated, signed_root
-from calflow.rigs.simulated.bundle import Compensator, read_bundle
 from calflow.rigs.simulated.campaign import simulated_options
 from calflow.rigs.simulated.checks import Bounds, check_physics
 from calflow.rigs.simulated.effects import Effect, Effects, SwitchedTruth

@@ -13,7 +13,6 @@ takes from here what follows from that declaration:
   behind an emulated controller;
 * :mod:`.budget` — the error budget's replays (one effect off at a time) and their
   combination into per-effect contributions;
-* :mod:`.bundle` — an export bundle's provenance and reading, and the ``Compensator`` shell;
 * :mod:`.emulator` — a campaign's controller emulator: its ``gcs`` rig options, a started
   emulator for tests, and the ``calflow emulate gcs`` main.
 

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from calflow.data.bundle import read_bundle
+from calflow.data.bundle import write_bundle as write_bundle_json
 from calflow.data.io import jsonable
-from calflow.rigs.simulated.bundle import read_bundle
-from calflow.rigs.simulated.bundle import write_bundle as write_bundle_json
 from calflow.xytheta.export.tables import rebuild, write_tables
 from calflow.xytheta.models import kinematics as kin
 

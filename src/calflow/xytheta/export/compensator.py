@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from calflow.rigs.simulated.bundle import Compensator as CompensatorShell
+from calflow.data.bundle import Compensator as CompensatorShell
 from calflow.xytheta.export.bundle import read_model
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from calflow.data.bundle import provenance
 from calflow.data.io import write_text
-from calflow.rigs.simulated.bundle import provenance
 from calflow.xytheta.export import controllers as ctl
 from calflow.xytheta.export.bundle import write_bundle
 from calflow.xytheta.export.verification import LINUXCNC, TWINCAT

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from calflow.data.bundle import provenance as provenance  # the export step calls it from here
+from calflow.data.bundle import read_bundle
+from calflow.data.bundle import write_bundle as write_bundle_json
 from calflow.data.io import jsonable
 from calflow.errors import DataError
-from calflow.rigs.simulated.bundle import provenance as provenance  # the export step calls it from here
-from calflow.rigs.simulated.bundle import read_bundle
-from calflow.rigs.simulated.bundle import write_bundle as write_bundle_json
 from calflow_hexapod.models.calibration import HexapodModel
 from calflow_hexapod.models.geometry import Geometry
 from calflow_hexapod.models.ladder import NAMES, Parameters, long_name, unit

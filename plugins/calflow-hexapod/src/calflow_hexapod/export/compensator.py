@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.rigs.simulated.bundle import Compensator as CompensatorShell
+from calflow.data.bundle import Compensator as CompensatorShell
 from calflow_hexapod.export.bundle import read_model
 
 
