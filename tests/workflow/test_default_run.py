@@ -447,6 +447,31 @@ def test_validation_change_reruns_only_validation_metrics_and_report(thesis_run,
     assert jobs == {}, f"only validation, its metrics and the report rerun, not {jobs}"
 
 
+def test_a_new_calibration_reruns_the_recalibrations_as_found_run(thesis_run, tmp_path):
+    """The as-found run of a recalibration reads its reference's export, and the open-loop
+    runs wait for it (order only): changing the reference's identification reruns that
+    chain and the DAG still builds (it used to be refused: a group with a job outside it
+    that waits for a job inside it)."""
+    import shutil
+
+    import yaml
+
+    work = tmp_path / "copy"
+    shutil.copytree(thesis_run, work, symlinks=True)
+    recal = next(
+        p for p in sorted((work / "config/campaigns").glob("*.yaml")) if "as_found" in yaml.safe_load(p.read_text())
+    )
+    reference = yaml.safe_load(recal.read_text())["as_found"]["reference"]
+    path = work / f"config/campaigns/{reference}.yaml"
+    c = yaml.safe_load(path.read_text())
+    c["identification"]["poses"] += 1
+    path.write_text(yaml.safe_dump(c))
+    proc = snakemake(work, "-n", "--quiet", "rules", "--config", "studies=[]")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    jobs = dict(re.findall(r"^(\w+)\s+(\d+)\s*$", proc.stdout + proc.stderr, re.M))
+    assert jobs.get("acquire_as_found") == "1" and int(jobs["identify"]) >= 1
+
+
 def test_snakemake_report_packs_the_campaign_reports(thesis_run, tmp_path):
     """`snakemake --report` gives a self-contained report with each campaign's outputs and captions."""
     import zipfile
