@@ -5,7 +5,6 @@ and the place of a reading in its code (module :mod:`.decode` puts them together
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 
 def bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -30,6 +29,8 @@ def normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
     heavy dust, beyond the pattern's edge — noise is not scaled up into dots)."""
     if not mask.any():
         return np.full(contrast.shape, np.nan)
+    from scipy import ndimage  # here, not at import: the camera model's users need no scipy
+
     num = ndimage.uniform_filter(np.where(mask, contrast, 0.0), size=7, mode="constant")
     den = ndimage.uniform_filter(mask.astype(float), size=7, mode="constant")
     floor = np.median(contrast[mask]) / 3.0

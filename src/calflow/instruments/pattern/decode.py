@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from calflow.instruments.pattern.bits import bilinear, match, normalised, votes
 from calflow.instruments.pattern.pattern import Pattern
@@ -255,6 +254,8 @@ def _read(frame, planes, k, pattern: Pattern, details: bool, fitter: PhaseFitter
     z = normalised(contrast, seen)
     # unseen among the frame dots within NEAR_NODES of a seen one: a part of the view beyond
     # the pattern's edge is not poor contrast (the code's bits say whether enough is seen)
+    from scipy import ndimage  # here, not at import: the camera model's users need no scipy
+
     near = fmask & ndimage.binary_dilation(seen, iterations=NEAR_NODES)
     zf = z[near]
     frame_missing = float(np.mean(~(zf > 0.5))) if len(zf) else 1.0

@@ -26,7 +26,6 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 
 RING = (0.8, 1.2)  # the lobe is searched between these fractions of the expected frequency
 CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
@@ -54,6 +53,8 @@ def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
 
 
 def _fast(n: int) -> int:
+    import scipy.fft  # here, not at import: the camera model's users need no scipy
+
     return scipy.fft.next_fast_len(int(n), real=False)
 
 
@@ -89,6 +90,8 @@ class PhaseFitter:
         f = frames.astype(np.float32, copy=True)
         f -= f.mean(axis=(1, 2), keepdims=True)
         f *= self.window
+        import scipy.fft
+
         return scipy.fft.rfft2(f, workers=self.workers)
 
     def lobes(self, spec: np.ndarray):
@@ -188,6 +191,8 @@ class PhaseFitter:
         n = len(crops)
         boxes = np.zeros((n, 2, self.ni, self.nj), dtype=np.complex64)
         boxes[:, :, self.di % self.ni, self.dj % self.nj] = crops
+        import scipy.fft
+
         fields = scipy.fft.ifft2(boxes, workers=self.workers)
         phase = np.empty((n, 2))
         out_f = np.empty((n, 2, 2))
