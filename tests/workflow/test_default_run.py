@@ -459,7 +459,9 @@ def test_a_new_calibration_reruns_the_recalibrations_as_found_run(thesis_run, tm
     work = tmp_path / "copy"
     shutil.copytree(thesis_run, work, symlinks=True)
     recal = next(
-        p for p in sorted((work / "config/campaigns").glob("*.yaml")) if "as_found" in yaml.safe_load(p.read_text())
+        p
+        for p in sorted((work / "config/campaigns").glob("*.yaml"))
+        if "as_found" in yaml.safe_load(p.read_text())
     )
     reference = yaml.safe_load(recal.read_text())["as_found"]["reference"]
     path = work / f"config/campaigns/{reference}.yaml"

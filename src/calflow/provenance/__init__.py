@@ -27,7 +27,8 @@ import hashlib
 from functools import cache
 
 from calflow import __version__
-from calflow.provenance.modules import find, registrations, source, under
+from calflow.cache import cached_json
+from calflow.provenance.modules import find, registrations, source, tree_fingerprint, under
 
 #: Where the core resolves a hook of a family at run time (an import no ``import`` statement
 #: shows): core module, or ``module:function`` of an entry point → the ``Family`` fields it
@@ -180,9 +181,16 @@ def code_digest(command: str, robot: str | None = None) -> str:
     <command>`` reaches for campaigns of ``robot`` (:func:`closure` of the command's entry
     point, :func:`calflow.cli.entry_point`). ``robot`` None: a command over every family's
     campaigns (``calflow index``)."""
-    from calflow.cli import entry_point
 
-    return module_digest(*closure(entry_point(command), robot))
+    def compute() -> dict:
+        from calflow.cli import entry_point
+
+        return {"digest": module_digest(*closure(entry_point(command), robot))}
+
+    # kept between processes under the fingerprint of the whole tree (a no-op rerun of the
+    # workflow asks for every step's digest; walking the closures again costs ~0.3 s)
+    key = hashlib.sha256(f"code digest v1 {command!r} {robot!r} {tree_fingerprint()}".encode())
+    return cached_json("digests", key.hexdigest(), compute)["digest"]
 
 
 @cache

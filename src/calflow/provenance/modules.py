@@ -77,6 +77,31 @@ def _modules() -> dict[str, tuple[Path, bool]]:
     return found
 
 
+@cache
+def tree_fingerprint() -> str:
+    """SHA-256 over everything a code digest may depend on: the Python version, the families'
+    entry points and the bytes of every calflow or family module with its package's data
+    files. A few milliseconds (no parsing): the key under which whole digests are kept
+    between processes (:func:`calflow.provenance.code_digest`), so one changed byte anywhere
+    computes them all again."""
+    import sys
+    from importlib.metadata import entry_points
+
+    from calflow.family import GROUP
+
+    h = hashlib.sha256(f"tree v1 {sys.version_info[:2]}\n".encode())
+    for ep in sorted(f"{ep.name}={ep.value}" for ep in entry_points(group=GROUP)):
+        h.update(f"{ep}\n".encode())
+    for module, (path, package) in sorted(_modules().items()):
+        h.update(f"{module}\n".encode())
+        h.update(path.read_bytes())
+        if package:
+            for data in _data_files(path.parent):
+                h.update(data.relative_to(path.parent).as_posix().encode())
+                h.update(data.read_bytes())
+    return h.hexdigest()
+
+
 def under(package: str) -> tuple[str, ...]:
     """Every calflow or family module of ``package`` and its subpackages, sorted."""
     return tuple(sorted(m for m in _modules() if m == package or m.startswith(f"{package}.")))
