@@ -182,13 +182,13 @@ def plan_section(w):
 
 
 def acquire_inputs(w):
-    """Files an open-loop run's plan reads, by option of ``calflow acquire``; ``after_*``
-    names a run acquired first, for the order on the rig only (never newer than ours); a
-    run recorded as camera frames is served from its decoded run (rule decode_frames).
+    """Files an open-loop run's plan reads, by option of ``calflow acquire``; a run recorded
+    as camera frames is served from its decoded run (rule decode_frames). Every input is
+    read (no order-only ``ancient`` input: Snakemake then skips a job's own changed params
+    when the job it waits on reruns, snakemake/snakemake#4166; order is a rule priority).
     """
     c = CAMPAIGN[w.campaign]
-    files = hooks_of(w.campaign).acquire_inputs(c, w.run)
-    inputs = {k: ancient(v) if k.startswith("after_") else v for k, v in files.items()}
+    inputs = dict(hooks_of(w.campaign).acquire_inputs(c, w.run))
     if w.run in frame_recordings(c):
         inputs["decoded"] = layout.decoded(w.campaign, w.run)
     return inputs
@@ -239,9 +239,7 @@ def identify_inputs(w):
 
 def input_args(w, input):
     """The named inputs as options: ``--name path``."""
-    return " ".join(
-        f"--{k} {v}" for k, v in input.items() if not k.startswith("after_")
-    )
+    return " ".join(f"--{k} {v}" for k, v in input.items())
 
 
 identify_args = input_args

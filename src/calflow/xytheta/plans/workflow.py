@@ -127,10 +127,9 @@ class XYThetaWorkflow(FamilyWorkflow):
         return files
 
     def acquire_inputs(self, c: dict, run: str) -> dict[str, str]:
-        """The XY tables a designed identification plan reads for its discrepancy kernel; the
-        as-found run, which the open-loop runs wait for (``after_*``: order only)."""
-        if c.get("as_found") and run in self.open_loop_runs:
-            return {"after_as_found": layout.run(c["name"], "as_found"), **self._luts(c, run)}
+        """The XY tables a designed identification plan reads for its discrepancy kernel (the
+        as-found run goes first by its rule's priority, not as an input: the open-loop runs
+        do not read it)."""
         return self._luts(c, run)
 
     def _luts(self, c: dict, run: str) -> dict[str, str]:

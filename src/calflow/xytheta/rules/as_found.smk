@@ -1,10 +1,11 @@
 # The as-found run of a recalibration (docs/lifecycle.md, "As found, as left"): the
 # campaign's held-out targets commanded in closed loop through the earlier calibration's
 # exported bundle of the model in use, before anything is adjusted. Its metrics are the
-# core's rule; the open-loop runs of the campaign wait for it (acquire_inputs).
-# Not in the group "campaign": the open-loop runs wait for it, so when a new reference
-# calibration reruns it alone, a group holding it would hold a job that waits on a job
-# outside the group that waits on it (Snakemake refuses such a DAG).
+# core's rule. It goes first: of the jobs ready to run, Snakemake starts the one of highest
+# priority, so a real rig (one plan at a time, the `rig` resource) measures the stage as found
+# before the campaign's open-loop runs. Not an input of those runs: they do not read it, and
+# an order-only (`ancient`) input made Snakemake skip their own changed params whenever this
+# run reran (snakemake/snakemake#4166) and, in the group, refuse the DAG.
 
 
 rule acquire_as_found:
@@ -17,6 +18,9 @@ rule acquire_as_found:
         layout.log("{campaign}", "acquire_as_found"),
     benchmark:
         layout.benchmark("{campaign}", "acquire_as_found")
+    priority: 10
+    group:
+        "campaign"
     conda:
         CONDA_ENV
     resources:
