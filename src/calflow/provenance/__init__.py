@@ -189,7 +189,7 @@ def code_digest(command: str, robot: str | None = None) -> str:
 
     # kept between processes under the fingerprint of the whole tree (a no-op rerun of the
     # workflow asks for every step's digest; walking the closures again costs ~0.3 s)
-    key = hashlib.sha256(f"code digest v1 {command!r} {robot!r} {tree_fingerprint()}".encode())
+    key = hashlib.sha256(f"code digest v1 {__version__} {command!r} {robot!r} {tree_fingerprint()}".encode())
     return cached_json("digests", key.hexdigest(), compute)["digest"]
 
 
