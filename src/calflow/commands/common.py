@@ -26,13 +26,21 @@ def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
     return c.only([s for s in sections.split(",") if s], step)
 
 
+def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
+    """The campaign a subcommand's job reads: file ``args.campaign`` (:func:`campaign`), only
+    the sections its rule hands it (``args.sections``, :func:`handed`; all when not given)."""
+    step = f"calflow {getattr(args, 'command', None) or 'step'}"
+    return handed(campaign(args.campaign, rig_plugins), getattr(args, "sections", None), step)
+
+
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
     return RunMetadata(
         campaign=c["name"],
         robot=c["robot"],
         source=source,
         plan=plan,
-        config_sha256=campaign_digest(c),
+        # the stamp of the campaign the file comes from: all of it, whichever sections the step reads
+        config_sha256=campaign_digest(c.campaign if isinstance(c, Sections) else c),
         start=c["start"],
         model=model,
         history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in sys.argv[1:])}",

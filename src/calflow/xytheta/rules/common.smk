@@ -1,30 +1,4 @@
-# Helpers of the XYΘ family's own rules (what their params digest).
-
-
-def reference_validation(w):
-    """The validation section without its held-out part: what the reference runs read."""
-    v = CAMPAIGN[w.campaign]["validation"]
-    return {k: v[k] for k in v if k != "heldout"}
-
-
-def budget_digest(w):
-    """What the budget's replays read: the rig, the calibration's sections, the held-out targets."""
-    c = CAMPAIGN[w.campaign]
-    keys = (
-        "seed",
-        "start",
-        "rig",
-        "characterisation",
-        "identification",
-        "angle_residuals",
-        "models",
-    )
-    v = c["validation"]
-    return digest(
-        [code_digest("error-budget", "xytheta")]
-        + [c.get(k) for k in keys]
-        + [v["heldout"], v["dwell_s"]]
-    )
+# Helpers of the XYΘ family's own rules (the files their jobs read).
 
 
 def interim_export(w):
