@@ -157,7 +157,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow.configuration.layout": ("*",),
     "calflow.errors": ("*",),
     "calflow.plan": ("Plan", "Acquisition"),
-    "calflow.commands.common": ("campaign", "meta"),
+    "calflow.commands.common": ("campaign", "campaign_of", "meta"),
     "calflow.data.io": (
         "open_dataset",
         "write_dataset",

@@ -117,7 +117,8 @@ def reads(step, *keys, acquires=False):
     and the step's code. Snakemake reruns a job when its params change, so the job reruns
     exactly when a section it reads, or the calflow code it runs, changes.
 
-    A key may be a function of the wildcards giving a section's name (or None, or a list of
+    A key may be one key of a section (``"validation.heldout"``: the job is handed that key
+    only), or a function of the wildcards giving a section's name (or None, or a list of
     names: a family's answer). ``acquires``: the job moves the rig, so it reads what every
     acquisition reads too (:data:`ACQUISITION`). Every job is handed :data:`STAMP`. Use as
     ``params: **reads("metrics", ...)``.
@@ -135,7 +136,7 @@ def reads(step, *keys, acquires=False):
 
     def _digest(w):
         c = CAMPAIGN[w.campaign]
-        return digest([code_digest(step, c["robot"])] + [c.get(k) for k in _keys(w)])
+        return digest([code_digest(step, c["robot"])] + [c.part(k) for k in _keys(w)])
 
     return {"sections": _sections, "digest": _digest}
 

@@ -45,7 +45,7 @@ class HexapodWorkflow(FamilyWorkflow):
         return {"run": layout.run(c["name"], "identification")}
 
     def identify_sections(self, c: dict, model: str) -> list:
-        return ["seed", "identification", "models"]
+        return ["seed", "identification", f"models.{model}"]
 
 
 WORKFLOW = HexapodWorkflow()

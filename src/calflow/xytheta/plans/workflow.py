@@ -159,7 +159,7 @@ class XYThetaWorkflow(FamilyWorkflow):
         return inputs
 
     def identify_sections(self, c: dict, model: str) -> list:
-        return ["seed", "identification", "models"] + (
+        return ["seed", "identification", f"models.{model}"] + (
             ["angle_residuals"] if "base" in c["models"][model] else []
         )
 

@@ -23,7 +23,14 @@ rule acquire_as_found:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", "as_found", "validation", "identification", acquires=True),
+        **reads(
+            "acquire",
+            "as_found",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
+        ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(
             os.path.dirname(input.manifest), CAMPAIGN[w.campaign]["as_found"]["model"]

@@ -1,4 +1,10 @@
-# Helpers of the XYΘ family's own rules (the files their jobs read).
+# Helpers of the XYΘ family's own rules (what their jobs read).
+
+
+def reference_validation(w):
+    """The keys of the validation section the reference runs read: all but the held-out part."""
+    v = CAMPAIGN[w.campaign]["validation"]
+    return [f"validation.{k}" for k in v if k != "heldout"]
 
 
 def interim_export(w):

@@ -22,7 +22,8 @@ rule acquire_interim_check:
         mem_mb=1000,
         rig=rig_slots,
     params:
-        **reads("acquire", "interim_check", acquires=True),
+        # the sequential test stops at the campaign's tolerance unless the check gives its own
+        **reads("acquire", "interim_check", "tolerance_um", acquires=True),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(
             os.path.dirname(input.manifest),

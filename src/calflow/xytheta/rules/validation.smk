@@ -24,7 +24,8 @@ rule acquire_validation_model:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", "validation", acquires=True),
+        # the reference targets' plan: the validation section but its held-out targets
+        **reads("acquire", reference_validation, acquires=True),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation"
@@ -56,7 +57,8 @@ rule error_budget:
             "identification",
             "angle_residuals",
             "models",
-            "validation",
+            "validation.heldout",
+            "validation.dwell_s",
         ),
         campaign=campaign_file,
         # the budget's replays read the rig, the calibration's sections, the held-out targets
@@ -85,7 +87,7 @@ rule instrument_bench:
         mem_mb=600,
         runtime=2,
     params:
-        **reads("instrument-bench", "rig", "seed", "identification"),
+        **reads("instrument-bench", "rig", "seed", "identification.theta_deg"),
         campaign=campaign_file,
     shell:
         "calflow instrument-bench --campaign {params.campaign} --sections {params.sections:q} --out {output.bench}"

@@ -23,7 +23,7 @@ rule acquire_hexapod_iso9283:
         mem_mb=1000,
         rig=rig_slots,
     params:
-        **reads("acquire", "iso9283", "validation", acquires=True),
+        **reads("acquire", "iso9283", "validation.dwell_s", acquires=True),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan iso9283"
@@ -105,7 +105,13 @@ rule acquire_hexapod_closed_loop:
         mem_mb=1000,
         rig=rig_slots,
     params:
-        **reads("acquire", "validation", "identification", acquires=True),
+        **reads(
+            "acquire",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
+        ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.dirname(input.bundle),
     shell:
