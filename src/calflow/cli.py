@@ -213,8 +213,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument(
         "--sections",
-        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
-        "same); reading another is an error. Default: all",
+        help=SECTIONS_HELP,
     )
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
@@ -257,8 +256,7 @@ def parser() -> argparse.ArgumentParser:
     ce.add_argument("--pdf")
     ce.add_argument(
         "--sections",
-        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
-        "same); reading another is an error. Default: all",
+        help=SECTIONS_HELP,
     )
 
     ic = _sub(
@@ -355,7 +353,7 @@ def parser() -> argparse.ArgumentParser:
 
 SECTIONS_HELP = (
     "the campaign sections this step reads, comma-separated (its rule hands them and digests the "
-    "same); reading another is an error. Default: all"
+    "same); reading another is an error; '*': all of them. Default: all"
 )
 
 

@@ -118,10 +118,10 @@ def reads(step, *keys, acquires=False):
     exactly when a section it reads, or the calflow code it runs, changes.
 
     A key may be one key of a section (``"validation.heldout"``: the job is handed that key
-    only), or a function of the wildcards giving a section's name (or None, or a list of
-    names: a family's answer). ``acquires``: the job moves the rig, so it reads what every
-    acquisition reads too (:data:`ACQUISITION`). Every job is handed :data:`STAMP`. Use as
-    ``params: **reads("metrics", ...)``.
+    only), a function of the wildcards giving a section's name (or None, or a list of names:
+    a family's answer), or :data:`ALL`. ``acquires``: the job moves the rig, so it reads what
+    every acquisition reads too (:data:`ACQUISITION`). Every job is handed :data:`STAMP`. Use
+    as ``params: **reads("metrics", ...)``.
     """
 
     def _keys(w):
@@ -136,7 +136,8 @@ def reads(step, *keys, acquires=False):
 
     def _digest(w):
         c = CAMPAIGN[w.campaign]
-        return digest([code_digest(step, c["robot"])] + [c.part(k) for k in _keys(w)])
+        values = [dict(c) if k == ALL else c.part(k) for k in _keys(w)]
+        return digest([code_digest(step, c["robot"])] + values)
 
     return {"sections": _sections, "digest": _digest}
 
@@ -149,9 +150,9 @@ STAMP = ("robot", "start")
 ACQUISITION = ("seed", "rig")
 
 
-def every_section(w):
-    """All of the campaign's sections: for a step that reads the whole campaign."""
-    return [k for k in CAMPAIGN[w.campaign] if k != "name"]
+# The key of a step that reads the whole campaign (the summary, the report): it is handed all
+# of it, sections the file leaves out included, and its digest covers all of it.
+ALL = "*"
 
 
 def hooks_of(name):

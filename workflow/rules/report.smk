@@ -31,7 +31,7 @@ rule summarise:
     params:
         # the summary reads the whole campaign (each family's its own sections, the stage and
         # the reference values), so every section is handed to it and digested
-        **reads("summarise", every_section),
+        **reads("summarise", ALL),
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
@@ -74,7 +74,7 @@ rule report:
     params:
         # the report shows the whole campaign (its settings beside the results): every
         # section is handed to it and digested
-        **reads("report", every_section),
+        **reads("report", ALL),
         campaign=campaign_file,
     shell:
         "calflow report --campaign {params.campaign} --sections {params.sections:q}"

@@ -20,10 +20,12 @@ def campaign(path: str, rig_plugins=None) -> dict:
 
 def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
     """Campaign ``c`` as a step sees it: only the ``sections`` its rule hands it (``--sections
-    a,b,c``; :meth:`calflow.configuration.campaign.Campaign.only`), or all of it when None."""
-    if sections is None:
+    a,b,c``; :meth:`calflow.configuration.campaign.Campaign.only`), or all of it when None or
+    when they include ``*`` (a step that reads the whole campaign: the summary, the report)."""
+    keys = [s for s in (sections or "").split(",") if s]
+    if sections is None or "*" in keys:
         return c
-    return c.only([s for s in sections.split(",") if s], step)
+    return c.only(keys, step)
 
 
 def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
