@@ -23,7 +23,14 @@ rule acquire_hexapod_iso9283:
         mem_mb=1000,
         rig=rig_slots,
     params:
-        **reads("acquire", "iso9283", "validation.dwell_s", acquires=True),
+        # the test cube's poses are mapped by the nominal model with identification.initial's frames
+        **reads(
+            "acquire",
+            "iso9283",
+            "validation.dwell_s",
+            "identification.initial",
+            acquires=True,
+        ),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan iso9283"
