@@ -35,6 +35,20 @@ def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
     return handed(campaign(args.campaign, rig_plugins), getattr(args, "sections", None), step)
 
 
+def _command(argv: list[str]) -> list[str]:
+    """The command line a file's ``history`` records: without ``--sections``, which only limits
+    what the step may read (a step that runs gives the same file with or without it)."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--sections":
+            skip = True
+        elif not arg.startswith("--sections="):
+            out.append(arg)
+    return out
+
+
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
     return RunMetadata(
         campaign=c["name"],
@@ -45,7 +59,7 @@ def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetada
         config_sha256=campaign_digest(c.campaign if isinstance(c, Sections) else c),
         start=c["start"],
         model=model,
-        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in sys.argv[1:])}",
+        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in _command(sys.argv[1:]))}",
     )
 
 
