@@ -2,9 +2,12 @@
 
 
 def reference_validation(w):
-    """The keys of the validation section the reference runs read: all but the held-out part."""
-    v = CAMPAIGN[w.campaign]["validation"]
-    return [f"validation.{k}" for k in v if k != "heldout"]
+    """The keys of the validation section the reference runs read: all the schema allows (an
+    optional one the file leaves out is read as absent) but the held-out part."""
+    from calflow.configuration.config import schema
+
+    keys = schema("campaign-xytheta")["properties"]["validation"]["properties"]
+    return [f"validation.{k}" for k in keys if k != "heldout"]
 
 
 def interim_export(w):
