@@ -54,7 +54,8 @@ rule acquire_angle_residuals:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", "angle_residuals", acquires=True),
+        # its positions are drawn over the identification's workspace
+        **reads("acquire", "angle_residuals", "identification", acquires=True),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan angle_residuals"
