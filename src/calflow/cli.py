@@ -26,10 +26,10 @@ def cmd_acquire(args) -> None:
 
 
 def _family(args):
-    from calflow.configuration.campaign import load as load_campaign
+    from calflow.commands.common import campaign_of
     from calflow.family import family_of
 
-    campaign = load_campaign(args.campaign)
+    campaign = campaign_of(args)
     return campaign, family_of(campaign["robot"])
 
 
@@ -44,11 +44,9 @@ def cmd_metrics(args) -> None:
 
 
 def cmd_summarise(args) -> None:
-    from calflow.commands.common import handed
     from calflow.data.io import write_json
 
     campaign, family = _family(args)
-    campaign = handed(campaign, args.sections, "calflow summarise")
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
@@ -60,11 +58,11 @@ def cmd_summarise(args) -> None:
 
 
 def cmd_report(args) -> None:
-    from calflow.configuration.campaign import load as load_campaign
+    from calflow.commands.common import campaign_of
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import render_campaign_pages, write_pdf
 
-    campaign = load_campaign(args.campaign)
+    campaign = campaign_of(args)
     summary = load_summary(args.summary)
     command = f"snakemake --cores 2 --config 'campaigns=[\"{campaign['name']}\"]'"
     html, printed = render_campaign_pages(summary, campaign, command, args.files or [])
@@ -87,11 +85,11 @@ def cmd_index(args) -> None:
 
 
 def cmd_import_csv(args) -> None:
-    from calflow.commands.common import campaign, meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.importing import import_csv, load_mapping
     from calflow.data.io import write_dataset
 
-    c = campaign(args.campaign)
+    c = campaign_of(args)
     mapping = load_mapping(args.mapping)
     write_dataset(
         import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out
@@ -99,11 +97,11 @@ def cmd_import_csv(args) -> None:
 
 
 def cmd_import_recording(args) -> None:
-    from calflow.commands.common import campaign, meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.io import write_dataset
     from calflow.data.recordings import in_campaign_time, load
 
-    c = campaign(args.campaign)
+    c = campaign_of(args)
     spec = {"file": args.file, "format": args.format, **({"mapping": args.mapping} if args.mapping else {})}
     path, ds, _ = load(spec, args.plan, "calflow import-recording")
     ds = in_campaign_time(ds, c["start"])
@@ -215,8 +213,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument(
         "--sections",
-        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
-        "same); reading another is an error. Default: all",
+        help=SECTIONS_HELP,
     )
 
     r = _sub(sub, "report", cmd_report, "render the campaign report (HTML and PDF)")
@@ -259,8 +256,7 @@ def parser() -> argparse.ArgumentParser:
     ce.add_argument("--pdf")
     ce.add_argument(
         "--sections",
-        help="the campaign sections this step reads, comma-separated (its rule hands them and digests the "
-        "same); reading another is an error. Default: all",
+        help=SECTIONS_HELP,
     )
 
     ic = _sub(
@@ -348,7 +344,17 @@ def parser() -> argparse.ArgumentParser:
             family.identify_arguments(i)
         for command in family.commands:
             command.arguments(_sub(sub, command.name, _run(command.run), command.help))
+    for q in sub.choices.values():  # a step that reads a campaign reads only what its rule hands it
+        options = {o for action in q._actions for o in action.option_strings}
+        if "--campaign" in options and "--sections" not in options:
+            q.add_argument("--sections", help=SECTIONS_HELP)
     return p
+
+
+SECTIONS_HELP = (
+    "the campaign sections this step reads, comma-separated (its rule hands them and digests the "
+    "same); reading another is an error; '*': all of them. Default: all"
+)
 
 
 @cache

@@ -137,8 +137,7 @@ RULE_GLOBALS = (
     "CONDA_ENV",  # the environment file, an absolute path
     "REPORT_DIR",  # the captions of report() outputs
     "campaign_file",  # wildcards -> the campaign's file
-    "section",  # section(command, *keys): a rule's rerun digest
-    "rig_digest",  # rig_digest(run_id): an acquisition's rerun digest
+    "reads",  # **reads(command, *sections, acquires=False): the sections a job is handed, and its rerun digest
     "rig_slots",  # wildcards -> the rig's resource slots (one run at a time per real rig)
     "models_of",  # models_of(campaign): the models it identifies
     "code_digest",  # code_digest(command, robot): the digest of a subcommand's code
@@ -158,7 +157,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow.configuration.layout": ("*",),
     "calflow.errors": ("*",),
     "calflow.plan": ("Plan", "Acquisition"),
-    "calflow.commands.common": ("campaign", "meta"),
+    "calflow.commands.common": ("campaign", "campaign_of", "meta"),
     "calflow.data.io": (
         "open_dataset",
         "write_dataset",

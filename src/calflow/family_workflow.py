@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from calflow.errors import ConfigError
 
@@ -26,9 +25,10 @@ from calflow.errors import ConfigError
 class FamilyWorkflow:
     """A family's answers to the core rules; the defaults describe a family with no runs."""
 
-    #: open-loop run id → the campaign section that defines its plan: the core ``acquire``
-    #: rule serves ``results/<campaign>/runs/<run>.nc`` for these run ids.
-    open_loop_runs: Mapping[str, str] = {}
+    #: open-loop run id → the campaign section that defines its plan (or the sections its plan
+    #: reads, a tuple): the core ``acquire`` rule serves ``results/<campaign>/runs/<run>.nc``
+    #: for these run ids, its job handed these sections and what every acquisition reads.
+    open_loop_runs: Mapping[str, str | tuple[str, ...]] = {}
     #: regular expression of the run names (``runs/<name>.nc``) whose metrics the core
     #: ``metrics`` rule computes (``calflow metrics``); ``None`` for none.
     metrics_runs: str | None = None
@@ -61,8 +61,9 @@ class FamilyWorkflow:
         """Files ``calflow identify`` reads for ``model``, by option name (``run``, ``luts`` …)."""
         return {}
 
-    def identify_sections(self, c: dict, model: str) -> list[Any]:
-        """The campaign values identification of ``model`` reads: a change reruns it."""
+    def identify_sections(self, c: dict, model: str) -> list[str]:
+        """The names of the campaign sections identification of ``model`` reads: its job is
+        handed those (and ``robot``) and a change to one reruns it."""
         return []
 
     def needs(self, c: dict) -> list[tuple[str, str, list[str]]]:

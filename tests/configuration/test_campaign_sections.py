@@ -13,6 +13,7 @@ import yaml
 from conftest import ROOT, snakemake
 
 from calflow.configuration.campaign import SectionNotHanded, load
+from calflow.configuration.config import digest
 
 FOLDER = ROOT / "config" / "campaigns"
 
@@ -69,3 +70,25 @@ def test_a_section_a_step_reads_reruns_it_and_another_does_not(reduced_run, tmp_
     assert "certificate" not in changed and "acquire" not in changed and "identify" not in changed
     _edit(work, start="2026-03-02T09:00:00+01:00")  # the acquisitions read it
     assert "acquire" in _params_changed(work)
+
+
+def test_a_step_handed_one_key_of_a_section_reads_no_other_key_of_it():
+    import copy
+    import pickle
+
+    c = load(FOLDER / "demo-sn0042-2026-01.yaml")
+    seen = c.only(["robot", "validation.heldout", "validation.dwell_s"], "calflow acquire")
+    assert seen["validation"]["heldout"] == c["validation"]["heldout"]
+    assert seen["validation"].get("dwell_s") == c["validation"]["dwell_s"]
+    with pytest.raises(SectionNotHanded, match=r"calflow acquire read section 'validation.cycles'"):
+        seen["validation"]["cycles"]
+    assert set(seen["validation"]) == {"heldout", "dwell_s"}
+    # the digest covers the keys handed: another key of the section leaves it alone
+    assert c.digest(["validation.heldout"]) == digest([c["validation"]["heldout"]])
+    assert c.digest(["validation.heldout"]) != c.digest(["validation.dwell_s"])
+    # a job's worker processes get the same view; a copy is a plain dict of what was handed
+    again = pickle.loads(pickle.dumps(seen))
+    assert set(again["validation"]) == {"heldout", "dwell_s"}
+    with pytest.raises(SectionNotHanded):
+        again["models"]
+    assert copy.deepcopy(seen)["validation"] == {k: c["validation"][k] for k in ("heldout", "dwell_s")}

@@ -25,7 +25,7 @@ class LinearWorkflow(FamilyWorkflow):
         return {"run": layout.run(c["name"], "identification")}
 
     def identify_sections(self, c, model: str) -> list:
-        return [c["identification"]]
+        return ["identification"]
 
 
 WORKFLOW = LinearWorkflow()

@@ -20,11 +20,12 @@ rule acquire:
         runtime=1,
         rig=rig_slots,
     params:
+        **reads("acquire", plan_section, acquires=True),
         campaign=campaign_file,
-        digest=lambda w: digest([rig_digest(w.run)(w), plan_section(w)]),
         args=input_args,
     shell:
-        "calflow acquire --campaign {params.campaign} --plan {wildcards.run} {params.args}"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan {wildcards.run}"
+        " {params.args}"
         " --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
@@ -48,8 +49,9 @@ rule decode_frames:
         mem_mb=600,
         runtime=5,
     params:
+        **reads("decode-run", "rig"),
         campaign=campaign_file,
-        digest=decode_digest,
+        frames=frames_digest,
     shell:
-        "calflow decode-run --campaign {params.campaign} --run {wildcards.run}"
+        "calflow decode-run --campaign {params.campaign} --sections {params.sections:q} --run {wildcards.run}"
         " --out {output.run} > {log} 2>&1"

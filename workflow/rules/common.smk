@@ -110,44 +110,49 @@ def campaign_file(wildcards):
     return f"{CAMPAIGN_DIR}/{wildcards.campaign}.yaml"
 
 
-def robot(wildcards):
-    return CAMPAIGN[wildcards.campaign]["robot"]
+def reads(step, *keys, acquires=False):
+    """The params of a job that runs ``calflow <step>`` on a campaign and reads its sections
+    ``keys``: ``sections``, handed to the job (``--sections {params.sections:q}``: it cannot read
+    another, calflow.configuration.campaign.Campaign.only), and ``digest``, of the same sections
+    and the step's code. Snakemake reruns a job when its params change, so the job reruns
+    exactly when a section it reads, or the calflow code it runs, changes.
 
-
-def section(step, *keys):
-    """A params function: digest of the code of ``step`` and the campaign sections it reads.
-
-    Snakemake reruns a job when its params change, so each rule reruns exactly when a
-    section it reads changes, or when the calflow code it runs changes.
+    A key may be one key of a section (``"validation.heldout"``: the job is handed that key
+    only), a function of the wildcards giving a section's name (or None, or a list of names:
+    a family's answer), or :data:`ALL`. ``acquires``: the job moves the rig, so it reads what
+    every acquisition reads too (:data:`ACQUISITION`). Every job is handed :data:`STAMP`. Use
+    as ``params: **reads("metrics", ...)``.
     """
 
-    def _digest(wildcards):
-        c = CAMPAIGN[wildcards.campaign]
-        return digest([code_digest(step, c["robot"])] + [c.get(k) for k in keys])
+    def _keys(w):
+        names = [*STAMP, *(ACQUISITION if acquires else ())]
+        for key in keys:
+            key = key(w) if callable(key) else key
+            names += [key] if isinstance(key, str) else list(key or ())
+        return list(dict.fromkeys(names))
 
-    return _digest
+    def _sections(w):
+        return ",".join(_keys(w))
+
+    def _digest(w):
+        c = CAMPAIGN[w.campaign]
+        values = [dict(c) if k == ALL else c.part(k) for k in _keys(w)]
+        return digest([code_digest(step, c["robot"])] + values)
+
+    return {"sections": _sections, "digest": _digest}
 
 
-def reads(step, *keys):
-    """The params of a step whose job reads the campaign sections ``keys``: ``sections``, handed
-    to the job (``--sections``; it cannot read another, calflow.configuration.campaign.Campaign.only), and
-    ``digest``, of the same sections and the step's code (:func:`section`). Use as
-    ``params: **reads("certificate", "stage", "start")``."""
-    return {"sections": ",".join(keys), "digest": section(step, *keys)}
+# What every step reads: the robot (it names the family) and the campaign's start, which
+# every file a step writes is stamped with (calflow.commands.common.meta).
+STAMP = ("robot", "start")
+# What every acquisition reads besides: the rig (its options and each run's) and the seed;
+# its plan's sections too.
+ACQUISITION = ("seed", "rig")
 
 
-def rig_digest(run_id):
-    """Digest of what a run's acquisition depends on: the rig, the campaign's clock, the code."""
-
-    def _digest(wildcards):
-        c = CAMPAIGN[wildcards.campaign]
-        rid = run_id(wildcards) if callable(run_id) else run_id
-        rig = {**c["rig"], "runs": c["rig"].get("runs", {}).get(rid)}
-        return digest(
-            [code_digest("acquire", c["robot"]), c["robot"], c["seed"], c["start"], rig]
-        )
-
-    return _digest
+# The key of a step that reads the whole campaign (the summary, the report): it is handed all
+# of it, sections the file leaves out included, and its digest covers all of it.
+ALL = "*"
 
 
 def hooks_of(name):
@@ -176,9 +181,9 @@ def budget_file(name):
 
 
 def plan_section(w):
-    """The campaign section that defines an open-loop run's plan."""
-    c = CAMPAIGN[w.campaign]
-    return c.get(hooks(c).open_loop_runs.get(w.run))
+    """The name of the campaign section that defines an open-loop run's plan (or the names of
+    those its plan reads)."""
+    return hooks_of(w.campaign).open_loop_runs.get(w.run)
 
 
 def acquire_inputs(w):
@@ -204,26 +209,19 @@ def frames_of(w):
     return frame_files(frame_recordings(c)[w.run])
 
 
-def decode_digest(w):
-    """What decoding a frame recording depends on: its entry, the decoder's code, the
-    table's and the pattern file's contents, the frame files' sizes and times (Snakemake
-    does not rerun a job for a newer file no rule makes)."""
-    spec = frame_recordings(CAMPAIGN[w.campaign])[w.run]
-    files = frame_files(spec)
+def frames_digest(w):
+    """What decoding a frame recording reads besides the campaign's sections (rule
+    decode_frames hands and digests those): the table's and the pattern file's contents,
+    the frame files' sizes and times (Snakemake does not rerun a job for a newer file no
+    rule makes)."""
+    files = frame_files(frame_recordings(CAMPAIGN[w.campaign])[w.run])
     stamps = [
         [f, os.stat(f).st_size, os.stat(f).st_mtime_ns]
         for f in files[:-2]
         if os.path.exists(f)
     ]
     contents = [_sha256(f) if os.path.exists(f) else None for f in files[-2:]]
-    return digest(
-        [
-            code_digest("decode-run", CAMPAIGN[w.campaign]["robot"]),
-            spec,
-            stamps,
-            contents,
-        ]
-    )
+    return digest([stamps, contents])
 
 
 def _sha256(path):
@@ -245,10 +243,9 @@ def input_args(w, input):
 identify_args = input_args
 
 
-def identify_digest(w):
-    c = CAMPAIGN[w.campaign]
-    sections = hooks(c).identify_sections(c, w.model)
-    return digest([code_digest("identify", c["robot"])] + sections)
+def identify_sections(w):
+    """The sections identification of a model reads (its family says)."""
+    return hooks_of(w.campaign).identify_sections(CAMPAIGN[w.campaign], w.model)
 
 
 def report_files(name):

@@ -22,15 +22,14 @@ rule acquire_validation_heldout:
         runtime=1,
         rig=rig_slots,
     params:
-        campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"validation_heldout_{w.model}")(w),
-                CAMPAIGN[w.campaign]["validation"]["heldout"],
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-                CAMPAIGN[w.campaign]["identification"],
-            ]
+        **reads(
+            "acquire",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
         ),
+        campaign=campaign_file,
     shell:
-        "calflow acquire --campaign {params.campaign} --plan validation_heldout"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation_heldout"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -18,9 +18,9 @@ rule identify:
         mem_mb=400,
         runtime=1,
     params:
+        **reads("identify", identify_sections),
         campaign=campaign_file,
         args=identify_args,
-        digest=identify_digest,
     shell:
-        "calflow identify --campaign {params.campaign} --model-name {wildcards.model}"
+        "calflow identify --campaign {params.campaign} --sections {params.sections:q} --model-name {wildcards.model}"
         " {params.args} --out {output.model} > {log} 2>&1"

@@ -21,8 +21,8 @@ rule metrics:
         mem_mb=300,
         runtime=1,
     params:
+        **reads("metrics"),
         campaign=campaign_file,
-        digest=section("metrics"),
     shell:
-        "calflow metrics --campaign {params.campaign} --run {input.run}"
+        "calflow metrics --campaign {params.campaign} --sections {params.sections:q} --run {input.run}"
         " --out {output.metrics} > {log} 2>&1"

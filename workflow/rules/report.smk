@@ -29,17 +29,16 @@ rule summarise:
         mem_mb=400,
         runtime=1,
     params:
+        # the summary reads the whole campaign (each family's its own sections, the stage and
+        # the reference values), so every section is handed to it and digested
+        **reads("summarise", ALL),
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
         settings=lambda w: shlex.quote(certificate_settings(w.campaign)),
-        # the summary reads the whole campaign (each family's its own sections, the stage and
-        # the reference values), so every section is handed to it and digested
-        digest=lambda w: digest(
-            [code_digest("summarise", robot(w)), CAMPAIGN[w.campaign]]
-        ),
     shell:
-        "calflow summarise --campaign {params.campaign} --files {input.files}"
+        "calflow summarise --campaign {params.campaign} --sections {params.sections:q}"
+        " --files {input.files}"
         " {params.truth} {params.budget} --settings {params.settings}"
         " --out {output.summary} > {log} 2>&1"
 
@@ -73,10 +72,13 @@ rule report:
         mem_mb=600,
         runtime=2,
     params:
+        # the report shows the whole campaign (its settings beside the results): every
+        # section is handed to it and digested
+        **reads("report", ALL),
         campaign=campaign_file,
-        digest=lambda w: digest([code_digest("report", robot(w)), CAMPAIGN[w.campaign]]),
     shell:
-        "calflow report --campaign {params.campaign} --summary {input.summary}"
+        "calflow report --campaign {params.campaign} --sections {params.sections:q}"
+        " --summary {input.summary}"
         " --files {input.files} --html {output.html} --pdf {output.pdf} > {log} 2>&1"
 
 

@@ -7,8 +7,7 @@ run-time compensation, the controller.
 
 from __future__ import annotations
 
-from calflow.commands.common import campaign as load
-from calflow.commands.common import meta, open_rig
+from calflow.commands.common import campaign_of, meta, open_rig
 from calflow.errors import RigError
 from calflow.family import family_of
 
@@ -66,7 +65,7 @@ def run(args) -> None:
     from calflow.rigs.plugin import allowed_modules
 
     plugins = allowed_modules(getattr(args, "rig_plugins", None))
-    c = load(args.campaign, plugins)
+    c = campaign_of(args, plugins)
     for out in filter(None, (args.out, args.truth)):  # before the rig moves: a bad --out costs no run
         output_folder(out)
     ds, truth, journal, rig = acquire_job(c, args.plan, args, plugins, f"{args.out}.journal")

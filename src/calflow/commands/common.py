@@ -20,10 +20,33 @@ def campaign(path: str, rig_plugins=None) -> dict:
 
 def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
     """Campaign ``c`` as a step sees it: only the ``sections`` its rule hands it (``--sections
-    a,b,c``; :meth:`calflow.configuration.campaign.Campaign.only`), or all of it when None."""
-    if sections is None:
+    a,b,c``; :meth:`calflow.configuration.campaign.Campaign.only`), or all of it when None or
+    when they include ``*`` (a step that reads the whole campaign: the summary, the report)."""
+    keys = [s for s in (sections or "").split(",") if s]
+    if sections is None or "*" in keys:
         return c
-    return c.only([s for s in sections.split(",") if s], step)
+    return c.only(keys, step)
+
+
+def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
+    """The campaign a subcommand's job reads: file ``args.campaign`` (:func:`campaign`), only
+    the sections its rule hands it (``args.sections``, :func:`handed`; all when not given)."""
+    step = f"calflow {getattr(args, 'command', None) or 'step'}"
+    return handed(campaign(args.campaign, rig_plugins), getattr(args, "sections", None), step)
+
+
+def _command(argv: list[str]) -> list[str]:
+    """The command line a file's ``history`` records: without ``--sections``, which only limits
+    what the step may read (a step that runs gives the same file with or without it)."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--sections":
+            skip = True
+        elif not arg.startswith("--sections="):
+            out.append(arg)
+    return out
 
 
 def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
@@ -32,10 +55,11 @@ def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetada
         robot=c["robot"],
         source=source,
         plan=plan,
-        config_sha256=campaign_digest(c),
+        # the stamp of the campaign the file comes from: all of it, whichever sections the step reads
+        config_sha256=campaign_digest(c.campaign if isinstance(c, Sections) else c),
         start=c["start"],
         model=model,
-        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in sys.argv[1:])}",
+        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in _command(sys.argv[1:]))}",
     )
 
 

@@ -123,10 +123,10 @@ def _digest_of(shas: list[str]) -> str:
 
 def run(args) -> None:
     """``calflow decode-run --campaign C --run R --out F``."""
-    from calflow.commands.common import campaign as load
+    from calflow.commands.common import campaign_of
     from calflow.data.io import output_folder, write_dataset
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     recordings = (c["rig"].get("options") or {}).get("recordings")
     if c["rig"]["factory"] != "replay" or not isinstance(recordings, dict) or args.run not in recordings:
         raise DataError(

@@ -227,15 +227,22 @@ class Campaign(FrozenDict):
     def reference(self) -> Campaign | None:
         return self.resolution.reference
 
+    def part(self, key: str) -> Any:
+        """Section ``key`` as resolved, or one key of it (``"validation.heldout"``); None when absent."""
+        head, _, sub = key.partition(".")
+        value = self.get(head)
+        return value.get(sub) if sub and isinstance(value, Mapping) else value
+
     def digest(self, keys) -> str:
-        """SHA-256 of the sections ``keys`` (as resolved; None for an absent one): the rerun
-        digest of a step that reads these sections."""
-        return digest([self.get(k) for k in keys])
+        """SHA-256 of the sections ``keys`` (as resolved, :meth:`part`; None for an absent one):
+        the rerun digest of a step that reads these sections."""
+        return digest([self.part(k) for k in keys])
 
     def only(self, keys, step: str = "this step") -> Sections:
         """The campaign as a step that reads only the sections ``keys`` sees it (its rule
         hands it those and digests the same, :meth:`digest`): reading another section raises
-        :class:`SectionNotHanded`, so a step cannot read what its rerun digest misses."""
+        :class:`SectionNotHanded`, so a step cannot read what its rerun digest misses. A key
+        ``"section.key"`` hands that one key of a section (the others of it are not handed)."""
         return Sections(self, tuple(keys), step)
 
 
@@ -244,21 +251,42 @@ class SectionNotHanded(KeyError):
 
 
 class Sections(FrozenDict):
-    """The sections of a campaign its rule hands a step (:meth:`Campaign.only`), and ``name``."""
+    """The sections of a campaign its rule hands a step (:meth:`Campaign.only`), and ``name``;
+    a section of which only some keys are handed is a :class:`Sections` of those keys."""
 
-    __slots__ = ("handed", "step", "campaign")
+    __slots__ = ("handed", "step", "campaign", "names", "prefix")
 
-    def __init__(self, campaign: Campaign, keys: tuple[str, ...], step: str):
-        handed = frozenset(keys) | {"name"}
-        dict.__init__(self, ((k, v) for k, v in campaign.items() if k in handed))
-        for attr, value in (("handed", handed), ("step", step), ("campaign", campaign)):
+    def __init__(self, campaign: Campaign, keys: tuple[str, ...], step: str, _of=None, _prefix: str = ""):
+        whole = {k for k in keys if "." not in k}
+        parts: dict[str, list[str]] = {}
+        for k in keys:
+            head, _, sub = k.partition(".")
+            if sub and head not in whole:
+                parts.setdefault(head, []).append(sub)
+        source = campaign if _of is None else _of
+        items = {}
+        for k, v in source.items():
+            if k in whole or (k == "name" and _of is None):
+                items[k] = v
+            elif k in parts and isinstance(v, Mapping):
+                items[k] = Sections(campaign, tuple(parts[k]), step, v, f"{_prefix}{k}.")
+        handed = frozenset(whole | set(parts) | ({"name"} if _of is None else set()))
+        dict.__init__(self, items)
+        for attr, value in (
+            ("handed", handed),
+            ("step", step),
+            ("campaign", campaign),
+            ("names", tuple(keys)),
+            ("prefix", _prefix),
+        ):
             object.__setattr__(self, attr, value)
 
     def _check(self, key) -> None:
         if key not in self.handed:
+            given = sorted(f"{self.prefix}{k}" for k in self.names)
             raise SectionNotHanded(
-                f"{self.campaign.path}: {self.step} read section {key!r}, which its rule does not hand "
-                f"it (it hands {', '.join(sorted(self.handed - {'name'})) or 'none'}): add it to the rule's sections"
+                f"{self.campaign.path}: {self.step} read section {self.prefix + str(key)!r}, which its rule does "
+                f"not hand it (it hands {', '.join(given) or 'none'}): add it to the rule's sections"
             )
 
     def __getitem__(self, key):
@@ -277,7 +305,9 @@ class Sections(FrozenDict):
         _refuse(self)
 
     def __reduce__(self):
-        return (_sections, (self.campaign, tuple(self.handed - {"name"}), self.step))
+        if self.prefix:  # a part of a section: a plain copy of what it holds
+            return (FrozenDict, (dict(self),))
+        return (_sections, (self.campaign, self.names, self.step))
 
 
 def _sections(campaign: Campaign, keys: tuple[str, ...], step: str) -> Sections:

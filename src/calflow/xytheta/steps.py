@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.commands.common import campaign as load
-from calflow.commands.common import meta
+from calflow.commands.common import campaign_of, meta
 from calflow.data.io import open_dataset, write_dataset
 from calflow.errors import CalflowError
 
@@ -19,7 +18,7 @@ def characterise(args) -> None:
     """Error tables of the X and Y stages from the two characterisation sweeps (Sec. 4.4.1)."""
     from calflow.xytheta.tables.characterisation import characterise as tables
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     run_x, run_y = open_dataset(args.x, kind="run"), open_dataset(args.y, kind="run")
     write_dataset(tables(run_x, run_y, meta(c, run_x.attrs["source"], "characterisation")), args.out)
 
@@ -261,7 +260,7 @@ def observability(args) -> None:
     from calflow.xytheta.models.kinematics import Parameters
     from calflow.xytheta.plans.poses import identification
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     o = c["observability"]
     p = c["identification"]
     phi = Parameters(**p["initial"])

@@ -17,7 +17,8 @@ from calflow.family_workflow import FamilyWorkflow
 
 
 class HexapodWorkflow(FamilyWorkflow):
-    open_loop_runs = {"identification": "identification"}
+    # a designed plan is designed for a model's free parameters
+    open_loop_runs = {"identification": ("identification", "models")}
     metrics_runs = "validation_heldout_[A-Za-z0-9_]+|iso9283_[A-Za-z0-9_]+|closed_loop_[A-Za-z0-9_]+"
 
     def models(self, c: dict) -> list[str]:
@@ -44,7 +45,9 @@ class HexapodWorkflow(FamilyWorkflow):
         return {"run": layout.run(c["name"], "identification")}
 
     def identify_sections(self, c: dict, model: str) -> list:
-        return [c["seed"], c["identification"], c["models"][model]]
+        # a designed plan's poses are weighed by the noise of a reading, which the simulated
+        # rig's tracker gives unless identification.design.noise does
+        return ["seed", "identification", f"models.{model}", "rig"]
 
 
 WORKFLOW = HexapodWorkflow()

@@ -15,7 +15,8 @@ from calflow.family_workflow import FamilyWorkflow, recorded_runs
 
 
 class NanoWorkflow(FamilyWorkflow):
-    open_loop_runs = {"training": "training", "metrology": "metrology"}
+    # the training plan records the Cramér-Rao bound of the model's parameters
+    open_loop_runs = {"training": ("training", "model"), "metrology": "metrology"}
     metrics_runs = "validation|training|metrology"
 
     def models(self, c: dict) -> list[str]:
@@ -56,7 +57,7 @@ class NanoWorkflow(FamilyWorkflow):
         return {"run": layout.run(c["name"], "training")}
 
     def identify_sections(self, c: dict, model: str) -> list:
-        return [c["model"]]
+        return ["model"]
 
 
 WORKFLOW = NanoWorkflow()

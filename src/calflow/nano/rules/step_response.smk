@@ -18,10 +18,8 @@ rule acquire_step_response:
         runtime=1,
         rig=rig_slots,
     params:
+        **reads("acquire", "step_response", acquires=True),
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [rig_digest("step_response")(w), CAMPAIGN[w.campaign].get("step_response")]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan step_response"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan step_response"
         " --out {output.run} --truth {output.truth} > {log} 2>&1"

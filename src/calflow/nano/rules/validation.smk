@@ -24,11 +24,9 @@ rule acquire_validation_tests:
         runtime=2,
         rig=rig_slots,
     params:
+        **reads("acquire", "validation", acquires=True),
         campaign=campaign_file,
         models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
-        digest=lambda w: digest(
-            [rig_digest("validation")(w), CAMPAIGN[w.campaign]["validation"]]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan validation"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation"
         " {params.models} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -112,10 +112,10 @@ def budget_command(budget: Callable[[str, dict, int], dict]) -> Callable[[Any], 
     summary step (tests and reports only)."""
 
     def error_budget_command(args) -> None:
-        from calflow.commands.common import campaign as load
+        from calflow.commands.common import campaign_of
         from calflow.data.io import output_folder, write_json
 
-        c = load(args.campaign)
+        c = campaign_of(args)
         result = budget(args.campaign, c, max(1, int(getattr(args, "jobs", 1) or 1)))
         output_folder(args.out)
         write_json(result, args.out)

@@ -77,11 +77,10 @@ def study(args) -> None:
     """``calflow design-study``: the study's curves and answer as a metrics dataset."""
     import xarray as xr
 
-    from calflow.commands.common import campaign as load
-    from calflow.commands.common import meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.io import write_dataset
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     s = c["design_study"]
     counts = np.unique(np.geomspace(s["min_poses"], s["max_poses"], s["steps"]).round().astype(int))
     r = curves(c, counts)

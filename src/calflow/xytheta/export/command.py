@@ -11,11 +11,11 @@ from pathlib import Path
 def export(args) -> None:
     """Bundle and controller files of each ``--model M.nc`` into ``--out DIR/<model file's stem>``,
     then ``DIR/manifest.json`` (model → its files; written last: the export is complete)."""
-    from calflow.commands.common import campaign as load
+    from calflow.commands.common import campaign_of
     from calflow.data.io import write_json
     from calflow.xytheta.export.writer import export_model
 
-    load(args.campaign)  # refuse a bad campaign before writing
+    campaign_of(args)  # refuse a bad campaign before writing
     manifest = {}
     for path in args.model:
         folder = Path(args.out) / Path(path).stem
@@ -27,13 +27,12 @@ def export(args) -> None:
 def verify(args) -> None:
     """Export paths' accuracy beside the in-process model's: each ``--run`` (a validation_export
     run) against the ``--heldout`` metrics of its model, into the ``--out`` at its position."""
-    from calflow.commands.common import campaign as load
-    from calflow.commands.common import meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.io import open_dataset, write_dataset
     from calflow.errors import CalflowError
     from calflow.xytheta.export.verification import compare
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     if len(args.out) != len(args.run):
         raise CalflowError(
             f"calflow export-verify: --out: expected one file per --run ({len(args.run)}), "

@@ -21,7 +21,8 @@ from calflow.family_workflow import FamilyWorkflow, replayed_runs
 
 class XYThetaWorkflow(FamilyWorkflow):
     open_loop_runs = {
-        "identification": "identification",
+        # the plan records the Cramér-Rao bound of each model's parameters
+        "identification": ("identification", "models"),
         "characterisation_x": "characterisation",
         "characterisation_y": "characterisation",
     }
@@ -157,11 +158,9 @@ class XYThetaWorkflow(FamilyWorkflow):
         return inputs
 
     def identify_sections(self, c: dict, model: str) -> list:
-        spec = c["models"][model]
-        sections = [c["seed"], c["identification"], spec]
-        if "base" in spec:
-            sections.append(c["angle_residuals"])
-        return sections
+        return ["seed", "identification", f"models.{model}"] + (
+            ["angle_residuals"] if "base" in c["models"][model] else []
+        )
 
 
 def interim_export(c: dict) -> str:

@@ -26,13 +26,11 @@ rule acquire_xy_test:
         runtime=1,
         rig=rig_slots,
     params:
+        **reads("acquire", "xy_tests", acquires=True),
         campaign=campaign_file,
         luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
-        digest=lambda w: digest(
-            [rig_digest(f"{w.test}_{w.comp}")(w), CAMPAIGN[w.campaign]["xy_tests"]]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan {wildcards.test}"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan {wildcards.test}"
         " --compensation {wildcards.comp} {params.luts} --out {output.run}"
         " --truth {output.truth} > {log} 2>&1"
 
@@ -56,13 +54,9 @@ rule acquire_angle_residuals:
         runtime=1,
         rig=rig_slots,
     params:
+        # its positions are drawn over the identification's workspace
+        **reads("acquire", "angle_residuals", "identification", acquires=True),
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"angle_residuals_{w.model}")(w),
-                CAMPAIGN[w.campaign]["angle_residuals"],
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan angle_residuals"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan angle_residuals"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -28,19 +28,18 @@ rule acquire_as_found:
         runtime=1,
         rig=rig_slots,
     params:
+        **reads(
+            "acquire",
+            "as_found",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
+        ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(
             os.path.dirname(input.manifest), CAMPAIGN[w.campaign]["as_found"]["model"]
         ),
-        digest=lambda w: digest(
-            [
-                rig_digest("as_found")(w),
-                CAMPAIGN[w.campaign]["as_found"],
-                CAMPAIGN[w.campaign]["validation"]["heldout"],
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-                CAMPAIGN[w.campaign]["identification"],
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan as_found"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan as_found"
         " --export {params.folder} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -19,10 +19,11 @@ rule characterise:
         mem_mb=300,
         runtime=1,
     params:
+        **reads("characterise"),
         campaign=campaign_file,
-        digest=section("characterise"),
     shell:
-        "calflow characterise --campaign {params.campaign} --x {input.x} --y {input.y}"
+        "calflow characterise --campaign {params.campaign} --sections {params.sections:q}"
+        " --x {input.x} --y {input.y}"
         " --out {output.luts} > {log} 2>&1"
 
 
@@ -41,10 +42,11 @@ rule observability:
         mem_mb=200,
         runtime=1,
     params:
+        **reads("observability", "seed", "identification", "observability"),
         campaign=campaign_file,
-        digest=section("observability", "seed", "identification", "observability"),
     shell:
-        "calflow observability --campaign {params.campaign} --out {output} > {log} 2>&1"
+        "calflow observability --campaign {params.campaign} --sections {params.sections:q}"
+        " --out {output} > {log} 2>&1"
 
 
 rule design_study:
@@ -61,9 +63,10 @@ rule design_study:
     resources:
         mem_mb=1000,
     params:
-        campaign=campaign_file,
-        digest=section(
+        **reads(
             "design-study", "seed", "rig", "identification", "models", "design_study"
         ),
+        campaign=campaign_file,
     shell:
-        "calflow design-study --campaign {params.campaign} --out {output} > {log} 2>&1"
+        "calflow design-study --campaign {params.campaign} --sections {params.sections:q}"
+        " --out {output} > {log} 2>&1"

@@ -1,30 +1,13 @@
-# Helpers of the XYΘ family's own rules (what their params digest).
+# Helpers of the XYΘ family's own rules (what their jobs read).
 
 
 def reference_validation(w):
-    """The validation section without its held-out part: what the reference runs read."""
-    v = CAMPAIGN[w.campaign]["validation"]
-    return {k: v[k] for k in v if k != "heldout"}
+    """The keys of the validation section the reference runs read: all the schema allows (an
+    optional one the file leaves out is read as absent) but the held-out part."""
+    from calflow.configuration.config import schema
 
-
-def budget_digest(w):
-    """What the budget's replays read: the rig, the calibration's sections, the held-out targets."""
-    c = CAMPAIGN[w.campaign]
-    keys = (
-        "seed",
-        "start",
-        "rig",
-        "characterisation",
-        "identification",
-        "angle_residuals",
-        "models",
-    )
-    v = c["validation"]
-    return digest(
-        [code_digest("error-budget", "xytheta")]
-        + [c.get(k) for k in keys]
-        + [v["heldout"], v["dwell_s"]]
-    )
+    keys = schema("campaign-xytheta")["properties"]["validation"]["properties"]
+    return [f"validation.{k}" for k in keys if k != "heldout"]
 
 
 def interim_export(w):

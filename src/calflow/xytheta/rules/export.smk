@@ -24,11 +24,11 @@ rule export_models:
         mem_mb=400,
         runtime=1,
     params:
+        **reads("export"),
         campaign=campaign_file,
         folder=lambda w, output: os.path.dirname(output.manifest),
-        digest=section("export"),
     shell:
-        "calflow export --campaign {params.campaign} --model {input.models}"
+        "calflow export --campaign {params.campaign} --sections {params.sections:q} --model {input.models}"
         " --out {params.folder} > {log} 2>&1"
 
 
@@ -51,18 +51,17 @@ rule acquire_validation_export:
         runtime=1,
         rig=rig_slots,
     params:
+        **reads(
+            "acquire",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
+        ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(os.path.dirname(input.manifest), w.model),
-        digest=lambda w: digest(
-            [
-                rig_digest(f"export_{w.model}")(w),
-                CAMPAIGN[w.campaign]["validation"]["heldout"],
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-                CAMPAIGN[w.campaign]["identification"],
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan validation_export"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation_export"
         " --model {input.model} --export {params.folder} --out {output.run} > {log} 2>&1"
 
 
@@ -84,8 +83,8 @@ rule export_verify:
         mem_mb=300,
         runtime=1,
     params:
+        **reads("export-verify"),
         campaign=campaign_file,
-        digest=section("export"),
     shell:
-        "calflow export-verify --campaign {params.campaign} --run {input.run}"
+        "calflow export-verify --campaign {params.campaign} --sections {params.sections:q} --run {input.run}"
         " --heldout {input.heldout} --out {output.metrics} > {log} 2>&1"

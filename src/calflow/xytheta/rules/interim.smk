@@ -22,17 +22,13 @@ rule acquire_interim_check:
         mem_mb=1000,
         rig=rig_slots,
     params:
+        # the sequential test stops at the campaign's tolerance unless the check gives its own
+        **reads("acquire", "interim_check", "tolerance_um", acquires=True),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(
             os.path.dirname(input.manifest),
             CAMPAIGN[w.campaign]["interim_check"]["model"],
         ),
-        digest=lambda w: digest(
-            [
-                rig_digest("interim_check")(w),
-                CAMPAIGN[w.campaign]["interim_check"],
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan interim_check"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan interim_check"
         " --export {params.folder} --out {output.run} --truth {output.truth} > {log} 2>&1"

@@ -24,15 +24,11 @@ rule acquire_validation_model:
         runtime=1,
         rig=rig_slots,
     params:
+        # the reference targets' plan: the validation section but its held-out targets
+        **reads("acquire", reference_validation, acquires=True),
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"validation_{w.model}")(w),
-                reference_validation(w),
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan validation"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
@@ -52,10 +48,22 @@ rule error_budget:
         mem_mb=900,
         runtime=2,
     params:
+        **reads(
+            "error-budget",
+            "seed",
+            "start",
+            "rig",
+            "characterisation",
+            "identification",
+            "angle_residuals",
+            "models",
+            "validation.heldout",
+            "validation.dwell_s",
+        ),
         campaign=campaign_file,
-        digest=budget_digest,
+        # the budget's replays read the rig, the calibration's sections, the held-out targets
     shell:
-        "calflow error-budget --campaign {params.campaign} --jobs {threads}"
+        "calflow error-budget --campaign {params.campaign} --sections {params.sections:q} --jobs {threads}"
         " --out {output.budget} > {log} 2>&1"
 
 
@@ -79,15 +87,8 @@ rule instrument_bench:
         mem_mb=600,
         runtime=2,
     params:
+        **reads("instrument-bench", "rig", "seed", "identification.theta_deg"),
         campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                code_digest("instrument-bench", "xytheta"),
-                CAMPAIGN[w.campaign]["rig"],
-                CAMPAIGN[w.campaign]["seed"],
-                CAMPAIGN[w.campaign]["identification"]["theta_deg"],
-            ]
-        ),
     shell:
-        "calflow instrument-bench --campaign {params.campaign} --out {output.bench}"
+        "calflow instrument-bench --campaign {params.campaign} --sections {params.sections:q} --out {output.bench}"
         " --throughput {output.throughput} > {log} 2>&1"

@@ -29,12 +29,11 @@ def instrument_of(campaign: dict):
 def bench_command(args) -> None:
     """``calflow instrument-bench``: the camera and decoder of the campaign's images rig on
     rendered frames around the middle of the pattern (:mod:`calflow.instruments.bench`)."""
-    from calflow.commands.common import campaign as load
-    from calflow.commands.common import meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.io import output_folder, write_dataset, write_json
     from calflow.instruments.bench import bench
 
-    c = load(args.campaign)
+    c = campaign_of(args)
     sensor = instrument_of(c)
     rx, ry = sensor.pattern.range_um
     theta = float(np.mean(c["identification"]["theta_deg"]))

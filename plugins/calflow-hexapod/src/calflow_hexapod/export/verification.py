@@ -52,12 +52,12 @@ calflow {version}.
 
 def export_command(args) -> None:
     """``calflow hexapod-export --campaign FILE --model M.nc --out DIR``: the model's bundle."""
-    from calflow.commands.common import campaign, meta
+    from calflow.commands.common import campaign_of, meta
     from calflow.data.io import write_text
     from calflow_hexapod.export.bundle import provenance, write_bundle
     from calflow_hexapod.models.calibration import HexapodModel
 
-    c = campaign(args.campaign)
+    c = campaign_of(args)
     model = HexapodModel.read(args.model)
     prov = provenance(args.model)
     folder = Path(args.out).parent if Path(args.out).suffix == ".json" else Path(args.out)

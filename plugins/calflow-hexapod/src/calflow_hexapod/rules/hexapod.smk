@@ -1,8 +1,8 @@
 # The hexapod's own steps: the five ISO 9283 poses P1-P5 commanded through each model (ISO
 # 9283:1998 7.2), for campaigns with an iso9283 section; and, on a simulated rig with
 # validation.heldout.error_budget, the error budget by effect (replays on the rig's truth:
-# reports only). Uses what calflow's common.smk defines: CAMPAIGN, campaign_file, section,
-# rig_digest, rig_slots, digest, CONDA_ENV.
+# reports only). Uses what calflow's common.smk defines: CAMPAIGN, campaign_file, reads,
+# rig_slots, CONDA_ENV.
 
 
 rule acquire_hexapod_iso9283:
@@ -23,16 +23,17 @@ rule acquire_hexapod_iso9283:
         mem_mb=1000,
         rig=rig_slots,
     params:
-        campaign=campaign_file,
-        digest=lambda w: digest(
-            [
-                rig_digest(f"iso9283_{w.model}")(w),
-                CAMPAIGN[w.campaign].get("iso9283"),
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-            ]
+        # the test cube's poses are mapped by the nominal model with identification.initial's frames
+        **reads(
+            "acquire",
+            "iso9283",
+            "validation.dwell_s",
+            "identification.initial",
+            acquires=True,
         ),
+        campaign=campaign_file,
     shell:
-        "calflow acquire --campaign {params.campaign} --plan iso9283"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan iso9283"
         " --model {input.model} --out {output.run} --truth {output.truth} > {log} 2>&1"
 
 
@@ -50,8 +51,7 @@ rule hexapod_error_budget:
     resources:
         mem_mb=2000,
     params:
-        campaign=campaign_file,
-        digest=section(
+        **reads(
             "hexapod-error-budget",
             "seed",
             "start",
@@ -60,8 +60,9 @@ rule hexapod_error_budget:
             "models",
             "validation",
         ),
+        campaign=campaign_file,
     shell:
-        "calflow hexapod-error-budget --campaign {params.campaign}"
+        "calflow hexapod-error-budget --campaign {params.campaign} --sections {params.sections:q}"
         " --out {output.budget} > {log} 2>&1"
 
 
@@ -84,11 +85,11 @@ rule hexapod_export:
     resources:
         mem_mb=1000,
     params:
+        **reads("hexapod-export"),
         campaign=campaign_file,
         folder=lambda w, output: os.path.dirname(output.bundle),
-        digest=section("hexapod-export"),
     shell:
-        "calflow hexapod-export --campaign {params.campaign} --model {input.model}"
+        "calflow hexapod-export --campaign {params.campaign} --sections {params.sections:q} --model {input.model}"
         " --out {params.folder} > {log} 2>&1"
 
 
@@ -111,17 +112,16 @@ rule acquire_hexapod_closed_loop:
         mem_mb=1000,
         rig=rig_slots,
     params:
+        **reads(
+            "acquire",
+            "validation.heldout",
+            "validation.dwell_s",
+            "identification",
+            acquires=True,
+        ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.dirname(input.bundle),
-        digest=lambda w: digest(
-            [
-                rig_digest(f"closed_loop_{w.model}")(w),
-                CAMPAIGN[w.campaign]["validation"]["heldout"],
-                CAMPAIGN[w.campaign]["validation"]["dwell_s"],
-                CAMPAIGN[w.campaign]["identification"],
-            ]
-        ),
     shell:
-        "calflow acquire --campaign {params.campaign} --plan validation_export"
+        "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation_export"
         " --model {input.model} --bundle {params.folder} --out {output.run}"
         " --truth {output.truth} > {log} 2>&1"
