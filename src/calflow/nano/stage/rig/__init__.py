@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calflow.nano.stage.nano_rig import NanoRig
 from calflow.nano.stage.piezo import loop_residual_pct
+from calflow.nano.stage.rig.base import NanoRig
 
 __all__ = ["Nano1DRig", "Nano2DRig", "nano1d", "nano2d"]
 
