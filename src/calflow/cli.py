@@ -71,87 +71,6 @@ def cmd_report(args) -> None:
         write_bytes(write_pdf(printed, Path(args.html).parent), args.pdf)
 
 
-def cmd_index(args) -> None:
-    from calflow.data.io import write_text
-    from calflow.report import render_index
-    from calflow.report.catalogue import catalogue
-
-    out = Path(args.out or Path(args.reports) / "index.html")
-    found = catalogue(args.results, args.reports, args.campaign_dir)
-    write_text(render_index(found), out)
-    done = sum(c["status"] == "done" for g in found["groups"] for c in g["campaigns"])
-    failed = sum(c["status"] == "failed" for g in found["groups"] for c in g["campaigns"])
-    print(f"{out}: {done} campaigns, {failed} failed")
-
-
-def cmd_import_csv(args) -> None:
-    from calflow.commands.common import campaign_of, meta
-    from calflow.data.importing import import_csv, load_mapping
-    from calflow.data.io import write_dataset
-
-    c = campaign_of(args)
-    mapping = load_mapping(args.mapping)
-    write_dataset(
-        import_csv(args.csv, mapping, meta(c, "replay", mapping["plan"], mapping.get("model"))), args.out
-    )
-
-
-def cmd_import_recording(args) -> None:
-    from calflow.commands.common import campaign_of, meta
-    from calflow.data.io import write_dataset
-    from calflow.data.recordings import in_campaign_time, load
-
-    c = campaign_of(args)
-    spec = {"file": args.file, "format": args.format, **({"mapping": args.mapping} if args.mapping else {})}
-    path, ds, _ = load(spec, args.plan, "calflow import-recording")
-    ds = in_campaign_time(ds, c["start"])
-    if ds.attrs["robot"] != c["robot"]:
-        raise CalflowError(
-            f"{path}: holds a {ds.attrs['robot']} recording; campaign {args.campaign} is {c['robot']!r}"
-        )
-    kept = {k: ds.attrs[k] for k in ("imported_from", "z_range_um", "recording_start") if k in ds.attrs}
-    ds.attrs = {**meta(c, "replay", args.plan).attrs("run"), **kept}
-    write_dataset(ds, args.out)
-
-
-def cmd_validate(args) -> int:
-    from calflow.data.validate import validate_file
-
-    status = 0
-    for path in args.files:
-        problems = validate_file(path)
-        for problem in problems:
-            print(problem, file=sys.stderr)
-        if problems:
-            status = 1
-        else:
-            print(f"{path}: ok")
-    return status
-
-
-def cmd_check_config(args) -> None:
-    from calflow.configuration.campaign import load as load_campaign
-    from calflow.configuration.config import check_campaign_name, load_yaml
-    from calflow.configuration.workflow_config import load as load_config
-    from calflow.lifecycle.settings import check_stage_settings
-    from calflow.lifecycle.stages import stages_of
-
-    cfg = load_config(load_yaml(args.config) or {}, [args.config])
-
-    folder = Path(args.campaign_dir or cfg["campaign_dir"])
-    campaigns = {}
-    for name in cfg["campaigns"]:
-        campaigns[name] = load_campaign(folder / f"{check_campaign_name(name)}.yaml", cfg["rig_plugins"])
-    groups = stages_of(
-        campaigns, folder
-    )  # the campaigns of each stage agree (robot, distinct starts, interim references)
-    check_stage_settings(cfg["stages"], campaigns, folder, args.config)
-    from calflow.certificate.annotate import check_stages
-
-    check_stages(cfg.get("stages", {}), campaigns, groups, args.config)  # specifications and rules
-    print(f"{args.config}: ok ({len(cfg['campaigns'])} campaigns)")
-
-
 def _run(target: str):
     """A subcommand function that imports ``"module:function"`` only when it runs."""
 
@@ -222,7 +141,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--html", required=True)
     r.add_argument("--pdf")
 
-    x = _sub(sub, "index", cmd_index, "render reports/index.html over every campaign on disk (reruns none)")
+    x = _sub(
+        sub,
+        "index",
+        _run("calflow.commands.files:index"),
+        "render reports/index.html over every campaign on disk (reruns none)",
+    )
     x.add_argument("--results", default=layout.RESULTS, help="the results folder (default: results)")
     x.add_argument("--reports", default=layout.REPORTS, help="the reports folder (default: reports)")
     x.add_argument(
@@ -260,7 +184,10 @@ def parser() -> argparse.ArgumentParser:
     )
 
     ic = _sub(
-        sub, "import-csv", cmd_import_csv, "turn a CSV recording into a run dataset with a column mapping"
+        sub,
+        "import-csv",
+        _run("calflow.commands.files:import_csv"),
+        "turn a CSV recording into a run dataset with a column mapping",
     )
     ic.add_argument("csv")
     ic.add_argument(
@@ -271,7 +198,7 @@ def parser() -> argparse.ArgumentParser:
     ir = _sub(
         sub,
         "import-recording",
-        cmd_import_recording,
+        _run("calflow.commands.files:import_recording"),
         "turn an instrument's file (ISO 230-2 .dat, laser-tracker CSV) into a run dataset",
     )
     ir.add_argument("file")
@@ -295,10 +222,20 @@ def parser() -> argparse.ArgumentParser:
     dr.add_argument("--run", required=True, help="the run id of the frame recording (rig.options.recordings)")
     dr.add_argument("--out", required=True)
 
-    v = _sub(sub, "validate", cmd_validate, "check netCDF files against the calflow data contract")
+    v = _sub(
+        sub,
+        "validate",
+        _run("calflow.commands.files:validate"),
+        "check netCDF files against the calflow data contract",
+    )
     v.add_argument("files", nargs="+")
 
-    k = _sub(sub, "check-config", cmd_check_config, "validate config/config.yaml and its campaign files")
+    k = _sub(
+        sub,
+        "check-config",
+        _run("calflow.commands.files:check_config"),
+        "validate config/config.yaml and its campaign files",
+    )
     k.add_argument("config", nargs="?", default="config/config.yaml")
     k.add_argument("--campaign-dir")
 

@@ -87,7 +87,7 @@ HOOKS: tuple[Hook, ...] = (
     Hook("rig_options", "rig_options", "rig", ("c", "factory", "run_id", "options", "start_s"), "the run's options", True),
     Hook("options", "options", "rig", (), "the checked options; OptionError naming one", False, "by_name", "check", options=True),
     Hook("sensors", "sensors", "rig", (), "a sensor of the gcs rig", False, "by_name", "factory", options=True),
-    Hook("emulator", "emulator", "rig", ("argv",), "exit status", False, keywords=("prog",)),
+    Hook("emulator", "emulator", "rig", None, "a calflow.rigs.simulated.emulator.Emulator"),
     # plans: what a run commands
     Hook("plans", "plans", "plans", ("c", "args"), "a calflow.plan.Acquisition", True, "by_robot", "builder"),
     Hook("acquire_arguments", "acquire_arguments", "plans", ("p",), "None", False, "object"),
@@ -276,8 +276,8 @@ def _check_target(where: str, target: Any, h: Hook, refuse) -> None:
     if h.params is None:
         if kind == "function":
             refuse(where, f"{target!r}: expected {h.returns}, got a function")
-        if h.name == "workflow":
-            _check_workflow(where, target, refuse)
+        if h.name in _BUILT:
+            _check_built(where, target, _BUILT[h.name], refuse)
         return
     if kind == "value":
         refuse(where, f"{target!r}: expected a callable {h.call}, got a value that is not callable")
@@ -294,12 +294,20 @@ def _check_target(where: str, target: Any, h: Hook, refuse) -> None:
         refuse(where, f"{target!r}: expected {h.call}, got {problem}")
 
 
-def _check_workflow(where: str, target: str, refuse) -> None:
-    """The workflow is an object built in its module (a class's instance): read, not imported,
-    here; :meth:`calflow.family.Family.hooks` checks its type when the workflow first asks."""
+#: The hooks that name an object built in its module (a class's instance), and its class.
+_BUILT = {
+    "workflow": "calflow.family_workflow.FamilyWorkflow",
+    "emulator": "calflow.rigs.simulated.emulator.Emulator",
+}
+
+
+def _check_built(where: str, target: str, cls: str, refuse) -> None:
+    """The workflow and the emulator are objects built in their modules: read, not imported,
+    here; the workflow's type is checked when it first asks (:func:`workflow_of`), the
+    emulator's when ``calflow emulate gcs`` serves it."""
     module, attr = target.split(":")
     if binding(module, attr)[0] != "object":
-        refuse(where, f"{target!r}: expected an instance of a calflow.family_workflow.FamilyWorkflow")
+        refuse(where, f"{target!r}: expected an instance of a {cls}")
 
 
 def workflow_of(fam: Any) -> Any:

@@ -147,6 +147,14 @@ def test_a_workflow_of_the_wrong_type_is_refused_when_asked(module):
     assert "FamilyWorkflow" in _refused(dataclasses.replace(fam, workflow="calflow.family_contract:TEMPLATE"))
 
 
+def test_the_emulator_is_an_emulator_object_not_a_main():
+    fam = dataclasses.replace(_xytheta(), name="lab")
+    check_family(dataclasses.replace(fam, emulator="calflow.nano.stage.emulate:EMULATOR"))
+    line = _refused(dataclasses.replace(fam, emulator="calflow.xytheta.stage.emulate:physics_options"))
+    assert "hook emulator" in line and "calflow.rigs.simulated.emulator.Emulator" in line
+    assert "Emulator" in _refused(dataclasses.replace(fam, emulator="calflow.family_contract:TEMPLATE"))
+
+
 def test_registration_refuses_a_family_that_breaks_the_contract(module, tmp_path, monkeypatch):
     """Through the entry point, as an installed distribution registers: families() refuses it."""
     name = module(

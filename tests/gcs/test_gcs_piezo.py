@@ -190,11 +190,14 @@ def test_nano_emulate_main_prints_a_rig_section_the_config_check_accepts(capsys,
     import yaml
 
     from calflow.configuration.campaign import load as load_campaign
-    from calflow.nano.stage.emulate import main
+    from calflow.nano.stage.emulate import EMULATOR
 
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_NANO1D))
-    assert main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "500"]) == 0
+    assert (
+        EMULATOR.main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "500"])
+        == 0
+    )
     rig = yaml.safe_load(capsys.readouterr().out.split("campaign rig section for it:\n", 1)[1])["rig"]
     assert rig["options"]["axes"] == {"x": "1"} and rig["options"]["time_scale"] == 500
     assert rig["runs"]["metrology"]["sensor"]["options"]["profile"] == "metrology"  # the run override

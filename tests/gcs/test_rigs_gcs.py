@@ -33,7 +33,7 @@ from calflow.xytheta.models import cost
 from calflow.xytheta.models.identification import identify
 from calflow.xytheta.models.kinematics import Parameters
 from calflow.xytheta.plans import poses as plans
-from calflow.xytheta.stage.emulate import emulate_main, emulated_rig_options
+from calflow.xytheta.stage.emulate import EMULATOR, emulated_rig_options
 from calflow.xytheta.stage.rig import simulated_xytheta
 
 META = RunMetadata(
@@ -275,7 +275,8 @@ def test_emulate_main_serves_and_prints_the_rig_section(capsys, tmp_path):
     path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(SMALL_XYTHETA))
     assert (
-        emulate_main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "50"]) == 0
+        EMULATOR.main(["--campaign", str(path), "--port", "0", "--duration", "0.2", "--time-scale", "50"])
+        == 0
     )
     out = capsys.readouterr().out
     assert "127.0.0.1" in out

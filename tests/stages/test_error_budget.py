@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calflow.xytheta.stage.error_budget import REPLAYS, active_effects, combine, groups, replay_options
-from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth
+from calflow.xytheta.stage.physics import EFFECTS, XYThetaTruth
 
 aps = st.lists(st.floats(0.0, 50.0), min_size=3, max_size=3)
 
@@ -62,4 +62,4 @@ def test_each_replay_switches_off_only_its_effect():
             assert left == set()
         else:
             assert left == set(REPLAYS) - {"baseline", name}
-    assert set(UNMODELLED) >= {"yaw_urad", "decode_error_um"}
+    assert set(EFFECTS.unmodelled_fields) >= {"yaw_urad", "decode_error_um"}

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from calflow.xytheta.models.kinematics import forward
-from calflow.xytheta.stage.physics import EFFECTS, UNMODELLED, XYThetaTruth, options_off, truth_from_options
+from calflow.xytheta.stage.physics import EFFECTS, XYThetaTruth, options_off, truth_from_options
 from calflow.xytheta.stage.rig import simulated_xytheta
 
 RNG = np.random.default_rng(5)
@@ -105,7 +105,7 @@ def test_lost_motion_depends_on_the_approach_distance():
 
 def test_one_key_switches_off_every_unmodelled_effect():
     t = XYThetaTruth(unmodelled=False)
-    for name in UNMODELLED:
+    for name in EFFECTS.unmodelled_fields:
         value = getattr(t, name)
         assert (not value) if isinstance(value, bool) else np.all(np.asarray(value) == 0), name
     assert t.lead_fwd_um == XYThetaTruth().lead_fwd_um  # modelled effects stay

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -28,10 +26,7 @@ TABLE = Effects(
 )
 
 
-@dataclass(frozen=True)
-class ToyTruth(SwitchedTruth):
-    EFFECTS: ClassVar[Effects] = TABLE
-
+class ToyTruth(SwitchedTruth, effects=TABLE):
     tilt_urad: float = 5.0
     wobble_um: tuple[float, float] = (1.0, -2.0)
     wobble_period_um: float = 400.0

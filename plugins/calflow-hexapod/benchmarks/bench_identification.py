@@ -22,10 +22,10 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from printing import print_figures  # noqa: E402
 
 from calflow_hexapod.models import synthetic  # noqa: E402
 from calflow_hexapod.models.geometry import h811  # noqa: E402
@@ -74,11 +74,7 @@ def main(argv=None) -> dict:
         out[f"{model}_nfev"] = fit.nfev
     out["load_average"] = [round(x, 2) for x in os.getloadavg()]
     out["cpus"] = os.cpu_count()
-    if a.json:
-        print(json.dumps(out))
-    else:
-        for key, value in out.items():
-            print(f"{key:>24}: {value}")
+    print_figures(out, a.json)
     return out
 
 

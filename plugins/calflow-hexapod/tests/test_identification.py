@@ -35,6 +35,13 @@ def _free(model="geometric"):
     return identifiable(J, LADDER[model])
 
 
+def _fit(measured, lam, model, sigma_pose=SIGMA, **options):
+    """The identification of a ladder model from the nominal start, the readings' σ SIGMA."""
+    return identify(
+        measured, lam, CONTROLLER.zero_lengths, LADDER[model], NOMINAL, sigma_pose=sigma_pose, **options
+    )
+
+
 def _z(fit, truth):
     est, true = fit.parameters.as_dict(), truth.as_dict()
     return np.array([(est[n] - true[n]) / fit.std[n] for n in fit.free])
@@ -46,7 +53,7 @@ def test_noiseless_poses_give_back_the_geometry(seed):
     kept, _, _ = _free()
     truth = synthetic.perturbed(np.random.default_rng(seed), NOMINAL, only=kept)
     measured, lam = _data(truth, 100, seed + 1, sigma=(0.0,) * 6)
-    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    fit = _fit(measured, lam, "geometric")
     assert fit.free == kept and fit.success
     error = fit.parameters.vector() - truth.vector()
     lengths = [k for k, name in enumerate(NAMES) if not name.endswith(("_u", "_v", "_w"))]
@@ -61,7 +68,7 @@ def test_noisy_poses_give_the_geometry_within_its_stated_sigma(model):
     kept, _, _ = _free(model)
     truth = synthetic.perturbed(np.random.default_rng(3), NOMINAL, only=kept)
     measured, lam = _data(truth, 400, 4)
-    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER[model], NOMINAL, sigma_pose=SIGMA)
+    fit = _fit(measured, lam, model)
     z = _z(fit, truth)
     assert np.max(np.abs(z)) < 4.5, dict(zip(fit.free, np.round(z, 1)))
     assert 0.9 < fit.chi2_dof < 1.1  # the residuals are the stated noise
@@ -114,21 +121,11 @@ def test_a_thermal_term_needs_a_temperature_that_changes():
     kept, _, _ = _free("scale")
     truth = synthetic.perturbed(np.random.default_rng(6), NOMINAL, only=kept).replace(alpha_T=11.5e-6)
     measured, lam = _data(truth, 400, 7, temperature=np.full(400, 23.0))
-    fit = identify(
-        measured,
-        lam,
-        CONTROLLER.zero_lengths,
-        LADDER["thermal"],
-        NOMINAL,
-        sigma_pose=SIGMA,
-        temperature=np.full(400, 23.0),
-    )
+    fit = _fit(measured, lam, "thermal", temperature=np.full(400, 23.0))
     assert "alpha_T" in fit.dropped  # a constant temperature only looks like offsets and scales
     T = 20.0 + np.linspace(0.0, 4.0, 400)
     measured, lam = _data(truth, 400, 7, temperature=T)
-    fit = identify(
-        measured, lam, CONTROLLER.zero_lengths, LADDER["thermal"], NOMINAL, sigma_pose=SIGMA, temperature=T
-    )
+    fit = _fit(measured, lam, "thermal", temperature=T)
     assert "alpha_T" in fit.free
     assert abs(fit.parameters.thermal - 11.5e-6) < 4.5 * fit.std["alpha_T"]
     assert fit.std["alpha_T"] < 2e-6  # 1/K
@@ -141,7 +138,7 @@ def test_a_model_that_lacks_an_error_predicts_held_out_poses_worse():
     held_measured, held_lam = _data(truth, 200, 10)
     rms = {}
     for model in ("nominal", "offsets", "geometric", "scale"):
-        fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER[model], NOMINAL, sigma_pose=SIGMA)
+        fit = _fit(measured, lam, model)
         rms[model] = prediction_rms(fit, held_measured, held_lam, CONTROLLER.zero_lengths)
     assert rms["nominal"] > rms["offsets"] > rms["geometric"] > rms["scale"]
     assert rms["scale"] < 1.5  # µm of leg length: the instrument's noise seen through the legs
@@ -153,16 +150,8 @@ def test_robust_identification_rejects_the_gross_errors():
     measured, lam = _data(truth, 400, 12)
     bad = np.array([5, 50, 123, 300])
     measured[bad, 0] += 200.0  # µm: a misread of the instrument
-    plain = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
-    fit = identify(
-        measured,
-        lam,
-        CONTROLLER.zero_lengths,
-        LADDER["geometric"],
-        NOMINAL,
-        sigma_pose=SIGMA,
-        robust=Robust(),
-    )
+    plain = _fit(measured, lam, "geometric")
+    fit = _fit(measured, lam, "geometric", robust=Robust())
     assert fit.rejected == tuple(bad) and fit.n_poses == 396 and fit.loss == "soft_l1"
     assert np.max(np.abs(_z(fit, truth))) < 4.5
     assert plain.chi2_dof > 10 * fit.chi2_dof
@@ -171,7 +160,7 @@ def test_robust_identification_rejects_the_gross_errors():
 def test_rows_with_a_nan_are_dropped():
     measured, lam = _data(NOMINAL, 60, 13)
     measured[3, 2] = np.nan
-    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["offsets"], NOMINAL, sigma_pose=SIGMA)
+    fit = _fit(measured, lam, "offsets")
     assert fit.n_poses == 59
 
 
@@ -212,22 +201,15 @@ def test_a_probe_far_from_the_platform_is_weighted_at_the_estimate_not_at_the_st
     truth = synthetic.perturbed(np.random.default_rng(16), NOMINAL, only=kept)
     truth = truth.replace(tool_z=60_000.0, tool_w=1.0)  # a 6-D probe 60 mm above the platform, turned 1°
     measured, lam = _data(truth, 400, 17)
-    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    fit = _fit(measured, lam, "geometric")
     assert 0.9 < fit.chi2_dof < 1.1  # weights at the nominal probe (on the platform) would misstate the noise
     assert np.max(np.abs(_z(fit, truth))) < 4.5
 
 
 def test_a_covariance_of_the_readings_weights_like_the_sigmas_it_holds():
     measured, lam = _data(NOMINAL, 100, 18)
-    by_sigma = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["offsets"], NOMINAL, sigma_pose=SIGMA)
-    by_cov = identify(
-        measured,
-        lam,
-        CONTROLLER.zero_lengths,
-        LADDER["offsets"],
-        NOMINAL,
-        sigma_pose=np.diag(np.square(SIGMA)),
-    )
+    by_sigma = _fit(measured, lam, "offsets")
+    by_cov = _fit(measured, lam, "offsets", sigma_pose=np.diag(np.square(SIGMA)))
     np.testing.assert_allclose(by_cov.parameters.vector(), by_sigma.parameters.vector(), rtol=0, atol=1e-9)
     assert by_cov.chi2_dof == pytest.approx(by_sigma.chi2_dof, rel=1e-9)
 
@@ -236,7 +218,7 @@ def test_the_fit_keeps_its_whitened_jacobian_for_the_observability_indices():
     from calflow.identification.diagnostics import observability
 
     measured, lam = _data(NOMINAL, 150, 19)
-    fit = identify(measured, lam, CONTROLLER.zero_lengths, LADDER["geometric"], NOMINAL, sigma_pose=SIGMA)
+    fit = _fit(measured, lam, "geometric")
     assert fit.jacobian.shape == (6 * 150, 42)
     # the covariance is the inverse information of that Jacobian, scaled by chi2/dof
     d = np.sqrt(np.diag(fit.covariance))

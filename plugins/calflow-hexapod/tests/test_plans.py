@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 import pytest
+from rig_noise import NOISE_OFF
 
 from calflow.identification import design
 from calflow_hexapod.models.calibration import command
@@ -89,13 +90,7 @@ def test_model_inverse_of_the_truth_puts_the_probe_on_the_targets():
         "tracker_systematic_um": 0.0,
         "encoder_resolution_um": 0.0,
         "expansion_ppm_per_degC": 0.0,
-        "leg_repeatability_um": 0.0,
-        "tracker_adm_um": 0.0,
-        "tracker_adm_um_per_m": 0.0,
-        "tracker_transverse_um": 0.0,
-        "tracker_transverse_um_per_m": 0.0,
-        "tracker_angle_mdeg": 0.0,
-        "tracker_resolution_um": 0.0,
+        **NOISE_OFF,
     }
     t = HexapodTruth(**off)
     targets = plans.heldout_targets(6, 0.6, design_plan.nominal_parameters(campaign()), seed=1)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from rig_noise import NOISE_OFF
 
 from calflow.errors import OptionError, RigError
 from calflow.rigs.protocol import missing_members
@@ -15,7 +16,6 @@ from calflow_hexapod.models.kinematics import forward, inverse
 from calflow_hexapod.stage import tracker
 from calflow_hexapod.stage.physics import (
     EFFECTS,
-    UNMODELLED,
     G,
     HexapodTruth,
     check_options,
@@ -23,15 +23,6 @@ from calflow_hexapod.stage.physics import (
 )
 from calflow_hexapod.stage.rig import SENSORS, attained, simulated_hexapod
 
-NOISE_OFF = {
-    "leg_repeatability_um": 0.0,
-    "tracker_adm_um": 0.0,
-    "tracker_adm_um_per_m": 0.0,
-    "tracker_transverse_um": 0.0,
-    "tracker_transverse_um_per_m": 0.0,
-    "tracker_angle_mdeg": 0.0,
-    "tracker_resolution_um": 0.0,
-}
 FRAMES_OFF = {
     "frame_offset_um": (0.0, 0.0, 0.0),
     "frame_rotation_deg": (0.0, 0.0, 0.0),
@@ -192,7 +183,7 @@ def test_tracker_noise_follows_the_mpe():
 
 def test_unmodelled_false_switches_off_exactly_the_unmodelled_effects():
     t = HexapodTruth(unmodelled=False)
-    for name in UNMODELLED:
+    for name in EFFECTS.unmodelled_fields:
         assert getattr(t, name) == 0.0
     assert t.joint_error_um == HexapodTruth().joint_error_um and t.leg_scale_ppm > 0
 

@@ -72,7 +72,7 @@ FAMILY = Family(
             "calflow.nano.stage.interferometer_sensor:check_sensor_options"
         ),
     },
-    emulator="calflow.nano.stage.emulate:main",
+    emulator="calflow.nano.stage.emulate:EMULATOR",
     joints={"stage1d": ("x",), "stage2d": ("x", "y")},
     reference={
         "thesis-sec5.3": "calflow.nano.report.reference:STAGE1D",

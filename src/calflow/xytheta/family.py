@@ -223,7 +223,7 @@ FAMILY = Family(
         "calflow.xytheta.stage.rig:simulated_xytheta": "calflow.xytheta.stage.physics:check_options",
         "calflow.xytheta.stage.vision_sensor:simulated_vision": "calflow.xytheta.stage.physics:check_options",
     },
-    emulator="calflow.xytheta.stage.emulate:emulate_main",
+    emulator="calflow.xytheta.stage.emulate:EMULATOR",
     joints={"xytheta": ("x", "y", "theta")},
     reference={"thesis-ch4": "calflow.xytheta.report.reference:XYTHETA"},
     headline="calflow.xytheta.report.headline:headline",

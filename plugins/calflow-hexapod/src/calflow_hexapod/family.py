@@ -100,5 +100,5 @@ FAMILY = Family(
         "calflow_hexapod.stage.rig:simulated_hexapod": "calflow_hexapod.stage.physics:check_options",
         "calflow_hexapod.stage.sensor:simulated_tracker": "calflow_hexapod.stage.sensor:check_tracker_options",
     },
-    emulator="calflow_hexapod.stage.emulate:emulate_main",
+    emulator="calflow_hexapod.stage.emulate:EMULATOR",
 )

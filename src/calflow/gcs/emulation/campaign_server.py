@@ -168,4 +168,4 @@ def emulate_command(args) -> int:
             f"calflow emulate gcs: {known.campaign}: robot {robot!r} (family {fam.name}) has no "
             "controller emulator"
         )
-    return resolve(fam.emulator)(argv, prog="calflow emulate gcs")
+    return resolve(fam.emulator).main(argv, prog="calflow emulate gcs")

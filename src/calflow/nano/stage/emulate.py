@@ -111,11 +111,5 @@ EMULATOR = Emulator(
 emulated_rig_options = EMULATOR.emulated_rig_options
 
 
-def main(argv: list[str] | None = None, stop_event=None, prog: str | None = None) -> int:
-    """``calflow emulate gcs`` of a nano campaign (the family's emulator; a function, so the
-    family contract reads its signature without importing the module)."""
-    return EMULATOR.main(argv, stop_event, prog)
-
-
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(EMULATOR.main())

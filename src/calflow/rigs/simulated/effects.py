@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple, dataclass_transform
 
 import numpy as np
 
@@ -119,11 +119,22 @@ class Effects(Mapping[str, tuple[str, ...]]):
         ]
 
 
+@dataclass_transform(frozen_default=True)
 @dataclass(frozen=True)
 class SwitchedTruth:
-    """Base of a frozen dataclass of a simulated stage's true physics, whose fields are the
-    rig's options and whose class attribute ``EFFECTS`` is its :class:`Effects` table: its
-    ``unmodelled`` field is the switch of the table's unmodelled effects."""
+    """Base of a simulated stage's true physics: ``class StageTruth(SwitchedTruth,
+    effects=EFFECTS)`` is a frozen dataclass (made one here) whose fields are the rig's options,
+    with its :class:`Effects` table as the class attribute ``EFFECTS``. Its ``unmodelled`` field
+    is the switch of the table's unmodelled effects: false, every effect no model represents
+    is off (the fields of :attr:`Effects.unmodelled_fields`)."""
+
+    EFFECTS: ClassVar[Effects]
+
+    def __init_subclass__(cls, effects: Effects | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if effects is not None:
+            cls.EFFECTS = effects
+        dataclass(frozen=True)(cls)
 
     def __post_init__(self) -> None:  # the table's switch (:meth:`Effects.unmodelled_off`) on the fields
         fields = {name: getattr(self, name) for name in (*self.EFFECTS.unmodelled_fields, "unmodelled")}

@@ -5,7 +5,7 @@ physics, how it builds the controller around them, the ``gcs`` rig's axes, senso
 settings, and the words of its banner — and gets from it the ``gcs`` rig options that drive a
 running emulator (:meth:`Emulator.rig_options`), an emulator started for tests
 (:meth:`Emulator.emulated_rig_options`) and the ``calflow emulate gcs`` main
-(:meth:`Emulator.main`, the family's ``emulator`` hook). The command-line side is
+(:meth:`Emulator.main`). The family's ``emulator`` hook names the :class:`Emulator` itself. The command-line side is
 :func:`calflow.gcs.emulation.campaign_server.serve_campaign`.
 """
 

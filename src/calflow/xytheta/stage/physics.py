@@ -14,9 +14,6 @@ stage. None is chosen to land on a result of the thesis.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
 import numpy as np
 
 from calflow.errors import OptionError
@@ -52,15 +49,10 @@ EFFECTS = Effects(  # each effect: the fields that switch it off, its source, wh
         ),
     }
 )
-UNMODELLED = EFFECTS.unmodelled_fields  # the fields of the effects no calflow model represents
 
 
-@dataclass(frozen=True)
-class XYThetaTruth(SwitchedTruth):
-    """True physics of the simulated XYΘ rig (units in the field names); ``unmodelled`` switches
-    the table's unmodelled effects (:data:`EFFECTS`)."""
-
-    EFFECTS: ClassVar[Effects] = EFFECTS
+class XYThetaTruth(SwitchedTruth, effects=EFFECTS):
+    """True physics of the simulated XYΘ rig, its effects those of :data:`EFFECTS` (units in the field names)."""
 
     # geometry: the real rig's, as the thesis identified it (Table 4.6, Model II)
     x_R_um: float = 9572.902

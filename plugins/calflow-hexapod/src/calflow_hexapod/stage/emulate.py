@@ -64,13 +64,3 @@ EMULATOR = Emulator(
 campaign_emulator = EMULATOR.campaign_emulator  # (campaign, *, port, time_scale, faults): unstarted
 rig_options = EMULATOR.rig_options  # (address, campaign, *, time_scale, ...): the gcs rig's options
 emulated_rig_options = EMULATOR.emulated_rig_options  # started, with its rig options (tests)
-
-
-def emulate_main(argv: list[str] | None = None, stop_event=None, prog: str | None = None) -> int:
-    """``calflow emulate gcs`` of a hexapod campaign (the family's emulator; a function, so the
-    family contract reads its signature without importing the module)."""
-    return EMULATOR.main(argv, stop_event, prog)
-
-
-if __name__ == "__main__":
-    raise SystemExit(emulate_main())

@@ -36,9 +36,6 @@ noise from the rig's own seed. Lengths µm, angles degree, temperatures degC.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
 import numpy as np
 
 from calflow.rigs.simulated.checks import Bounds, check_physics
@@ -69,15 +66,10 @@ EFFECTS = (
         }
     )
 )
-UNMODELLED = EFFECTS.unmodelled_fields  # the fields of the effects no hexapod model represents
 
 
-@dataclass(frozen=True)
-class HexapodTruth(SwitchedTruth):
-    """True physics of the simulated hexapod (units in the field names); ``unmodelled`` switches
-    the table's unmodelled effects (:data:`EFFECTS`)."""
-
-    EFFECTS: ClassVar[Effects] = EFFECTS
+class HexapodTruth(SwitchedTruth, effects=EFFECTS):
+    """True physics of the simulated hexapod, its effects those of :data:`EFFECTS` (units in the field names)."""
 
     # geometric errors about the nominal H-811-class geometry (calflow_hexapod.models.geometry.h811), drawn from geometry_seed
     geometry_seed: int = 811
