@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 
 import numpy as np
 import pytest
@@ -151,6 +152,21 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
             c["as_found"] = {"reference": f"c{i - 1}", "model": "II"}
         campaigns[f"c{i}"] = c
     work = make_workdir(tmp_path, campaigns)
+    # c0 first, as a lab's earlier calibration is on disk; then c1 on one core, as a real rig
+    # takes one plan at a time: its as-found run goes first by its rule's priority
+    assert snakemake(work, "--config", 'campaigns=["c0"]').returncode == 0
+    plan = snakemake(work, "-n", "results/c1/summary.json").stdout
+    priority, rule = {}, None
+    for line in plan.splitlines():
+        if m := re.match(r"\s*(?:local)?rule (\w+):", line):
+            rule = m.group(1)
+            priority.setdefault(rule, 0)
+        elif m := re.match(r"\s*priority: (-?\d+)", line):
+            priority[rule] = int(m.group(1))
+    acquisitions = {r: n for r, n in priority.items() if r.startswith("acquire") and r != "acquire_as_found"}
+    assert acquisitions and priority["acquire_as_found"] > max(acquisitions.values()), priority
+    proc = snakemake(work, "--cores", "1", "results/c1/summary.json")
+    assert proc.returncode == 0, proc.stderr[-3000:]
     proc = snakemake(work, "reports/index.html", "reports/stages/SN-7/history.pdf")
     assert proc.returncode == 0, proc.stderr[-3000:]
     h = json.loads((work / "results/stages/SN-7/history.json").read_text())
@@ -165,7 +181,10 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
     assert found["reference"] == "c0" and found["date"] < left["date"]
     assert left["accuracy_um"] == s1["models"]["II"]["accuracy_um"]
     runs = work / "results/c1/runs"
-    assert (runs / "as_found.nc").stat().st_mtime <= (runs / "identification.nc").stat().st_mtime
+    first = (runs / "as_found.nc").stat().st_mtime
+    assert all(first <= f.stat().st_mtime for f in runs.glob("*.nc")), (
+        "the stage is found as it was used, first"
+    )
     from calflow.data.io import open_dataset
 
     found_m = open_dataset(work / "results/c1/metrics/as_found.nc")
