@@ -75,13 +75,12 @@ def render(summary: dict, campaign: dict, command: str) -> str:
 
 def run(args) -> None:
     """``calflow certificate``: the page from the campaign's summary."""
-    from calflow.commands.common import handed
+    from calflow.commands.common import campaign_of
     from calflow.configuration import layout
-    from calflow.configuration.campaign import load as load_campaign
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import write_pdf
 
-    campaign = handed(load_campaign(args.campaign), getattr(args, "sections", None), "calflow certificate")
+    campaign = campaign_of(args)
     summary = load_summary(args.summary)
     command = f"snakemake --cores 2 {layout.certificate(campaign['name'])}"
     html = render(summary, campaign, command)
