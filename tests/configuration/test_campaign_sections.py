@@ -92,3 +92,14 @@ def test_a_step_handed_one_key_of_a_section_reads_no_other_key_of_it():
     with pytest.raises(SectionNotHanded):
         again["models"]
     assert copy.deepcopy(seen)["validation"] == {k: c["validation"][k] for k in ("heldout", "dwell_s")}
+
+
+def test_the_digest_of_a_nested_key_is_what_the_step_is_handed():
+    c = load(FOLDER / "demo-sn0042-2026-01.yaml")
+    key = "validation.heldout.targets"
+    seen = c.only([key], "calflow acquire")
+    assert c.part(key) == seen["validation"]["heldout"]["targets"] == c["validation"]["heldout"]["targets"]
+    with pytest.raises(SectionNotHanded, match=r"read section 'validation.heldout.cycles'"):
+        seen["validation"]["heldout"]["cycles"]
+    assert c.digest([key]) != c.digest(["validation.heldout.cycles"])
+    assert c.part("validation.nothing.here") is None and c.part("start.year") is None

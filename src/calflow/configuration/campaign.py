@@ -228,10 +228,14 @@ class Campaign(FrozenDict):
         return self.resolution.reference
 
     def part(self, key: str) -> Any:
-        """Section ``key`` as resolved, or one key of it (``"validation.heldout"``); None when absent."""
-        head, _, sub = key.partition(".")
-        value = self.get(head)
-        return value.get(sub) if sub and isinstance(value, Mapping) else value
+        """Section ``key`` as resolved, or a key within it (``"validation.heldout"``, at any depth,
+        as :meth:`only` hands it); None when absent."""
+        value: Any = self
+        for name in key.split("."):
+            if not isinstance(value, Mapping):
+                return None
+            value = value.get(name)
+        return value
 
     def digest(self, keys) -> str:
         """SHA-256 of the sections ``keys`` (as resolved, :meth:`part`; None for an absent one):
