@@ -303,24 +303,27 @@ _BUILT = {
 
 def _check_built(where: str, target: str, cls: str, refuse) -> None:
     """The workflow and the emulator are objects built in their modules: read, not imported,
-    here; the workflow's type is checked when it first asks (:func:`workflow_of`), the
-    emulator's when ``calflow emulate gcs`` serves it."""
+    here; their type is checked when they are first used (:func:`built_of`)."""
     module, attr = target.split(":")
     if binding(module, attr)[0] != "object":
         refuse(where, f"{target!r}: expected an instance of a {cls}")
 
 
 def workflow_of(fam: Any) -> Any:
-    """The family's :class:`~calflow.family_workflow.FamilyWorkflow`, its type checked (by its
-    classes' names: the workflow module imports the registry, not the other way round)."""
-    module, attr = (fam.workflow or "calflow.family_workflow:DEFAULT").split(":")
+    """The family's :class:`~calflow.family_workflow.FamilyWorkflow`, its type checked."""
+    return built_of(fam, "workflow", "calflow.family_workflow:DEFAULT")
+
+
+def built_of(fam: Any, name: str, default: str | None = None) -> Any:
+    """The object a family's hook ``name`` names (one of :data:`_BUILT`), imported and its type
+    checked (by its classes' names: the class's module imports the registry, not the other way
+    round); :class:`FamilyError` in one line for another type."""
+    module, attr = (getattr(fam, name) or default).split(":")
     obj = getattr(importlib.import_module(module), attr)
-    if "calflow.family_workflow.FamilyWorkflow" not in {
-        f"{k.__module__}.{k.__qualname__}" for k in type(obj).__mro__
-    }:
+    if _BUILT[name] not in {f"{k.__module__}.{k.__qualname__}" for k in type(obj).__mro__}:
         raise FamilyError(
-            f"family {fam.name!r}: hook workflow: {fam.workflow!r}: expected a "
-            f"calflow.family_workflow.FamilyWorkflow, got {type(obj).__name__}"
+            f"family {fam.name!r}: hook {name}: {getattr(fam, name)!r}: expected a "
+            f"{_BUILT[name]}, got {type(obj).__name__}"
         )
     return obj
 

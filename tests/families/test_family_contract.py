@@ -155,6 +155,17 @@ def test_the_emulator_is_an_emulator_object_not_a_main():
     assert "Emulator" in _refused(dataclasses.replace(fam, emulator="calflow.family_contract:TEMPLATE"))
 
 
+def test_an_emulator_of_the_wrong_type_is_refused_when_served(module):
+    from calflow.family_contract import built_of
+
+    name = module("EMULATOR = dict(main=None)\n")
+    fam = dataclasses.replace(_xytheta(), name="lab", emulator=f"{name}:EMULATOR")
+    check_family(fam)  # an object built at import: its type is known only once imported
+    with pytest.raises(FamilyError, match=r"family 'lab': hook emulator: .*emulator.Emulator, got dict"):
+        built_of(fam, "emulator")
+    assert type(built_of(_xytheta(), "emulator")).__name__ == "Emulator"
+
+
 def test_registration_refuses_a_family_that_breaks_the_contract(module, tmp_path, monkeypatch):
     """Through the entry point, as an installed distribution registers: families() refuses it."""
     name = module(

@@ -152,7 +152,8 @@ def emulate_command(args) -> int:
     """``calflow emulate gcs --campaign FILE ...``: the controller emulator of the campaign's
     robot family (its ``emulator``: the C-863 one for ``xytheta``, the E-727-class one for
     ``stage1d``/``stage2d``), given the arguments after ``gcs``."""
-    from calflow.family import family_of, resolve
+    from calflow.family import family_of
+    from calflow.family_contract import built_of
 
     argv = list(args.rest)
     known = _parser(
@@ -168,4 +169,4 @@ def emulate_command(args) -> int:
             f"calflow emulate gcs: {known.campaign}: robot {robot!r} (family {fam.name}) has no "
             "controller emulator"
         )
-    return resolve(fam.emulator).main(argv, prog="calflow emulate gcs")
+    return built_of(fam, "emulator").main(argv, prog="calflow emulate gcs")
