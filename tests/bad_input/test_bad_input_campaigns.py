@@ -8,6 +8,7 @@ alias bomb kept a loader busy ~45 minutes)."""
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -348,6 +349,14 @@ CAMPAIGNS = [
         "3 finite numbers",
     ),
     case(
+        "hexapod tracker pivot 500 m off the platform",
+        "hexapod-demo-gcs",
+        "      options: {}",
+        "      options: {pivot_um: [0, 0, 5.0e8]}",
+        "key 'rig.options.sensor.options.pivot_um'",
+        "within ±1000000 µm",
+    ),
+    case(
         "hexapod tracker negative error",
         "hexapod-demo-gcs",
         "      options: {}",
@@ -511,6 +520,38 @@ def test_a_check_that_ran_is_not_checked_against_files_at_load(tmp_path, monkeyp
     (tmp_path / "results" / "bad" / "runs" / "interim_check.nc").write_bytes(b"")
     monkeypatch.setitem(sys.modules, "calflow.data.io", None)  # importing it would raise
     assert load_campaign(path, [])["interim_check"]["tolerance_um"] == 0.5
+
+
+@pytest.mark.parametrize("tolerance,refused", [("0.5", True), ("2.0", True), ("2.5", False)])
+def test_a_check_that_ran_is_checked_against_the_error_its_summary_recorded(
+    tmp_path, monkeypatch, tolerance, refused
+):
+    """Edited after it ran, a check's tolerance is still held against the reference's own error
+    before any job: r0 as the check's summary recorded it from the reference run on disk (a JSON
+    read, no netCDF); a summary older than that run says nothing and the acquisition checks."""
+    import os
+    import sys
+
+    folder = _project(tmp_path, monkeypatch)
+    export = tmp_path / "results" / CALIBRATION / "runs" / "export_III.nc"
+    _export_run(export, 2.0)
+    path = write_case(folder, CHECK, "tolerance_um: 3.5", f"tolerance_um: {tolerance}", {})
+    (tmp_path / "results" / "bad" / "runs").mkdir(parents=True)
+    (tmp_path / "results" / "bad" / "runs" / "interim_check.nc").write_bytes(b"")
+    summary = tmp_path / "results" / "bad" / "summary.json"
+    summary.write_text(json.dumps({"interim_check": {"reference_rms_um": 2.0}}))
+    monkeypatch.setitem(sys.modules, "calflow.data.io", None)  # importing it would raise
+    if refused:
+        with pytest.raises(ConfigError) as exc:
+            load_campaign(path, [])
+        message = str(exc.value)
+        assert "\n" not in message and str(path) in message
+        assert "key 'interim_check.tolerance_um'" in message and "2 µm" in message
+    else:
+        assert load_campaign(path, [])["interim_check"]["tolerance_um"] == float(tolerance)
+    stale = export.stat().st_mtime - 10
+    os.utime(summary, (stale, stale))  # the reference ran again after the check: unknown here
+    assert load_campaign(path, [])["interim_check"]["tolerance_um"] == float(tolerance)
 
 
 def test_the_default_campaigns_and_free_text_still_load(tmp_path, monkeypatch):

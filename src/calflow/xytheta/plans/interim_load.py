@@ -4,8 +4,9 @@
   rms visit error through its bundle (r0, ``results/<reference>/runs/export_<model>.nc``),
   and H1, the tolerance (``interim_check.tolerance_um``, else the campaign's
   ``tolerance_um``): a tolerance is required, and must exceed r0 — checked here when the
-  reference's closed-loop check is on disk and the check has not run yet, else by the
-  check's acquisition before the rig moves (:func:`calflow.xytheta.plans.interim.interim_check`).
+  reference's closed-loop check is on disk (once the check has run, against the r0 its
+  summary recorded from that run: no netCDF is read), else by the check's acquisition before
+  the rig moves (:func:`calflow.xytheta.plans.interim.interim_check`).
 * **Its rig time.** A check is worth running when it costs a small fraction of a
   calibration (:data:`BUDGET`, 5 %). The sequential test
   may stop after two cycles, but the plan asks for up to ``targets × cycles`` visits, each
@@ -18,6 +19,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from collections.abc import Mapping
@@ -62,6 +64,21 @@ def reference_rms_um(export_run: xr.Dataset) -> float:
     return float(np.sqrt(np.mean(np.sum(visit_errors(export_run, mode=0) ** 2, axis=1))))
 
 
+def recorded_reference_rms_um(name: str, reference: str) -> float | None:
+    """r0 (µm) as the check's summary recorded it (``interim_check.reference_rms_um``) when the
+    summary is newer than the reference's closed-loop run ``reference`` (so it was computed
+    from that run), else None. Reading a JSON file keeps a no-op run's parse free of netCDF."""
+    summary = layout.summary(name)
+    try:
+        if os.stat(summary).st_mtime < os.stat(reference).st_mtime:
+            return None
+        with open(summary, encoding="utf-8") as fh:
+            r0 = json.load(fh)["interim_check"]["reference_rms_um"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return float(r0) if isinstance(r0, (int, float)) and not isinstance(r0, bool) else None
+
+
 def check_tolerance(campaign: dict, path: Path) -> None:
     """A tolerance is given, and exceeds the reference's own error when that is on disk."""
     check = campaign["interim_check"]
@@ -72,11 +89,16 @@ def check_tolerance(campaign: dict, path: Path) -> None:
             "at which to recalibrate, here or as the campaign's tolerance_um"
         )
     reference = layout.run(check["reference"], f"export_{check['model']}")
-    if not os.path.exists(reference) or os.path.exists(layout.run(path.stem, "interim_check")):
-        return  # not yet known, or the check has run (a rerun's acquisition checks it again)
-    from calflow.data.io import open_dataset
+    if not os.path.exists(reference):
+        return  # not yet known: the check's acquisition checks it before the rig moves
+    if os.path.exists(layout.run(path.stem, "interim_check")):
+        r0 = recorded_reference_rms_um(path.stem, reference)
+        if r0 is None:
+            return  # the check ran against another reference run: its rerun's acquisition checks
+    else:
+        from calflow.data.io import open_dataset
 
-    r0 = reference_rms_um(open_dataset(reference, kind="run"))
+        r0 = reference_rms_um(open_dataset(reference, kind="run"))
     if not tol > r0:
         where = "interim_check.tolerance_um" if "tolerance_um" in check else "tolerance_um"
         raise ConfigError(

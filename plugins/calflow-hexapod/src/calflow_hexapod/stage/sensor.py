@@ -24,6 +24,7 @@ from calflow.errors import OptionError, RigError
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.models.kinematics import inverse
 from calflow_hexapod.stage import tracker
+from calflow_hexapod.stage.c887 import PIVOT_LIMIT_MM
 from calflow_hexapod.stage.physics import HexapodTruth, check_options
 from calflow_hexapod.stage.rig import (
     SENSORS,
@@ -108,7 +109,9 @@ class SimulatedTracker:
 def check_tracker_options(seed: int = 0, stream: str = "", pivot_um=(0.0, 0.0, 0.0), **physics) -> dict:
     """The tracker sensor's options checked (the family's option check, run at load): the
     simulated rig's (:func:`~calflow_hexapod.stage.physics.check_options`) and ``pivot_um``,
-    3 finite numbers (µm). Raises :class:`~calflow.errors.OptionError` naming the option."""
+    3 finite numbers (µm) within the range the controller accepts for its pivot
+    (:data:`~calflow_hexapod.stage.c887.PIVOT_LIMIT_MM`: the sensor's pivot is the one set with
+    ``SPI``, so one the controller refuses is a typo). Raises :class:`~calflow.errors.OptionError` naming the option."""
     o = check_options(seed, stream, **physics)
     ok = isinstance(pivot_um, (list, tuple)) and len(pivot_um) == 3
     ok = ok and all(
@@ -116,6 +119,11 @@ def check_tracker_options(seed: int = 0, stream: str = "", pivot_um=(0.0, 0.0, 0
     )
     if not ok:
         raise OptionError("pivot_um", "3 finite numbers (µm: R, S, T)", pivot_um)
+    limit_um = PIVOT_LIMIT_MM * 1000.0
+    if any(abs(v) > limit_um for v in pivot_um):
+        raise OptionError(
+            "pivot_um", f"R, S, T within ±{limit_um:.0f} µm, the controller's pivot range (SPI)", pivot_um
+        )
     return {**o, "pivot_um": tuple(float(v) for v in pivot_um)}
 
 
