@@ -1,0 +1,107 @@
+"""The layers of docs/architecture.md are the package's: every room listed, in an order its
+imports follow, and each import that still points up listed there until it is gone."""
+
+from __future__ import annotations
+
+import ast
+import re
+from collections import defaultdict
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGE = ROOT / "src" / "calflow"
+DOC = (ROOT / "docs" / "architecture.md").read_text()
+SECTION = DOC[DOC.index("## Layers and their import rules") :]
+SECTION = SECTION[: SECTION.index("\n## ", 1)]
+
+
+def _documented_rooms() -> list[str]:
+    rows = re.findall(r"^\| [a-z ]+ \| (`[^|]+`) \| [^|]+ \|$", SECTION, re.M)
+    return [name for row in rows for name in re.findall(r"`(\w+)`", row)]
+
+
+def _documented_up_edges() -> set[tuple[str, str]]:
+    table = SECTION[SECTION.index("**Imports that still point up**") :]
+    return set(re.findall(r"^\| `(\w+)` \| `(\w+)` \| [^|]+ \|$", table, re.M))
+
+
+def _rooms() -> set[str]:
+    return {
+        p.stem if p.suffix == ".py" else p.name
+        for p in PACKAGE.iterdir()
+        if (p.suffix == ".py" and p.stem not in ("__init__", "__main__")) or (p / "__init__.py").is_file()
+    }
+
+
+def _imports(path: Path, package: str) -> list[tuple[str, int]]:
+    """Every calflow module ``path`` imports (inside functions too), with its line."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            out.append((module, node.lineno))
+            if module == "calflow":  # from calflow import errors
+                out += [(f"calflow.{a.name}", node.lineno) for a in node.names]
+    return [(m, line) for m, line in out if m.startswith("calflow.")]
+
+
+@cache
+def room_imports() -> dict[tuple[str, str], list[str]]:
+    """(room, room it imports) → where, for every pair of different rooms."""
+    rooms, edges = _rooms(), defaultdict(list)
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        module = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        package = module if parts[-1] == "__init__" else module.rpartition(".")[0]
+        here = module.split(".")[1] if "." in module else None
+        for target, line in _imports(path, package):
+            there = target.split(".")[1]
+            if here and here in rooms and there in rooms and there != here:
+                edges[(here, there)].append(f"{path.relative_to(PACKAGE)}:{line}")
+    return edges
+
+
+ORDER = {room: i for i, room in enumerate(_documented_rooms())}
+
+
+def test_the_table_lists_every_room_once():
+    listed = _documented_rooms()
+    assert len(listed) == len(set(listed)), "a room is listed twice"
+    assert set(listed) == _rooms(), (
+        f"docs/architecture.md lists rooms that are not there: {sorted(set(listed) - _rooms())}; "
+        f"rooms it does not list: {sorted(_rooms() - set(listed))}"
+    )
+
+
+def up_edges() -> dict[tuple[str, str], list[str]]:
+    return {(a, b): w for (a, b), w in room_imports().items() if ORDER[b] > ORDER[a]}
+
+
+def test_no_new_import_points_up():
+    new = {e: w for e, w in up_edges().items() if e not in _documented_up_edges()}
+    assert not new, "imports up the layers of docs/architecture.md: " + "; ".join(
+        f"{a} -> {b} ({', '.join(w[:3])})" for (a, b), w in sorted(new.items())
+    )
+
+
+@pytest.mark.parametrize("edge", sorted(_documented_up_edges()), ids="->".join)
+def test_a_listed_up_import_is_still_there(edge):
+    """The list shrinks: an import removed from the code leaves the table too."""
+    assert edge in up_edges(), (
+        f"{edge[0]} -> {edge[1]} no longer points up: remove it from docs/architecture.md"
+    )
+
+
+def test_the_families_are_on_top():
+    families = {"xytheta", "nano"}
+    assert max(ORDER[r] for r in ORDER if r not in families) < min(ORDER[f] for f in families)
+    assert not [e for e in room_imports() if e[1] in families and e[0] not in families]
