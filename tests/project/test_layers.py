@@ -105,3 +105,25 @@ def test_the_families_are_on_top():
     families = {"xytheta", "nano"}
     assert max(ORDER[r] for r in ORDER if r not in families) < min(ORDER[f] for f in families)
     assert not [e for e in room_imports() if e[1] in families and e[0] not in families]
+
+
+@pytest.mark.parametrize("name", sorted(set(re.findall(r"`(calflow(?:\.\w+)+)", DOC))))
+def test_every_module_and_name_the_page_cites_exists(name):
+    """A page that names ``calflow.config.py`` after it moved sends a newcomer nowhere."""
+    import importlib
+    from importlib.metadata import entry_points
+
+    if entry_points(group=name):  # an entry-point group (calflow.families), not a module
+        return
+    module, attr = name, None
+    while True:
+        try:
+            found = importlib.import_module(module)
+            break
+        except ModuleNotFoundError:
+            module, _, tail = module.rpartition(".")
+            attr = tail if attr is None else f"{tail}.{attr}"
+            assert module, f"docs/architecture.md cites {name}, which does not import"
+    for part in (attr or "").split(".") if attr else ():
+        assert hasattr(found, part), f"docs/architecture.md cites {name}: {found.__name__} has no {part}"
+        found = getattr(found, part)
