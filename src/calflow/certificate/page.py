@@ -75,8 +75,8 @@ def render(summary: dict, campaign: dict, command: str) -> str:
 
 def run(args) -> None:
     """``calflow certificate``: the page from the campaign's summary."""
-    from calflow.commands.common import campaign_of
     from calflow.configuration import layout
+    from calflow.configuration.handed import campaign_of
     from calflow.data.io import load_summary, write_bytes, write_text
     from calflow.report.render import write_pdf
 

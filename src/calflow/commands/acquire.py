@@ -7,9 +7,10 @@ run-time compensation, the controller.
 
 from __future__ import annotations
 
-from calflow.commands.common import campaign_of, meta, open_rig
+from calflow.configuration.handed import campaign_of, meta
 from calflow.errors import RigError
 from calflow.family import family_of
+from calflow.rigs.campaign_rig import open_rig
 
 
 def _recorded(job, rig, c: dict):

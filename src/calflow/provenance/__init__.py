@@ -40,7 +40,7 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.configuration.campaign": ("steps:check",),
     "calflow.reference": ("reference",),
     "calflow.rigs.plugin": ("rigs",),
-    "calflow.commands.common": ("rig_options",),
+    "calflow.rigs.campaign_rig": ("rig_options",),
     "calflow.commands.acquire": ("plans",),
     "calflow.gcs.sensors": ("sensors",),
     "calflow.gcs.camera": ("sensors",),  # a family's registered camera (frame source)

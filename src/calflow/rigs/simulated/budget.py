@@ -112,7 +112,7 @@ def budget_command(budget: Callable[[str, dict, int], dict]) -> Callable[[Any], 
     summary step (tests and reports only)."""
 
     def error_budget_command(args) -> None:
-        from calflow.commands.common import campaign_of
+        from calflow.configuration.handed import campaign_of
         from calflow.data.io import output_folder, write_json
 
         c = campaign_of(args)
