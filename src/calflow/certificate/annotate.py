@@ -21,6 +21,7 @@ import math
 from typing import TYPE_CHECKING
 
 from calflow.certificate import conformity
+from calflow.configuration.campaign import dig
 from calflow.errors import ConfigError
 from calflow.family import family_of, resolve
 
@@ -50,11 +51,7 @@ def check_stages(settings: dict, campaigns: dict[str, dict], groups: dict[str, l
 
 
 def _dig(summary: dict, path: tuple[str, ...]):
-    node = summary
-    for key in path:
-        if not isinstance(node, dict) or key not in node:
-            return None
-        node = node[key]
+    node = dig(summary, path)
     return node if isinstance(node, dict) else None
 
 

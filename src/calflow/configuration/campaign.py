@@ -79,6 +79,21 @@ class FrozenList(list):
         return (FrozenList, (list(self),))
 
 
+def dig(data: Any, key: str | tuple[str, ...]) -> Any:
+    """``data["a"]["b"]…`` for the dotted ``key = "a.b…"`` (or the tuple of its parts), through
+    mappings and, by index, lists; None when any part is missing. calflow's one walker of a
+    dotted path: a campaign's sections (:meth:`Campaign.part`), a summary's figures (the
+    reports, the certificate)."""
+    for part in key.split(".") if isinstance(key, str) else key:
+        if isinstance(data, Mapping) and part in data:
+            data = data[part]
+        elif isinstance(data, list) and part.isdigit() and int(part) < len(data):
+            data = data[int(part)]
+        else:
+            return None
+    return data
+
+
 def freeze(value: Any) -> Any:
     """``value`` with every mapping a :class:`FrozenDict` and every list a :class:`FrozenList`."""
     if isinstance(value, Mapping):
@@ -230,12 +245,7 @@ class Campaign(FrozenDict):
     def part(self, key: str) -> Any:
         """Section ``key`` as resolved, or a key within it (``"validation.heldout"``, at any depth,
         as :meth:`only` hands it); None when absent."""
-        value: Any = self
-        for name in key.split("."):
-            if not isinstance(value, Mapping):
-                return None
-            value = value.get(name)
-        return value
+        return dig(self, key)
 
     def digest(self, keys) -> str:
         """SHA-256 of the sections ``keys`` (as resolved, :meth:`part`; None for an absent one):

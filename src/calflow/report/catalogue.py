@@ -108,8 +108,8 @@ def staleness(
 
 def _headline(summary: dict) -> dict | None:
     """The family's headline of a summary with its value and the declared reference's value."""
+    from calflow.configuration.campaign import dig
     from calflow.family import family_of, resolve
-    from calflow.report.render import dig
 
     try:
         target = family_of(summary.get("robot", "")).headline

@@ -22,7 +22,7 @@ import yaml
 
 from calflow import __version__
 from calflow.configuration import layout
-from calflow.configuration.campaign import thaw
+from calflow.configuration.campaign import dig, thaw
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = (
@@ -52,18 +52,6 @@ _UNITS = {
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-
-
-def dig(data, key: str):
-    """``data["a"]["b"]…`` for ``key = "a.b…"``; None when any part is missing."""
-    for part in key.split("."):
-        if isinstance(data, dict) and part in data:
-            data = data[part]
-        elif isinstance(data, list) and part.isdigit() and int(part) < len(data):
-            data = data[int(part)]
-        else:
-            return None
-    return data
 
 
 def is_number(v) -> bool:
