@@ -169,7 +169,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     ),
     "calflow.data.runs": ("RunMetadata",),
     "calflow.summary_routing": ("route", "summary_head"),
-    "calflow.reference": ("declared",),
+    "calflow.configuration.reference": ("declared",),
     "calflow.certificate": ("Measurement",),
     "calflow.metrics.uncertainty": ("Term",),
     "calflow.metrics.iso9283": ("iso9283",),

@@ -28,6 +28,7 @@ MOVED: dict[str, str] = {
     "calflow.workflow_config": "calflow.configuration.workflow_config",
     "calflow.yamlfile": "calflow.configuration.yamlfile",
     "calflow.conformity": "calflow.certificate.conformity",
+    "calflow.reference": "calflow.configuration.reference",
     "calflow.stepwise": "calflow.identification.stepwise",
     "calflow.uncertainty": "calflow.instruments.interferometer",
     "calflow.gcs.axis": "calflow.gcs.emulation.axis",

@@ -10,10 +10,10 @@ import yaml
 
 from calflow.configuration.campaign import load as load_campaign
 from calflow.configuration.config import campaign_digest
+from calflow.configuration.reference import declared, files
 from calflow.errors import ConfigError
 from calflow.nano.report.ordering import ordering_block
 from calflow.nano.report.reference import STAGE1D, STAGE2D
-from calflow.reference import declared, files
 from calflow.xytheta.report.reference import XYTHETA
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -226,7 +226,7 @@ def test_a_code_change_reruns_exactly_the_steps_that_reach_it(source_copy, tmp_p
     reference.write_text(reference.read_text() + "\n\n_EDITED = 2\n")
     last = _digests(source_copy, cache)
     assert {k for k in after if last[k][0] != after[k][0]} == {
-        k for k, (_, modules) in after.items() if "calflow.reference" in modules
+        k for k, (_, modules) in after.items() if "calflow.configuration.reference" in modules
     }
     assert "summarise xytheta" in {k for k in after if last[k][0] != after[k][0]}  # once left out
 

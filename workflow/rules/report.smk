@@ -1,6 +1,6 @@
 # Campaign summary, per-campaign report (HTML and PDF) and the cross-campaign index.
 
-from calflow.reference import files as reference_files
+from calflow.configuration.reference import files as reference_files
 from calflow.report.catalogue import listing_digest
 
 

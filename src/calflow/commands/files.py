@@ -15,12 +15,13 @@ from calflow.errors import CalflowError
 
 def index(args) -> None:
     from calflow.data.io import write_text
+    from calflow.lifecycle.fleet import fleets
     from calflow.report import render_index
     from calflow.report.catalogue import catalogue
 
     out = Path(args.out or Path(args.reports) / "index.html")
     found = catalogue(args.results, args.reports, args.campaign_dir)
-    write_text(render_index(found), out)
+    write_text(render_index(found, fleets=fleets(found.get("histories") or [])), out)
     done = sum(c["status"] == "done" for g in found["groups"] for c in g["campaigns"])
     failed = sum(c["status"] == "failed" for g in found["groups"] for c in g["campaigns"])
     print(f"{out}: {done} campaigns, {failed} failed")

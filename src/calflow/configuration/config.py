@@ -21,9 +21,9 @@ import jsonschema
 import yaml
 
 from calflow.configuration import layout, yamlfile
+from calflow.configuration.reference import check as check_reference
 from calflow.errors import ConfigError
 from calflow.family import family_of, missing_family, robots
-from calflow.reference import check as check_reference
 from calflow.rigs.plugin import check_rig
 
 SCHEMA_DIR = Path(__file__).resolve().parents[1] / "schemas"

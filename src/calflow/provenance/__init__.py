@@ -38,7 +38,7 @@ from calflow.provenance.modules import find, registrations, source, tree_fingerp
 FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.configuration.config": ("schemas",),
     "calflow.configuration.campaign": ("steps:check",),
-    "calflow.reference": ("reference",),
+    "calflow.configuration.reference": ("reference",),
     "calflow.rigs.plugin": ("rigs",),
     "calflow.rigs.campaign_rig": ("rig_options",),
     "calflow.commands.acquire": ("plans",),

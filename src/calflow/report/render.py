@@ -216,11 +216,15 @@ def render_campaign_pages(
     return html, template.render(figures=printed, **context)
 
 
-def render_index(catalogue: dict | list[dict], histories: list[dict] | None = None) -> str:
+def render_index(
+    catalogue: dict | list[dict], histories: list[dict] | None = None, fleets: list[dict] = ()
+) -> str:
     """``reports/index.html``: every campaign on disk (:func:`calflow.report.catalogue.catalogue`)
     grouped by stage, newest first, with its headline beside the published values it declares,
     and the stage histories (``results/stages/<id>/history.json``) with a link to each report.
-    A list of summaries renders them as done campaigns of no stage, in the order given."""
+    A list of summaries renders them as done campaigns of no stage, in the order given.
+    ``fleets``: the fleet table's rows, :func:`calflow.lifecycle.fleet.fleets` of the histories
+    (the lifecycle computes them; the report renders what it is given)."""
     if isinstance(catalogue, list):
         rows = [
             {
@@ -243,15 +247,13 @@ def render_index(catalogue: dict | list[dict], histories: list[dict] | None = No
             "groups": [{"stage": None, "history": False, "campaigns": rows}] if rows else [],
             "histories": histories or [],
         }
-    from calflow.lifecycle.fleet import fleets
-
     template = environment().get_template("index.html.j2")
     hist = histories if histories is not None else catalogue.get("histories") or []
     return template.render(
         groups=catalogue["groups"],
         rows=[c for g in catalogue["groups"] for c in g["campaigns"]],
         histories=hist,
-        fleets=fleets(hist),
+        fleets=list(fleets),
         versions=_versions(),
         machine=_machine(),
         css=(TEMPLATES / "style.css").read_text(),

@@ -18,6 +18,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from calflow.configuration.reference import declared
 from calflow.data.io import (
     jsonable,  # noqa: F401 (re-exported)
     sha256_file,
@@ -25,7 +26,6 @@ from calflow.data.io import (
 from calflow.nano.evaluation import accuracy_vs_temperature, mode_names
 from calflow.nano.report.iso9283 import iso9283_block
 from calflow.nano.robustness import robustness_by_mode
-from calflow.reference import declared
 from calflow.summary_routing import summary_head
 
 __all__ = ["jsonable", "mode_block", "stage1d_summary", "stage2d_summary", "unsupported_sections"]
@@ -230,7 +230,9 @@ def _common(campaign: dict, robot: str, models: dict, budget, inputs: list[str])
         **summary_head(campaign, robot),
         "models": models,
         "budget": _budget(budget),
-        "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
+        "reference": declared(
+            campaign
+        ),  # the published values it declares (calflow.configuration.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in inputs},
     }
 

@@ -29,9 +29,9 @@ import numpy as np
 import xarray as xr
 
 from calflow.configuration import layout
+from calflow.configuration.reference import declared
 from calflow.errors import CalflowError, ConfigError
 from calflow.lifecycle.decisions.sprt import SPRT
-from calflow.reference import declared
 from calflow.summary_routing import summary_head
 
 # the check's rig time budget, a run's rig time and H0, defined beside the check at load

@@ -12,8 +12,8 @@ import json
 import numpy as np
 import xarray as xr
 
+from calflow.configuration.reference import declared
 from calflow.data.io import jsonable, sha256_file
-from calflow.reference import declared
 from calflow.summary_routing import route, summary_head
 from calflow.xytheta.family import FAMILY
 from calflow.xytheta.models.kinematics import PARAMETER_NAMES, PARAMETER_UNITS
@@ -242,7 +242,7 @@ def xytheta_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
             for name in order
         },
         "validation": _validation_block(campaign, heldout, ref, heldout_runs, training_runs, floor, truth),
-        "reference": reference,  # the published values it declares (calflow.reference), or {}
+        "reference": reference,  # the published values it declares (calflow.configuration.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     if exported:

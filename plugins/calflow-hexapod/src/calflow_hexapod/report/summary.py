@@ -15,8 +15,8 @@ import json
 
 import numpy as np
 
+from calflow.configuration.reference import declared
 from calflow.data.io import jsonable, sha256_file
-from calflow.reference import declared
 from calflow.summary_routing import route, summary_head
 from calflow_hexapod.family import FAMILY
 
@@ -176,7 +176,9 @@ def hexapod_summary(campaign: dict, files: list[str], truth: dict | None) -> dic
         **summary_head(campaign),
         "models": {name: models[name] for name in order},
         "model_order": order,  # the ladder's order (the summary's keys are written sorted)
-        "reference": declared(campaign),  # the published values it declares (calflow.reference), or {}
+        "reference": declared(
+            campaign
+        ),  # the published values it declares (calflow.configuration.reference), or {}
         "inputs": {str(p): sha256_file(p) for p in files},
     }
     budget = (truth or {}).get("error_budget")
