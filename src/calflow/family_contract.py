@@ -87,7 +87,7 @@ HOOKS: tuple[Hook, ...] = (
     Hook("rig_options", "rig_options", "rig", ("c", "factory", "run_id", "options", "start_s"), "the run's options", True),
     Hook("options", "options", "rig", (), "the checked options; OptionError naming one", False, "by_name", "check", options=True),
     Hook("sensors", "sensors", "rig", (), "a sensor of the gcs rig", False, "by_name", "factory", options=True),
-    Hook("emulator", "emulator", "rig", None, "a calflow.rigs.simulated.emulator.Emulator"),
+    Hook("emulator", "emulator", "rig", None, "a calflow.gcs.emulation.campaign_emulator.Emulator"),
     # plans: what a run commands
     Hook("plans", "plans", "plans", ("c", "args"), "a calflow.plan.Acquisition", True, "by_robot", "builder"),
     Hook("acquire_arguments", "acquire_arguments", "plans", ("p",), "None", False, "object"),
@@ -202,7 +202,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
         "require_simulated",
     ),
     "calflow.data.bundle": ("provenance", "read_bundle", "write_bundle", "Compensator"),
-    "calflow.rigs.simulated.emulator": ("Emulator",),
+    "calflow.gcs.emulation.campaign_emulator": ("Emulator",),
 }
 
 
@@ -297,7 +297,7 @@ def _check_target(where: str, target: Any, h: Hook, refuse) -> None:
 #: The hooks that name an object built in its module (a class's instance), and its class.
 _BUILT = {
     "workflow": "calflow.family_workflow.FamilyWorkflow",
-    "emulator": "calflow.rigs.simulated.emulator.Emulator",
+    "emulator": "calflow.gcs.emulation.campaign_emulator.Emulator",
 }
 
 

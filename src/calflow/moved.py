@@ -48,6 +48,7 @@ MOVED: dict[str, str] = {
     "calflow.lifecycle.interval": "calflow.lifecycle.decisions.interval",
     "calflow.lifecycle.sprt": "calflow.lifecycle.decisions.sprt",
     "calflow.rigs.simulated.bundle": "calflow.data.bundle",
+    "calflow.rigs.simulated.emulator": "calflow.gcs.emulation.campaign_emulator",
 }
 
 

@@ -151,7 +151,7 @@ def test_the_emulator_is_an_emulator_object_not_a_main():
     fam = dataclasses.replace(_xytheta(), name="lab")
     check_family(dataclasses.replace(fam, emulator="calflow.nano.stage.emulate:EMULATOR"))
     line = _refused(dataclasses.replace(fam, emulator="calflow.xytheta.stage.emulate:physics_options"))
-    assert "hook emulator" in line and "calflow.rigs.simulated.emulator.Emulator" in line
+    assert "hook emulator" in line and "calflow.gcs.emulation.campaign_emulator.Emulator" in line
     assert "Emulator" in _refused(dataclasses.replace(fam, emulator="calflow.family_contract:TEMPLATE"))
 
 

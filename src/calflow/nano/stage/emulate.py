@@ -28,9 +28,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from calflow.errors import CalflowError
+from calflow.gcs.emulation.campaign_emulator import Emulator
 from calflow.gcs.emulation.piezo import PiezoAxisConfig, piezo_emulator
 from calflow.rigs.simulated.campaign import simulated_options
-from calflow.rigs.simulated.emulator import Emulator
 
 STAGES = {"stage1d": "nano1d", "stage2d": "nano2d"}
 JOINT_AXES = {"x": "1", "y": "2"}

@@ -12,9 +12,10 @@ takes from here what follows from that declaration:
 * :mod:`.campaign` — the physics options of a campaign whose stage is simulated, directly or
   behind an emulated controller;
 * :mod:`.budget` — the error budget's replays (one effect off at a time) and their
-  combination into per-effect contributions;
-* :mod:`.emulator` — a campaign's controller emulator: its ``gcs`` rig options, a started
-  emulator for tests, and the ``calflow emulate gcs`` main.
+  combination into per-effect contributions.
+
+A stage behind an emulated controller is declared in
+:mod:`calflow.gcs.emulation.campaign_emulator` (the controller's layer).
 
 Nothing here names a robot family; the modules are imported one by one (this package's
 ``__init__`` imports nothing, so a light module such as :mod:`.campaign` stays light).

@@ -31,9 +31,9 @@ from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.gcs.emulation.axis import AxisConfig
+from calflow.gcs.emulation.campaign_emulator import Emulator
 from calflow.gcs.emulation.emulator import EmulatedController, Faults, GCSEmulator
 from calflow.rigs.simulated.campaign import simulated_options
-from calflow.rigs.simulated.emulator import Emulator
 from calflow.xytheta.stage.rig import XYThetaTruth
 from calflow.xytheta.stage.vision_sensor import truth_from_options
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from calflow.gcs.emulation.campaign_emulator import Emulator
 from calflow.gcs.emulation.emulator import Faults, GCSEmulator
-from calflow.rigs.simulated.emulator import Emulator
 from calflow_hexapod.models.geometry import AXES
 from calflow_hexapod.stage.c887 import AXIS_IDS, SCALE, HexapodController
 from calflow_hexapod.stage.physics import HexapodTruth, truth_from_options
