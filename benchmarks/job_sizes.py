@@ -7,8 +7,9 @@ seconds ``s``, a *sampled* ``max_rss``, ``cpu_time``). This script matches each 
 rule through the rules' ``benchmark:`` paths, and proposes what docs/cluster.md ("Job
 sizes") states:
 
-* ``mem_mb``  = the largest measured peak (the footprint's; Snakemake's sample where a job
-  has none) times 1.5, rounded up to 100 MB, at least 200;
+* ``mem_mb``  = the largest measured peak times 1.5, rounded up to 100 MB, at least 200; a
+  job's peak is its own plus, for each of the rule's threads, its largest child's (the
+  footprint's; Snakemake's sample where a job has none);
 * ``runtime`` = ten times the largest CPU time, in whole minutes, at least 1 (a job of one
   thread takes its CPU time of wall time on a quiet machine; a loaded one stretches wall
   times by any factor, so they are not the measure);
@@ -51,7 +52,7 @@ def wildcard_constraints(texts: list[str]) -> dict[str, str]:
     joined = "\n".join(texts)
     constants = {
         m.group(1): "".join(re.findall(r"\"([^\"]*)\"", m.group(2)))
-        for m in re.finditer(r"^(\w+) = (\(?\s*(?:r?\"[^\"]*\"\s*)+\)?)", joined, re.MULTILINE)
+        for m in re.finditer(r"^(\w+) = (\(?\s*(?:r?\"[^\"]*\"\s*)+\)?)[ \t]*$", joined, re.MULTILINE)
     }
     found = {}
     for block in re.findall(r"^wildcard_constraints:\n((?:[ \t]+.+\n)+)", joined, re.MULTILINE):
@@ -141,15 +142,24 @@ def measured(results: Path, rules: dict[str, dict]) -> dict[str, list[dict]]:
             except (OSError, ValueError):
                 continue
             row = jobs.setdefault(stem, {})
-            row.update(peak_mb=float(record["peak_rss_mb"]), cpu_s=float(record["cpu_s"]))
+            own, kids = (
+                float(record.get("self_rss_mb", record["peak_rss_mb"])),
+                float(record.get("children_rss_mb", 0)),
+            )
+            row.update(own_mb=own, children_mb=kids, cpu_s=float(record["cpu_s"]))
             row.setdefault("s", float(record.get("wall_s", 0.0)))
     runs: dict[str, list[dict]] = {}
     for stem, row in jobs.items():
         rule = rule_of(stem, rules)
         if rule is None:
             continue
-        source = "footprint" if "peak_mb" in row else "sampled"
-        peak = row.get("peak_mb", row.get("sampled_mb", 0.0))
+        source = "footprint" if "own_mb" in row else "sampled"
+        # its own peak and, beside it, as many children at their peak as the rule has threads
+        peak = (
+            row["own_mb"] + rules[rule]["threads"] * row["children_mb"]
+            if "own_mb" in row
+            else row.get("sampled_mb", 0.0)
+        )
         runs.setdefault(rule, []).append(
             {
                 "job": stem,

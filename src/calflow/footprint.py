@@ -33,16 +33,18 @@ _RSS_BYTES = 1 if sys.platform == "darwin" else 1024
 
 def measure() -> dict[str, float]:
     """``{peak_rss_mb, self_rss_mb, children_rss_mb, cpu_s, user_s, system_s, wall_s}`` of
-    this process so far: the peak resident set (MB = 10⁶ bytes) is the larger of its own
-    and of its largest waited-for child (they may not have run at once: an upper bound of
-    neither, the peak of each); CPU is user + system of both."""
+    this process so far (MB = 10⁶ bytes): its own peak resident set, the largest peak of the
+    children it waited for (the kernel keeps the largest, not their sum), and ``peak_rss_mb``
+    their sum — an upper bound of what the job held at once when one child ran at a time
+    beside it (a job running k children at once may hold its own and k children's); CPU is
+    user + system of both."""
     me = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
     self_mb = me.ru_maxrss * _RSS_BYTES / 1e6
     kids_mb = kids.ru_maxrss * _RSS_BYTES / 1e6
     user, system = me.ru_utime + kids.ru_utime, me.ru_stime + kids.ru_stime
     return {
-        "peak_rss_mb": round(max(self_mb, kids_mb), 1),
+        "peak_rss_mb": round(self_mb + kids_mb, 1),
         "self_rss_mb": round(self_mb, 1),
         "children_rss_mb": round(kids_mb, 1),
         "cpu_s": round(user + system, 3),
