@@ -12,7 +12,7 @@ LINTED := $(wildcard src tests benchmarks plugins)
 # `make lock LOCK_FLAGS=--upgrade`: every package to its newest release that fits
 LOCK_FLAGS ?=
 
-.PHONY: run test cluster-test cluster-study dry-run lint lock browser clean
+.PHONY: run test test-fast bench-smoke cluster-test cluster-study dry-run lint lock browser clean
 
 $(STAMP): pyproject.toml plugins/calflow-hexapod/pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,12 @@ run: $(STAMP)  ## run the default campaigns and write reports/
 test: $(STAMP) browser  ## run the test suite (calflow's, then the hexapod plug-in's own)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 	cd plugins/calflow-hexapod && $(abspath $(BIN))/python -m pytest -n $(CORES) --dist loadfile
+
+test-fast: $(STAMP)  ## the unit and property tests only (no workflow run): a minute or two
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -m "not workflow" -q
+
+bench-smoke: $(STAMP)  ## every benchmark of benchmarks/ at its small --smoke size, so none rots unseen
+	$(BIN)/python benchmarks/smoke.py
 
 cluster-test: $(STAMP)  ## as root: a one-node SLURM cluster runs the workflow, compared with a local run
 	VENV=$(VENV) bash tests/cluster/run.sh

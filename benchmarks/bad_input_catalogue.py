@@ -99,8 +99,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--src", action="append", default=[], help="a source tree put first on the path")
     ap.add_argument("--timeout", type=float, default=20.0)
+    ap.add_argument(
+        "--smoke", action="store_true", help="the first three campaign cases and config cases only, for CI"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    cases, configs = (CAMPAIGNS[:3], CONFIGS[:3]) if args.smoke else (CAMPAIGNS, CONFIGS)
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join([*map(str, args.src), os.environ.get("PYTHONPATH", "")]),
@@ -108,7 +112,7 @@ def main(argv=None) -> int:
     env.pop("CALFLOW_RIG_PLUGINS", None)
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        for param in CAMPAIGNS:
+        for param in cases:
             base, old, new, expected, files = param.values
             work = Path(tmp) / f"c{len(results)}"
             mp = pytest.MonkeyPatch()
@@ -126,7 +130,7 @@ def main(argv=None) -> int:
                     "s": round(dt, 3),
                 }
             )
-        for param in CONFIGS:
+        for param in configs:
             text, expected = param.values
             work = Path(tmp) / f"c{len(results)}"
             mp = pytest.MonkeyPatch()

@@ -251,8 +251,11 @@ def main() -> None:
     p.add_argument(
         "--trials", type=int, default=5000, help="Monte Carlo trials per U (the workflow uses 50 000)"
     )
+    p.add_argument("--smoke", action="store_true", help="small sizes for CI: 4 seeds, 20 stages, 2000 trials")
     p.add_argument("--json", action="store_true")
     a = p.parse_args()
+    if a.smoke:
+        a.seeds, a.stages, a.trials = 4, 20, 2000
     out = {
         "coverage": coverage(a.seeds, a.trials),
         "decision_risk": decision_risk(a.stages, a.trials) if a.stages > 0 else None,

@@ -120,8 +120,11 @@ def main(argv=None):
         help="scatter of one AP measurement (µm): the default run's small plan, from its held-out AP through the model and through its bundle (3.21 and 2.82, 2.43 and 1.94 µm)",
     )
     p.add_argument("--seed", type=int, default=2026)
+    p.add_argument("--smoke", action="store_true", help="small sizes for CI: 20 histories")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
+    if a.smoke:
+        a.histories = 20
     rng = np.random.default_rng(a.seed)
     z = stats.norm.ppf(a.reliability)
     t_start = time.perf_counter()

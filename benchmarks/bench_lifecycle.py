@@ -135,9 +135,12 @@ def mc(rate, n):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--histories", type=int, default=400)
+    p.add_argument("--smoke", action="store_true", help="small sizes for CI: 20 histories")
     p.add_argument("--json", action="store_true")
     p.add_argument("--seed", type=int, default=2026)
     a = p.parse_args(argv)
+    if a.smoke:
+        a.histories = 20
     rng = np.random.default_rng(a.seed)
     alpha, min_pairs, n = 0.05, 3, a.histories
     t = time.perf_counter()

@@ -70,7 +70,12 @@ print(wall, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, samples, 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rate-hz", type=float, default=1000.0, help="stream rate of the memory benchmark")
+    p.add_argument(
+        "--smoke", action="store_true", help="the streamed run at 10 Hz instead of 1000 Hz, for CI"
+    )
     args = p.parse_args()
+    if args.smoke:
+        args.rate_hz = 10.0
     print(f"machine: {machine()}")
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)

@@ -275,8 +275,15 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1000, help="first seed of the robustness frames' chunks")
     ap.add_argument("--dust-mean", type=float, default=3.0, help="mean dust particles per robustness frame")
     ap.add_argument("--dust-max-um", type=float, default=40.0, help="largest dust shadow (µm)")
+    ap.add_argument(
+        "--smoke",
+        action="store_true",
+        help="small sizes for CI: 5 frames, 1 repeat, 5 accuracy frames, 20 robustness frames, 1 process",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    if args.smoke:
+        args.frames, args.repeats, args.accuracy_frames, args.robust_frames, args.processes = 5, 1, 5, 20, 1
     sections = args.sections.split(",")
     out = {"machine": machine(), "load_before": list(os.getloadavg())}
     _pattern()

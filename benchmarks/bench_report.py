@@ -37,7 +37,10 @@ def main(argv=None) -> int:
     )
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--out", type=Path)
+    p.add_argument("--smoke", action="store_true", help="one repeat of nano2d-thesis's pages only, for CI")
     args = p.parse_args(argv)
+    if args.smoke:
+        args.repeat, args.campaign = 1, args.campaign or ["nano2d-thesis"]
 
     t0 = time.perf_counter()
     import matplotlib  # noqa: F401  (import costs are reported separately)

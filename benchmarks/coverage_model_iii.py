@@ -65,8 +65,11 @@ def one_seed(seed: int, rig: dict) -> dict[str, bool]:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=60)
+    p.add_argument("--smoke", action="store_true", help="small sizes for CI: 2 seeds")
     p.add_argument("--with-slides", action="store_true")
     a = p.parse_args()
+    if a.smoke:
+        a.seeds = 2
     off = [
         "yaw",
         "expansion",

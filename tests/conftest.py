@@ -13,6 +13,81 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# ---------------------------------------------------------------------------- hypothesis
+# Profiles, as hypothesis's docs recommend: "ci" draws the same examples on every run
+# (derandomize: a red CI run is a real failure, reproduced by the next one), "dev" explores
+# fresh examples each run and remembers its finds in .hypothesis/. CI=true selects "ci";
+# HYPOTHESIS_PROFILE names one. A find worth keeping becomes an @example on its test.
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+settings.register_profile(
+    "ci", derandomize=True, database=None, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)  # fmt: skip
+settings.register_profile("dev", deadline=None)
+settings.register_profile("explore", deadline=None, max_examples=1000)
+settings.load_profile(
+    os.environ.get("HYPOTHESIS_PROFILE")
+    or ("ci" if os.environ.get("CI", "").lower() in ("1", "true") else "dev")
+)
+
+
+# ---------------------------------------------------------------------------- tiers
+# `make test-fast` runs what is not marked `workflow`: the unit and property tests. A test
+# is a workflow test when it uses a whole-run fixture or runs Snakemake itself.
+WORKFLOW_FIXTURES = {"thesis_run", "reduced_run"}
+WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "workflow: runs the Snakemake workflow (left out by make test-fast)")
+
+
+def _runs_workflow(func, module, seen: set) -> bool:
+    """Whether ``func``'s source, or a function or fixture of its module it names (to any
+    depth), runs the workflow."""
+    import inspect
+
+    if func in seen:
+        return False
+    seen.add(func)
+    try:
+        source = inspect.getsource(func)
+    except (OSError, TypeError):
+        return False
+    if any(call in source for call in WORKFLOW_CALLS) or any(f in source for f in WORKFLOW_FIXTURES):
+        return True
+    for name, value in vars(module).items():
+        target = getattr(value, "__wrapped__", value)
+        if (
+            inspect.isfunction(target)
+            and target.__module__ == module.__name__
+            and f"{name}(" in source
+            and _runs_workflow(target, module, seen)
+        ):
+            return True
+    return False
+
+
+def pytest_collection_modifyitems(config, items):
+    import sys as _sys
+
+    for item in items:
+        fixtures = set(getattr(item, "fixturenames", ()))
+        func = getattr(item, "function", None)
+        module = _sys.modules.get(getattr(func, "__module__", ""), None)
+        found = bool(WORKFLOW_FIXTURES & fixtures)
+        if not found and func is not None and module is not None:
+            seen: set = set()
+            found = _runs_workflow(func, module, seen)
+            for name in fixtures:  # the module's or conftest's fixtures the test uses
+                for fixturedef in item._fixtureinfo.name2fixturedefs.get(name, ()):
+                    fmod = _sys.modules.get(getattr(fixturedef.func, "__module__", ""), None)
+                    if not found and fmod is not None:
+                        found = _runs_workflow(fixturedef.func, fmod, seen)
+        if found:
+            item.add_marker(pytest.mark.workflow)
+
 
 def _xy_noise_um() -> float:
     from calflow.xytheta.stage.rig import XYThetaTruth

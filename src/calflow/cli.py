@@ -14,7 +14,7 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from calflow import __version__
+from calflow import __version__, footprint
 from calflow.configuration import layout
 from calflow.errors import CalflowError
 
@@ -329,8 +329,7 @@ def _error(message: str) -> int:
     return 2
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+def _step(args) -> int:
     try:
         status = args.func(args)
     except (CalflowError, ValueError) as exc:  # library ValueErrors are worded for users
@@ -341,6 +340,18 @@ def main(argv: list[str] | None = None) -> int:
         print("calflow: interrupted; no output was written", file=sys.stderr)
         return 130
     return int(status or 0)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand; a workflow job then records its own peak memory and CPU time
+    (:mod:`calflow.footprint`)."""
+    args = parser().parse_args(argv)
+    status = 1  # an uncaught exception (a traceback) is recorded as a failure
+    try:
+        status = _step(args)
+    finally:
+        footprint.finish(args.command, status)
+    return status
 
 
 if __name__ == "__main__":

@@ -619,3 +619,22 @@ def test_one_campaign_at_a_time_never_shrinks_the_history(year):
             "reason": "results/demo-sn0042-2027-01/summary.json is no longer on disk (its results were deleted)",
         }
     ]
+
+
+def test_no_job_uses_more_memory_than_its_rule_declares(thesis_run):
+    """Every job of the default campaigns measured its own peak (calflow.footprint): each is
+    within 1 GB and within its rule's declared mem_mb (and its CPU time within the declared
+    runtime), so `--resources mem_mb=…` and a SLURM site that enforces memory schedule by true
+    numbers (docs/cluster.md, "Job sizes")."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("job_sizes", ROOT / "benchmarks" / "job_sizes.py")
+    job_sizes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(job_sizes)
+    rules = job_sizes.rule_patterns(job_sizes.rule_files())
+    runs = job_sizes.measured(thesis_run / "results", rules)
+    jobs = [r for rows in runs.values() for r in rows if r["source"] == "footprint"]
+    assert len(jobs) > 100, "the run's jobs left no footprint records"
+    assert all("mem_mb" in rules[rule] for rule in runs), [r for r in runs if "mem_mb" not in rules[r]]
+    assert job_sizes.short_of(runs, rules) == []
+    assert max(r["peak_mb"] for r in jobs) <= 1000

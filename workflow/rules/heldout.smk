@@ -18,7 +18,7 @@ rule acquire_validation_heldout:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=300,
+        mem_mb=400,
         runtime=1,
         rig=rig_slots,
     params:

@@ -15,7 +15,7 @@ rule identify:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=400,
+        mem_mb=300,
         runtime=1,
     params:
         **reads("identify", identify_sections),

@@ -18,7 +18,7 @@ rule metrics:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=300,
+        mem_mb=200,
         runtime=1,
     params:
         **reads("metrics"),

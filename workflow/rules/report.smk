@@ -26,8 +26,8 @@ rule summarise:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=400,
-        runtime=1,
+        mem_mb=1000,
+        runtime=6,
     params:
         # the summary reads the whole campaign (each family's its own sections, the stage and
         # the reference values), so every section is handed to it and digested
@@ -69,7 +69,7 @@ rule report:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=600,
+        mem_mb=800,
         runtime=2,
     params:
         # the report shows the whole campaign (its settings beside the results): every
@@ -101,7 +101,7 @@ rule index:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=200,
+        mem_mb=300,
         runtime=1,
     params:
         # the other campaigns on disk (another run's, deleted, failed): a change reruns the index

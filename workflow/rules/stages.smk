@@ -19,7 +19,8 @@ rule stage_history:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
     params:
         campaign_dir=CAMPAIGN_DIR,
         settings=lambda w: shlex.quote(stage_settings(w)),
@@ -42,7 +43,8 @@ rule stage_report:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=2000,
+        mem_mb=600,
+        runtime=1,
     params:
         digest=lambda w: digest([code_digest("history-report", stage_robot(w.stage))]),
     shell:

@@ -75,6 +75,12 @@ def record(u: Uncertainty, scale: float, value, notes=()) -> dict:
     r["U"], r["u"] = r["U"] * scale, r["u"] * scale
     r["interval"] = [v * scale for v in r["interval"]]
     r["budget"] = {k: v * scale for k, v in r["budget"].items()}
+    if "tolerance" in r.get("monte_carlo", {}):  # the numerical tolerance and 2 s, in the figure's unit
+        r["monte_carlo"] = {
+            **r["monte_carlo"],
+            "tolerance": r["monte_carlo"]["tolerance"] * scale,
+            "spread": r["monte_carlo"]["spread"] * scale,
+        }
     r["value"] = value if value is not None else u.value * scale
     mine = u.value * scale
     if isinstance(value, (int, float)) and not math.isclose(mine, value, rel_tol=5e-3, abs_tol=1e-9 * scale):

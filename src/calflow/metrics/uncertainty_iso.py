@@ -9,22 +9,23 @@ import numpy as np
 
 from calflow.metrics.uncertainty import (
     MAX_METHOD,
-    P95,
     TRIALS,
     Draws,
     Term,
     Uncertainty,
     check_terms,
     chi_rp_factor,
-    effective_count,
     gum_linear,
-    largest_bounds,
-    maximum_interval,
+    how_drawn,
+    mc_record,
     mc_result,
     pooled_scatter,
     reading_budget,
     sigma_interval,
+    standard_u,
 )
+from calflow.metrics.uncertainty.draws import GROUP
+from calflow.metrics.uncertainty.stream import Maximum, Span, simulate
 
 __all__ = ["iso230_2_uncertainty", "iso9283_uncertainty", "rp_factor"]
 
@@ -42,7 +43,12 @@ def rp_factor(ratios) -> float:
 
 
 def iso9283_uncertainty(
-    command, attained: Sequence, terms: Sequence[Term] = (), origin=None, trials: int = TRIALS, seed: int = 0
+    command,
+    attained: Sequence,
+    terms: Sequence[Term] = (),
+    origin=None,
+    trials: int | None = TRIALS,
+    seed: int = 0,
 ) -> dict[str, Uncertainty]:
     """U of a test's AP = max_j AP_j and RP = max_j RP_j (ISO 9283, thesis Sec. 3.2.3).
 
@@ -66,24 +72,36 @@ def iso9283_uncertainty(
     dev = np.array([g.mean(axis=0) for g in groups]) - cmd
     s_axis, dof = pooled_scatter(groups)
     pos = cmd - (np.zeros(d) if origin is None else np.asarray(origin, float))
-    draws = Draws(s_axis, dof, (T, d), terms, trials, seed)
-
-    def per_target(only=None):
-        return np.linalg.norm(dev[None] + draws.error(pos, n, only), axis=2)
-
+    draws = Draws(s_axis, dof, T, d, terms, seed)
     y = np.linalg.norm(dev, axis=1)
-    full = per_target()
-    lo, hi, t_eff = maximum_interval(y, full)
-    parts = {"sample": per_target("sample").max(axis=1)}
-    for t in draws.terms:
-        parts[t.name] = per_target(t.name).max(axis=1)
+
+    def cells(error, g):
+        idx = draws.groups[g]
+        v = dev[idx][None] + error
+        return {"ap": (np.sqrt(np.sum(v * v, axis=2)), idx)}
+
+    dofs = {"sample": float(dof)}
+    out = simulate(
+        draws,
+        pos,
+        n,
+        cells,
+        {"ap": T},
+        {"accuracy": Maximum("ap", y)},
+        lambda name, tmax, tmin, ext: tmax["ap"],
+        trials=trials,
+        u_of=lambda name, U, parts: standard_u(U, parts, dofs),
+    )
+    lo, hi, t_eff = out.intervals["accuracy"]
+    M = out.record["trials"]
     accuracy = mc_result(
         float(y.max()),
-        full.max(axis=1),
-        parts,
-        {"sample": float(dof)},
+        out.stats["accuracy"],
+        out.parts["accuracy"],
+        dofs,
         (lo, hi),
-        MAX_METHOD.format(M=trials, t=t_eff),
+        MAX_METHOD.format(M=M, t=t_eff, how=how_drawn(out.record, "accuracy")),
+        monte_carlo=mc_record(out.record, "accuracy"),
     )
     accuracy.budget.update(reading_budget(terms))
 
@@ -96,7 +114,7 @@ def iso9283_uncertainty(
     c = rp_factor(s_axis / s_iso) if s_iso > 0 else chi_rp_factor(d)
     rp_value = float(max(iso9283(cmd[j], groups[j]).rp for j in range(T)))
     lo, hi = (c * v for v in sigma_interval(s_iso, dof_iso))
-    rp_draws = c * s_iso * np.sqrt(dof_iso / draws.rng.chisquare(dof_iso, size=trials))
+    rp_draws = c * s_iso * np.sqrt(dof_iso / draws.chisquare(0, M, dof_iso, which=1))
     note = ""
     if not lo <= rp_value <= hi:
         note = (
@@ -123,7 +141,7 @@ def iso230_2_uncertainty(
     backward,
     terms: Sequence[Term] = (),
     origin: float = 0.0,
-    trials: int = TRIALS,
+    trials: int | None = TRIALS,
     seed: int = 0,
 ) -> dict[str, Uncertainty]:
     """U of ISO 230-2's E, M, B, A, R (Monte Carlo) and of B̄, the signed mean reversal (GUM).
@@ -149,84 +167,71 @@ def iso230_2_uncertainty(
     n = np.array([np.isfinite(r).sum() for r in rows], float)
     mean = np.array([np.nanmean(r) for r in rows]) - np.concatenate([t, t])
     pos = (np.concatenate([t, t]) - origin)[:, None]
-    draws = Draws(s, dof, (2 * P, 1), terms, trials, seed)
+    # a group: a run of targets, both directions (a target's mid-point and reversal are its own)
+    runs = [np.arange(a, min(a + GROUP // 2, P)) for a in range(0, P, GROUP // 2)]
+    draws = Draws(s, dof, 2 * P, 1, terms, seed, groups=[np.concatenate([r, P + r]) for r in runs])
 
-    def cells(only=None):
-        mu = draws.error(pos, n, only)[:, :, 0]
-        mu += mean[None, :]  # in place: an (M, 2P) array is 1.5 GB for a 5 µm sweep of 9.45 mm
-        return mu, (mu[:, :P] + mu[:, P:]) / 2.0, mu[:, :P] - mu[:, P:]
+    def cells(error, g):
+        idx = draws.groups[g]
+        G = idx.size // 2
+        mu = mean[idx][None] + error[:, :, 0]
+        rev = mu[:, :G] - mu[:, G:]
+        return {
+            "mu": (mu, idx),
+            "mid": ((mu[:, :G] + mu[:, G:]) / 2.0, idx[:G]),
+            "absrev": (np.abs(rev), idx[:G]),
+        }
 
-    def span(est, dr, add_est=0.0, add_dr=0.0):
-        """95 % interval of a range as a maximum over pairs: max_{i,j} (μ_i − μ_j) over the
-        cells that can be the maximum (i) or the minimum (j) in some trial. A pair's draws
-        are made when its percentiles are needed (:func:`largest_bounds`), never all at once."""
-        top = np.unique(np.argmax(dr, axis=1))
-        bottom = np.unique(np.argmin(dr, axis=1))
-        e = (est[top][:, None] - est[bottom][None, :]).ravel() + add_est
-        add = np.reshape(add_dr, -1)
-        hi_top, lo_bottom = dr[:, top].max(axis=0), dr[:, bottom].min(axis=0)
-        # no pair's draw exceeds this (with a margin for the rounding of the differences)
-        size = np.abs(hi_top)[:, None] + np.abs(lo_bottom)[None, :] + np.abs(add).max()
-        upper = ((hi_top[:, None] - lo_bottom[None, :]) + add.max() + 1e-12 * size).ravel()
-        nb = bottom.size
-        # the candidates' draws as rows: a pair's draws are then two contiguous rows apart
-        rows_top, rows_bottom = np.ascontiguousarray(dr[:, top].T), np.ascontiguousarray(dr[:, bottom].T)
+    def extras(block, m):
+        # the estimator's σ̂ around the pooled s (A's and R's cells carry its spread)
+        return {"4sig": 4.0 * sigma * np.sqrt(draws.chisquare(block, m, dof) / dof)}
 
-        def column(k):
-            return (rows_top[k // nb] - rows_bottom[k % nb]) + add
+    def statistic(name, tmax, tmin, ext):
+        base = {"E": "mu", "A": "mu", "M": "mid"}.get(name)
+        value = tmax[base] - tmin[base] if base else tmax["absrev"].copy()
+        return value + ext["4sig"] if name in ("A", "R") else value
 
-        # the pairs share their cells: as many candidates as the maximum's and the minimum's
-        t_eff = effective_count(dr) + effective_count(-dr) - 1.0
-        return (*largest_bounds(e, column, upper, len(dr), P95, t_eff), t_eff)
-
-    mu, mid, rev = cells()
     est_mid, est_rev = (mean[:P] + mean[P:]) / 2.0, mean[:P] - mean[P:]
-    # the estimator's σ̂ around the pooled s (the cells' bias-corrected intervals need it)
-    sig_hat = sigma * np.sqrt(draws.rng.chisquare(dof, size=trials) / dof)
-    bounds = {
-        "E": span(mean, mu),
-        "M": span(est_mid, mid),
-        "B": maximum_interval(np.abs(est_rev), np.abs(rev)),
-        "A": span(mean, mu, 4 * sigma, 4 * sig_hat),
-        "R": maximum_interval(np.abs(est_rev) + 4 * sigma, np.abs(rev) + 4 * sig_hat[:, None]),
+    intervals = {
+        "E": Span("mu", mean),
+        "M": Span("mid", est_mid),
+        "B": Maximum("absrev", np.abs(est_rev)),
+        "A": Span("mu", mean, 4 * sigma, "4sig"),
+        "R": Maximum("absrev", np.abs(est_rev) + 4 * sigma, "4sig"),
     }
-    stats_of = {
-        "E": lambda m, md, r: m.max(1) - m.min(1),
-        "M": lambda m, md, r: md.max(1) - md.min(1),
-        "B": lambda m, md, r: np.abs(r).max(1),
-        "A": lambda m, md, r: m.max(1) - m.min(1) + 4 * sig_hat,
-        "R": lambda m, md, r: np.abs(r).max(1) + 4 * sig_hat,
-    }
-
-    def reduced(name):
-        """The five statistics of the cells with one term alone (the cells themselves are
-        (M, 2P) arrays: one term's at a time)."""
-        c = cells(name)
-        return {key: fn(*c) for key, fn in stats_of.items()}
-
-    full = {key: fn(mu, mid, rev) for key, fn in stats_of.items()}
-    del mu, mid, rev  # the cells of one term at a time from here
-    parts_of = {"sample": reduced("sample"), **{term.name: reduced(term.name) for term in draws.terms}}
+    dofs = {"sample": float(dof)}
+    sim = simulate(
+        draws,
+        pos,
+        n,
+        cells,
+        {"mu": 2 * P, "mid": P, "absrev": P},
+        intervals,
+        statistic,
+        extras,
+        trials=trials,
+        u_of=lambda name, U, parts: standard_u(U, parts, dofs),
+    )
 
     from calflow.metrics.iso230_2 import iso230_2
 
     iso = iso230_2(t, f, b)
     out: dict[str, Uncertainty] = {}
-    for key in stats_of:
+    for key in intervals:
         reported = float(getattr(iso, key))
-        lo, hi, t_eff = bounds[key]
+        lo, hi, t_eff = sim.intervals[key]
         note = ""
         if not lo <= reported <= hi:
             note = f"the standard's value ({reported:.4g}, per-target s) lies outside the interval of the measurand"
-        parts = {name: stat[key] for name, stat in parts_of.items()}
         out[key] = mc_result(
             reported,
-            full[key],
-            parts,
-            {"sample": float(dof)},
+            sim.stats[key],
+            sim.parts[key],
+            dofs,
             (max(lo, 0.0), hi),
-            MAX_METHOD.format(M=trials, t=t_eff),
+            MAX_METHOD.format(M=sim.record["trials"], t=t_eff, how=how_drawn(sim.record, key)),
             note,
+            monte_carlo=mc_record(sim.record, key),
         )
         out[key].budget.update(reading_budget(terms))
     # B̄ is linear in the cell means: GUM

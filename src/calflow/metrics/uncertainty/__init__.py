@@ -19,8 +19,10 @@ Metrics linear in the inputs (the signed mean reversal B̄, a mean deviation) ar
 propagated with the GUM law (JCGM 100:2008, Eq. 10) and a coverage factor from Student's
 t at the Welch–Satterthwaite effective degrees of freedom (JCGM 100 G.4.1). AP (the length
 of a mean vector) and the maxima (AP and RP are maxima over targets; ISO 230-2's E, M, B,
-A, R maxima and ranges) are propagated by Monte Carlo (JCGM 101:2008) with a fixed number
-of trials M (``trials``, default 50 000, seeded so a result reproduces): the variance of
+A, R maxima and ranges) are propagated by Monte Carlo (JCGM 101:2008) with JCGM 101 §7.9's adaptive number of trials
+(blocks of 10⁴ until the interval's ends and U are stable to the numerical tolerance of u,
+:mod:`.adaptive`; ``trials`` fixes M instead), seeded so a result reproduces to the byte and
+streamed so that memory holds one block of a few cells (:mod:`.stream`): the variance of
 the scatter is drawn from its scaled inverse χ² (ν s²/χ²_ν), the means given it from
 normals (JCGM 101 6.4.9), the Type B terms from normals with their standard uncertainty.
 A maximum of noisy means is biased upwards and so are trials drawn around it, so the
@@ -54,15 +56,18 @@ from calflow.metrics.uncertainty.budget import (
     sigma_interval,
     welch_satterthwaite,
 )
+from calflow.metrics.uncertainty.draws import Draws
 from calflow.metrics.uncertainty.montecarlo import (
     MAX_METHOD,
-    Draws,
     chi_rp_factor,
     effective_count,
+    how_drawn,
     largest_bounds,
     maximum_interval,
+    mc_record,
     mc_result,
     robust_sd,
+    standard_u,
 )
 
 __all__ = [
@@ -80,10 +85,13 @@ __all__ = [
     "gum_linear",
     "largest_bounds",
     "maximum_interval",
+    "how_drawn",
+    "mc_record",
     "mc_result",
     "pooled_scatter",
     "reading_budget",
     "robust_sd",
     "sigma_interval",
+    "standard_u",
     "welch_satterthwaite",
 ]

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 SCOPES = ("common", "target", "reading")
-TRIALS = 50_000
+TRIALS = None  #: M: None, adaptive (JCGM 101 §7.9, :mod:`.adaptive`); a number fixes it
 P95 = 0.95
 
 
@@ -65,6 +65,8 @@ class Uncertainty:
     method: str
     note: str = ""
     samples: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: a Monte Carlo's M and the numerical tolerance it reached (:mod:`.adaptive`), or None
+    monte_carlo: dict | None = None
 
     def record(self) -> dict:
         """``{U, k, dof_eff, budget, u, interval, coverage, method, note}`` for a summary."""
@@ -79,6 +81,7 @@ class Uncertainty:
             "coverage": P95,
             "method": self.method,
             **({"note": self.note} if self.note else {}),
+            **({"monte_carlo": dict(self.monte_carlo)} if self.monte_carlo else {}),
         }
 
 

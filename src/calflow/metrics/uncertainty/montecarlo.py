@@ -1,7 +1,7 @@
-"""The Monte Carlo side of the uncertainty of a headline figure (JCGM 101:2008): the shared
-random draws of the budget's terms (:class:`Draws`), the interval of a maximum over targets
-(:func:`maximum_interval`) and a result from the trials (:func:`mc_result`). The package's
-docstring describes the method (:mod:`calflow.metrics.uncertainty`)."""
+"""The Monte Carlo side of the uncertainty of a headline figure (JCGM 101:2008): the interval of a
+maximum over targets (:func:`maximum_interval`) and a result from the trials (:func:`mc_result`).
+The draws are :mod:`.draws`', streamed by :mod:`.stream` until :mod:`.adaptive` says they are
+enough. The package's docstring describes the method (:mod:`calflow.metrics.uncertainty`)."""
 
 from __future__ import annotations
 
@@ -72,18 +72,60 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
             break
         x = column(j)
         z0 = ndtri(np.clip(np.mean(x < y[j]), 1.0 / trials, 1.0 - 1.0 / trials))
+        # both percentiles from one partial sort when both can move (the same numbers)
+        want = [q for q, bound in ((ndtr(2 * z0 + za), lo), (ndtr(2 * z0 - za), hi)) if upper[j] >= bound]
+        found = iter(np.quantile(x, want).tolist())
         if upper[j] >= lo:
-            lo = max(lo, float(np.quantile(x, ndtr(2 * z0 + za))))
+            lo = max(lo, next(found))
         if upper[j] >= hi:
-            hi = max(hi, float(np.quantile(x, ndtr(2 * z0 - za))))
+            hi = max(hi, next(found))
     return lo, hi
 
 
 MAX_METHOD = (
-    "Monte Carlo (JCGM 101:2008), M = {M} trials (fixed), per target; the 95 % interval of the maximum "
+    "Monte Carlo (JCGM 101:2008), M = {M} trials ({how}), per target; the 95 % interval of the maximum "
     "from the targets' bias-corrected percentile intervals, Šidák-adjusted over the {t:.1f} target(s) "
     "that can be the maximum"
 )
+
+
+def how_drawn(record: dict, name: str, unit_scale: float = 1.0) -> str:
+    """In words, how many trials a Monte Carlo drew and why (``record``: :class:`.stream.Outcome`'s)."""
+    if not record.get("adaptive"):
+        return "fixed"
+    st = record["status"].get(name)
+    if st is None:
+        return f"adaptive, JCGM 101 §7.9: {record['blocks']} block(s) of {record['block']}"
+    verdict = "reached" if st["reached"] else f"NOT reached within the cap of {record['trials']} trials"
+    return (
+        f"adaptive, JCGM 101 §7.9: blocks of {record['block']} until the ends and U were stable to the "
+        f"numerical tolerance of u at {record['digits']} significant digit(s), δ = {st['tolerance']:.2g}: {verdict}"
+    )
+
+
+def mc_record(record: dict, name: str) -> dict:
+    """The ``monte_carlo`` entry of an :class:`.budget.Uncertainty`: M and the tolerance reached."""
+    out = {"trials": int(record["trials"]), "adaptive": bool(record.get("adaptive"))}
+    st = (record.get("status") or {}).get(name)
+    if st is not None:
+        out.update(
+            blocks=int(record["blocks"]),
+            tolerance=float(st["tolerance"]),
+            spread=float(st["spread"]),
+            reached=bool(st["reached"]),
+        )
+    return out
+
+
+def budget_dof(parts: dict, dofs: dict) -> tuple[dict, float]:
+    """Each term's robust standard deviation (:func:`robust_sd`) and the Welch–Satterthwaite dof."""
+    budget = {n: robust_sd(v) for n, v in parts.items()}
+    return budget, welch_satterthwaite(list(budget.values()), [dofs.get(n, math.inf) for n in budget])
+
+
+def standard_u(U: float, parts: dict, dofs: dict) -> float:
+    """u = U / k with k = t_0.975 at the budget's dof (:func:`mc_result`'s u for a given U)."""
+    return float(U) / coverage_factor(budget_dof(parts, dofs)[1])
 
 
 def robust_sd(x) -> float:
@@ -96,7 +138,7 @@ def robust_sd(x) -> float:
     return float(hi - lo) / 2.0
 
 
-def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertainty:
+def mc_result(value, draws, parts, dofs, interval, method, note="", monte_carlo=None) -> Uncertainty:
     """A Monte Carlo result: U the interval's half-width, k = t_0.975(ν_eff) and u = U/k.
 
     ν_eff is the Welch–Satterthwaite dof of the budget, whose terms are the robust standard
@@ -106,8 +148,7 @@ def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertain
     """
     lo, hi = interval
     U = float(hi - lo) / 2.0
-    budget = {n: robust_sd(v) for n, v in parts.items()}
-    dof = welch_satterthwaite(list(budget.values()), [dofs.get(n, math.inf) for n in budget])
+    budget, dof = budget_dof(parts, dofs)
     k = coverage_factor(dof)
     return Uncertainty(
         value=float(value),
@@ -120,76 +161,5 @@ def mc_result(value, draws, parts, dofs, interval, method, note="") -> Uncertain
         method=method,
         note=note,
         samples=draws,
+        monte_carlo=monte_carlo,
     )
-
-
-class Draws:
-    """Shared random inputs of one Monte Carlo: a sample term and the declared terms.
-
-    The large inputs — the sample's standard normals and each per-target term's, (M, cells,
-    d) each, 1.5 GB for a 1890-target sweep at M = 50 000 — are not kept: the generator's
-    state where each begins is, and :meth:`error` draws them again, ``BLOCK`` trials at a
-    time, into its result. The numbers are those of drawing each array whole (a generator
-    fills an array element by element, so blocks continue one another), and the stream after
-    the constructor is where it would be; memory holds the result, not every input.
-    """
-
-    BLOCK = 1024  #: trials drawn at a time
-
-    def __init__(self, s: np.ndarray, dof: int, shape: tuple[int, int], terms, trials: int, seed: int):
-        self.rng = np.random.default_rng(seed)
-        self.trials, (self.cells, self.d) = trials, shape
-        self.s, self.dof = np.asarray(s, float), dof
-        # scaled inverse χ²: σ² = ν s² / χ²_ν, one per trial (the variance shared by the cells)
-        self.scale = np.sqrt(dof / self.rng.chisquare(dof, size=trials))[:, None]
-        self._z = self._skip((self.cells, self.d))
-        self.terms = [t for t in terms if t.scope != "reading"]
-        self._noise: dict[str, tuple] = {}
-        for t in self.terms:
-            if t.scope == "common":  # (M, 1, d): small, kept
-                self._noise[t.name] = self.rng.standard_normal((trials, 1, self.d)) * t.per_axis(self.d)
-            else:
-                self._noise[t.name] = self._skip((self.cells, self.d))
-
-    def _skip(self, shape: tuple[int, ...]) -> dict:
-        """The generator's state, then the stream moved past an (M, *shape) array of normals."""
-        state = self.rng.bit_generator.state
-        scratch = np.empty((min(self.BLOCK, self.trials), *shape))
-        for i in range(0, self.trials, self.BLOCK):
-            self.rng.standard_normal(out=scratch[: min(self.BLOCK, self.trials - i)])
-        return state
-
-    def _blocks(self, state: dict, shape: tuple[int, ...]):
-        """``(slice of trials, normals of those trials)`` of the array drawn from ``state``."""
-        rng = np.random.Generator(type(self.rng.bit_generator)())
-        rng.bit_generator.state = state
-        scratch = np.empty((min(self.BLOCK, self.trials), *shape))
-        for i in range(0, self.trials, self.BLOCK):
-            block = scratch[: min(self.BLOCK, self.trials - i)]
-            rng.standard_normal(out=block)
-            yield slice(i, i + len(block)), block
-
-    def sigma(self) -> np.ndarray:
-        """(M, d): the scatter's σ per axis in each trial."""
-        return self.s[None, :] * self.scale
-
-    def error(self, positions: np.ndarray, n: np.ndarray, only: str | None = None) -> np.ndarray:
-        """(M, cells, d): the error of each cell's mean; ``only`` one term (or "sample")."""
-        out = np.zeros((self.trials, self.cells, self.d))
-        shape = (self.cells, self.d)
-        if only in (None, "sample"):
-            sigma, root_n = self.sigma(), np.sqrt(n)[None, :, None]
-            for rows, z in self._blocks(self._z, shape):
-                out[rows] += z * (sigma[rows][:, None, :] / root_n)
-        for t in self.terms:
-            if only not in (None, t.name):
-                continue
-            if t.scope == "common":
-                e = self._noise[t.name]
-                out += e * 1e-6 * positions[None, :, :] if t.relative else e
-                continue
-            per_axis = t.per_axis(self.d)
-            for rows, z in self._blocks(self._noise[t.name], shape):
-                e = z * per_axis
-                out[rows] += e * 1e-6 * positions[None, :, :] if t.relative else e
-        return out

@@ -21,7 +21,7 @@ rule acquire_validation_tests:
         CONDA_ENV
     resources:
         mem_mb=400,
-        runtime=2,
+        runtime=6,
         rig=rig_slots,
     params:
         **reads("acquire", "validation", acquires=True),

@@ -24,7 +24,7 @@ rule acquire_as_found:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,
+        mem_mb=300,
         runtime=1,
         rig=rig_slots,
     params:

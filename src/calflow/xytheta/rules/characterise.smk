@@ -16,7 +16,7 @@ rule characterise:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=300,
+        mem_mb=200,
         runtime=1,
     params:
         **reads("characterise"),

@@ -21,7 +21,7 @@ rule export_models:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,
+        mem_mb=300,
         runtime=1,
     params:
         **reads("export"),
@@ -80,7 +80,7 @@ rule export_verify:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=300,
+        mem_mb=200,
         runtime=1,
     params:
         **reads("export-verify"),

@@ -19,7 +19,8 @@ rule acquire_interim_check:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         # the sequential test stops at the campaign's tolerance unless the check gives its own

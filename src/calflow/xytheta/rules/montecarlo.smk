@@ -49,7 +49,7 @@ rule mc_aggregate:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=200,
+        mem_mb=300,
         runtime=1,
     params:
         study=lambda w: STUDY[w.study]["file"],

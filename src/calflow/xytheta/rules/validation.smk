@@ -20,7 +20,7 @@ rule acquire_validation_model:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,
+        mem_mb=300,
         runtime=1,
         rig=rig_slots,
     params:
@@ -45,8 +45,8 @@ rule error_budget:
         CONDA_ENV
     threads: 2
     resources:
-        mem_mb=900,
-        runtime=2,
+        mem_mb=700,
+        runtime=5,
     params:
         **reads(
             "error-budget",
@@ -84,8 +84,8 @@ rule instrument_bench:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,
-        runtime=2,
+        mem_mb=300,
+        runtime=1,
     params:
         **reads("instrument-bench", "rig", "seed", "identification.theta_deg"),
         campaign=campaign_file,

@@ -20,7 +20,8 @@ rule acquire_hexapod_iso9283:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         # the test cube's poses are mapped by the nominal model with identification.initial's frames
@@ -49,7 +50,8 @@ rule hexapod_error_budget:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=2000,
+        mem_mb=400,
+        runtime=2,
     params:
         **reads(
             "hexapod-error-budget",
@@ -83,7 +85,8 @@ rule hexapod_export:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=200,
+        runtime=1,
     params:
         **reads("hexapod-export"),
         campaign=campaign_file,
@@ -109,7 +112,8 @@ rule acquire_hexapod_closed_loop:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,
+        mem_mb=300,
+        runtime=1,
         rig=rig_slots,
     params:
         **reads(

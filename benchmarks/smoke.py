@@ -1,0 +1,79 @@
+#!/usr/bin/env python
+"""Every benchmark of benchmarks/ at its small ``--smoke`` size, so none rots unseen (CI:
+``make bench-smoke``). The workflow's own benchmark runs first (nano2d-thesis alone,
+``bench_footprint.py --smoke``, kept in a scratch folder) and the benchmarks that read a
+finished run read that one. Prints one line per benchmark (its exit status and seconds) and
+exits 1 if any failed. The benchmarks that compare whole workflow runs of two trees or kill
+processes on purpose (``SLOW``) are named, not run: their small sizes are still whole runs.
+
+    .venv/bin/python benchmarks/smoke.py [--only NAME ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+PY = sys.executable
+
+#: benchmark → its smoke arguments; ``{run}``: the smoke run's project folder
+SMOKE = {
+    "bench_footprint.py": ["--smoke", "--json", "--keep", "{run}"],
+    "job_sizes.py": ["{run}/results", "--check"],
+    "bench_report.py": ["{run}", "--smoke", "--out", "{run}/bench-report"],
+    "bench_identification.py": ["--smoke", "--json"],
+    "bench_certificate.py": ["--smoke", "--json"],
+    "bench_interval.py": ["--smoke", "--json"],
+    "bench_lifecycle.py": ["--smoke", "--json"],
+    "coverage_model_iii.py": ["--smoke"],
+    "bad_input_catalogue.py": ["--smoke", "--json"],
+    "bench_pattern.py": ["--smoke", "--json"],
+    "bench_nano.py": ["--smoke"],
+}
+#: whole workflow runs of full-size campaigns, or processes killed on purpose: not run here
+SLOW = {
+    "bench_design.py": "two xytheta-thesis-sized campaigns through the workflow",
+    "bench_design_nano.py": "three nano1d-thesis-sized campaigns",
+    "bench_montecarlo.py": "the Monte-Carlo study through the workflow, at 1 and 2 cores",
+    "reliability_gcs_campaign.py": "campaigns through the PI GCS emulator at a time scale",
+    "reliability_sigkill.py": "50 SIGKILLs of acquisitions",
+    "bench_workflow.sh": "cold, no-op and validation-only runs of the default configuration",
+    "bench_workflow_pair.sh": "the same for two trees back to back",
+}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", help="run these benchmarks only")
+    args = ap.parse_args(argv)
+    known = set(SMOKE) | set(SLOW) | {"smoke.py"}
+    unknown = sorted(p.name for p in HERE.iterdir() if p.suffix in (".py", ".sh") and p.name not in known)
+    if unknown:
+        print(f"smoke: no smoke size for {', '.join(unknown)}: add it to benchmarks/smoke.py")
+        return 1
+    failed = []
+    with tempfile.TemporaryDirectory(prefix="calflow-smoke-") as tmp:
+        run = Path(tmp) / "project"
+        for name, arguments in SMOKE.items():
+            if args.only and name not in args.only and name != "bench_footprint.py":
+                continue
+            cmd = [PY, str(HERE / name), *(a.format(run=run) for a in arguments)]
+            start = time.perf_counter()
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            took = time.perf_counter() - start
+            print(f"{'ok' if proc.returncode == 0 else 'FAILED'}  {name} ({took:.0f} s)", flush=True)
+            if proc.returncode:
+                failed.append(name)
+                print((proc.stdout + proc.stderr)[-2000:])
+    for name, why in SLOW.items():
+        print(f"not run  {name}: {why}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,184 @@
+"""The streamed, adaptive Monte Carlo (calflow.metrics.uncertainty: draws, stream, adaptive):
+the same intervals as from the whole array of draws, reproducible blocks, JCGM 101 §7.9's
+stopping rule."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from calflow.metrics.uncertainty import Term, largest_bounds, maximum_interval
+from calflow.metrics.uncertainty import stream as stream_module
+from calflow.metrics.uncertainty.adaptive import numerical_tolerance, spread
+from calflow.metrics.uncertainty.draws import Draws, block_sizes
+from calflow.metrics.uncertainty.stream import Maximum, Span, simulate
+
+TERMS = [
+    Term("cal", 0.5, scope="common", relative=True),
+    Term("drift", 0.02, scope="target"),
+    Term("offset", 0.03, scope="common"),
+]
+
+
+def _whole(draws, positions, n, sizes):
+    """Every block of every group drawn again and assembled: the (M, cells, d) error."""
+    blocks = []
+    for b, m in enumerate(sizes):
+        e = np.zeros((m, draws.cells, draws.d))
+        for g, idx in enumerate(draws.groups):
+            e[:, idx] = draws.error(b, m, g, positions, n)[0]
+        blocks.append(e)
+    return np.concatenate(blocks)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    cells=st.integers(1, 9),
+    d=st.integers(1, 2),
+    group=st.integers(1, 4),
+    watch=st.integers(0, 3),
+    trials=st.integers(20, 90),
+    block=st.integers(7, 40),
+    spread_=st.floats(0.0, 3.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+@example(cells=6, d=1, group=2, watch=0, trials=60, block=25, spread_=0.0, seed=1)
+def test_streamed_maximum_is_the_whole_arrays(cells, d, group, watch, trials, block, spread_, seed):
+    """Blocks, groups, kept and redrawn cells: the interval of the maximum is exactly
+    maximum_interval's over the whole (M, cells) array of the same draws."""
+    rng = np.random.default_rng(seed)
+    dev = spread_ * rng.standard_normal((cells, d)) + 1.0
+    positions, n = rng.uniform(10, 1000, (cells, d)), rng.integers(2, 6, cells).astype(float)
+    groups = [np.arange(a, min(a + group, cells)) for a in range(0, cells, group)]
+    draws = Draws(np.full(d, 0.3), 7, cells, d, TERMS, seed, groups=groups)
+
+    def cells_of(error, g):
+        v = dev[draws.groups[g]][None] + error
+        return {"ap": (np.sqrt(np.sum(v * v, axis=2)), draws.groups[g])}
+
+    y = np.linalg.norm(dev, axis=1)
+    old = stream_module.WATCH
+    stream_module.WATCH = watch
+    try:
+        out = simulate(
+            draws, positions, n, cells_of, {"ap": cells}, {"a": Maximum("ap", y)},
+            lambda name, tmax, tmin, ext: tmax["ap"], trials=trials, block=block,
+        )  # fmt: skip
+    finally:
+        stream_module.WATCH = old
+    e = _whole(draws, positions, n, block_sizes(trials, block))
+    full = np.linalg.norm(dev[None] + e, axis=2)
+    assert out.intervals["a"] == maximum_interval(y, full)
+    assert np.array_equal(out.stats["a"], full.max(axis=1))
+    assert out.record == {
+        "trials": trials,
+        "blocks": len(block_sizes(trials, block)),
+        "block": None,
+        "adaptive": False,
+    }
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    targets=st.integers(2, 8),
+    group=st.integers(1, 3),
+    trials=st.integers(20, 70),
+    block=st.integers(9, 30),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_streamed_range_is_the_whole_arrays(targets, group, trials, block, seed):
+    """A range's interval (max over pairs of cells, with a per-trial addition) is the one of
+    the whole array of the same draws."""
+    rng = np.random.default_rng(seed)
+    P = targets
+    mean = rng.normal(0, 0.2, 2 * P)
+    runs = [np.arange(a, min(a + group, P)) for a in range(0, P, group)]
+    draws = Draws([0.1], 5, 2 * P, 1, TERMS[1:2], seed, groups=[np.concatenate([r, P + r]) for r in runs])
+    positions, n = np.ones((2 * P, 1)), np.full(2 * P, 3.0)
+
+    def cells_of(error, g):
+        idx = draws.groups[g]
+        return {"mu": (mean[idx][None] + error[:, :, 0], idx)}
+
+    def extras(b, m):
+        return {"add": np.abs(draws.chisquare(b, m, 4))}
+
+    out = simulate(
+        draws, positions, n, cells_of, {"mu": 2 * P}, {"A": Span("mu", mean, 0.4, "add")},
+        lambda name, tmax, tmin, ext: tmax["mu"] - tmin["mu"] + ext["add"], extras, trials=trials, block=block,
+    )  # fmt: skip
+    mu = mean[None] + _whole(draws, positions, n, block_sizes(trials, block))[:, :, 0]
+    add = np.concatenate([extras(b, m)["add"] for b, m in enumerate(block_sizes(trials, block))])
+    top, bottom = np.unique(np.argmax(mu, axis=1)), np.unique(np.argmin(mu, axis=1))
+    e = (mean[top][:, None] - mean[bottom][None, :]).ravel() + 0.4
+    pairs = (mu[:, top][:, :, None] - mu[:, bottom][:, None, :]).reshape(len(mu), -1) + add[:, None]
+    p_max = np.bincount(np.argmax(mu, axis=1), minlength=2 * P) / len(mu)
+    p_min = np.bincount(np.argmin(mu, axis=1), minlength=2 * P) / len(mu)
+    t_eff = 1 / np.sum(p_max**2) + 1 / np.sum(p_min**2) - 1
+    want = largest_bounds(e, lambda k: pairs[:, k], pairs.max(axis=0) + 1e-9, len(mu), 0.95, t_eff)
+    assert out.intervals["A"][:2] == pytest.approx(want, rel=0, abs=1e-12)
+    assert out.intervals["A"][2] == pytest.approx(t_eff)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    block=st.integers(0, 50), group=st.integers(0, 5), m=st.integers(1, 30), seed=st.integers(0, 2**32 - 1)
+)
+def test_a_block_is_drawn_again_alone_and_a_short_block_is_its_beginning(block, group, m, seed):
+    draws = Draws([0.2, 0.1], 4, 12, 2, TERMS, seed, groups=[np.arange(2 * i, 2 * i + 2) for i in range(6)])
+    pos, n = np.arange(24.0).reshape(12, 2), np.full(12, 3.0)
+    first = draws.error(block, m + 5, group, pos, n)[0]
+    draws.error(block + 1, 3, (group + 1) % 6, pos, n)  # another block and group in between
+    again = draws.error(block, m + 5, group, pos, n)[0]
+    assert np.array_equal(first, again)
+    assert np.array_equal(draws.error(block, m, group, pos, n)[0], first[:m])
+    assert not np.array_equal(draws.error(block + 1, m + 5, group, pos, n)[0], first)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(1e-9, 1e9), st.integers(1, 2))
+@example(0.096, 1)
+@example(0.0374, 1)
+def test_numerical_tolerance_is_half_a_unit_of_the_last_digit(u, digits):
+    """JCGM 101 §7.2.2: u = c × 10^l with c of ``digits`` digits, δ = ½ × 10^l."""
+    delta = numerical_tolerance(u, digits)
+    unit = 2 * delta
+    c = round(u / unit)
+    assert 10 ** (digits - 1) <= c <= 10**digits
+    assert abs(u - c * unit) <= delta * (1 + 1e-9)
+    assert numerical_tolerance(0.0374) == pytest.approx(0.005)
+    assert numerical_tolerance(0.096) == pytest.approx(0.05)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=30))
+def test_spread_is_twice_the_standard_deviation_of_the_mean(values):
+    x = np.asarray(values)
+    assert spread(x) == pytest.approx(2 * np.std(x, ddof=1) / math.sqrt(x.size), rel=1e-9, abs=1e-9)
+    assert math.isinf(spread(x[:1]))
+
+
+def test_adaptive_stops_at_the_tolerance_and_reproduces_to_the_byte():
+    from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
+
+    rng = np.random.default_rng(5)
+    cmd = rng.uniform(-500, 500, (12, 2))
+    att = [c + rng.normal(0, 1.0, 2) + rng.normal(0, 0.2, (4, 2)) for c in cmd]
+    one = iso9283_uncertainty(cmd, att, TERMS, seed=3)["accuracy"]
+    two = iso9283_uncertainty(cmd, att, TERMS, seed=3)["accuracy"]
+    assert one.record() == two.record()
+    mc = one.monte_carlo
+    assert mc["adaptive"] and mc["reached"] and mc["trials"] == 10_000 * mc["blocks"] >= 20_000
+    assert mc["spread"] <= mc["tolerance"] == numerical_tolerance(one.u)
+    assert f"M = {mc['trials']} trials" in one.method
+    t = np.linspace(0, 100, 40)
+    f = t[:, None] + 0.3 * np.sin(t / 9)[:, None] + rng.normal(0, 0.05, (40, 3))
+    b = f - 0.5 + rng.normal(0, 0.05, (40, 3))
+    r = iso230_2_uncertainty(t, f, b, TERMS[1:2])
+    for key in "EMBAR":
+        assert r[key].monte_carlo["reached"], key
+        assert r[key].monte_carlo["spread"] <= r[key].monte_carlo["tolerance"]
