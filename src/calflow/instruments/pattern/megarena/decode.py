@@ -281,9 +281,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         if direction < 0:
             cells = -cells
         readings.append((votes(cells, vals), code_class))
-    found = []
-    for (reading, code_class), name in zip(readings, "st"):
-        found.append(match(reading, pattern.bits))
+    found = [match(reading, pattern.bits) for reading, _ in readings]
     nbits = [m[3] for m in found]
     if min(nbits) < pattern.depth:
         return _fail(
@@ -316,7 +314,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         K = np.array([ks, kt])
     # lattice coordinate of the frame centre → pattern site coordinate (column or row)
     centre = []
-    for (reading, code_class), m, c, direction in zip(readings, found, (sc, tc), (ds, dt)):
+    for (_, code_class), m, c, direction in zip(readings, found, (sc, tc), (ds, dt)):
         # cell q (signed by the direction) is code bit q + offset, the site 3·bit + 1
         q = (c - code_class) / 3.0 * direction
         centre.append(3.0 * (q + m[1]) + 1.0)
