@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -181,17 +182,24 @@ def _bad_frame(frame: np.ndarray) -> str | None:
 def _fundamental(spec: np.ndarray, h: int, w: int, pattern: MegarenaPattern) -> float | None:
     """The grid's fundamental (cycles per pixel) from the strongest peak of a frame's spectrum
     between periods of :data:`MIN_PERIOD_PX` and the one that still shows 3·(depth + 1) periods."""
+    rows, cols, rad = _band(h, w, 3.0 * (pattern.depth + 1) / min(h, w))
+    if len(rad) == 0:
+        return None
+    vals = spec[rows, cols]
+    power = vals.real**2 + vals.imag**2
+    k = int(np.argmax(power))
+    return float(rad[k]) if power[k] > 0 else None
+
+
+@lru_cache(maxsize=8)
+def _band(h: int, w: int, lo: float):
+    """Bins (rows, columns) of a half-plane spectrum between ``lo`` and 1/MIN_PERIOD_PX cycles
+    per pixel, and their radial frequency."""
     fi = np.abs(np.fft.fftfreq(h))[:, None]
     fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
-    lo = 3.0 * (pattern.depth + 1) / min(h, w)
-    band = (rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX)
-    power = np.where(band, np.abs(spec) ** 2, 0.0)
-    k = int(np.argmax(power))
-    if power.flat[k] <= 0:
-        return None
-    i, j = divmod(k, power.shape[1])
-    return float(rad[i, j])
+    rows, cols = np.nonzero((rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX))
+    return rows, cols, rad[rows, cols]
 
 
 def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pixel, fit_region=1.0) -> dict:

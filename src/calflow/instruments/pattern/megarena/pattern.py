@@ -135,10 +135,23 @@ class MegarenaPattern:
         s = self.seq.astype(bool)
         return inside & s[r] & s[c] & ~((r % 3 == 0) & (c % 3 == 0))
 
-    @cached_property
+    @property
+    def region_sites(self) -> tuple[range, range]:
+        """The rows and columns of the sites in the region of interest."""
+        x, y, w, h = self.region_um
+        p, n = self.period_um, self.n_sites
+
+        def span(lo, size):
+            first = max(0, math.ceil(lo / p - 1e-9))
+            return range(first, min(n, math.floor((lo + size) / p + 1e-9) + 1))
+
+        return span(y, h), span(x, w)
+
+    @property
     def matrix(self) -> np.ndarray:
-        n = np.arange(self.n_sites)
-        return self.present(n[:, None], n[None, :])
+        """Present (True) / missing dots of the region of interest, rows along y."""
+        rows, cols = self.region_sites
+        return self.present(np.asarray(rows)[:, None], np.asarray(cols)[None, :])
 
     # -- the file ----------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -266,3 +279,8 @@ def _close(a, b) -> bool:
     if isinstance(b, (int, float)) and not isinstance(b, bool):
         return isinstance(a, (int, float)) and not isinstance(a, bool) and math.isclose(a, b, rel_tol=1e-9)
     return a == b
+
+
+def read_megarena(data, where: str = "pattern") -> MegarenaPattern:
+    """The layout's ``read`` hook (:mod:`calflow.instruments.pattern.layouts`)."""
+    return MegarenaPattern.from_dict(data, where)
