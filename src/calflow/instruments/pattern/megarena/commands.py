@@ -42,11 +42,11 @@ def make_megarena(args, range_um: tuple[float, float]) -> None:
     if depth is None:
         # the range's largest side, plus the field of view the deepest code it needs asks
         depth = smallest_depth(side, period)
-        while depth < 12 and (3 * ((1 << depth) + depth - 2) - 1) * period < side + (3 * depth + 3) * period:
+        while depth < 12 and (3 * ((1 << depth) + depth - 2) - 1) * period < side + 3 * (depth + 4) * period:
             depth += 1
     if depth not in TAPS:
         raise CalflowError(f"--depth: expected an integer from 4 to 12, got {depth!r}")
-    fov = (3 * depth + 3) * period
+    fov = 3 * (depth + 4) * period
     region = (0.0, 0.0, range_um[0] + fov, range_um[1] + fov)
     size = (3 * ((1 << depth) + depth - 2) - 1) * period
     if max(region[2:]) > size + 1e-9:

@@ -43,6 +43,7 @@ MAX_WRONG_BITS = 1  # per axis
 MIN_MARGIN = 3  # bits between the place found and the next one
 MIN_CLASS_MARGIN = 0.02  # fraction of the sure sites between the best arrangement and the next
 MIN_PERIOD_PX = 3.0
+MAX_PERIOD_MISMATCH = 0.05  # relative: a given pixel size and the period seen must agree this well
 
 
 @dataclass(frozen=True)
@@ -126,9 +127,9 @@ def decode(
                 continue
         else:
             f0 = pixel_um / pattern.period_um
-        key = round(f0, 3)
+        key = round(f0, 4)
         if key not in fitters:
-            fitters[key] = PhaseFitter((h, w), f0, workers)
+            fitters[key] = PhaseFitter((h, w), key, workers)  # the same for a frame in any batch
         fitter = fitters[key]
         planes = fitter.fit(spec)
         result = _read(frame, planes, pattern, fitter, pixel_um, fit_region)
@@ -227,6 +228,14 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         return _fail(
             "no_lobes", f"the two lattice directions have periods {ratio_k:.3f} apart: not a square grid"
         )
+    if given_pixel is not None:
+        seen = given_pixel / float(np.mean(np.hypot(K[:, 0], K[:, 1])))  # µm per period in the frame
+        if abs(seen / p - 1) > MAX_PERIOD_MISMATCH:
+            return _fail(
+                "no_lobes",
+                f"the frame's grid has a period of {seen:.3g} µm at {given_pixel:g} µm per pixel; "
+                f"the pattern's is {p:g} µm (is the pixel size right?)",
+            )
     sc, tc = (ps / (2 * np.pi)) % 1.0, (pt / (2 * np.pi)) % 1.0
     h, w = frame.shape
     rc = np.array([(w - 1) / 2.0, (h - 1) / 2.0])

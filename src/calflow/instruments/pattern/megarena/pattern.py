@@ -120,8 +120,9 @@ class MegarenaPattern:
 
     @property
     def min_fov_um(self) -> tuple[float, float]:
-        """Side of the field of view that sees ``d`` code rows and columns wherever it sits."""
-        side = (3 * self.depth + 3) * self.period_um
+        """Side of the field of view that sees ``d + 3`` code rows and columns wherever it sits:
+        ``d`` place a reading, 3 more keep the next place 3 bits away (the decoder's margin)."""
+        side = 3 * (self.depth + 4) * self.period_um
         return side, side
 
     def present(self, rows, cols) -> np.ndarray:
