@@ -258,6 +258,19 @@ def test_frame_of_another_period_is_refused_when_the_pixel_size_is_given(pattern
     assert r.status[0] == "no_lobes" and "4 µm" in r.reason[0], r.reason[0]
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_few_bits_in_view_give_the_right_place_or_nan(seed):
+    """A 12-bit code seen over 13–15 bits: a place only from overwhelming majorities, else NaN."""
+    deep = MegarenaPattern(PERIOD, 12)
+    rng = np.random.default_rng(seed)
+    pose = (rng.uniform(1000, 45000), rng.uniform(1000, 45000), rng.uniform(-180, 180))  # 49 mm target
+    r = decode(CAMERA.render(deep, *pose, rng=rng), deep)
+    if r.status[0] == "ok":
+        assert math.hypot(r.x_um[0] - pose[0], r.y_um[0] - pose[1]) < 0.05
+    else:
+        assert r.status[0] in ("ambiguous", "fov_too_small") and np.isnan(r.x_um[0])
+
+
 def test_too_small_a_field_of_view_says_so():
     deep = MegarenaPattern(PERIOD, 12)  # needs 39 periods, the frame shows 42 across at best
     r = decode(CAMERA.render(deep, 500.0, 700.0, 12.0, rng=1)[:200, :200], deep, pixel_um=CAMERA.pixel_um)

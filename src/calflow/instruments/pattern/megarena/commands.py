@@ -116,6 +116,8 @@ def decode_parallel(
                 "u_pixel_um",
                 "theta_x_deg",
                 "pixel_x_um",
+                "theta_y_deg",
+                "pixel_y_um",
             )
         },
         shape=parts[0].shape,

@@ -41,6 +41,10 @@ from calflow.instruments.pattern.phase import PhaseFitter
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
 MAX_WRONG_BITS = 1  # per axis
 MIN_MARGIN = 3  # bits between the place found and the next one
+# or, when fewer bits are in view: every bit read from this many sites at least, agreeing this
+# well (a wrong majority of 8 needs 4 misread sites; misreads are ~1 % on a decodable frame)
+STRONG_VOTES = 8
+STRONG_AGREEMENT = 0.95
 MIN_CLASS_MARGIN = 0.02  # fraction of the sure sites between the best arrangement and the next
 MIN_PERIOD_PX = 3.0
 MAX_PERIOD_MISMATCH = 0.05  # relative: a given pixel size and the period seen must agree this well
@@ -54,6 +58,8 @@ class MegarenaDecoded(Decoded):
     u_pixel_um: np.ndarray | None = None
     theta_x_deg: np.ndarray | None = None  # the direction of the pattern's x axis alone
     pixel_x_um: np.ndarray | None = None  # the pixel size along the x axis alone
+    theta_y_deg: np.ndarray | None = None  # the direction of the pattern's y axis alone
+    pixel_y_um: np.ndarray | None = None  # the pixel size along the y axis alone
     shape: tuple[int, int] | None = None  # the frames' (height, width), pixels
 
     def library_pose(self) -> dict[str, np.ndarray]:
@@ -61,20 +67,22 @@ class MegarenaDecoded(Decoded):
 
         The library gives the translation of the pattern in the camera frame at the pixel
         (w/2, h/2) — pixel centres at integer coordinates — where calflow gives the pattern
-        coordinates of the frame centre ((w − 1)/2, (h − 1)/2); its angle is the x axis's
-        direction alone, its pixel size the period along x alone (docs/instruments.md)::
+        coordinates of the frame centre ((w − 1)/2, (h − 1)/2), half a pixel up and left; its
+        angle is the x axis's direction alone, its pixel size the period along x alone
+        (docs/instruments.md)::
 
-            x_lib = −(x + s·(cos α + sin α)/2),  y_lib = −(y + s·(cos α − sin α)/2)
+            x_lib = −(x + s_x·(cos α_x + sin α_x)/2),  y_lib = −(y + s_y·(cos α_y + sin α_y)/2)
 
-        with α = ``theta_x_deg`` in radians and s = ``pixel_x_um``.
+        with α_x, α_y the directions of the pattern's x and y axes in the frame (α_y = α_x + 90°
+        when the pixels are square and the optics do not shear) and s_x, s_y the pixel sizes
+        along them; alpha = α_x, pixelSize = s_x.
         """
-        alpha = np.radians(self.theta_x_deg)
-        s = self.pixel_x_um
+        ax, ay = np.radians(self.theta_x_deg), np.radians(self.theta_y_deg)
         return {
-            "x": -(self.x_um + 0.5 * s * (np.cos(alpha) + np.sin(alpha))),
-            "y": -(self.y_um + 0.5 * s * (np.cos(alpha) - np.sin(alpha))),
-            "alpha": alpha,
-            "pixelSize": s,
+            "x": -(self.x_um + 0.5 * self.pixel_x_um * (np.cos(ax) + np.sin(ax))),
+            "y": -(self.y_um + 0.5 * self.pixel_y_um * (np.cos(ay) + np.sin(ay))),
+            "alpha": ax,
+            "pixelSize": self.pixel_x_um,
         }
 
 
@@ -104,7 +112,7 @@ def decode(
     ):
         raise ValueError(f"pixel_um: expected a positive number (µm), got {pixel_um!r}")
     keys = ("x_um", "y_um", "theta_deg", "u_x_um", "u_y_um", "u_theta_deg", "pixel_um", "u_pixel_um")
-    keys += ("theta_x_deg", "pixel_x_um")
+    keys += ("theta_x_deg", "pixel_x_um", "theta_y_deg", "pixel_y_um")
     out = {k: np.full(n, np.nan) for k in keys}
     status = np.empty(n, dtype=object)
     reason = np.empty(n, dtype=object)
@@ -148,6 +156,8 @@ def decode(
         u_pixel_um=out["u_pixel_um"],
         theta_x_deg=out["theta_x_deg"],
         pixel_x_um=out["pixel_x_um"],
+        theta_y_deg=out["theta_y_deg"],
+        pixel_y_um=out["pixel_y_um"],
         shape=(h, w),
     )
 
@@ -297,8 +307,8 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         vals = present[mask]
         if direction < 0:
             cells = -cells
-        readings.append((votes(cells, vals), code_class))
-    found = [match(reading, pattern.bits) for reading, _ in readings]
+        readings.append((votes(cells, vals), code_class, _strong(cells, vals)))
+    found = [match(reading, pattern.bits) for reading, _, _ in readings]
     nbits = [m[3] for m in found]
     if min(nbits) < pattern.depth:
         return _fail(
@@ -314,7 +324,12 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         )
     gap = min(m[2] - m[0] for m in found)
     if gap < MIN_MARGIN:
-        return _fail("ambiguous", f"two places of the code fit the bits read within {gap} bits")
+        # fewer bits in view than the margin asks: the place stands only if the bits decided by
+        # overwhelming majorities alone fit it exactly and no other place as well
+        strict = [match(strong, pattern.bits) for _, _, strong in readings]
+        unique = all(m[0] == 0 and m[2] >= 1 and m[3] >= pattern.depth for m in strict)
+        if not (unique and [m[1] for m in strict] == [m[1] for m in found]):
+            return _fail("ambiguous", f"two places of the code fit the bits read within {gap} bits")
     if fit_region < 1.0:  # the fine pose from the central part only; the numbering stays as read
         pts = fitter.coarse_points()
         keep = (np.abs(pts[:, 0] - rc[0]) <= fit_region * w / 2) & (
@@ -331,7 +346,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         K = np.array([ks, kt])
     # lattice coordinate of the frame centre → pattern site coordinate (column or row)
     centre = []
-    for (_, code_class), m, c, direction in zip(readings, found, (sc, tc), (ds, dt)):
+    for (_, code_class, _), m, c, direction in zip(readings, found, (sc, tc), (ds, dt)):
         # cell q (signed by the direction) is code bit q + offset, the site 3·bit + 1
         q = (c - code_class) / 3.0 * direction
         centre.append(3.0 * (q + m[1]) + 1.0)
@@ -352,7 +367,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     if theta == -180.0:
         theta = 180.0
     pix, u_pix = _pixel_size(p, K, cov, (si, ti))
-    pix_x = p * float(np.hypot(*e_x))
+    pix_x, pix_y = p * float(np.hypot(*e_x)), p * float(np.hypot(*e_y))
     return {
         "status": "ok",
         "reason": "decoded",
@@ -366,6 +381,8 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         "u_pixel_um": u_pix,
         "theta_x_deg": th_x,
         "pixel_x_um": pix_x,
+        "theta_y_deg": th_y,
+        "pixel_y_um": pix_y,
         "details": {
             "classes": (int(a0), int(ds), int(b0), int(dt)),
             "contradicted": contradicted,
@@ -374,6 +391,19 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
             "margin_bits": int(gap),
         },
     }
+
+
+def _strong(cells: np.ndarray, present: np.ndarray):
+    """A reading (first cell, bits, sure) keeping only the bits :data:`STRONG_VOTES` sites or
+    more decided with :data:`STRONG_AGREEMENT` agreement."""
+    if len(cells) == 0:
+        return 0, np.zeros(0, np.int8), np.zeros(0, bool)
+    c0 = int(cells.min())
+    n = np.bincount(cells - c0)
+    ones = np.bincount(cells - c0, weights=present.astype(float), minlength=len(n))
+    frac = np.where(n > 0, ones / np.maximum(n, 1), 0.5)
+    sure = (n >= STRONG_VOTES) & (np.maximum(frac, 1 - frac) >= STRONG_AGREEMENT)
+    return c0, (frac > 0.5).astype(np.int8), sure
 
 
 def _classes(present, known, S, T):
