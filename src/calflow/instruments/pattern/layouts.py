@@ -101,7 +101,9 @@ def layout_of(name: str, where: str = "pattern") -> Layout:
 
 def read_pattern(data: Any, where: str = "pattern") -> Any:
     """A parsed pattern file → the pattern of its layout (``layout`` key, or another program's
-    top-level key a layout reads; a file with neither is calflow's ``cell2x2``)."""
+    top-level key a layout reads; a file with neither is read as calflow's ``cell2x2``, unless
+    it is made of objects only, as other programs' files are: then it is refused naming the
+    keys calflow reads)."""
     if not isinstance(data, dict):
         raise CalflowError(f"{where}: (top level): expected a JSON object")
     if "layout" in data:
@@ -110,8 +112,8 @@ def read_pattern(data: Any, where: str = "pattern") -> Any:
         for key in layout.foreign_keys:
             if key in data:
                 return layout.hook("read")(data, where)
-    if data.get("format") == "calflow-pattern":
-        return layout_of("cell2x2", where).hook("read")(data, where)
+    if "format" in data or not data or not all(isinstance(v, dict) for v in data.values()):
+        return layout_of("cell2x2", where).hook("read")(data, where)  # says which key is wrong
     known = sorted(k for lay in layouts().values() for k in lay.foreign_keys)
     raise CalflowError(
         f"{where}: (top level): expected a calflow pattern file (format, layout) or one of the keys "
@@ -127,7 +129,7 @@ def load_pattern(path) -> Any:
     except FileNotFoundError:
         raise CalflowError(f"{path}: no such pattern file") from None
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise CalflowError(f"{path}: not a pattern file (expected JSON: {exc})") from None
+        raise CalflowError(f"{path}: not a calflow pattern file (expected JSON: {exc})") from None
     return read_pattern(data, str(path))
 
 
