@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 
@@ -93,13 +94,22 @@ def decode_parallel(
     if jobs == 1:
         return decode(frames, pattern, **options)
     bounds = np.linspace(0, n, jobs + 1).astype(int)
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        parts = list(
-            pool.map(
-                _decode_part,
-                [(frames[a:b], pattern.to_dict(), options) for a, b in zip(bounds[:-1], bounds[1:])],
+    spans = list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
+    if "fork" in multiprocessing.get_all_start_methods():
+        # the workers inherit the frames: none is pickled (a few hundred MB for a few hundred frames)
+        _SHARED.update(frames=frames, pattern=pattern, options=options)
+        try:
+            with ProcessPoolExecutor(
+                max_workers=jobs, mp_context=multiprocessing.get_context("fork")
+            ) as pool:
+                parts = list(pool.map(_decode_span, spans))
+        finally:
+            _SHARED.clear()
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            parts = list(
+                pool.map(_decode_part, [(frames[a:b], pattern.to_dict(), options) for a, b in spans])
             )
-        )
     return MegarenaDecoded(
         **{
             key: np.concatenate([getattr(part, key) for part in parts])
@@ -122,6 +132,14 @@ def decode_parallel(
         },
         shape=parts[0].shape,
     )
+
+
+_SHARED: dict = {}  # what forked workers inherit
+
+
+def _decode_span(span) -> MegarenaDecoded:
+    a, b = span
+    return decode(_SHARED["frames"][a:b], _SHARED["pattern"], workers=1, **_SHARED["options"])
 
 
 def _decode_part(job) -> MegarenaDecoded:
