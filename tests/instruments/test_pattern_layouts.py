@@ -83,7 +83,5 @@ def test_a_bad_registration_is_refused_in_one_line(lab_layout, names, said):
     with pytest.raises(CalflowError) as err:
         registry.layouts()
     assert (
-        said in str(err.value)
-        and "\n" not in str(err.value)
-        and "calflow.pattern_layouts:lab0" in str(err.value)
+        said in str(err.value) and "\n" not in str(err.value) and "calflow.pattern_layouts:" in str(err.value)
     )
