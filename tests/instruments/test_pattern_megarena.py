@@ -325,3 +325,23 @@ def test_pattern_make_and_decode_commands(tmp_path, capsys, pattern):
     rows = capsys.readouterr().out.strip().splitlines()
     assert rows[0] == "file,page,x,y,alpha,pixelSize,status,reason"
     assert abs(float(rows[1].split(",")[2]) + poses[0][0]) < 1.0  # −x, to half a pixel
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".png"])
+def test_truncated_or_unreadable_image_is_refused_in_one_line(tmp_path, capsys, pattern, suffix):
+    from PIL import Image
+
+    good = tmp_path / f"good{suffix}"
+    Image.fromarray(CAMERA.render(pattern, 300.0, 300.0, 0.0, rng=1)).save(good)
+    cut = tmp_path / f"cut{suffix}"
+    cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    junk = tmp_path / f"junk{suffix}"
+    junk.write_bytes(b"not an image at all")
+    spec = tmp_path / "p.json"
+    pattern.save(spec)
+    for bad in (cut, junk):
+        capsys.readouterr()
+        out = tmp_path / "poses.csv"
+        assert main(["decode", str(good), str(bad), "--pattern", str(spec), "--out", str(out)]) != 0
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and str(bad) in err and not out.exists()
