@@ -308,7 +308,8 @@ def test_pattern_make_and_decode_commands(tmp_path, capsys, pattern):
     assert rows[0].split(",")[2:5] == ["x_um", "y_um", "theta_deg"] and "pixel_um" in rows[0]
     for row, pose in zip(rows[1:], poses):
         cols = row.split(",")
-        assert cols[-2] == "ok" and abs(float(cols[2]) - pose[0]) < 0.02, rows
+        assert cols[-2] == "ok", rows
+        assert abs(float(cols[2]) - pose[0] - made.origin_um[0]) < 0.02  # the library's file has no origin
     assert (
         main(
             [
@@ -324,7 +325,7 @@ def test_pattern_make_and_decode_commands(tmp_path, capsys, pattern):
     )
     rows = capsys.readouterr().out.strip().splitlines()
     assert rows[0] == "file,page,x,y,alpha,pixelSize,status,reason"
-    assert abs(float(rows[1].split(",")[2]) + poses[0][0]) < 1.0  # −x, to half a pixel
+    assert abs(float(rows[1].split(",")[2]) + poses[0][0] + made.origin_um[0]) < 1.0  # −x, to half a pixel
 
 
 @pytest.mark.parametrize("suffix", [".jpg", ".png"])
@@ -345,3 +346,60 @@ def test_truncated_or_unreadable_image_is_refused_in_one_line(tmp_path, capsys, 
         assert main(["decode", str(good), str(bad), "--pattern", str(spec), "--out", str(out)]) != 0
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and str(bad) in err and not out.exists()
+
+
+def test_a_frame_partly_beyond_the_targets_edge_decodes_or_says_why(tmp_path):
+    """calflow's own target (``pattern make``) has its origin half a field of view inside, so
+    every frame centre of [0, range] decodes; near (0, 0) part of the frame is off the target."""
+    assert main(
+        [
+            "pattern",
+            "make",
+            "--layout",
+            "megarena",
+            "--range",
+            "400x300",
+            "--period-um",
+            "4",
+            "--out",
+            str(tmp_path),
+        ]
+    ) in (0, None)
+    made = load_pattern(tmp_path / "pattern.json")
+    assert made.range_um == (400.0, 300.0) and made.origin_um[0] > 0
+    for k, pose in enumerate([(0.0, 0.0, 0.0), (400.0, 0.0, 3.0), (0.0, 300.0, -3.0), (400.0, 300.0, 90.0)]):
+        r = decode(CAMERA.render(made, *pose, rng=k), made, pixel_um=CAMERA.pixel_um)
+        _right(r, 0, pose)
+        lib = r.library_pose()  # the library's coordinates have no origin
+        assert abs(-lib["x"][0] - (pose[0] + made.origin_um[0])) < 0.5
+
+
+def test_the_images_sensor_reads_a_megarena_target(tmp_path):
+    import types
+
+    from calflow.xytheta.stage.images import ImageSensor, check
+
+    assert main(
+        [
+            "pattern",
+            "make",
+            "--layout",
+            "megarena",
+            "--range",
+            "600x500",
+            "--period-um",
+            "4",
+            "--out",
+            str(tmp_path),
+        ]
+    ) in (0, None)
+    path = str(tmp_path / "pattern.json")
+    camera = {"width": 384, "height": 336}
+    assert check(sensor="images", camera=camera, pattern=path, range_um=(600.0, 500.0))["pattern"] == path
+    sensor = ImageSensor(
+        types.SimpleNamespace(pattern_range_um=(600.0, 500.0)), {"camera": camera, "pattern": path}, seed=1
+    )
+    x, y, t = np.array([0.0, 300.0, 600.0]), np.array([500.0, 250.0, 0.0]), np.array([0.5, -1.0, 2.0])
+    r = sensor.read(x, y, t)
+    assert np.all(r["decode_status"] == 0)
+    assert np.max(np.abs(r["meas_x"] - x)) < 0.01 and np.max(np.abs(r["meas_y"] - y)) < 0.01

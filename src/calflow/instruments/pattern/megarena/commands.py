@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -43,12 +44,15 @@ def make_megarena(args, range_um: tuple[float, float]) -> None:
     if depth is None:
         # the range's largest side, plus the field of view the deepest code it needs asks
         depth = smallest_depth(side, period)
-        while depth < 12 and (3 * ((1 << depth) + depth - 2) - 1) * period < side + 3 * (depth + 4) * period:
+        while depth < 12 and (3 * ((1 << depth) + depth - 2) - 1) * period < side + 2 * _half_fov(
+            depth, period
+        ):
             depth += 1
     if depth not in TAPS:
         raise CalflowError(f"--depth: expected an integer from 4 to 12, got {depth!r}")
     fov = 3 * (depth + 4) * period
-    region = (0.0, 0.0, range_um[0] + fov, range_um[1] + fov)
+    half = _half_fov(depth, period)  # the origin: frame centres from (0, 0) decode
+    region = (0.0, 0.0, range_um[0] + 2 * half, range_um[1] + 2 * half)
     size = (3 * ((1 << depth) + depth - 2) - 1) * period
     if max(region[2:]) > size + 1e-9:
         raise CalflowError(
@@ -56,7 +60,9 @@ def make_megarena(args, range_um: tuple[float, float]) -> None:
             f"the range and a field of view of {fov:g} µm need {max(region[2:]):g} µm"
         )
     try:
-        pattern = MegarenaPattern(period, depth, region_um=region, dot_diameter_um=args.dot_um)
+        pattern = MegarenaPattern(
+            period, depth, region_um=region, dot_diameter_um=args.dot_um, origin_um=(half, half)
+        )
     except ValueError as exc:
         raise CalflowError(f"--period-um/--dot-um: {exc}") from None
     if pattern.dot_diameter_um >= period:
@@ -80,6 +86,11 @@ def make_megarena(args, range_um: tuple[float, float]) -> None:
         f"(dots of {pattern.dot_diameter_um:g} µm), range {range_um[0]:g} × {range_um[1]:g} µm, field of view "
         f"needed {fov:g} µm; {names['vernier.json'].name}, {names['gds'].name}, {names['png'].name}"
     )
+
+
+def _half_fov(depth: int, period: float) -> float:
+    """Half the field of view a frame needs, rounded up to whole periods (µm)."""
+    return math.ceil(3 * (depth + 4) / 2) * period
 
 
 def decode_parallel(
@@ -131,6 +142,7 @@ def decode_parallel(
             )
         },
         shape=parts[0].shape,
+        origin_um=parts[0].origin_um,
     )
 
 

@@ -61,6 +61,7 @@ class MegarenaDecoded(Decoded):
     theta_y_deg: np.ndarray | None = None  # the direction of the pattern's y axis alone
     pixel_y_um: np.ndarray | None = None  # the pixel size along the y axis alone
     shape: tuple[int, int] | None = None  # the frames' (height, width), pixels
+    origin_um: tuple[float, float] = (0.0, 0.0)  # the pattern's: the library has none
 
     def library_pose(self) -> dict[str, np.ndarray]:
         """The poses as the Vernier library prints them (``x, y, alpha, pixelSize``).
@@ -71,16 +72,16 @@ class MegarenaDecoded(Decoded):
         angle is the x axis's direction alone, its pixel size the period along x alone
         (docs/instruments.md)::
 
-            x_lib = −(x + s_x·(cos α_x + sin α_x)/2),  y_lib = −(y + s_y·(cos α_y + sin α_y)/2)
+            x_lib = −(x + o_x + s_x·(cos α_x + sin α_x)/2),  y_lib = −(y + o_y + s_y·(cos α_y + sin α_y)/2)
 
         with α_x, α_y the directions of the pattern's x and y axes in the frame (α_y = α_x + 90°
         when the pixels are square and the optics do not shear) and s_x, s_y the pixel sizes
-        along them; alpha = α_x, pixelSize = s_x.
+        along them, (o_x, o_y) the pattern's ``origin_um``; alpha = α_x, pixelSize = s_x.
         """
         ax, ay = np.radians(self.theta_x_deg), np.radians(self.theta_y_deg)
         return {
-            "x": -(self.x_um + 0.5 * self.pixel_x_um * (np.cos(ax) + np.sin(ax))),
-            "y": -(self.y_um + 0.5 * self.pixel_y_um * (np.cos(ay) + np.sin(ay))),
+            "x": -(self.x_um + self.origin_um[0] + 0.5 * self.pixel_x_um * (np.cos(ax) + np.sin(ax))),
+            "y": -(self.y_um + self.origin_um[1] + 0.5 * self.pixel_y_um * (np.cos(ay) + np.sin(ay))),
             "alpha": ax,
             "pixelSize": self.pixel_x_um,
         }
@@ -159,6 +160,7 @@ def decode(
         theta_y_deg=out["theta_y_deg"],
         pixel_y_um=out["pixel_y_um"],
         shape=(h, w),
+        origin_um=tuple(pattern.origin_um),
     )
 
 
@@ -281,7 +283,15 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     dots = inside & (contrast > 0.5 * np.percentile(contrast[inside], 95))
     z = normalised(contrast, dots)
     present = z > 0.5
-    known = inside & np.isfinite(z)
+    # inside the target every site has a dot within one node (a code row or column left out
+    # is one in three): nodes farther from any dot are beyond the target's edge, not code
+    from scipy import ndimage  # here, not at import: the camera model's users need no scipy
+
+    block = np.ones((3, 3), bool)
+    on_target = ndimage.binary_erosion(
+        ndimage.binary_dilation(present & inside, block), block, border_value=1
+    )
+    known = inside & np.isfinite(z) & on_target
     arrangement = _classes(present, known, S, T)
     if arrangement is None:
         return _fail("code_mismatch", "the holes of a Megarena grid are not where three periods put them")
@@ -355,7 +365,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     ix, iy = (0, 1) if s_is_x else (1, 0)
     lobe = (si, ti)
     e_x, e_y = (es, et) if s_is_x else (et, es)
-    x_um, y_um = centre[ix] * p, centre[iy] * p
+    x_um, y_um = centre[ix] * p - pattern.origin_um[0], centre[iy] * p - pattern.origin_um[1]
     u_x = p * math.sqrt(cov[lobe[ix], 0, 0]) / (2 * np.pi)
     u_y = p * math.sqrt(cov[lobe[iy], 0, 0]) / (2 * np.pi)
     th_x, var_x = _angle(e_x, cov[lobe[ix]], 1.0)

@@ -83,7 +83,7 @@ class MegarenaPattern:
     region_um: tuple[float, float, float, float] | None = None
     dot_diameter_um: float | None = None
     layout: str = LAYOUT
-    origin_um: tuple[float, float] = (0.0, 0.0)  # site (0, 0) is the pattern's origin
+    origin_um: tuple[float, float] = (0.0, 0.0)  # site (0, 0) is at (−origin_x, −origin_y)
 
     def __post_init__(self):
         if not (
@@ -137,6 +137,19 @@ class MegarenaPattern:
         return inside & s[r] & s[c] & ~((r % 3 == 0) & (c % 3 == 0))
 
     @property
+    def range_um(self) -> tuple[float, float]:
+        """(x, y): every frame centre in [0, x] × [0, y] decodes — the region of interest less
+        half a field of view on each side, in pattern coordinates; (0, 0) when the region's
+        decodable part does not reach the origin (the library's files: origin at site (0, 0))."""
+        x, y, w, h = self.region_um
+        half = self.min_fov_um[0] / 2
+        lo = (x + half - self.origin_um[0], y + half - self.origin_um[1])
+        hi = (x + w - half - self.origin_um[0], y + h - half - self.origin_um[1])
+        if lo[0] > 1e-9 or lo[1] > 1e-9 or hi[0] <= 0 or hi[1] <= 0:
+            return 0.0, 0.0
+        return hi
+
+    @property
     def region_sites(self) -> tuple[range, range]:
         """The rows and columns of the sites in the region of interest."""
         x, y, w, h = self.region_um
@@ -165,13 +178,15 @@ class MegarenaPattern:
             "code_depth": self.depth,
             "dot_diameter_um": self.dot_diameter_um,
             "region_um": list(self.region_um),
+            "origin_um": list(self.origin_um),
             "min_fov_um": list(self.min_fov_um),
             "shape": list(self.shape),
             "code_bits": (self.bits + ord("0")).tobytes().decode(),
         }
 
     def to_library_dict(self) -> dict:
-        """The same target as the Vernier library writes it (``MegarenaPattern``)."""
+        """The same target as the Vernier library writes it (``MegarenaPattern``); the library
+        has no origin: its coordinates are calflow's plus ``origin_um``."""
         return {
             FOREIGN_KEY: {
                 "description": f"{self.depth}-bit megarena pattern (calflow)",
@@ -217,7 +232,22 @@ class MegarenaPattern:
         if diameter >= period:
             raise bad("dot_diameter_um", f"less than period_um {period:g}", diameter)
         region = _region(data, "region_um", bad)
-        pattern = cls(period_um=period, depth=int(depth), region_um=region, dot_diameter_um=diameter)
+        origin = data.get("origin_um", [0.0, 0.0])
+        if not (
+            isinstance(origin, list)
+            and len(origin) == 2
+            and all(
+                not isinstance(e, bool) and isinstance(e, (int, float)) and 0 <= e < math.inf for e in origin
+            )
+        ):
+            raise bad("origin_um", "two non-negative numbers [x, y] (µm)", origin)
+        pattern = cls(
+            period_um=period,
+            depth=int(depth),
+            region_um=region,
+            dot_diameter_um=diameter,
+            origin_um=(float(origin[0]), float(origin[1])),
+        )
         derived = pattern.to_dict()
         for key in ("units", "min_fov_um", "shape", "code_bits"):
             if key not in data or data[key] != derived[key] and not _close(data[key], derived[key]):
