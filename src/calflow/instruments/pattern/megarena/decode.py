@@ -29,24 +29,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from calflow.instruments.pattern.bits import bilinear, match, normalised, votes
 from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
+from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
+from calflow.instruments.pattern.megarena.reading import classes, strong_reading
 from calflow.instruments.pattern.phase import PhaseFitter
 
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
 MAX_WRONG_BITS = 1  # per axis
 MIN_MARGIN = 3  # bits between the place found and the next one
-# or, when fewer bits are in view: every bit read from this many sites at least, agreeing this
-# well (a wrong majority of 8 needs 4 misread sites; misreads are ~1 % on a decodable frame)
-STRONG_VOTES = 8
-STRONG_AGREEMENT = 0.95
 MIN_CLASS_MARGIN = 0.02  # fraction of the sure sites between the best arrangement and the next
-MIN_PERIOD_PX = 3.0
 MAX_PERIOD_MISMATCH = 0.05  # relative: a given pixel size and the period seen must agree this well
 
 
@@ -130,7 +126,7 @@ def decode(
             window = PhaseFitter((h, w), 0.1, workers)
         spec = window.spectrum(frame[None])
         if pixel_um is None:
-            f0 = _fundamental(spec[0], h, w, pattern)
+            f0 = fundamental(spec[0], h, w, pattern.depth)
             if f0 is None:
                 status[f], reason[f] = "no_lobes", "no periodic grid in the frame (no peak in the spectrum)"
                 continue
@@ -190,29 +186,6 @@ def _bad_frame(frame: np.ndarray) -> str | None:
         if clipped > 0.5:
             return f"{100 * clipped:.0f} % of the pixels are saturated"
     return None
-
-
-def _fundamental(spec: np.ndarray, h: int, w: int, pattern: MegarenaPattern) -> float | None:
-    """The grid's fundamental (cycles per pixel) from the strongest peak of a frame's spectrum
-    between periods of :data:`MIN_PERIOD_PX` and the one that still shows 3·(depth + 1) periods."""
-    rows, cols, rad = _band(h, w, 3.0 * (pattern.depth + 1) / min(h, w))
-    if len(rad) == 0:
-        return None
-    vals = spec[rows, cols]
-    power = vals.real**2 + vals.imag**2
-    k = int(np.argmax(power))
-    return float(rad[k]) if power[k] > 0 else None
-
-
-@lru_cache(maxsize=8)
-def _band(h: int, w: int, lo: float):
-    """Bins (rows, columns) of a half-plane spectrum between ``lo`` and 1/MIN_PERIOD_PX cycles
-    per pixel, and their radial frequency."""
-    fi = np.abs(np.fft.fftfreq(h))[:, None]
-    fj = np.fft.rfftfreq(w)[None, :]
-    rad = np.hypot(fi, fj)
-    rows, cols = np.nonzero((rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX))
-    return rows, cols, rad[rows, cols]
 
 
 def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pixel, fit_region=1.0) -> dict:
@@ -292,7 +265,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         ndimage.binary_dilation(present & inside, block), block, border_value=1
     )
     known = inside & np.isfinite(z) & on_target
-    arrangement = _classes(present, known, S, T)
+    arrangement = classes(present, known, S, T)
     if arrangement is None:
         return _fail("code_mismatch", "the holes of a Megarena grid are not where three periods put them")
     (a0, ds, b0, dt), margin, contradicted = arrangement
@@ -317,7 +290,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         vals = present[mask]
         if direction < 0:
             cells = -cells
-        readings.append((votes(cells, vals), code_class, _strong(cells, vals)))
+        readings.append((votes(cells, vals), code_class, strong_reading(cells, vals)))
     found = [match(reading, pattern.bits) for reading, _, _ in readings]
     nbits = [m[3] for m in found]
     if min(nbits) < pattern.depth:
@@ -376,7 +349,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     theta = (theta + 180.0) % 360.0 - 180.0
     if theta == -180.0:
         theta = 180.0
-    pix, u_pix = _pixel_size(p, K, cov, (si, ti))
+    pix, u_pix = pixel_size(p, K, cov, (si, ti))
     pix_x, pix_y = p * float(np.hypot(*e_x)), p * float(np.hypot(*e_y))
     return {
         "status": "ok",
@@ -401,58 +374,3 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
             "margin_bits": int(gap),
         },
     }
-
-
-def _strong(cells: np.ndarray, present: np.ndarray):
-    """A reading (first cell, bits, sure) keeping only the bits :data:`STRONG_VOTES` sites or
-    more decided with :data:`STRONG_AGREEMENT` agreement."""
-    if len(cells) == 0:
-        return 0, np.zeros(0, np.int8), np.zeros(0, bool)
-    c0 = int(cells.min())
-    n = np.bincount(cells - c0)
-    ones = np.bincount(cells - c0, weights=present.astype(float), minlength=len(n))
-    frac = np.where(n > 0, ones / np.maximum(n, 1), 0.5)
-    sure = (n >= STRONG_VOTES) & (np.maximum(frac, 1 - frac) >= STRONG_AGREEMENT)
-    return c0, (frac > 0.5).astype(np.int8), sure
-
-
-def _classes(present, known, S, T):
-    """Step 3: ((a0, ds, b0, dt), margin, contradicted) — the holes' class of each axis and its
-    direction (+1: site index grows with S or T), the margin to the next arrangement and the
-    fraction of sure sites contradicted — or None when no site is sure."""
-    rs = (S % 3)[None, :]
-    rt = (T % 3)[:, None]
-    scores = []
-    for a0 in range(3):
-        for b0 in range(3):
-            hole = known & (rs == a0) & (rt == b0)
-            for ds in (1, -1):
-                a2 = (a0 + (2 if ds > 0 else 1)) % 3
-                for dt in (1, -1):
-                    b2 = (b0 + (2 if dt > 0 else 1)) % 3
-                    full = known & ((rs == a0) | (rs == a2)) & ((rt == b0) | (rt == b2)) & ~hole
-                    sure = int(hole.sum() + full.sum())
-                    if sure == 0:
-                        continue
-                    bad = int((present & hole).sum() + (~present & full).sum())
-                    scores.append((bad / sure, (a0, ds, b0, dt)))
-    if not scores:
-        return None
-    scores.sort(key=lambda s: s[0])
-    best = scores[0]
-    if best[0] > 0.2:
-        return None
-    return best[1], scores[1][0] - best[0], best[0]
-
-
-def _pixel_size(p: float, K: np.ndarray, cov: np.ndarray, lobes) -> tuple[float, float]:
-    """Pixel size (µm) = p · |k| per lobe (k in cycles per pixel), averaged over the two lobes,
-    and its standard uncertainty from the slopes' covariance (rad per pixel)."""
-    vals, var = [], []
-    for k, lobe in zip(K, lobes):
-        norm = float(np.hypot(*k))
-        g = k / norm  # d|k|/dk
-        var_k = float(g @ cov[lobe, 1:, 1:] @ g) / (2 * np.pi) ** 2
-        vals.append(p * norm)
-        var.append(p * p * var_k)
-    return 0.5 * (vals[0] + vals[1]), 0.5 * math.sqrt(var[0] + var[1])
