@@ -88,3 +88,18 @@ def test_truncated_or_unreadable_image_is_refused_in_one_line(tmp_path, capsys, 
         assert main(["decode", str(good), str(bad), "--pattern", str(spec), "--out", str(out)]) != 0
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and str(bad) in err and not out.exists()
+
+
+def test_decode_to_netcdf_keeps_the_measured_pixel_size(tmp_path, pattern):
+    import tifffile
+
+    from calflow.data.io import open_dataset
+
+    spec = pattern.save(tmp_path / "p.json")
+    tifffile.imwrite(tmp_path / "f.tif", np.stack([CAMERA.render(pattern, 300.0, 250.0, 7.0, rng=1)] * 2))
+    out = tmp_path / "poses.nc"
+    assert main(["decode", str(tmp_path / "f.tif"), "--pattern", str(spec), "--out", str(out)]) == 0
+    ds = open_dataset(out)
+    assert ds["pixel_size"].attrs["units"] == "um"
+    assert np.allclose(ds["pixel_size"].values, CAMERA.pixel_um, rtol=1e-4)
+    assert np.all(ds["u_pixel_size"].values > 0) and list(ds["decode_status"].values) == ["ok", "ok"]

@@ -209,6 +209,17 @@ def _write_nc(result, origin, args) -> None:
                 "long_name": f"standard uncertainty of the decoded {names[f]} (phase-plane fit)",
             },
         )
+    if getattr(result, "pixel_um", None) is not None:  # a layout that measures the pixel size
+        data["pixel_size"] = (
+            "frame",
+            np.asarray(result.pixel_um, dtype=float),
+            {"units": "um", "long_name": "pixel size in the object plane, measured from the frame"},
+        )
+        data["u_pixel_size"] = (
+            "frame",
+            np.asarray(result.u_pixel_um, dtype=float),
+            {"units": "um", "long_name": "standard uncertainty of the measured pixel size (phase-plane fit)"},
+        )
     data["decode_status"] = ("frame", np.asarray(result.status, dtype=str), {"long_name": "decoder status"})
     data["decode_reason"] = ("frame", np.asarray(result.reason, dtype=str), {"long_name": "why, when not ok"})
     data["file"] = ("frame", np.asarray([o[0] for o in origin], dtype=str), {"long_name": "image file"})
