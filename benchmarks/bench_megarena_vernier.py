@@ -111,14 +111,26 @@ def main(argv=None) -> int:
         lib = library_poses(args, files)
         frames = [read_frames([f])[0][0] for f in files]  # of any size
         decode(frames[0], pattern, workers=1)  # warm-up: imports, plans
+        # one call per frame size, as calflow decode reads a recording (the plans are per size)
+        groups: dict = {}
+        for k, f in enumerate(frames):
+            groups.setdefault(f.shape, []).append(k)
         t0 = time.process_time()
-        parts = [decode(f, pattern, workers=1, fit_region=args.fit_region) for f in frames]
+        parts = {
+            tuple(ks): decode(
+                np.stack([frames[k] for k in ks]), pattern, workers=1, fit_region=args.fit_region
+            )
+            for ks in groups.values()
+        }
         cpu_ms = 1000 * (time.process_time() - t0) / len(frames)
-    res = {key: np.concatenate([getattr(r, key) for r in parts]) for key in ("status", "reason")}
-    ours = {
-        key: np.concatenate([r.library_pose()[key] for r in parts])
-        for key in ("x", "y", "alpha", "pixelSize")
-    }
+    res = {key: np.empty(len(frames), dtype=object) for key in ("status", "reason")}
+    ours = {key: np.empty(len(frames)) for key in ("x", "y", "alpha", "pixelSize")}
+    for ks, r in parts.items():
+        pose = r.library_pose()
+        for key in res:
+            res[key][list(ks)] = getattr(r, key)
+        for key in ours:
+            ours[key][list(ks)] = pose[key]
     truth = {}
     if args.truth:
         for row in csv.DictReader(open(args.truth)):

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -114,7 +115,6 @@ def decode(
     status = np.empty(n, dtype=object)
     reason = np.empty(n, dtype=object)
     info = [None] * n if details else None
-    fitters: dict[float, PhaseFitter] = {}
     window = None
     for f in range(n):
         frame = stack[f].astype(np.float32)
@@ -123,7 +123,7 @@ def decode(
             status[f], reason[f] = "bad_frame", problem
             continue
         if window is None:
-            window = PhaseFitter((h, w), 0.1, workers)
+            window = _fitter(h, w, -116, workers)  # its spectrum only, which no frequency changes
         spec = window.spectrum(frame[None])
         if pixel_um is None:
             f0 = fundamental(spec[0], h, w, pattern.depth)
@@ -132,10 +132,10 @@ def decode(
                 continue
         else:
             f0 = pixel_um / pattern.period_um
-        key = round(f0, 4)
-        if key not in fitters:
-            fitters[key] = PhaseFitter((h, w), key, workers)  # the same for a frame in any batch
-        fitter = fitters[key]
+        # one plan per 2 % of frequency: the lobes are searched within ±20 % and their
+        # frequency fitted, so frames of nearly one pixel size share it (and any batch of frames
+        # gives each the same result)
+        fitter = _fitter(h, w, round(math.log(f0) / math.log(1.02)), workers)
         planes = fitter.fit(spec)
         result = _read(frame, planes, pattern, fitter, pixel_um, fit_region)
         status[f], reason[f] = result["status"], result["reason"]
@@ -158,6 +158,13 @@ def decode(
         shape=(h, w),
         origin_um=tuple(pattern.origin_um),
     )
+
+
+@lru_cache(maxsize=8)
+def _fitter(h: int, w: int, key: int, workers: int | None) -> PhaseFitter:
+    """The phase planes' plan for frames of h × w pixels and a fundamental of 1.02^key cycles
+    per pixel, kept between calls (a recording is decoded in chunks)."""
+    return PhaseFitter((h, w), 1.02**key, workers)
 
 
 def _frames(frames) -> np.ndarray:
