@@ -332,3 +332,10 @@ def test_the_images_sensor_reads_a_megarena_target(tmp_path):
     r = sensor.read(x, y, t)
     assert np.all(r["decode_status"] == 0)
     assert np.max(np.abs(r["meas_x"] - x)) < 0.01 and np.max(np.abs(r["meas_y"] - y)) < 0.01
+
+
+def test_sixteen_bit_frames_decode_like_eight_bit_ones(pattern):
+    deep = Camera(**{**CAMERA.__dict__, "bit_depth": 12})
+    frame = deep.render(pattern, 333.0, 444.0, -33.0, rng=2)
+    assert frame.dtype == np.uint16
+    _right(decode(frame, pattern), 0, (333.0, 444.0, -33.0))
