@@ -11,7 +11,7 @@ frames")::
             file: data/ident.tif            # a TIFF stack, or a folder of image files
             format: frames
             table: data/ident.csv           # frame, time, cmd_<joint>, thermometers
-            pattern: data/pattern.json      # the pattern file (calflow pattern make)
+            pattern: data/pattern.json      # the pattern file (calflow pattern make), any layout
             camera: {}                      # optional: camera-model fields (size, pixel, optics)
 
 The workflow's ``decode_frames`` rule runs this command into
@@ -41,7 +41,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     pattern, camera}``) for run ``run_id`` of ``campaign`` (its robot, name and start)."""
     from calflow.data.conventions import robot_joints
     from calflow.data.recordings import entry as normalised
-    from calflow.instruments.pattern import decode
+    from calflow.instruments.pattern.layouts import decode_frames
     from calflow.instruments.readings import camera_of, frame_shape, readings_of
     from calflow.provenance import package_digest
 
@@ -57,10 +57,15 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     pattern = load_pattern(e["pattern"])
     camera = camera_of(e.get("camera") or {}, f"rig.options.recordings.{run_id}.camera")
     frames = FrameFiles(e["file"], table.frame, frame_shape(camera))
+    if pattern.layout == "cell2x2":
+        options = {"camera": camera}
+    else:  # a lab's target: the pixel size measured from each frame unless the camera says it
+        given = {"sensor_pixel_um", "magnification"} & set(e.get("camera") or {})
+        options = {"pixel_um": camera.pixel_um} if given else {}
     readings, shas = [], []
     for rows, block, digests in frames.chunks(CHUNK):
         try:
-            d = decode(block, pattern, camera)
+            d = decode_frames(block, pattern, **options)
         except ValueError as exc:  # the camera cannot decode this pattern (field of view)
             raise DataError(f"{e['file']}: rig.options.recordings.{run_id}: {exc}") from None
         r = readings_of(d)

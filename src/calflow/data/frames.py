@@ -276,20 +276,24 @@ def check_recording(entry: dict, joints: Sequence[str]) -> None:
     pattern = load_pattern(entry["pattern"])
     camera = camera_of(entry.get("camera") or {}, "camera")
     h, w = frame_shape(camera)
-    problem = field_of_view_problem(h, w, camera.pixel_um, pattern)
+    measured = pattern.layout != "cell2x2" and not {"sensor_pixel_um", "magnification"} & set(
+        entry.get("camera") or {}
+    )  # a lab's target whose pixel size the decoder measures: the field of view is the frames'
+    problem = None if measured else field_of_view_problem(h, w, camera.pixel_um, pattern)
     if problem:
         raise DataError(f"camera: {problem}")
     FrameFiles(entry["file"], table.frame, (h, w)).first()
 
 
 def load_pattern(path: str | Path):
-    """The pattern file at ``path`` (:meth:`calflow.instruments.pattern.Pattern.load`);
-    :class:`DataError` in one line naming it when it cannot be read or is not one."""
+    """The pattern file at ``path``, of any installed layout
+    (:func:`calflow.instruments.pattern.layouts.load_pattern`); :class:`DataError` in one line
+    naming it when it cannot be read or is not one."""
     from calflow.errors import CalflowError
-    from calflow.instruments.pattern import Pattern
+    from calflow.instruments.pattern.layouts import load_pattern as load
 
     try:
-        return Pattern.load(path)
+        return load(path)
     except (OSError, ValueError, CalflowError) as exc:
         text = str(exc)
         raise DataError(text if text.startswith(str(path)) else f"{path}: pattern file: {text}") from None

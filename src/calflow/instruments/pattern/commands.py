@@ -19,18 +19,51 @@ def pattern_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="pattern_command", required=True)
     m = sub.add_parser("make", help="write a pattern file, its GDSII for lithography and a PNG preview")
     m.add_argument("--range", required=True, metavar="XxY", help="measuring range in µm, e.g. 9500x4200")
-    m.add_argument("--period-um", type=float, default=4.0, help="dot pitch (µm, default 4)")
-    m.add_argument("--dot-um", type=float, default=2.0, help="dot diameter (µm, default 2)")
+    m.add_argument(
+        "--layout",
+        choices=("cell2x2", "megarena"),
+        default="cell2x2",
+        help="cell2x2 (calflow's, default) or megarena (FEMTO-ST's)",
+    )
+    m.add_argument("--period-um", type=float, help="dot pitch (µm; default 4 for cell2x2, 9 for megarena)")
+    m.add_argument("--dot-um", type=float, help="dot diameter (µm; default half the period)")
+    m.add_argument(
+        "--depth",
+        type=int,
+        help="megarena: code depth, 4 to 12 (default: the smallest that covers the range)",
+    )
     m.add_argument("--out", required=True, help="folder for pattern.json, pattern.gds, pattern.png")
     m.add_argument("--name", default="pattern", help="file stem (default: pattern)")
 
 
 def decode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("frames", nargs="+", help="image files: TIFF (one frame or a stack) or PNG, monochrome")
-    p.add_argument("--pattern", required=True, help="the pattern file (calflow pattern make)")
     p.add_argument(
-        "--pixel-um", type=float, help="pixel size in the object plane, µm (default: the default camera's)"
+        "--pattern",
+        required=True,
+        help="the pattern file: calflow's (calflow pattern make) or the Vernier library's MegarenaPattern JSON",
     )
+    p.add_argument(
+        "--pixel-um",
+        type=float,
+        help="pixel size in the object plane, µm (cell2x2 default: the default camera's; "
+        "megarena default: measured from each frame)",
+    )
+    p.add_argument(
+        "--fit-region",
+        type=float,
+        default=1.0,
+        help="megarena: central fraction of the frame the phase planes are fitted on (1: whole frame; "
+        "0.5 as the Vernier library)",
+    )
+    p.add_argument(
+        "--convention",
+        choices=("calflow", "vernier"),
+        default="calflow",
+        help="megarena: poses in calflow's convention or as the Vernier library prints them "
+        "(x, y, alpha, pixelSize; docs/instruments.md)",
+    )
+    p.add_argument("--jobs", type=int, default=0, help="processes decoding frames (default: every core)")
     p.add_argument("--out", help="poses.csv or poses.nc (default: print CSV)")
 
 
@@ -49,15 +82,20 @@ def _range(text: str) -> tuple[float, float]:
 
 def run_pattern(args) -> None:
     from calflow.data.io import atomic_path
+
+    if args.layout == "megarena":
+        from calflow.instruments.pattern.megarena.commands import make_megarena
+
+        return make_megarena(args, _range(args.range))
+    if args.depth is not None:
+        raise CalflowError("--depth: only for --layout megarena")
     from calflow.instruments.pattern.gds import write_gds, write_png
     from calflow.instruments.pattern.pattern import Pattern
 
-    pattern = Pattern.make(range_um=_range(args.range), period_um=args.period_um, dot_diameter_um=args.dot_um)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CalflowError(f"{out}: is a file; expected a folder for the pattern's files")
-    out.mkdir(parents=True, exist_ok=True)
-    names = {k: out / f"{args.name}.{k}" for k in ("json", "gds", "png")}
+    period = 4.0 if args.period_um is None else args.period_um
+    dot = period / 2 if args.dot_um is None else args.dot_um
+    pattern = Pattern.make(range_um=_range(args.range), period_um=period, dot_diameter_um=dot)
+    names = output_names(args)
     with atomic_path(names["json"]) as j, atomic_path(names["gds"]) as g, atomic_path(names["png"]) as p:
         pattern.save(j)
         write_gds(pattern, g)
@@ -71,21 +109,40 @@ def run_pattern(args) -> None:
     )
 
 
+def output_names(args, kinds=("json", "gds", "png")) -> dict:
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CalflowError(f"{out}: is a file; expected a folder for the pattern's files")
+    out.mkdir(parents=True, exist_ok=True)
+    return {k: out / f"{args.name}.{k}" for k in kinds}
+
+
 def run_decode(args) -> int:
-    from calflow.instruments.pattern.decode import decode
     from calflow.instruments.pattern.frames import read_frames
-    from calflow.instruments.pattern.pattern import Pattern
+    from calflow.instruments.pattern.layouts import load_pattern
 
     if args.out and Path(args.out).suffix.lower() not in (".csv", ".nc"):
         raise CalflowError(f"--out {args.out}: expected a .csv or .nc file name")
-    pattern = Pattern.load(args.pattern)
+    pattern = load_pattern(args.pattern)
+    megarena = pattern.layout == "megarena"
+    if not megarena and (args.fit_region != 1.0 or args.convention != "calflow"):
+        raise CalflowError("--fit-region and --convention vernier: only for Megarena patterns")
+    if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
+        raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
     frames, origin = read_frames(args.frames)
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
-    result = decode(frames, pattern, **kwargs)
+    if megarena:
+        from calflow.instruments.pattern.megarena.commands import decode_parallel
+
+        result = decode_parallel(frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
+    else:
+        from calflow.instruments.pattern.decode import decode
+
+        result = decode(frames, pattern, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
     else:
-        text = _csv(result, origin)
+        text = _csv(result, origin, args.convention)
         if args.out:
             from calflow.data.io import write_text
 
@@ -98,17 +155,29 @@ def run_decode(args) -> int:
     return 0
 
 
-def _csv(result, origin) -> str:
+def _csv(result, origin, convention: str = "calflow") -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["file", "page", *FIELDS, "status", "reason"])
+    if convention == "vernier":
+        columns = result.library_pose()
+        fields = ("x", "y", "alpha", "pixelSize")
+    else:
+        columns = {f: getattr(result, f) for f in FIELDS}
+        fields = FIELDS
+        if getattr(result, "pixel_um", None) is not None:
+            columns.update(pixel_um=result.pixel_um, u_pixel_um=result.u_pixel_um)
+            fields = (*FIELDS, "pixel_um", "u_pixel_um")
+    w.writerow(["file", "page", *fields, "status", "reason"])
     for k, (path, page) in enumerate(origin):
-        values = [getattr(result, f)[k] for f in FIELDS]
+        values = [columns[f][k] for f in fields]
         w.writerow(
             [
                 path,
                 page,
-                *("" if math.isnan(v) else f"{v:.6f}" for v in values),
+                *(
+                    "" if math.isnan(v) else f"{v:.6f}" if abs(v) >= 1e-3 or v == 0 else f"{v:.6g}"
+                    for v in values
+                ),
                 result.status[k],
                 result.reason[k],
             ]
@@ -139,6 +208,17 @@ def _write_nc(result, origin, args) -> None:
                 "units": units[f],
                 "long_name": f"standard uncertainty of the decoded {names[f]} (phase-plane fit)",
             },
+        )
+    if getattr(result, "pixel_um", None) is not None:  # a layout that measures the pixel size
+        data["pixel_size"] = (
+            "frame",
+            np.asarray(result.pixel_um, dtype=float),
+            {"units": "um", "long_name": "pixel size in the object plane, measured from the frame"},
+        )
+        data["u_pixel_size"] = (
+            "frame",
+            np.asarray(result.u_pixel_um, dtype=float),
+            {"units": "um", "long_name": "standard uncertainty of the measured pixel size (phase-plane fit)"},
         )
     data["decode_status"] = ("frame", np.asarray(result.status, dtype=str), {"long_name": "decoder status"})
     data["decode_reason"] = ("frame", np.asarray(result.reason, dtype=str), {"long_name": "why, when not ok"})

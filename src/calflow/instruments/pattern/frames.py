@@ -1,4 +1,4 @@
-"""Camera frames from files: TIFF (one frame or a stack, tifffile) and PNG (Pillow).
+"""Camera frames from files: TIFF (one frame or a stack, tifffile), PNG and JPEG (Pillow).
 
 Frames must be monochrome (one channel), 8- or 16-bit integers or floats, all of one size; a
 file that cannot be read, is truncated, holds colour or a frame of another size is refused in
@@ -15,6 +15,7 @@ from calflow.errors import DataError
 
 TIFF = (".tif", ".tiff")
 PNG = (".png",)
+JPEG = (".jpg", ".jpeg")
 
 
 def read_frames(paths) -> tuple[np.ndarray, list[tuple[str, int]]]:
@@ -44,10 +45,12 @@ def _read(path: Path) -> list[np.ndarray]:
     suffix = path.suffix.lower()
     if suffix in TIFF:
         arr = _tiff(path)
-    elif suffix in PNG:
-        arr = _png(path)
+    elif suffix in PNG + JPEG:
+        arr = _png(path, "JPEG" if suffix in JPEG else "PNG")
     else:
-        raise DataError(f"{path}: unknown image type {suffix or '(none)'!r}; expected .tif, .tiff or .png")
+        raise DataError(
+            f"{path}: unknown image type {suffix or '(none)'!r}; expected .tif, .tiff, .png, .jpg or .jpeg"
+        )
     if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
         raise DataError(f"{path}: pixels of type {arr.dtype}; expected integers or floats")
     if arr.ndim == 2:
@@ -166,7 +169,7 @@ class _tifffile_errors:
         self.log.propagate = propagate
 
 
-def _png(path: Path) -> np.ndarray:
+def _png(path: Path, kind: str = "PNG") -> np.ndarray:
     from PIL import Image, ImageFile, UnidentifiedImageError
 
     lenient = ImageFile.LOAD_TRUNCATED_IMAGES  # WeasyPrint, once imported, sets it process-wide
@@ -183,7 +186,7 @@ def _png(path: Path) -> np.ndarray:
     except DataError:
         raise
     except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as exc:
-        raise DataError(f"{path}: not a readable PNG ({exc})") from None
+        raise DataError(f"{path}: not a readable {kind} ({exc})") from None
 
 
 def write_frames_tiff(frames: np.ndarray, path) -> Path:

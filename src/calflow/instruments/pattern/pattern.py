@@ -322,6 +322,11 @@ class Pattern:
         return pattern
 
 
+def read_cell2x2(data, where: str = "pattern") -> Pattern:
+    """The layout's ``read`` hook (:mod:`calflow.instruments.pattern.layouts`)."""
+    return Pattern.from_dict(data, where)
+
+
 def site_matrix(x_bits: np.ndarray, y_bits: np.ndarray) -> np.ndarray:
     """The present/missing matrix of the ``cell2x2`` layout, shape (2·len(y_bits), 2·len(x_bits))."""
     rows, cols = 2 * len(y_bits), 2 * len(x_bits)

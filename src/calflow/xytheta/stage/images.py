@@ -12,7 +12,7 @@ Options (``rig.options``):
 * ``sensor``: ``model`` (the noise model, the default) or ``images``;
 * ``camera``: overrides of :class:`calflow.instruments.pattern.Camera` fields (e.g. a
   smaller sensor, ``{width: 512, height: 384}``, for a quick campaign);
-* ``pattern``: a pattern file (``calflow pattern make``); by default the pattern made
+* ``pattern``: a pattern file of any layout (``calflow pattern make``, ``--layout megarena`` too); by default the pattern made
   for the rig's ``pattern_range_um`` with the pattern's default period and dot size (the
   noise model's ``pattern_period_um``, ``sensor_noise_um``, ``decode_error_um``,
   ``gross_error_rate`` and ``sensor_resolution_um`` then play no part).
@@ -120,9 +120,10 @@ def _instrument(camera: tuple, pattern: str | None, range_um: tuple):
     """(pattern, camera) of the options; the default pattern (made for the rig's
     ``pattern_range_um`` with the pattern's own default period and dots) once per process."""
     from calflow.instruments.pattern import Camera, Pattern
+    from calflow.instruments.pattern.layouts import load_pattern
 
     cam = Camera(**dict(camera))
-    pat = Pattern.load(pattern) if pattern else Pattern.make(range_um=range_um)
+    pat = load_pattern(pattern) if pattern else Pattern.make(range_um=range_um)
     return pat, cam
 
 

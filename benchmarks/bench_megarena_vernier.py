@@ -1,0 +1,221 @@
+"""calflow's Megarena decoder side by side with the Vernier library, on the same frames.
+
+The library (C++, GPL-3.0, github.com/vernierlib/vernier) is built on your machine, outside
+calflow, with a small program of yours (the *driver*) that calflow runs as::
+
+    DRIVER decode PERIOD_UM CODE_DEPTH REPEAT FILE...
+
+and that prints a CSV with the header ``file,found,x,y,alpha,pixelSize,ms``: per image the
+library's ``MegarenaPatternDetector(period, depth)`` pose as ``get2DPose()`` gives it and its
+mean time per ``compute`` over REPEAT runs after one warm-up (docs/benchmarks.md says how the
+figures below were taken). Instead of a driver, ``--library-csv`` takes that CSV as written
+before. The images are the user's (a lab's frames, or the library's own examples, GPL-3.0
+data that stays outside calflow's repository).
+
+``--truth CSV`` (``file,x,y,alpha,pixelSize``, the library's convention: frames the library
+rendered with ``renderOrthographicProjection`` at poses you chose) adds each decoder's error
+from the truth; ``--noise SEED`` first blurs the frames (Gaussian, ``--blur-px``) and adds
+shot and read noise (``--electrons`` full well, ``--read-e``), writes them as 16-bit PNG to a
+temporary folder, and gives both decoders those.
+
+Speed: calflow's CPU time per frame in this process (one core), then ``calflow decode`` on
+every core over the frames repeated to ``--throughput-frames``, wall time; the driver's time
+per frame on one core (``OMP_NUM_THREADS=1``).
+
+    .venv/bin/python benchmarks/bench_megarena_vernier.py --period-um 9 --depth 12 \\
+        --driver /path/to/driver --fit-region 0.5 --json IMAGE...
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from calflow.instruments.pattern.frames import read_frames
+from calflow.instruments.pattern.megarena import MegarenaPattern, decode
+from calflow.instruments.pattern.megarena.commands import decode_parallel
+
+
+def library_poses(args, files) -> dict[str, dict]:
+    if args.library_csv:
+        text = Path(args.library_csv).read_text()
+    else:
+        env = {**os.environ, "OMP_NUM_THREADS": "1"}
+        cmd = [args.driver, "decode", f"{args.period_um:g}", str(args.depth), str(args.repeat), *files]
+        text = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
+    rows = {}
+    for row in csv.DictReader(io.StringIO(text)):
+        rows[Path(row["file"]).name] = {
+            "found": row["found"].strip() in ("1", "true", "True"),
+            **{k: float(row[k]) for k in ("x", "y", "alpha", "pixelSize", "ms")},
+        }
+    return rows
+
+
+def noisy_copies(files, args, folder: Path) -> list[str]:
+    from PIL import Image
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(args.noise)
+    out = []
+    frames, _ = read_frames(files)
+    for path, frame in zip(files, frames):
+        a = frame.astype(float)
+        a = (a - a.min()) / max(np.ptp(a), 1e-30)
+        a = gaussian_filter(a, args.blur_px)
+        electrons = (0.1 + 0.8 * a) * args.electrons
+        electrons += rng.standard_normal(a.shape) * np.sqrt(electrons + args.read_e**2)
+        dn = np.clip(np.rint(electrons / args.electrons * 65535), 0, 65535).astype(np.uint16)
+        target = folder / (Path(path).stem + "_noisy.png")
+        Image.fromarray(dn).save(target)
+        out.append(str(target))
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("images", nargs="+", help="image files (PNG, JPEG, TIFF) of one Megarena target")
+    p.add_argument("--period-um", type=float, required=True)
+    p.add_argument("--depth", type=int, required=True)
+    p.add_argument("--driver", help="the program running the Vernier library (module docstring)")
+    p.add_argument("--library-csv", help="the driver's CSV, written before (instead of --driver)")
+    p.add_argument("--truth", help="CSV file,x,y,alpha,pixelSize of the poses the frames were rendered at")
+    p.add_argument("--fit-region", type=float, default=0.5, help="calflow's fit region (0.5: as the library)")
+    p.add_argument("--noise", type=int, help="seed: blur and add noise to the frames first")
+    p.add_argument("--blur-px", type=float, default=1.0)
+    p.add_argument("--electrons", type=float, default=20000.0)
+    p.add_argument("--read-e", type=float, default=15.0)
+    p.add_argument("--repeat", type=int, default=3, help="library runs per image, timed")
+    p.add_argument("--throughput-frames", type=int, default=200)
+    p.add_argument("--json", action="store_true", help="print one JSON object last")
+    args = p.parse_args(argv)
+    if not (args.driver or args.library_csv):
+        p.error("one of --driver or --library-csv is needed")
+    pattern = MegarenaPattern(args.period_um, args.depth)
+    with tempfile.TemporaryDirectory() as tmp:
+        files = [str(Path(f)) for f in args.images]
+        if args.noise is not None:
+            files = noisy_copies(files, args, Path(tmp))
+        lib = library_poses(args, files)
+        frames = [read_frames([f])[0][0] for f in files]  # of any size
+        decode(frames[0], pattern, workers=1)  # warm-up: imports, plans
+        # one call per frame size, as calflow decode reads a recording (the plans are per size)
+        groups: dict = {}
+        for k, f in enumerate(frames):
+            groups.setdefault(f.shape, []).append(k)
+        t0 = time.process_time()
+        parts = {
+            tuple(ks): decode(
+                np.stack([frames[k] for k in ks]), pattern, workers=1, fit_region=args.fit_region
+            )
+            for ks in groups.values()
+        }
+        cpu_ms = 1000 * (time.process_time() - t0) / len(frames)
+    res = {key: np.empty(len(frames), dtype=object) for key in ("status", "reason")}
+    ours = {key: np.empty(len(frames)) for key in ("x", "y", "alpha", "pixelSize")}
+    for ks, r in parts.items():
+        pose = r.library_pose()
+        for key in res:
+            res[key][list(ks)] = getattr(r, key)
+        for key in ours:
+            ours[key][list(ks)] = pose[key]
+    truth = {}
+    if args.truth:
+        for row in csv.DictReader(open(args.truth)):
+            truth[Path(row["file"]).stem] = {k: float(row[k]) for k in ("x", "y", "alpha", "pixelSize")}
+    rows = []
+    for k, path in enumerate(files):
+        name = Path(path).name
+        L = lib.get(name, {"found": False})
+        row = {"file": name, "calflow_status": str(res["status"][k]), "calflow_reason": str(res["reason"][k])}
+        row["calflow"] = {key: float(ours[key][k]) for key in ours}
+        row["library"] = L
+        if res["status"][k] == "ok" and L["found"]:
+            row["difference"] = {
+                "x_nm": 1000 * (row["calflow"]["x"] - L["x"]),
+                "y_nm": 1000 * (row["calflow"]["y"] - L["y"]),
+                "alpha_urad": 1e6 * _wrap(row["calflow"]["alpha"] - L["alpha"]),
+                "pixel_percent": 100 * (row["calflow"]["pixelSize"] / L["pixelSize"] - 1),
+            }
+        stem = Path(path).stem.removesuffix("_noisy")
+        if stem in truth:
+            T = truth[stem]
+            for who, pose, found in (
+                ("calflow", row["calflow"], res["status"][k] == "ok"),
+                ("library", L, L["found"]),
+            ):
+                if found:
+                    row[f"{who}_error"] = {
+                        "x_nm": 1000 * (pose["x"] - T["x"]),
+                        "y_nm": 1000 * (pose["y"] - T["y"]),
+                        "alpha_urad": 1e6 * _wrap(pose["alpha"] - T["alpha"]),
+                    }
+        rows.append(row)
+    # calflow decode on every core: the frames repeated
+    first = np.stack([f for f in frames if f.shape == frames[0].shape])
+    reps = max(1, math.ceil(args.throughput_frames / len(first)))
+    many = np.concatenate([first] * reps)[: args.throughput_frames]
+    t0 = time.perf_counter()
+    decode_parallel(many, pattern, 0, fit_region=args.fit_region)
+    wall = time.perf_counter() - t0
+    lib_ms = [r["library"]["ms"] for r in rows if "ms" in r["library"]]
+    summary = {
+        "frames": len(rows),
+        "frame_shapes": sorted({tuple(f.shape) for f in frames}),
+        "throughput_frame_shape": list(first.shape[1:]),
+        "calflow_ok": int((res["status"] == "ok").sum()),
+        "library_found": sum(bool(r["library"].get("found")) for r in rows),
+        "max_abs_difference": _max_abs([r["difference"] for r in rows if "difference" in r]),
+        "calflow_max_abs_error": _max_abs([r["calflow_error"] for r in rows if "calflow_error" in r]),
+        "library_max_abs_error": _max_abs([r["library_error"] for r in rows if "library_error" in r]),
+        "calflow_cpu_ms_per_frame": cpu_ms,
+        "library_ms_per_frame": float(np.mean(lib_ms)) if lib_ms else None,
+        "speed_ratio": (float(np.mean(lib_ms)) / cpu_ms) if lib_ms else None,
+        "calflow_decode_frames_per_s_all_cores": len(many) / wall,
+        "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "load_1min": os.getloadavg()[0],
+        "fit_region": args.fit_region,
+        "noise_seed": args.noise,
+        "machine": f"{platform.machine()} {platform.processor() or ''} {platform.system()} Python {platform.python_version()}".strip(),
+    }
+    for r in rows:
+        d = r.get("difference")
+        tail = (
+            f"dx {d['x_nm']:+8.1f} nm  dy {d['y_nm']:+8.1f} nm  dα {d['alpha_urad']:+8.1f} µrad  "
+            f"dpix {d['pixel_percent']:+.4f} %"
+            if d
+            else f"calflow {r['calflow_status']} ({r['calflow_reason']}), library found={r['library'].get('found')}"
+        )
+        print(f"{r['file']}: {tail}", file=sys.stderr)
+    print(
+        json.dumps({"summary": summary, "frames": rows}, indent=1)
+        if args.json
+        else json.dumps(summary, indent=1)
+    )
+    return 0
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _max_abs(items: list[dict]) -> dict | None:
+    if not items:
+        return None
+    return {k: max(abs(i[k]) for i in items) for k in items[0]}
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,138 @@
+"""Pattern layouts: what each kind of encoded target contributes to the camera sensor.
+
+A layout says what the sites of a target are and how its absolute code is read; the phase
+part of the decoding (:mod:`.phase`) is shared by all. calflow registers its own ``cell2x2``
+and FEMTO-ST's ``megarena``; a lab's own encoding plugs in as a :class:`Layout` registered
+as an entry point of the group ``calflow.pattern_layouts`` in its ``pyproject.toml``::
+
+    [project.entry-points."calflow.pattern_layouts"]
+    mylayout = "mylab_calflow.layout:LAYOUT"
+
+Its hooks are ``"module:attribute"`` strings, imported only when a pattern file of that
+layout is read or decoded (docs/instruments.md, "Pattern layouts"):
+
+* ``read(data: dict, where: str) -> pattern`` — a parsed pattern file (calflow's, with
+  ``"layout": name``, or another program's, recognised by one of ``foreign_keys``) → a pattern
+  object carrying ``layout``, ``period_um``, ``dot_diameter_um``, ``origin_um``,
+  ``min_fov_um``, ``present(rows, cols)`` and ``save(path)`` (the renderer draws any such
+  pattern); a bad file raises :class:`~calflow.errors.CalflowError` in one line naming
+  ``where``, the key and what was expected;
+* ``decode(frames, pattern, pixel_um=None, workers=None, details=False) -> Decoded`` — the
+  contract of :func:`calflow.instruments.pattern.decode`: per frame x, y (µm), Θ (degree),
+  their standard uncertainties, a status of :data:`~calflow.instruments.pattern.STATUSES`
+  and a reason; NaN, never a neighbouring period, when it cannot tell.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any
+
+from calflow.errors import CalflowError
+
+GROUP = "calflow.pattern_layouts"
+
+
+@dataclass(frozen=True)
+class Layout:
+    """One layout: its name, a line saying what it is, its hooks and the keys it reads."""
+
+    name: str
+    description: str
+    read: str  # "module:attribute": read(data, where) -> pattern
+    decode: str  # "module:attribute": decode(frames, pattern, ...) -> Decoded
+    foreign_keys: tuple[str, ...] = ()  # top-level keys of other programs' pattern files
+
+    def hook(self, name: str) -> Any:
+        from calflow.family import resolve
+
+        return resolve(getattr(self, name))
+
+
+CELL2X2 = Layout(
+    name="cell2x2",
+    description="calflow's coded-dot grid: two m-sequences in the missing dots of 2 × 2 cells",
+    read="calflow.instruments.pattern.pattern:read_cell2x2",
+    decode="calflow.instruments.pattern.decode:decode",
+)
+
+MEGARENA = Layout(
+    name="megarena",
+    description="FEMTO-ST's Megarena: one m-sequence keeps or drops whole rows and columns of a dot grid",
+    read="calflow.instruments.pattern.megarena.pattern:read_megarena",
+    decode="calflow.instruments.pattern.megarena.decode:decode",
+    foreign_keys=("MegarenaPattern",),
+)
+
+
+@lru_cache(maxsize=1)
+def layouts() -> dict[str, Layout]:
+    """Every installed layout by name; an entry point that is not a :class:`Layout`, or a
+    second layout of one name or foreign key, is refused in one line."""
+    found: dict[str, Layout] = {}
+    keys: dict[str, str] = {}
+    for ep in sorted(entry_points(group=GROUP), key=lambda e: e.name):
+        layout = ep.load()
+        if not isinstance(layout, Layout):
+            raise CalflowError(f"entry point {GROUP}:{ep.name}: {ep.value} is not a calflow pattern Layout")
+        if layout.name in found:
+            raise CalflowError(f"entry point {GROUP}:{ep.name}: a second layout named {layout.name!r}")
+        for key in layout.foreign_keys:
+            if key in keys:
+                raise CalflowError(
+                    f"entry point {GROUP}:{ep.name}: the key {key!r} is already read by layout {keys[key]!r}"
+                )
+            keys[key] = layout.name
+        found[layout.name] = layout
+    return found
+
+
+def layout_of(name: str, where: str = "pattern") -> Layout:
+    """The layout named ``name``, or one line saying which exist."""
+    known = layouts()
+    if name not in known:
+        raise CalflowError(f"{where}: layout: expected one of {', '.join(sorted(known))}, got {name!r}")
+    return known[name]
+
+
+def read_pattern(data: Any, where: str = "pattern") -> Any:
+    """A parsed pattern file → the pattern of its layout (``layout`` key, or another program's
+    top-level key a layout reads; a file with neither is read as calflow's ``cell2x2``, unless
+    it is made of objects only, as other programs' files are: then it is refused naming the
+    keys calflow reads)."""
+    if not isinstance(data, dict):
+        raise CalflowError(f"{where}: (top level): expected a JSON object")
+    if "layout" in data:
+        return layout_of(data["layout"], where).hook("read")(data, where)
+    for layout in layouts().values():
+        for key in layout.foreign_keys:
+            if key in data:
+                return layout.hook("read")(data, where)
+    if "format" in data or not data or not all(isinstance(v, dict) for v in data.values()):
+        return layout_of("cell2x2", where).hook("read")(data, where)  # says which key is wrong
+    known = sorted(k for lay in layouts().values() for k in lay.foreign_keys)
+    raise CalflowError(
+        f"{where}: (top level): expected a calflow pattern file (format, layout) or one of the keys "
+        f"{', '.join(known)}, got keys {', '.join(sorted(map(str, data))) or '(none)'}"
+    )
+
+
+def load_pattern(path) -> Any:
+    """Read a pattern file of any installed layout; a bad one raises one line naming it."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise CalflowError(f"{path}: no such pattern file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise CalflowError(f"{path}: not a calflow pattern file (expected JSON: {exc})") from None
+    return read_pattern(data, str(path))
+
+
+def decode_frames(frames, pattern, **options) -> Any:
+    """Decode frames of ``pattern`` with its layout's decoder."""
+    return layout_of(getattr(pattern, "layout", "cell2x2")).hook("decode")(frames, pattern, **options)
