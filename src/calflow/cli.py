@@ -178,6 +178,13 @@ def parser() -> argparse.ArgumentParser:
     )
     _required(ce, "--campaign", "--summary", "--html")
     ce.add_argument("--pdf")
+    ce.add_argument("--xml", help="the Digital Calibration Certificate (DCC, PTB's XML schema)")
+    ce.add_argument(
+        "--laboratory", help="JSON: config 'laboratory' (name, address, accreditation, approver, signing_key)"
+    )
+    ce.add_argument(
+        "--item", help="JSON: config 'stages.<id>.item' (customer, manufacturer, model, serial_number)"
+    )
     ce.add_argument(
         "--sections",
         help=SECTIONS_HELP,

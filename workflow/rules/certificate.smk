@@ -20,9 +20,12 @@ rule certificate:
         mem_mb=400,
         runtime=1,
     params:
-        **reads("certificate", "stage", "start"),
+        # the method states the campaign's plan (its digest): every section is read
+        **reads("certificate", ALL),
         campaign=campaign_file,
+        laboratory=lambda w: shlex.quote(laboratory_settings()),
+        item=lambda w: shlex.quote(item_settings(w.campaign)),
     shell:
         "calflow certificate --campaign {params.campaign} --sections {params.sections:q}"
-        " --summary {input.summary}"
+        " --summary {input.summary} --laboratory {params.laboratory} --item {params.item}"
         " --html {output.html} --pdf {output.pdf} > {log} 2>&1"
