@@ -109,11 +109,20 @@ def run(args) -> None:
     laboratory = json_option(getattr(args, "laboratory", None), "--laboratory")
     item = json_option(getattr(args, "item", None), "--item")
     command = f"snakemake --cores 2 {layout.certificate(campaign['name'])}"
-    doc = record(summary, campaign, laboratory, item, None)
+    from calflow.certificate import signing
+    from calflow.certificate.dcc import build
+
+    path = signing.key_path(laboratory)
+    key = signing.load(path) if path else None
+    doc = record(summary, campaign, laboratory, item, key.signer_name if key else None)
     html = render(summary, campaign, command, doc)
+    xml = build(summary, doc)
+    if key:
+        xml = signing.sign_xml(xml, key)
+    outputs = [(xml, args.xml)] if getattr(args, "xml", None) else []
     if args.pdf:
-        pdf = write_pdf(html, Path(args.html).parent)
-        write_text(html, args.html)
-        write_bytes(pdf, args.pdf)
-    else:
-        write_text(html, args.html)
+        pdf = write_pdf(html, Path(args.html).parent, {"certificate.xml": xml})
+        outputs.append((signing.sign_pdf(pdf, key) if key else pdf, args.pdf))
+    write_text(html, args.html)
+    for data, out in outputs:
+        write_bytes(data, out)
