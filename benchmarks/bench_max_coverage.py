@@ -35,7 +35,12 @@ CASES = {
     "8-way tie, 2 cycles, Gaussian": (8, 2, lambda T, rng: np.full(T, 2.0), "normal"),
     "8-way tie, 10 cycles, Gaussian": (8, 10, lambda T, rng: np.full(T, 2.0), "normal"),
     "near-tie (spread 0.1 σ), 5 cycles": (8, 5, lambda T, rng: 2.0 + rng.uniform(0, 0.05, T), "normal"),
-    "3-way tie among 8, 3 cycles": (8, 3, lambda T, rng: np.r_[np.full(3, 2.0), np.full(T - 3, 1.0)], "normal"),
+    "3-way tie among 8, 3 cycles": (
+        8,
+        3,
+        lambda T, rng: np.r_[np.full(3, 2.0), np.full(T - 3, 1.0)],
+        "normal",
+    ),
     "one clear maximum, 3 cycles": (8, 3, lambda T, rng: np.r_[4.0, np.full(T - 1, 1.0)], "normal"),
     "spread biases, 3 cycles": (8, 3, lambda T, rng: rng.uniform(0.2, 3.0, T), "normal"),
     "spread biases, 5 cycles, heavy-tailed": (8, 5, lambda T, rng: rng.uniform(0.2, 3.0, T), "t3"),
