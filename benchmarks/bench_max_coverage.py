@@ -55,8 +55,9 @@ def noise(rng, kind: str, shape) -> np.ndarray:
     return rng.standard_t(nu, shape) * SIGMA / math.sqrt(nu / (nu - 2.0))
 
 
-def one(rng, T, n, norms, kind, trials) -> tuple[bool, float, float]:
-    """One validation: whether the interval covers the true AP, and AP's U and the truth."""
+def one(rng, T, n, norms, kind, trials) -> tuple[int, float, float]:
+    """One validation: -1 if the interval lies below the true AP, 1 above it, 0 if it covers
+    it; AP's U and the truth."""
     size = norms(T, rng)
     angle = rng.uniform(0, 2 * np.pi, T)
     b = np.column_stack([size * np.cos(angle), size * np.sin(angle)])
@@ -65,7 +66,7 @@ def one(rng, T, n, norms, kind, trials) -> tuple[bool, float, float]:
     r = iso9283_uncertainty(cmd, att, trials=trials, seed=int(rng.integers(1 << 31)))["accuracy"]
     truth = float(size.max())
     lo, hi = r.interval
-    return lo <= truth <= hi, r.U, truth
+    return (-1 if hi < truth else 1 if lo > truth else 0), r.U, truth
 
 
 def coverage(seeds: int, trials: int) -> dict:
@@ -78,9 +79,12 @@ def coverage(seeds: int, trials: int) -> dict:
             ok, U, _ = one(rng, T, n, norms, kind, trials)
             hits.append(ok)
             us.append(U)
-        p = float(np.mean(hits))
+        hits = np.array(hits)
+        p = float(np.mean(hits == 0))
         out[name] = {
             "coverage": p,
+            "below": float(np.mean(hits < 0)),
+            "above": float(np.mean(hits > 0)),
             "mc_error": math.sqrt(max(p * (1 - p), 1e-12) / seeds),
             "median_U_um": float(np.median(us)),
             "cpu_s": time.process_time() - t0,
@@ -99,7 +103,10 @@ def main() -> None:
         print(json.dumps(res, indent=1))
     else:
         for name, r in res["cases"].items():
-            print(f"{name:45s} {r['coverage']:.3f} ± {r['mc_error']:.3f}  U {r['median_U_um']:.3f} µm")
+            print(
+                f"{name:40s} {r['coverage']:.3f} ± {r['mc_error']:.3f} (below {r['below']:.3f}, "
+                f"above {r['above']:.3f})  U {r['median_U_um']:.3f} µm"
+            )
 
 
 if __name__ == "__main__":
