@@ -178,10 +178,27 @@ def parser() -> argparse.ArgumentParser:
     )
     _required(ce, "--campaign", "--summary", "--html")
     ce.add_argument("--pdf")
+    ce.add_argument("--xml", help="the Digital Calibration Certificate (DCC, PTB's XML schema)")
+    ce.add_argument(
+        "--laboratory", help="JSON: config 'laboratory' (name, address, accreditation, approver, signing_key)"
+    )
+    ce.add_argument(
+        "--item", help="JSON: config 'stages.<id>.item' (customer, manufacturer, model, serial_number)"
+    )
     ce.add_argument(
         "--sections",
         help=SECTIONS_HELP,
     )
+
+    vc = _sub(
+        sub,
+        "verify-certificate",
+        _run("calflow.certificate.verify:run"),
+        "check a certificate (PDF or DCC): its signature and chain, and that its values equal the results on disk",
+    )
+    vc.add_argument("file", help="reports/<campaign>/certificate.pdf or certificate.xml")
+    vc.add_argument("--trust", help="PEM file of the CA certificate(s) the signer's chain must reach")
+    vc.add_argument("--summary", help="the results it certifies (default: results/<campaign>/summary.json)")
 
     ic = _sub(
         sub,

@@ -638,3 +638,94 @@ def test_no_job_uses_more_memory_than_its_rule_declares(thesis_run):
     assert all("mem_mb" in rules[rule] for rule in runs), [r for r in runs if "mem_mb" not in rules[r]]
     assert job_sizes.short_of(runs, rules) == []
     assert max(r["peak_mb"] for r in jobs) <= 1000
+
+
+FIELDS = (  # ISO/IEC 17025:2017 7.8.2.1 and 7.8.4.1: each a cell of the certificate's first table
+    "laboratory",
+    "address",
+    "accreditation",
+    "customer",
+    "item",
+    "serial_number",
+    "calibrated",
+    "issued",
+    "method",
+    "environment",
+    "traceability",
+    "approver",
+)
+
+
+def test_every_default_certificate_states_iso_17025_its_dcc_holds_and_signs(
+    thesis_run, tmp_path, monkeypatch
+):
+    """Each default campaign's certificate: every 7.8 item present and not empty, its number,
+    "unsigned" and "page x of y" on every PDF page (no key in a default run); its DCC valid
+    against PTB's schema and read back by dcc-json-toolkit equal to summary.json, figure for
+    figure; then made again with a throw-away lab key, verified against its CA."""
+    from dcc_check import read_back, results_read_back, schema_errors
+    from pdf_check import page_texts
+    from throwaway_pki import make
+
+    from calflow.cli import main
+
+    certificates = sorted(thesis_run.glob("reports/*/certificate.html"))
+    assert len(certificates) >= 9
+    (tmp_path / "pki").mkdir()
+    pki = make(tmp_path / "pki")
+    for html_file in certificates:
+        name = html_file.parent.name
+        html = html_file.read_text()
+        for field in FIELDS:
+            start = html.index(f'data-field="{field}"')
+            cell = re.sub(
+                r"<[^>]+>", "", html[html.index(">", start) + 1 : html.index("</td>", start)]
+            ).strip()
+            assert cell and cell != "—", (name, field)
+        number = re.search(r'data-number="([^"]+)"', html).group(1)
+        pages = page_texts(html_file.with_suffix(".pdf"))
+        for i, text in enumerate(pages, 1):
+            assert number in text and "UNSIGNED" in text and f"page {i} of {len(pages)}" in text, (name, i)
+        xml = html_file.with_suffix(".xml").read_bytes()
+        assert schema_errors(xml, tmp_path) == [], name
+        summary = json.loads((thesis_run / f"results/{name}/summary.json").read_text())
+        for key, (value, U, k, _) in results_read_back(read_back(xml, tmp_path)).items():
+            parent_key, leaf = key.rsplit(".", 1)
+            parent = summary
+            for part in parent_key.split("."):
+                parent = parent[part]
+            assert value == parent[leaf], (name, key)
+            if U is not None:
+                assert (U, k) == (parent["uncertainty"][leaf]["U"], parent["uncertainty"][leaf]["k"]), (
+                    name,
+                    key,
+                )
+        # signed: the same certificate made with a lab key outside the project
+        out = tmp_path / name
+        out.mkdir()
+        monkeypatch.chdir(thesis_run)
+        monkeypatch.setenv("CALFLOW_SIGNING_KEY", str(pki["p12"]))
+        monkeypatch.setenv("CALFLOW_SIGNING_PASSWORD", pki["password"])
+        args = [
+            "certificate",
+            "--campaign",
+            f"config/campaigns/{name}.yaml",
+            "--summary",
+            f"results/{name}/summary.json",
+        ]
+        args += ["--html", str(out / "c.html"), "--pdf", str(out / "c.pdf"), "--xml", str(out / "c.xml")]
+        assert main(args) == 0, name
+        for suffix in ("pdf", "xml"):
+            check = ["verify-certificate", str(out / f"c.{suffix}"), "--trust", str(pki["ca"])]
+            assert main([*check, "--summary", f"results/{name}/summary.json"]) == 0, (name, suffix)
+
+
+def test_no_text_of_any_default_pdf_lies_outside_its_page(thesis_run):
+    """Every PDF of the default run (reports, certificates, histories), read back by
+    pdfminer.six: no character past the page's edge (a wide table wraps instead)."""
+    from pdf_check import outside
+
+    pdfs = sorted(thesis_run.glob("reports/**/*.pdf"))
+    assert len(pdfs) >= 25
+    past = {str(p.relative_to(thesis_run)): o[:3] for p in pdfs if (o := outside(p))}
+    assert past == {}

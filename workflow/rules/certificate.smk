@@ -8,6 +8,7 @@ rule certificate:
     output:
         html=layout.certificate("{campaign}"),
         pdf=layout.certificate("{campaign}", "pdf"),
+        xml=layout.certificate("{campaign}", "xml"),
     log:
         layout.log("{campaign}", "certificate"),
     benchmark:
@@ -20,9 +21,16 @@ rule certificate:
         mem_mb=400,
         runtime=1,
     params:
-        **reads("certificate", "stage", "start"),
+        # the method states the campaign's plan (its digest): every section is read
+        **reads("certificate", ALL),
         campaign=campaign_file,
+        laboratory=lambda w: shlex.quote(laboratory_settings()),
+        item=lambda w: shlex.quote(item_settings(w.campaign)),
+        # where the signing key is (never the key): a key given or gone remakes the documents
+        signing_key=lambda w: os.environ.get("CALFLOW_SIGNING_KEY")
+        or (config.get("laboratory") or {}).get("signing_key")
+        or "",
     shell:
         "calflow certificate --campaign {params.campaign} --sections {params.sections:q}"
-        " --summary {input.summary}"
-        " --html {output.html} --pdf {output.pdf} > {log} 2>&1"
+        " --summary {input.summary} --laboratory {params.laboratory} --item {params.item}"
+        " --html {output.html} --pdf {output.pdf} --xml {output.xml} > {log} 2>&1"

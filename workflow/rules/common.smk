@@ -303,6 +303,22 @@ def certificate_settings(name):
     return json.dumps({k: settings[k] for k in keys if k in settings}, sort_keys=True)
 
 
+def laboratory_settings():
+    """The laboratory that issues the certificates (config ``laboratory``), JSON."""
+    import json
+
+    return json.dumps(config.get("laboratory") or {}, sort_keys=True)
+
+
+def item_settings(name):
+    """The item campaign ``name``'s certificate describes (config ``stages.<id>.item``), JSON."""
+    import json
+
+    stage = CAMPAIGN[name].get("stage")
+    item = config.get("stages", {}).get(stage, {}).get("item", {}) if stage else {}
+    return json.dumps(item, sort_keys=True)
+
+
 def stage_digest(w):
     """What the history reads besides the summaries: which campaigns it holds (one appearing,
     going or moving to another stage reruns it) and what each campaign file says of them.

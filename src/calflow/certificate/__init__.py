@@ -19,6 +19,10 @@ if TYPE_CHECKING:  # the workflow imports this package at load: no numpy there
     from calflow.metrics.uncertainty import Term
 
 KINDS = ("iso9283", "iso230_2", "none")
+#: What a measurement states of the item: as found (before anything was adjusted, through
+#: the compensation in use), as left (after this calibration), or "" (a result of neither,
+#: e.g. a characterisation of the uncompensated axes).
+STATES = ("as_found", "as_left", "")
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,10 @@ class Measurement:
       in the data's unit; ``scale``: the summary's unit per data unit (1000 for nm from µm).
     * ``label``: how the certificate names the measurement; ``notes``: what the budget
       leaves out, in words.
+    * ``state``: one of :data:`STATES`; the certificate decides as found and as left apart.
+    * ``traceability``: the sensor's chain to the SI metre, one link per entry, in words
+      (e.g. "laser wavelength of the interferometer"); the certificate's traceability
+      statement is built from them.
     """
 
     path: tuple[str, ...]
@@ -46,10 +54,14 @@ class Measurement:
     scale: float = 1.0
     label: str = ""
     notes: tuple[str, ...] = ()
+    state: str = ""
+    traceability: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"measurement {self.path}: kind {self.kind!r}; expected one of {KINDS}")
+        if self.state not in STATES:
+            raise ValueError(f"measurement {self.path}: state {self.state!r}; expected one of {STATES}")
 
 
-__all__ = ["KINDS", "Measurement"]
+__all__ = ["KINDS", "STATES", "Measurement"]

@@ -103,20 +103,47 @@ def _decide(value, limit, rule, unc: dict | None) -> dict:
     return conformity.decide(value, limit, rule, unc["U"], unc["k"], unc["dof_eff"])
 
 
+def least_favourable(decisions) -> str | None:
+    """The least favourable of ``decisions`` (None among them ignored), or None."""
+    known = [d for d in decisions if d is not None]
+    return max(known, key=ORDER.index) if known else None
+
+
+def _found_uncertainty(parent: dict, found: dict, key: str) -> dict | None:
+    """The U of a nested ``as_found`` value: its own, or its parent's when the block repeats
+    the parent's value (an interim check's as-found value is the check's own AP)."""
+    own = (found.get("uncertainty") or {}).get(key)
+    if own is not None:
+        return own
+    mine = (parent.get("uncertainty") or {}).get(key)
+    if mine is not None and found.get(key) == parent.get(key):
+        found.setdefault("uncertainty", {})[key] = mine
+        return mine
+    return None
+
+
 def annotate(summary: dict, campaign: dict, files: list[str], settings: dict | None = None) -> dict:
-    """``summary`` with the certificate keys (module notes); ``settings``: the stage's."""
+    """``summary`` with the certificate keys (module notes); ``settings``: the stage's.
+
+    As found and as left are decided apart (``certificate.decisions``): what the stage
+    leaves the lab with, ``certificate.decision``, is the as-left decision when the campaign
+    has one, else the least favourable of its other results, else the as-found decision.
+    """
+    from calflow.certificate.environment import environment
+
     robot = campaign["robot"]
     family = family_of(robot)
     prefix = f"stages.{campaign['stage']}." if campaign.get("stage") else ""
     spec = check_settings(settings, robot, "config/config.yaml", prefix) if settings else {}
     measurements = resolve(family.uncertainty)(campaign, files) if family.uncertainty else []
-    figures, decisions = [], []
+    figures, decisions, listed, chain = [], {"as_found": [], "as_left": [], "": []}, set(), []
     limits = spec.get("specification", {})
     rule = spec.get("decision_rule")
     for m in measurements:
         parent = _dig(summary, m.path)
         if parent is None:
             continue
+        chain += [t for t in m.traceability if t not in chain]
         results = uncertainties(m)
         for name, key in m.keys.items():
             if key not in parent:
@@ -125,25 +152,40 @@ def annotate(summary: dict, campaign: dict, files: list[str], settings: dict | N
             if name in results:
                 unc = record(results[name], m.scale, parent[key], m.notes)
                 parent.setdefault("uncertainty", {})[key] = unc
-                figures.append({"path": list(m.path), "key": key, "label": m.label})
+                # one row per figure: the same value under two paths (a copy kept for the
+                # history) is certified once
+                if (m.label, key, parent[key]) not in listed:
+                    listed.add((m.label, key, parent[key]))
+                    figures.append(
+                        {"path": list(m.path), "key": key, "label": m.label, "state": m.state, "kind": m.kind}
+                    )
             if key in limits:
                 c = _decide(parent[key], limits[key], rule, unc)
                 parent.setdefault("conformity", {})[key] = c
-                decisions.append(c["decision"])
+                decisions[m.state].append(c["decision"])
         found = parent.get("as_found")
         if isinstance(found, dict):
             for key, limit in limits.items():
                 if key in found:
-                    c = _decide(found[key], limit, rule, (found.get("uncertainty") or {}).get(key))
+                    c = _decide(found[key], limit, rule, _found_uncertainty(parent, found, key))
                     found.setdefault("conformity", {})[key] = c
-    known = [d for d in decisions if d is not None]
+                    decisions["as_found"].append(c["decision"])
+    states = {s: least_favourable(d) for s, d in decisions.items()}
+    overall = states["as_left"] or states[""] or states["as_found"]
+    given = [d for ds in decisions.values() for d in ds]
     summary["certificate"] = {
         "specification": limits,
         "decision_rule": rule,
         "rule_text": conformity.RULES.get(rule) if rule else None,
-        "decision": max(known, key=ORDER.index) if known else None,
-        "undecided": len(decisions) - len(known),
+        "decision": overall,
+        "decisions": {
+            "as_found": states["as_found"],
+            "as_left": states["as_left"] or states[""],
+        },
+        "undecided": sum(d is None for d in given),
         "figures": figures,
+        "traceability": chain,
+        "environment": environment(files),
     }
     return summary
 

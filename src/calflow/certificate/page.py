@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from calflow.certificate.document import STATE_LABELS
 from calflow.report.render import dig
 
 UNITS = {"um": "µm", "nm": "nm", "deg": "°"}
@@ -32,6 +33,8 @@ def rows(summary: dict) -> list[dict]:
         out.append(
             {
                 "label": f["label"],
+                "state": f.get("state", ""),
+                "state_label": STATE_LABELS.get(f.get("state", ""), ""),
                 "key": key,
                 "dotted": ".".join([*f["path"], key]),
                 "value": parent.get(key),
@@ -55,14 +58,17 @@ def as_found_left(summary: dict) -> list[dict]:
     return out
 
 
-def render(summary: dict, campaign: dict, command: str) -> str:
-    """The certificate's HTML."""
+def render(summary: dict, campaign: dict, command: str, doc: dict | None = None) -> str:
+    """The certificate's HTML; ``doc``: its record (:func:`calflow.certificate.document.record`;
+    default: no laboratory, no item settings, unsigned)."""
+    from calflow.certificate.document import record
     from calflow.report.render import TEMPLATES, _machine, _versions, environment
 
     template = environment().get_template("certificate.html.j2")
     return template.render(
         s=summary,
         c=campaign,
+        doc=doc or record(summary, campaign, {}, {}, None),
         cert=summary.get("certificate") or {},
         rows=rows(summary),
         models=as_found_left(summary),
@@ -73,8 +79,26 @@ def render(summary: dict, campaign: dict, command: str) -> str:
     )
 
 
+def json_option(text: str | None, option: str) -> dict:
+    """A JSON object given on the command line (``{}`` when absent), refused in one line."""
+    import json
+
+    from calflow.errors import ConfigError
+
+    if not text:
+        return {}
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"calflow certificate: {option}: expected JSON, got {text!r} ({exc})") from None
+    if not isinstance(value, dict):
+        raise ConfigError(f"calflow certificate: {option}: expected a JSON object, got {text!r}")
+    return value
+
+
 def run(args) -> None:
-    """``calflow certificate``: the page from the campaign's summary."""
+    """``calflow certificate``: the page (and the DCC) from the campaign's summary."""
+    from calflow.certificate.document import record
     from calflow.configuration import layout
     from calflow.configuration.handed import campaign_of
     from calflow.data.io import load_summary, write_bytes, write_text
@@ -82,11 +106,23 @@ def run(args) -> None:
 
     campaign = campaign_of(args)
     summary = load_summary(args.summary)
+    laboratory = json_option(getattr(args, "laboratory", None), "--laboratory")
+    item = json_option(getattr(args, "item", None), "--item")
     command = f"snakemake --cores 2 {layout.certificate(campaign['name'])}"
-    html = render(summary, campaign, command)
+    from calflow.certificate import signing
+    from calflow.certificate.dcc import build
+
+    path = signing.key_path(laboratory)
+    key = signing.load(path) if path else None
+    doc = record(summary, campaign, laboratory, item, key.signer_name if key else None)
+    html = render(summary, campaign, command, doc)
+    xml = build(summary, doc)
+    if key:
+        xml = signing.sign_xml(xml, key)
+    outputs = [(xml, args.xml)] if getattr(args, "xml", None) else []
     if args.pdf:
-        pdf = write_pdf(html, Path(args.html).parent)
-        write_text(html, args.html)
-        write_bytes(pdf, args.pdf)
-    else:
-        write_text(html, args.html)
+        pdf = write_pdf(html, Path(args.html).parent, {"certificate.xml": xml})
+        outputs.append((signing.sign_pdf(pdf, key) if key else pdf, args.pdf))
+    write_text(html, args.html)
+    for data, out in outputs:
+        write_bytes(data, out)

@@ -26,6 +26,11 @@ import numpy as np
 from calflow.certificate import Measurement
 from calflow.metrics.uncertainty import Term
 
+#: The interferometer's chain to the SI metre (the certificate's traceability statement).
+TRACEABILITY = (
+    "the laser wavelength of the interferometer (Table 3.4, U_1; its calibration: not recorded in the campaign)",
+    "the atmospheric compensation's air sensors (U_4; their calibration: not recorded)",
+)
 NOTES = ("U_4 (atmospheric, relative) and U_6 (deadpath, offset) share U_W but enter as independent terms",)
 
 
@@ -102,6 +107,7 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
                         scale=1000.0,
                         label=f"{plan} run, every pose",
                         notes=tuple(notes),
+                        traceability=TRACEABILITY if terms else (),
                     )
                 )
     iso_run = runs.get("training", runs.get("metrology"))
@@ -117,6 +123,7 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
                 scale=1000.0,
                 label=f"ISO 230-2, {iso_run.attrs['plan']} run",
                 notes=tuple(notes),
+                traceability=TRACEABILITY if terms else (),
             )
         )
     return out

@@ -197,6 +197,9 @@ def entry(results: Path, reports: Path, name: str, campaign_dir: Path | None = N
     row["report"] = (reports / name / "report.html").is_file()
     row["certificate"] = (reports / name / "certificate.html").is_file()
     row["decision"] = ((row["summary"] or {}).get("certificate") or {}).get("decision")
+    # as found and as left, each labelled, when the campaign decided both
+    given = ((row["summary"] or {}).get("certificate") or {}).get("decisions") or {}
+    row["decisions"] = {k: given[k] for k in ("as_found", "as_left") if given.get(k)}
     return row
 
 

@@ -260,11 +260,12 @@ def render_index(
     )
 
 
-def write_pdf(html: str, base_url: str | Path) -> bytes:
+def write_pdf(html: str, base_url: str | Path, attachments: dict[str, bytes] | None = None) -> bytes:
     """The PDF rendering of ``html`` (WeasyPrint, print media of the same stylesheet).
 
     For a campaign report pass the second page of :func:`render_campaign_pages`: inline SVG
     figures cost WeasyPrint seconds each (CSS on every element, then drawing), PNGs nothing.
+    ``attachments``: files embedded in the PDF (name → bytes; a certificate carries its DCC).
     """
     import logging
 
@@ -272,4 +273,10 @@ def write_pdf(html: str, base_url: str | Path) -> bytes:
 
     logging.getLogger("weasyprint").setLevel(logging.ERROR)
     logging.getLogger("fontTools").setLevel(logging.ERROR)
-    return weasyprint.HTML(string=html, base_url=str(base_url)).write_pdf()
+    from io import BytesIO
+
+    files = [
+        weasyprint.Attachment(file_obj=BytesIO(data), name=name, relationship="Data")
+        for name, data in (attachments or {}).items()
+    ]
+    return weasyprint.HTML(string=html, base_url=str(base_url)).write_pdf(attachments=files)

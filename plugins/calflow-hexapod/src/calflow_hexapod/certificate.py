@@ -41,6 +41,11 @@ def tracker_terms(distance_m: float) -> tuple[Term, ...]:
     )
 
 
+#: The tracker's chain to the SI metre (the certificate's traceability statement).
+TRACEABILITY = (
+    "the laser tracker's length measurement, verified to ISO 10360-10:2021 (its verification certificate: "
+    "not recorded in the campaign)",
+)
 NOTES = (
     "the tracker's transverse MPE is not split into random and systematic parts: its whole MPE/4 "
     "enters as a systematic error per target (conservative)",
@@ -76,6 +81,8 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
                 terms=tracker_terms(distance),
                 label=f"Model {model}, held-out targets (position)",
                 notes=NOTES,
+                state="as_left",
+                traceability=TRACEABILITY,
             )
         )
     return out

@@ -21,10 +21,63 @@ def chi_rp_factor(d: int) -> float:
 
 
 def effective_count(draws) -> float:
-    """1/Σ p_j²: how many cells can be the maximum (p_j: share of the draws (M, T) where j is)."""
+    """1/Σ p_j²: how many cells are the maximum in the draws (p_j: share of the draws (M, T)
+    where j is). It follows the estimates (the one that came out largest wins most draws), so
+    it counts the cells of a range's pairs, not those that may tie (:func:`candidates`)."""
     d = np.asarray(draws, float)
     p = np.bincount(np.argmax(d, axis=1), minlength=d.shape[1]) / len(d)
     return float(1.0 / np.sum(p**2))
+
+
+def candidates(estimates, column, upper, trials: int, level: float = P95) -> int:
+    """How many cells can be the maximum: the size of the set C of cells whose upper bound
+    reaches the largest lower bound, each cell's interval at the Šidák level that makes the
+    intervals of the |C| candidates simultaneous (two-sided, 1 − (1 − level)/2 per side to
+    the power 1/|C|), found by shrinking C from every cell until it holds (a smaller C raises
+    the lower bounds, so C only shrinks). Unlike the draws' shares of being the maximum
+    (:func:`effective_count`), this counts every cell whose truth may tie with the maximum's.
+
+    ``column(j)``: cell j's draws (M,); ``upper`` (T,): a number no smaller than any of them.
+    A percentile of a cell's draws is at most their maximum: cells whose maximum lies below
+    the largest lower bound are neither searched for it nor candidates, so only the cells
+    near the top have their percentiles computed, one column at a time (a sweep's thousands
+    of cells, or a streamed Monte Carlo's cells not kept, are never all needed).
+    """
+    from scipy.special import ndtr, ndtri
+
+    y = np.atleast_1d(np.asarray(estimates, float))
+    upper = np.asarray(upper, float)
+    order = [int(j) for j in np.argsort(-upper, kind="stable")]
+    cols: dict[int, np.ndarray] = {}
+    z0: dict[int, float] = {}
+
+    def bounds(j: int, za: float) -> tuple[float, float]:
+        if j not in cols:
+            cols[j] = np.asarray(column(j), float)
+            z0[j] = float(ndtri(np.clip(np.mean(cols[j] < y[j]), 1.0 / trials, 1.0 - 1.0 / trials)))
+        low, high = np.quantile(cols[j], [ndtr(2 * z0[j] + za), ndtr(2 * z0[j] - za)])
+        return float(low), float(high)
+
+    m = y.size
+    while True:
+        za = float(ndtri(1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / m)))
+        best, seen = -math.inf, {}
+        for j in order:
+            if upper[j] < best:
+                break
+            seen[j] = bounds(j, za)
+            best = max(best, seen[j][0])
+        c = max(sum(1 for low, high in seen.values() if high >= best), 1)
+        if c >= m:
+            return m
+        m = c
+
+
+def candidate_count(estimates, draws, level: float = P95) -> int:
+    """:func:`candidates` of the cells of a whole array of draws (M, T)."""
+    y = np.atleast_1d(np.asarray(estimates, float))
+    d = np.asarray(draws, float).reshape(len(draws), y.size)
+    return candidates(y, lambda j: np.ascontiguousarray(d[:, j]), d.max(axis=0), len(d), level)
 
 
 def maximum_interval(
@@ -33,23 +86,38 @@ def maximum_interval(
     """95 % interval of max_j θ_j from per-cell estimates (T,) and Monte Carlo draws (M, T).
 
     Each cell's interval is the bias-corrected percentile interval of its draws (z₀ from the
-    share of draws below the estimate); the maximum's bounds are the largest of the cells'
-    bounds, at the one-sided level (1 − (1 − level)/2)^(1/T_eff) (Šidák) where T_eff =
-    1/Σ p_j² counts the cells that can be the maximum (p_j: share of the draws in which
-    cell j is). With one clear maximum this is that cell's interval; with ties it widens,
-    which a maximum of noisy means needs (its estimate is biased upwards and so are the
-    draws around it). ``t_eff`` overrides the count (a range's pairs share their cells).
-    Returns ``(low, high, T_eff)``.
+    share of draws below the estimate). The maximum's bounds are the largest of the cells'
+    bounds (:func:`largest_bounds`): the upper at the cells' own one-sided level, the lower
+    at the Šidák level over the m cells that can be the maximum (:func:`candidate_count`),
+    with the one-sided risks split so the interval's is (1 − level) both when one cell is
+    the maximum and when m cells tie (:func:`lower_risk`). A maximum of noisy means is
+    biased upwards: with ties the interval reaches further below the measured maximum.
+    ``t_eff`` overrides the count (a range's pairs share their cells). Returns
+    ``(low, high, m)``.
     """
     y = np.atleast_1d(np.asarray(estimates, float))
     d = np.asarray(draws, float).reshape(len(draws), y.size)
-    t_eff = effective_count(d) if t_eff is None else float(t_eff)
+    t_eff = candidate_count(y, d, level) if t_eff is None else float(t_eff)
     lo, hi = largest_bounds(y, lambda j: np.ascontiguousarray(d[:, j]), d.max(axis=0), len(d), level, t_eff)
     return lo, hi, t_eff
 
 
+def lower_risk(level: float, count: float) -> float:
+    """The one-sided risk the lower bound of a maximum over ``count`` candidates may take.
+
+    The upper bound, the largest of the cells' upper bounds at 1 − α/2 each (α = 1 − level),
+    misses only if every candidate's does: α/2 with one clear maximum, (α/2)^m when m cells
+    tie. The lower bound misses if any candidate's does; it gets the rest, α − (α/2)^m,
+    shared over the m candidates (Šidák): α/2 for one cell, nearly α at a tie.
+    """
+    a = 1.0 - level
+    return a - (a / 2.0) ** max(float(count), 1.0)
+
+
 def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: float) -> tuple[float, float]:
-    """The largest of the cells' bias-corrected bounds (:func:`maximum_interval`), cell by cell.
+    """The largest of the cells' bias-corrected bounds (:func:`maximum_interval`), cell by cell:
+    the lower ones at the Šidák level over ``t_eff`` candidates with the risk
+    :func:`lower_risk` leaves them, the upper ones at each cell's own 1 − (1 − level)/2.
 
     ``column(j)``: cell j's draws (M,); ``upper`` (T,): a number no smaller than any of
     them (their maximum). A percentile of a cell's draws is at most their maximum, so a cell
@@ -64,7 +132,8 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
     upper = upper + 1e-12 * np.abs(upper) + 1e-300
     from scipy.special import ndtr, ndtri  # stats.norm's cdf and ppf, without its per-call checks
 
-    za = ndtri(1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / t_eff))
+    za = ndtri(1.0 - (1.0 - lower_risk(level, t_eff)) ** (1.0 / t_eff))  # the lower bound's side
+    zb = ndtri((1.0 - level) / 2.0)  # the upper bound's: each cell's own (lower_risk)
     first = int(np.argmax(y))  # usually the maximum's bounds: the rest is pruned against them
     lo = hi = -math.inf
     for j in [first, *(int(i) for i in np.argsort(-upper, kind="stable") if i != first)]:
@@ -73,7 +142,7 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
         x = column(j)
         z0 = ndtri(np.clip(np.mean(x < y[j]), 1.0 / trials, 1.0 - 1.0 / trials))
         # both percentiles from one partial sort when both can move (the same numbers)
-        want = [q for q, bound in ((ndtr(2 * z0 + za), lo), (ndtr(2 * z0 - za), hi)) if upper[j] >= bound]
+        want = [q for q, bound in ((ndtr(2 * z0 + za), lo), (ndtr(2 * z0 - zb), hi)) if upper[j] >= bound]
         found = iter(np.quantile(x, want).tolist())
         if upper[j] >= lo:
             lo = max(lo, next(found))
@@ -84,8 +153,8 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
 
 MAX_METHOD = (
     "Monte Carlo (JCGM 101:2008), M = {M} trials ({how}), per target; the 95 % interval of the maximum "
-    "from the targets' bias-corrected percentile intervals, Šidák-adjusted over the {t:.1f} target(s) "
-    "that can be the maximum"
+    "from the targets' bias-corrected percentile intervals, the lower bound Šidák-adjusted over the "
+    "{t:.3g} target(s) that can be the maximum"
 )
 
 

@@ -8,7 +8,7 @@ their per-trial statistics. Per block, memory holds one group of cells; what is 
 trial is a handful of numbers (each set's largest and smallest cell and where they are, the
 metric's statistics, each term's alone), and of every cell its extremes and how often it is
 the largest or smallest. An interval's rule (:func:`.montecarlo.maximum_interval`,
-:func:`.montecarlo.largest_bounds`: unchanged) then needs the draws of the few cells that can
+:func:`.montecarlo.largest_bounds`, :func:`.montecarlo.candidates`) then needs the draws of the few cells that can
 set its bounds: those are drawn again, a few at a time, from their blocks' seeds. The numbers
 are those of the whole (M, cells) array; memory grows with the cells only through those
 per-cell counters (a few dozen bytes a cell) and the candidates' columns (8 bytes a trial).
@@ -24,7 +24,7 @@ import numpy as np
 from calflow.metrics.uncertainty.adaptive import DIGITS, MAX_BLOCKS, stable
 from calflow.metrics.uncertainty.budget import P95
 from calflow.metrics.uncertainty.draws import BLOCK, Draws, block_sizes
-from calflow.metrics.uncertainty.montecarlo import largest_bounds
+from calflow.metrics.uncertainty.montecarlo import candidates, largest_bounds
 
 WATCH = 64  #: cells of a set whose draws every block keeps: those with the largest (and smallest) estimates
 STORE_BYTES = 256e6  #: draws drawn again and kept for the next look at the intervals (bytes)
@@ -277,7 +277,7 @@ class _Run:
             upper = np.max(
                 [blk.add_cmax[(s, spec.add)] if spec.add else blk.cmax[s] for blk in chosen], axis=0
             )
-            t_eff = float(1.0 / np.sum((counts_max / trials) ** 2))
+            t_eff = float(candidates(y, self._cell(spec, add, chosen, block_ids), upper, trials, self.level))
             first = int(np.argmax(y))
             drawn = (
                 {}
@@ -380,6 +380,19 @@ class _Run:
             v, idx = self.cells(self.draws.error(b, self.blocks[b].m, g, self.positions, self.n)[0], g)[s]
             out.append(np.ascontiguousarray(v[:, int(np.flatnonzero(idx == j)[0])]))
         return out
+
+    def _cell(self, spec, add, chosen, block_ids) -> Callable[[int], np.ndarray]:
+        """Cell j's draws over ``block_ids`` (plus the per-trial addition): kept, or drawn again."""
+
+        def column(j: int) -> np.ndarray:
+            s = spec.cells
+            if _kept(chosen, s, j):
+                c = self._column(s, j, block_ids, {})
+            else:
+                c = self._redraw(int(self.where[s][j]), {s: {j}}, block_ids)[s][j]
+            return c + add if add is not None else c
+
+        return column
 
     def _column(self, s: str, j: int, block_ids, drawn: dict) -> np.ndarray:
         if j in drawn:

@@ -32,6 +32,11 @@ DRIFT_UM_PER_DEGC = (0.157, 1.357)  # Table 3.3, x and y
 NOTES = (
     "the pattern's pitch (the vision sensor's reference standard) has no stated uncertainty: not in the budget",
 )
+#: The vision sensor's chain to the SI metre (the certificate's traceability statement).
+TRACEABILITY = (
+    "the pitch of the vision sensor's reference pattern (its calibration: not recorded in the campaign)",
+    "the rig's thermometers, for the temperature the drift term uses (their calibration: not recorded)",
+)
 
 
 def temperature_excursion(run) -> float | None:
@@ -90,7 +95,7 @@ def _targets(run):
     return np.array(cmd), att
 
 
-def _iso9283(path, run, label) -> Measurement | None:
+def _iso9283(path, run, label, state) -> Measurement | None:
     cmd, att = _targets(run)
     if len(att) == 0:
         return None
@@ -102,6 +107,8 @@ def _iso9283(path, run, label) -> Measurement | None:
         terms=terms,
         label=label,
         notes=notes,
+        state=state,
+        traceability=TRACEABILITY,
     )
 
 
@@ -116,7 +123,9 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
     if "interim_check" in campaign:
         for f in files:
             if f.endswith(f"{campaign['name']}/runs/interim_check.nc"):
-                m = _iso9283(("interim_check",), open_dataset(f, kind="run"), "interim check (as found)")
+                m = _iso9283(
+                    ("interim_check",), open_dataset(f, kind="run"), "interim check (as found)", "as_found"
+                )
                 out += [m] if m else []
         return out
     found = route(files, FAMILY.summary_sections, "XYΘ family")
@@ -124,11 +133,11 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
     for _, run in found.get("as_found_runs", []):  # first: the as-left loop decides as_found with its U
         label = f"Model {spec.get('model')}, as found through {spec.get('reference')}"
         for path in (("models", str(spec.get("model")), "as_found"), ("as_found",)):
-            m = _iso9283(path, run, label)
+            m = _iso9283(path, run, label, "as_found")
             out += [m] if m else []
     for _, run in found.get("heldout_runs", []):
         model = run.attrs.get("model")
-        m = _iso9283(("models", str(model)), run, f"Model {model}, held-out targets")
+        m = _iso9283(("models", str(model)), run, f"Model {model}, held-out targets", "as_left")
         out += [m] if m else []
     for _, run in found.get("iso230_2", []):
         from calflow.xytheta.tables.characterisation import stage_positions
@@ -146,6 +155,7 @@ def measurements(campaign: dict, files: list[str]) -> list[Measurement]:
                 terms=terms,
                 label=f"ISO 230-2, {axis.upper()} stage (characterisation sweep)",
                 notes=notes,
+                traceability=TRACEABILITY,
             )
         )
     return out
