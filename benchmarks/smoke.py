@@ -25,6 +25,7 @@ PY = sys.executable
 SMOKE = {
     "bench_footprint.py": ["--smoke", "--json", "--keep", "{run}"],
     "job_sizes.py": ["{run}/results", "--check"],
+    "compare_summaries.py": ["--smoke", "{run}/results"],
     "bench_report.py": ["{run}", "--smoke", "--out", "{run}/bench-report"],
     "bench_identification.py": ["--smoke", "--json"],
     "bench_certificate.py": ["--smoke", "--json"],

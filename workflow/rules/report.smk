@@ -26,7 +26,7 @@ rule summarise:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1000,
+        mem_mb=1100,
         runtime=6,
     params:
         # the summary reads the whole campaign (each family's its own sections, the stage and

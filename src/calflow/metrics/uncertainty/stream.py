@@ -27,8 +27,9 @@ from calflow.metrics.uncertainty.draws import BLOCK, Draws, block_sizes
 from calflow.metrics.uncertainty.montecarlo import candidates, largest_bounds
 
 WATCH = 64  #: cells of a set whose draws every block keeps: those with the largest (and smallest) estimates
-STORE_BYTES = 256e6  #: draws drawn again and kept for the next look at the intervals (bytes)
-WATCH_MORE = 256  #: the first block's candidates of a maximum whose draws the blocks after it keep too
+STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
+KEPT_BYTES = 320e6  #: the watched cells' draws the blocks keep, all blocks together (bytes)
+WATCH_MORE = 512  #: the first block's candidates of a maximum whose draws the blocks after it keep too
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,10 @@ class _Block:
     """One block's trials: per set, the per-trial extremes and where they are, per cell its
     extremes, and the draws of the watched cells; per input alone, the per-trial extremes."""
 
-    def __init__(self, m: int, sizes: dict[str, int], inputs: list[str], watch: dict[str, np.ndarray]):
-        self.m, self.watch = m, watch
+    def __init__(
+        self, m: int, sizes: dict[str, int], inputs: list[str], watch: dict[str, np.ndarray], room: float
+    ):
+        self.m, self.watch, self.room = m, watch, room  # room: bytes the block may keep
         self.tmax = {s: np.full(m, -np.inf) for s in sizes}
         self.tmin = {s: np.full(m, np.inf) for s in sizes}
         self.amax = {s: np.zeros(m, int) for s in sizes}
@@ -98,7 +101,10 @@ class _Block:
                     self.add_cmax.setdefault((s, add), np.full(self.cmax[s].size, -np.inf))
                     self.add_cmax[(s, add)][idx] = (v + self.extras[add][:, None]).max(axis=0)
             for q in np.flatnonzero(np.isin(idx, self.watch[s])):
+                if self.room < 8 * self.m:
+                    break
                 self.kept[s][int(idx[q])] = np.ascontiguousarray(v[:, q])
+                self.room -= 8 * self.m
 
     def take_part(self, name: str, values: dict) -> None:
         for s, (v, _) in values.items():
@@ -163,7 +169,8 @@ def simulate(
     found = None
     for b in range(len(fixed) if fixed is not None else max_blocks):
         m = fixed[b] if fixed is not None else block
-        blk = _Block(m, sizes, inputs, run.watch)
+        kept = sum(8 * blk.m * len(c) for blk in run.blocks for c in blk.kept.values())
+        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept)
         blk.extras = extras(b, m) if extras else {}
         for g in range(len(draws.groups)):
             total, pieces = draws.error(b, m, g, positions, n)
