@@ -707,6 +707,6 @@ def test_no_text_of_any_default_pdf_lies_outside_its_page(thesis_run):
     from pdf_check import outside
 
     pdfs = sorted(thesis_run.glob("reports/**/*.pdf"))
-    assert len(pdfs) >= 25
+    assert len(pdfs) >= 21  # a report and a certificate per campaign, and the stage history
     past = {str(p.relative_to(thesis_run)): o[:3] for p in pdfs if (o := outside(p))}
     assert past == {}
