@@ -35,7 +35,8 @@ def test_a_step_reads_only_the_sections_its_rule_hands_it():
 
 def test_the_certificate_rule_hands_what_it_digests():
     rule = (ROOT / "workflow" / "rules" / "certificate.smk").read_text()
-    assert re.search(r'\*\*reads\("certificate", "stage", "start"\)', rule)
+    # the certificate states the campaign's plan by its digest: it reads (and digests) every section
+    assert re.search(r'\*\*reads\("certificate", ALL\)', rule)
     assert "--sections {params.sections" in rule
 
 
@@ -64,10 +65,11 @@ def test_a_section_a_step_reads_reruns_it_and_another_does_not(reduced_run, tmp_
     work = tmp_path / "project"
     shutil.copytree(reduced_run, work, symlinks=True)
     assert _params_changed(work) == set()
-    _edit(work, description="another description")  # the summary reads it, the certificate not
+    _edit(work, description="another description")  # the summary and the certificate read it
     changed = _params_changed(work)
     assert "summarise" in changed  # (the report is rerun for its new input already)
-    assert "certificate" not in changed and "acquire" not in changed and "identify" not in changed
+    assert "certificate" in changed  # it states the plan by its digest, and the description
+    assert "acquire" not in changed and "identify" not in changed
     _edit(work, start="2026-03-02T09:00:00+01:00")  # the acquisitions read it
     assert "acquire" in _params_changed(work)
 

@@ -726,6 +726,22 @@ def test_no_text_of_any_default_pdf_lies_outside_its_page(thesis_run):
     from pdf_check import outside
 
     pdfs = sorted(thesis_run.glob("reports/**/*.pdf"))
-    assert len(pdfs) >= 25
+    assert len(pdfs) >= 21  # a report and a certificate per campaign, and the stage history
     past = {str(p.relative_to(thesis_run)): o[:3] for p in pdfs if (o := outside(p))}
     assert past == {}
+
+
+def test_the_index_states_julys_as_found_and_as_left_decisions_apart(thesis_run):
+    """July's recalibration of SN-0042 decided as found and as left, each labelled in its
+    summary and on the index; what the stage leaves the lab with is the as-left decision."""
+    s = json.loads((thesis_run / "results/demo-sn0042-2026-07/summary.json").read_text())
+    cert = s["certificate"]
+    assert set(cert["decisions"]) == {"as_found", "as_left"} and all(cert["decisions"].values())
+    assert cert["decision"] == cert["decisions"]["as_left"]
+    index = (thesis_run / "reports/index.html").read_text()
+    row = index[index.index('data-campaign="demo-sn0042-2026-07"') - 400 :]
+    found = re.search(r'data-key="certificate.decisions.as_found">([^<]+)<', row).group(1)
+    left = re.search(
+        r'data-campaign="demo-sn0042-2026-07" data-key="certificate.decision">([^<]+)<', row
+    ).group(1)
+    assert (found, left) == (cert["decisions"]["as_found"], cert["decisions"]["as_left"])
