@@ -259,9 +259,11 @@ def render_index(catalogue: dict | list[dict], histories: list[dict] | None = No
 
     template = environment().get_template("index.html.j2")
     hist = histories if histories is not None else catalogue.get("histories") or []
+    rows = [c for g in catalogue["groups"] for c in g["campaigns"]]
     return template.render(
         groups=catalogue["groups"],
-        rows=[c for g in catalogue["groups"] for c in g["campaigns"]],
+        rows=rows,
+        measured=[c for c in rows if c.get("footprint")],  # what the jobs measured of themselves
         histories=hist,
         fleets=fleets(hist),
         versions=_versions(),
