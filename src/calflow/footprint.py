@@ -10,7 +10,7 @@ as a small JSON record beside Snakemake's benchmark file:
 
 ``results/<campaign>/logs/<step>.log`` → ``results/<campaign>/benchmarks/<step>.footprint.json``
 
-(a log in no ``logs`` folder gets ``<step>.footprint.json`` beside it). ``CALFLOW_FOOTPRINT``
+(stderr sent to a file in no ``logs`` folder gets the line only). ``CALFLOW_FOOTPRINT``
 names the record's file instead (``-``: the log line only). :func:`records` reads them back,
 for the index and ``benchmarks/bench_footprint.py``.
 """
@@ -40,7 +40,7 @@ def measure() -> dict[str, float]:
     user + system of both."""
     me = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    self_mb = me.ru_maxrss * _RSS_BYTES / 1e6
+    self_mb = _own_peak_mb() or me.ru_maxrss * _RSS_BYTES / 1e6
     kids_mb = kids.ru_maxrss * _RSS_BYTES / 1e6
     user, system = me.ru_utime + kids.ru_utime, me.ru_stime + kids.ru_stime
     return {
@@ -52,6 +52,20 @@ def measure() -> dict[str, float]:
         "system_s": round(system, 3),
         "wall_s": round(time.monotonic() - STARTED, 3),
     }
+
+
+def _own_peak_mb() -> float | None:
+    """The peak resident set of this program since it started (Linux: ``VmHWM`` of
+    /proc/self/status), or None. ``ru_maxrss`` keeps, across the ``exec`` that starts a job,
+    the peak of the process that spawned it (Snakemake's own, ~150 MB): the job's is this."""
+    try:
+        with open("/proc/self/status") as fh:
+            for text in fh:
+                if text.startswith("VmHWM:"):
+                    return int(text.split()[1]) * 1024 / 1e6
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
 
 
 def _log_file() -> Path | None:
@@ -90,8 +104,8 @@ def finish(command: str, status: int) -> Path | None:
         return None
     found = measure()
     print(line(command, found), file=sys.stderr, flush=True)
-    if target == "-":
-        return None
+    if target == "-" or (not target and log.parent.name != "logs"):
+        return None  # a log outside a workflow's logs/ folder: the line only, no file beside it
     path = Path(target) if target else record_path(log)
     record = {"command": command, "status": int(status), "pid": os.getpid(), **found}
     if log is not None:

@@ -18,14 +18,27 @@ def test_record_goes_beside_the_benchmark_of_the_log():
     assert footprint.record_path(Path("/x/elsewhere/job.txt")) == Path("/x/elsewhere/job.txt.footprint.json")
 
 
+def test_stderr_to_a_file_outside_logs_gets_the_line_and_no_file(tmp_path):
+    log = tmp_path / "err.txt"
+    code = "import sys; from calflow.cli import main; sys.exit(main(['check-config', sys.argv[1]]))"
+    with log.open("w") as fh:
+        subprocess.run([sys.executable, "-c", code, str(tmp_path / "missing.yaml")], stderr=fh, check=False)
+    assert "calflow: footprint: check-config" in log.read_text()
+    assert not list(tmp_path.rglob("*.footprint.json"))
+
+
 def test_measure_sees_an_allocation_it_no_longer_holds():
-    """ru_maxrss is the peak: 200 MB touched then freed still count (what sampling misses)."""
-    before = footprint.measure()["self_rss_mb"]
-    block = bytearray(200_000_000)
-    block[::4096] = b"x" * len(block[::4096])
-    del block
-    after = footprint.measure()
-    assert after["self_rss_mb"] >= before + 150
+    """ru_maxrss is the peak: 200 MB touched then freed still count (what sampling misses).
+    In a fresh process, whose peak so far is its imports'."""
+    code = (
+        "import json; from calflow import footprint\n"
+        "before = footprint.measure()\n"
+        "block = bytearray(200_000_000); block[::4096] = b'x' * len(block[::4096]); del block\n"
+        "print(json.dumps([before, footprint.measure()]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    before, after = json.loads(out)
+    assert after["self_rss_mb"] >= before["self_rss_mb"] + 150
     assert after["peak_rss_mb"] >= after["self_rss_mb"]
     assert after["cpu_s"] >= after["user_s"] >= 0
 

@@ -194,6 +194,7 @@ def entry(results: Path, reports: Path, name: str, campaign_dir: Path | None = N
         dt.datetime.fromtimestamp(row["start"], dt.UTC).date().isoformat() if row["start"] else row["written"]
     )
     row["current"] = not failed and not row["stale"]
+    row["footprint"] = footprint_of(folder)
     row["report"] = (reports / name / "report.html").is_file()
     row["certificate"] = (reports / name / "certificate.html").is_file()
     row["decision"] = ((row["summary"] or {}).get("certificate") or {}).get("decision")
@@ -212,6 +213,24 @@ def _start(value) -> float | None:
     except ValueError:
         return None
     return (when if when.tzinfo else when.replace(tzinfo=dt.UTC)).timestamp()
+
+
+def footprint_of(folder: Path) -> dict | None:
+    """What a campaign's jobs measured of themselves (:mod:`calflow.footprint`): ``{jobs,
+    peak_mb, step, cpu_s}`` — the largest peak resident set and its step, the CPU seconds of
+    all the jobs — or None when none left a record."""
+    from calflow.footprint import SUFFIX, records
+
+    found = records(folder / "benchmarks") if (folder / "benchmarks").is_dir() else []
+    if not found:
+        return None
+    top = max(found, key=lambda r: r["peak_rss_mb"])
+    return {
+        "jobs": len(found),
+        "peak_mb": float(top["peak_rss_mb"]),
+        "step": top["path"].rsplit("/", 1)[-1].removesuffix(SUFFIX),
+        "cpu_s": float(sum(r.get("cpu_s", 0.0) for r in found)),
+    }
 
 
 def catalogue(

@@ -249,9 +249,11 @@ def render_index(
         }
     template = environment().get_template("index.html.j2")
     hist = histories if histories is not None else catalogue.get("histories") or []
+    rows = [c for g in catalogue["groups"] for c in g["campaigns"]]
     return template.render(
         groups=catalogue["groups"],
-        rows=[c for g in catalogue["groups"] for c in g["campaigns"]],
+        rows=rows,
+        measured=[c for c in rows if c.get("footprint")],  # what the jobs measured of themselves
         histories=hist,
         fleets=list(fleets),
         versions=_versions(),

@@ -1,0 +1,243 @@
+"""Looks at a streamed Monte Carlo's intervals (:mod:`.stream`): after a block (the stopping
+rule's per-block values) and over every block (the result). An interval's rule is
+:func:`.montecarlo.largest_bounds` with the count of :func:`.montecarlo.candidates` (the cells
+that can be the maximum); both need the draws of the cells that can set
+its bounds, which the blocks kept (the watched cells) or which are drawn again here from their
+seeds, group by group, once for every interval, and stored within :data:`STORE_BYTES` for
+the next look.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calflow.metrics.uncertainty.draws import Draws
+from calflow.metrics.uncertainty.montecarlo import candidates, largest_bounds
+
+STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
+WATCH_MORE = 512  #: the first block's candidates of a maximum whose draws the blocks after it keep too
+
+
+@dataclass(frozen=True)
+class Maximum:
+    """Interval of max_j θ_j (:func:`.montecarlo.maximum_interval`): the set ``cells``, their
+    estimates, and the name of a per-trial addition to every cell's draws (or None)."""
+
+    cells: str
+    estimates: np.ndarray
+    add: str | None = None
+
+
+@dataclass(frozen=True)
+class Span:
+    """Interval of max_i θ_i − min_j θ_j (+ ``add_est`` / the per-trial ``add``), as a maximum
+    over pairs of cells (:func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`)."""
+
+    cells: str
+    estimates: np.ndarray
+    add_est: float = 0.0
+    add: str | None = None
+
+
+def kept_by_all(blocks, s: str, j: int) -> bool:
+    """Whether every one of ``blocks`` kept the draws of cell ``j`` of set ``s``."""
+    return all(int(j) in blk.kept[s] for blk in blocks)
+
+
+@dataclass
+class Looks:
+    """The blocks drawn so far, and how to draw a cell's trials again."""
+
+    draws: Draws
+    positions: np.ndarray
+    n: np.ndarray
+    cells: Callable
+    level: float
+    where: dict[str, np.ndarray]  #: per set, the group of each cell
+    watch: dict[str, np.ndarray]  #: per set, the cells whose draws each new block keeps
+    blocks: list = field(default_factory=list)
+    store: dict = field(
+        default_factory=dict
+    )  #: (set, cell, block) → draws drawn again, kept for a later look
+    stored: int = 0  #: their bytes
+
+    def intervals(self, specs: dict, block_ids, grow: bool = False) -> dict[str, tuple[float, float, float]]:
+        """``{name: (low, high, T_eff)}`` of every interval from the trials of ``block_ids``.
+
+        A maximum's bounds are the largest of its cells' (:func:`largest_bounds`): from the
+        cell of the largest estimate, then over the cells whose largest draw is not below both
+        bounds found so far (no other can change them) — the same bounds as from every cell.
+        Cells whose draws were not kept are drawn again group by group, each group once for
+        every interval. ``grow``: keep the candidates' draws in the blocks still to come."""
+        block_ids = list(block_ids)
+        chosen = [self.blocks[b] for b in block_ids]
+        trials = sum(blk.m for blk in chosen)
+        state, out = {}, {}
+        for name, spec in specs.items():
+            s, y = spec.cells, np.asarray(spec.estimates, float)
+            add = np.concatenate([blk.extras[spec.add] for blk in chosen]) if spec.add else None
+            counts_max = sum(np.bincount(blk.amax[s], minlength=y.size) for blk in chosen)
+            if isinstance(spec, Span):
+                state[name] = ("span", spec, y, add, counts_max)
+                continue
+            upper = np.max(
+                [blk.add_cmax[(s, spec.add)] if spec.add else blk.cmax[s] for blk in chosen], axis=0
+            )
+            t_eff = float(candidates(y, self._cell(spec, add, chosen, block_ids), upper, trials, self.level))
+            first = int(np.argmax(y))
+            drawn = (
+                {}
+                if kept_by_all(chosen, s, first)
+                else self._redraw(int(self.where[s][first]), {s: {first}}, block_ids)[s]
+            )
+            lo, hi = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, np.array([first]), drawn)
+            cands = np.array([j for j in np.argsort(-upper, kind="stable") if j != first], int)
+            cands = cands[upper[cands] >= min(lo, hi)]
+            kept = np.array([j for j in cands if kept_by_all(chosen, s, j)], int)
+            if kept.size:
+                a, b = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, kept, {})
+                lo, hi = max(lo, a), max(hi, b)
+            if grow and cands.size:
+                self.grow(s, cands)
+            state[name] = ("max", spec, y, add, upper, t_eff, [lo, hi], cands[~np.isin(cands, kept)])
+        # the cells no block kept, group by group (the groups of the largest draws first)
+        wanted: dict[int, dict[str, set]] = {}
+        for st in state.values():
+            if st[0] == "max":
+                for j in st[-1]:
+                    wanted.setdefault(int(self.where[st[1].cells][j]), {}).setdefault(st[1].cells, set()).add(
+                        int(j)
+                    )
+            else:
+                spec, counts_max = st[1], st[4]
+                counts_min = sum(np.bincount(blk.amin[spec.cells], minlength=st[2].size) for blk in chosen)
+                need = np.union1d(np.flatnonzero(counts_max), np.flatnonzero(counts_min))
+                for j in need:
+                    if not kept_by_all(chosen, spec.cells, int(j)):
+                        wanted.setdefault(int(self.where[spec.cells][j]), {}).setdefault(
+                            spec.cells, set()
+                        ).add(int(j))
+        drawn: dict[str, dict[int, np.ndarray]] = {}
+        for g, sets in wanted.items():
+            cols = self._redraw(g, sets, block_ids)
+            for st in state.values():
+                if st[0] != "max" or st[1].cells not in cols:
+                    continue
+                spec, y, add, upper, t_eff, bounds, rest = st[1:]
+                mine = cols[spec.cells]
+                here = np.array([j for j in rest if int(j) in mine and upper[j] >= min(bounds)], int)
+                if here.size:
+                    a, b = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, here, mine)
+                    bounds[0], bounds[1] = max(bounds[0], a), max(bounds[1], b)
+            for s_name, c in cols.items():  # a range's candidates are needed all at once
+                if any(st[0] == "span" and st[1].cells == s_name for st in state.values()):
+                    drawn.setdefault(s_name, {}).update(c)
+        for name, st in state.items():
+            if st[0] == "max":
+                out[name] = (st[6][0], st[6][1], st[5])
+            else:
+                out[name] = self._span(
+                    st[1], st[2], st[3], chosen, block_ids, trials, drawn.get(st[1].cells, {})
+                )
+        return out
+
+    def grow(self, s: str, cells) -> None:
+        """Keep the draws of ``cells`` of set ``s`` in the blocks to come (at most
+        :data:`WATCH_MORE` more, those of the largest draws)."""
+        current = self.watch[s]
+        extra = np.asarray([j for j in cells if j not in set(current.tolist())], int)[:WATCH_MORE]
+        self.watch = {**self.watch, s: np.union1d(current, extra)}
+
+    def _redraw(self, g: int, sets: dict[str, set], block_ids) -> dict[str, dict[int, np.ndarray]]:
+        """The draws of some cells of group ``g`` over ``block_ids``: those a block kept or an
+        earlier look stored as they are, the others drawn again (the group once a block) and
+        stored while :data:`STORE_BYTES` allows."""
+        for b in block_ids:
+            missing = {s: [j for j in cells if (s, j, b) not in self.store and j not in self.blocks[b].kept[s]]
+                       for s, cells in sets.items()}  # fmt: skip
+            if not any(missing.values()):
+                continue
+            total, _ = self.draws.error(b, self.blocks[b].m, g, self.positions, self.n)
+            values = self.cells(total, g)
+            for s, cells in sets.items():
+                v, idx = values[s]
+                for q in np.flatnonzero(np.isin(idx, list(cells))):
+                    column = np.ascontiguousarray(v[:, q])
+                    self.store[(s, int(idx[q]), b)] = column
+                    self.stored += column.nbytes
+            while self.stored > STORE_BYTES and self.store:  # the oldest go first
+                self.stored -= self.store.pop(next(iter(self.store))).nbytes
+        out: dict[str, dict[int, np.ndarray]] = {}
+        for s, cells in sets.items():
+            out[s] = {}
+            for j in cells:
+                parts = [self.store.get((s, j, b)) for b in block_ids]
+                if any(p is None and j not in self.blocks[b].kept[s] for p, b in zip(parts, block_ids)):
+                    parts = self._redraw_one(g, s, j, block_ids)
+                out[s][j] = np.concatenate(
+                    [p if p is not None else self.blocks[b].kept[s][j] for p, b in zip(parts, block_ids)]
+                )
+        return out
+
+    def _redraw_one(self, g: int, s: str, j: int, block_ids) -> list:
+        """One cell's draws in each block, drawn again whatever was stored (the store overflowed)."""
+        out = []
+        for b in block_ids:
+            v, idx = self.cells(self.draws.error(b, self.blocks[b].m, g, self.positions, self.n)[0], g)[s]
+            out.append(np.ascontiguousarray(v[:, int(np.flatnonzero(idx == j)[0])]))
+        return out
+
+    def _cell(self, spec, add, chosen, block_ids) -> Callable[[int], np.ndarray]:
+        """Cell j's draws over ``block_ids`` (plus the per-trial addition): kept, or drawn again."""
+
+        def column(j: int) -> np.ndarray:
+            s = spec.cells
+            if kept_by_all(chosen, s, j):
+                c = self._column(s, j, block_ids, {})
+            else:
+                c = self._redraw(int(self.where[s][j]), {s: {j}}, block_ids)[s][j]
+            return c + add if add is not None else c
+
+        return column
+
+    def _column(self, s: str, j: int, block_ids, drawn: dict) -> np.ndarray:
+        if j in drawn:
+            return drawn[j]
+        return np.concatenate([self.blocks[b].kept[s][j] for b in block_ids])
+
+    def _bounds(self, spec, y, add, upper, trials, t_eff, block_ids, cells, drawn):
+        def column(q):
+            c = self._column(spec.cells, int(cells[q]), block_ids, drawn)
+            return c + add if add is not None else c
+
+        return largest_bounds(y[cells], column, upper[cells], trials, self.level, t_eff)
+
+    def _span(self, spec, y, add, chosen, block_ids, trials, drawn) -> tuple[float, float, float]:
+        """A range's interval as a maximum over pairs (max cell − min cell), from the cells that
+        are the largest or the smallest in some trial."""
+        s = spec.cells
+        counts_max = sum(np.bincount(blk.amax[s], minlength=y.size) for blk in chosen)
+        counts_min = sum(np.bincount(blk.amin[s], minlength=y.size) for blk in chosen)
+        top, bottom = np.flatnonzero(counts_max), np.flatnonzero(counts_min)
+        t_eff = float(
+            1.0 / np.sum((counts_max / trials) ** 2) + 1.0 / np.sum((counts_min / trials) ** 2) - 1.0
+        )
+        cmax = np.max([blk.cmax[s] for blk in chosen], axis=0)
+        cmin = np.min([blk.cmin[s] for blk in chosen], axis=0)
+        e = (y[top][:, None] - y[bottom][None, :]).ravel() + spec.add_est
+        extra = add if add is not None else np.zeros(1)
+        hi_top, lo_bottom = cmax[top], cmin[bottom]
+        size = np.abs(hi_top)[:, None] + np.abs(lo_bottom)[None, :] + np.abs(extra).max()
+        upper = ((hi_top[:, None] - lo_bottom[None, :]) + extra.max() + 1e-12 * size).ravel()
+        rows_top = [self._column(s, int(j), block_ids, drawn) for j in top]
+        rows_bottom = [self._column(s, int(j), block_ids, drawn) for j in bottom]
+        nb = bottom.size
+
+        def column(q):
+            c = rows_top[q // nb] - rows_bottom[q % nb]
+            return c + add if add is not None else c
+
+        return (*largest_bounds(e, column, upper, trials, self.level, t_eff), t_eff)
