@@ -40,11 +40,10 @@ def lab_layout(monkeypatch):
         return Decoded(full, full, full, full, full, full, np.array(["ok"] * n), np.array(["decoded"] * n))
 
     mod.read, mod.decode = read, decode
-    mod.LAYOUT = registry.Layout(
-        "labgrid", "a lab's grid", "lab_layout:read", "lab_layout:decode", ("LabGrid",)
-    )
+    mod.LAYOUT = registry.Layout("labgrid", "a lab's grid", read, decode, ("LabGrid",))
+    mod.NAMED = registry.Layout("named", "hooks named, not given", "lab_layout:read", "lab_layout:decode")
     mod.NOT_A_LAYOUT = object()
-    mod.TWIN = registry.Layout("megarena", "a second megarena", "lab_layout:read", "lab_layout:decode")
+    mod.TWIN = registry.Layout("megarena", "a second megarena", read, decode)
     monkeypatch.setitem(sys.modules, "lab_layout", mod)
     real = registry.entry_points
 
@@ -76,7 +75,11 @@ def test_a_labs_layout_plugs_in_without_a_core_edit(tmp_path, lab_layout):
 
 @pytest.mark.parametrize(
     "names, said",
-    [(("NOT_A_LAYOUT",), "is not a calflow pattern Layout"), (("TWIN",), "a second layout named 'megarena'")],
+    [
+        (("NOT_A_LAYOUT",), "is not a calflow pattern Layout"),
+        (("TWIN",), "a second layout named 'megarena'"),
+        (("NAMED",), "read and decode: expected functions"),
+    ],
 )
 def test_a_bad_registration_is_refused_in_one_line(lab_layout, names, said):
     lab_layout(names)

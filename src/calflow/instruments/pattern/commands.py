@@ -86,7 +86,8 @@ def run_pattern(args) -> None:
     if args.layout == "megarena":
         from calflow.instruments.pattern.megarena.commands import make_megarena
 
-        return make_megarena(args, _range(args.range))
+        rng = _range(args.range)
+        return make_megarena(args, rng, output_names(args, ("json", "vernier.json", "gds", "png")))
     if args.depth is not None:
         raise CalflowError("--depth: only for --layout megarena")
     from calflow.instruments.pattern.gds import write_gds, write_png

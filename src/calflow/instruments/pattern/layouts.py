@@ -8,8 +8,8 @@ as an entry point of the group ``calflow.pattern_layouts`` in its ``pyproject.to
     [project.entry-points."calflow.pattern_layouts"]
     mylayout = "mylab_calflow.layout:LAYOUT"
 
-Its hooks are ``"module:attribute"`` strings, imported only when a pattern file of that
-layout is read or decoded (docs/instruments.md, "Pattern layouts"):
+Its two hooks are functions (docs/instruments.md, "Pattern layouts"); this module is imported
+only where a pattern file is read or frames are decoded:
 
 * ``read(data: dict, where: str) -> pattern`` — a parsed pattern file (calflow's, with
   ``"layout": name``, or another program's, recognised by one of ``foreign_keys``) → a pattern
@@ -21,11 +21,16 @@ layout is read or decoded (docs/instruments.md, "Pattern layouts"):
   contract of :func:`calflow.instruments.pattern.decode`: per frame x, y (µm), Θ (degree),
   their standard uncertainties, a status of :data:`~calflow.instruments.pattern.STATUSES`
   and a reason; NaN, never a neighbouring period, when it cannot tell.
+
+The built-in layouts' code is imported here, so the workflow's code digests
+(:mod:`calflow.provenance`) follow it; a lab's layout, loaded from its entry point, is not in
+them: after changing it, rerun what decodes frames (``--forcerun decode_frames``).
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib.metadata import entry_points
@@ -33,38 +38,37 @@ from pathlib import Path
 from typing import Any
 
 from calflow.errors import CalflowError
+from calflow.instruments.pattern.decode import decode as decode_cell2x2
+from calflow.instruments.pattern.megarena.decode import decode as decode_megarena
+from calflow.instruments.pattern.megarena.pattern import read_megarena
+from calflow.instruments.pattern.pattern import read_cell2x2
 
 GROUP = "calflow.pattern_layouts"
 
 
 @dataclass(frozen=True)
 class Layout:
-    """One layout: its name, a line saying what it is, its hooks and the keys it reads."""
+    """One layout: its name, a line saying what it is, its two hooks and the keys it reads."""
 
     name: str
     description: str
-    read: str  # "module:attribute": read(data, where) -> pattern
-    decode: str  # "module:attribute": decode(frames, pattern, ...) -> Decoded
+    read: Callable[[dict, str], Any]  # read(data, where) -> pattern
+    decode: Callable[..., Any]  # decode(frames, pattern, pixel_um=None, ...) -> Decoded
     foreign_keys: tuple[str, ...] = ()  # top-level keys of other programs' pattern files
-
-    def hook(self, name: str) -> Any:
-        from calflow.family import resolve
-
-        return resolve(getattr(self, name))
 
 
 CELL2X2 = Layout(
     name="cell2x2",
     description="calflow's coded-dot grid: two m-sequences in the missing dots of 2 × 2 cells",
-    read="calflow.instruments.pattern.pattern:read_cell2x2",
-    decode="calflow.instruments.pattern.decode:decode",
+    read=read_cell2x2,
+    decode=decode_cell2x2,
 )
 
 MEGARENA = Layout(
     name="megarena",
     description="FEMTO-ST's Megarena: one m-sequence keeps or drops whole rows and columns of a dot grid",
-    read="calflow.instruments.pattern.megarena.pattern:read_megarena",
-    decode="calflow.instruments.pattern.megarena.decode:decode",
+    read=read_megarena,
+    decode=decode_megarena,
     foreign_keys=("MegarenaPattern",),
 )
 
@@ -79,6 +83,11 @@ def layouts() -> dict[str, Layout]:
         layout = ep.load()
         if not isinstance(layout, Layout):
             raise CalflowError(f"entry point {GROUP}:{ep.name}: {ep.value} is not a calflow pattern Layout")
+        if not (callable(layout.read) and callable(layout.decode)):
+            raise CalflowError(
+                f"entry point {GROUP}:{ep.name}: read and decode: expected functions, "
+                f"got {type(layout.read).__name__} and {type(layout.decode).__name__}"
+            )
         if layout.name in found:
             raise CalflowError(f"entry point {GROUP}:{ep.name}: a second layout named {layout.name!r}")
         for key in layout.foreign_keys:
@@ -107,13 +116,13 @@ def read_pattern(data: Any, where: str = "pattern") -> Any:
     if not isinstance(data, dict):
         raise CalflowError(f"{where}: (top level): expected a JSON object")
     if "layout" in data:
-        return layout_of(data["layout"], where).hook("read")(data, where)
+        return layout_of(data["layout"], where).read(data, where)
     for layout in layouts().values():
         for key in layout.foreign_keys:
             if key in data:
-                return layout.hook("read")(data, where)
+                return layout.read(data, where)
     if "format" in data or not data or not all(isinstance(v, dict) for v in data.values()):
-        return layout_of("cell2x2", where).hook("read")(data, where)  # says which key is wrong
+        return layout_of("cell2x2", where).read(data, where)  # says which key is wrong
     known = sorted(k for lay in layouts().values() for k in lay.foreign_keys)
     raise CalflowError(
         f"{where}: (top level): expected a calflow pattern file (format, layout) or one of the keys "
@@ -135,4 +144,4 @@ def load_pattern(path) -> Any:
 
 def decode_frames(frames, pattern, **options) -> Any:
     """Decode frames of ``pattern`` with its layout's decoder."""
-    return layout_of(getattr(pattern, "layout", "cell2x2")).hook("decode")(frames, pattern, **options)
+    return layout_of(getattr(pattern, "layout", "cell2x2")).decode(frames, pattern, **options)

@@ -28,11 +28,11 @@ def smallest_depth(side_um: float, period_um: float) -> int:
     )
 
 
-def make_megarena(args, range_um: tuple[float, float]) -> None:
+def make_megarena(args, range_um: tuple[float, float], names: dict) -> None:
     """The pattern file, the same target as the Vernier library's JSON, its GDSII and a PNG
-    preview, of the region of interest: the range plus the field of view a frame needs."""
+    preview, of the region of interest: the range plus the field of view a frame needs, to
+    ``names`` (kind → path: json, vernier.json, gds, png)."""
     from calflow.data.io import atomic_path
-    from calflow.instruments.pattern.commands import output_names
     from calflow.instruments.pattern.gds import write_png
     from calflow.instruments.pattern.megarena.gds import write_gds
 
@@ -69,7 +69,6 @@ def make_megarena(args, range_um: tuple[float, float]) -> None:
         raise CalflowError(
             f"--dot-um: expected less than the period {period:g} µm, got {pattern.dot_diameter_um:g}"
         )
-    names = output_names(args, ("json", "vernier.json", "gds", "png"))
     with (
         atomic_path(names["json"]) as j,
         atomic_path(names["vernier.json"]) as v,
