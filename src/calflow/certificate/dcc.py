@@ -226,7 +226,7 @@ def build(summary: dict, doc: dict) -> bytes:
     """The DCC of a campaign (module notes), as UTF-8 XML bytes."""
     from lxml import etree
 
-    from calflow.certificate.page import rows
+    from calflow.certificate.document import rows
 
     root = etree.Element(f"{{{DCC}}}digitalCalibrationCertificate", nsmap=NSMAP)
     root.set("schemaVersion", SCHEMA_VERSION)

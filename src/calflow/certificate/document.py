@@ -25,6 +25,8 @@ import json
 import os
 import re
 
+from calflow.configuration.campaign import dig
+
 #: The standard each kind of measurement follows (:data:`calflow.certificate.KINDS`).
 STANDARDS = {
     "iso9283": "ISO 9283:1998, 7.2.1 and 7.2.2: pose accuracy AP and pose repeatability RP",
@@ -150,3 +152,35 @@ def record(summary: dict, campaign: dict, laboratory: dict, item: dict, signed_b
         "approver": lab.get("approver"),
         "signature": signed_by or UNSIGNED,
     }
+
+
+UNITS = {"um": "µm", "nm": "nm", "deg": "°"}
+
+
+def unit_of(key: str) -> str:
+    """The unit of a summary key from its suffix (``accuracy_um`` → µm)."""
+    return UNITS.get(key.rsplit("_", 1)[-1], "")
+
+
+def rows(summary: dict) -> list[dict]:
+    """One row per figure with a U or a decision: label, key, value, unit, uncertainty, conformity."""
+    out = []
+    for f in (summary.get("certificate") or {}).get("figures", []):
+        parent = dig(summary, ".".join(f["path"])) if f["path"] else summary
+        if not isinstance(parent, dict):
+            continue
+        key = f["key"]
+        out.append(
+            {
+                "label": f["label"],
+                "state": f.get("state", ""),
+                "state_label": STATE_LABELS.get(f.get("state", ""), ""),
+                "key": key,
+                "dotted": ".".join([*f["path"], key]),
+                "value": parent.get(key),
+                "unit": unit_of(key),
+                "uncertainty": (parent.get("uncertainty") or {}).get(key),
+                "conformity": (parent.get("conformity") or {}).get(key),
+            }
+        )
+    return out

@@ -11,39 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calflow.certificate.document import STATE_LABELS
-from calflow.report.render import dig
-
-UNITS = {"um": "µm", "nm": "nm", "deg": "°"}
-
-
-def unit_of(key: str) -> str:
-    """The unit of a summary key from its suffix (``accuracy_um`` → µm)."""
-    return UNITS.get(key.rsplit("_", 1)[-1], "")
-
-
-def rows(summary: dict) -> list[dict]:
-    """One row per figure with a U or a decision: label, key, value, unit, uncertainty, conformity."""
-    out = []
-    for f in (summary.get("certificate") or {}).get("figures", []):
-        parent = dig(summary, ".".join(f["path"])) if f["path"] else summary
-        if not isinstance(parent, dict):
-            continue
-        key = f["key"]
-        out.append(
-            {
-                "label": f["label"],
-                "state": f.get("state", ""),
-                "state_label": STATE_LABELS.get(f.get("state", ""), ""),
-                "key": key,
-                "dotted": ".".join([*f["path"], key]),
-                "value": parent.get(key),
-                "unit": unit_of(key),
-                "uncertainty": (parent.get("uncertainty") or {}).get(key),
-                "conformity": (parent.get("conformity") or {}).get(key),
-            }
-        )
-    return out
+from calflow.certificate.document import rows
 
 
 def as_found_left(summary: dict) -> list[dict]:

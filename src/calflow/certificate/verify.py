@@ -78,8 +78,7 @@ def read_dcc(xml: bytes) -> dict:
 def compare(dcc: dict, summary: dict, name: str) -> int:
     """Refuse (:class:`Refused`) the first value of ``dcc`` that differs from ``summary``;
     the number of results compared."""
-    from calflow.certificate.document import number
-    from calflow.certificate.page import rows
+    from calflow.certificate.document import number, rows
 
     for key, got in dcc["results"].items():
         parent_key, _, leaf = key.rpartition(".")
