@@ -39,6 +39,8 @@ def results_read_back(dcc: dict) -> dict:
     out = {}
     for mr in dcc["dcc:measurementResults"]["dcc:measurementResult"]:
         for r in mr["dcc:results"]["dcc:result"]:
+            if "dcc:quantity" not in r["dcc:data"]:  # a statement in words (no result with a U)
+                continue
             q = r["dcc:data"]["dcc:quantity"][0]
             real = q["si:real"]
             unc = real.get("si:expandedUnc") or {}

@@ -167,6 +167,14 @@ def test_the_dcc_is_valid_and_an_independent_reader_gets_every_value_back(tmp_pa
     assert decisions["decision-as_left"] == conformity[s["certificate"]["decisions"]["as_left"]]
 
 
+def test_a_campaign_without_a_figure_with_u_still_gives_a_valid_dcc_that_says_so(tmp_path):
+    s = {"campaign": "c", "robot": "stage2d", "certificate": {"figures": [], "decisions": {}}}
+    xml = build(s, record(s, {"name": "c", "robot": "stage2d"}, {}, {}, None))
+    assert schema_errors(xml, tmp_path) == []
+    assert results_read_back(read_back(xml, tmp_path)) == {}
+    assert b"computes no uncertainty" in xml
+
+
 def test_unsigned_certificates_say_so_and_verify_on_their_values(project, monkeypatch, capsys):
     assert certificate(False, monkeypatch, project["pki"]) == 0
     from pdf_check import page_texts

@@ -191,6 +191,17 @@ def _results(root, doc: dict, rows: list[dict], summary: dict) -> None:
     results = _el(root, "dcc:measurementResults")
     cert = summary.get("certificate") or {}
     kinds = {f.get("kind") for f in cert.get("figures", [])}
+    if not any(_finite(r["value"]) for r in rows):  # the schema asks for one result at least
+        mr = _el(results, "dcc:measurementResult", refType="calflow_result")
+        _text(mr, "dcc:name", "Results")
+        result = _el(_el(mr, "dcc:results"), "dcc:result")
+        _text(result, "dcc:name", "no result with an uncertainty")
+        _text(
+            _el(result, "dcc:data"),
+            "dcc:text",
+            "calflow computes no uncertainty for this campaign's figures: the certificate states none",
+        )
+        return
     for state, title in STATES:
         mine = [r for r in rows if r["state"] == state and _finite(r["value"])]
         if not mine:

@@ -43,10 +43,15 @@ def canonical(summary: dict) -> bytes:
     return json.dumps(summary, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
 
 
+def digest(summary: dict) -> str:
+    """The part of the number the results give: 12 hex digits of their canonical SHA-256."""
+    return hashlib.sha256(canonical(summary)).hexdigest()[:12].upper()
+
+
 def number(summary: dict, item: str) -> str:
     """The certificate's unique number (module notes)."""
     safe = re.sub(r"[^A-Za-z0-9-]", "-", item or "item")[:32]
-    return f"CF-{safe}-{hashlib.sha256(canonical(summary)).hexdigest()[:12].upper()}"
+    return f"CF-{safe}-{digest(summary)}"
 
 
 def issue_date() -> str:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calflow.metrics.uncertainty.draws import Draws
-from calflow.metrics.uncertainty.montecarlo import candidates, largest_bounds
+from calflow.metrics.uncertainty.montecarlo import COUNT_TRIALS, candidates, largest_bounds
 
 STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
 WATCH_MORE = 512  #: the first block's candidates of a maximum whose draws the blocks after it keep too
@@ -86,7 +86,9 @@ class Looks:
             upper = np.max(
                 [blk.add_cmax[(s, spec.add)] if spec.add else blk.cmax[s] for blk in chosen], axis=0
             )
-            t_eff = float(candidates(y, self._cell(spec, add, chosen, block_ids), upper, trials, self.level))
+            counted = min(trials, COUNT_TRIALS)  # counted from the first draws, as candidate_count
+            column = self._cell(spec, add, chosen, block_ids, counted)
+            t_eff = float(candidates(y, column, upper, counted, self.level))
             first = int(np.argmax(y))
             drawn = (
                 {}
@@ -190,16 +192,25 @@ class Looks:
             out.append(np.ascontiguousarray(v[:, int(np.flatnonzero(idx == j)[0])]))
         return out
 
-    def _cell(self, spec, add, chosen, block_ids) -> Callable[[int], np.ndarray]:
-        """Cell j's draws over ``block_ids`` (plus the per-trial addition): kept, or drawn again."""
+    def _cell(self, spec, add, chosen, block_ids, first: int) -> Callable[[int], np.ndarray]:
+        """Cell j's ``first`` draws over ``block_ids`` (plus the per-trial addition): kept, or
+        drawn again (only the blocks that hold them). ``upper`` stays a bound of these too."""
+        ids, n = [], 0
+        for b, blk in zip(block_ids, chosen):
+            if n >= first:
+                break
+            ids.append(b)
+            n += blk.m
+        few = [blk for b, blk in zip(block_ids, chosen) if b in ids]
 
         def column(j: int) -> np.ndarray:
             s = spec.cells
-            if kept_by_all(chosen, s, j):
-                c = self._column(s, j, block_ids, {})
+            if kept_by_all(few, s, j):
+                c = self._column(s, j, ids, {})
             else:
-                c = self._redraw(int(self.where[s][j]), {s: {j}}, block_ids)[s][j]
-            return c + add if add is not None else c
+                c = self._redraw(int(self.where[s][j]), {s: {j}}, ids)[s][j]
+            c = c + add[: len(c)] if add is not None else c
+            return c[:first]
 
         return column
 

@@ -29,6 +29,11 @@ def effective_count(draws) -> float:
     return float(1.0 / np.sum(p**2))
 
 
+#: The draws the candidates are counted from (the first ones): the count screens cells, the
+#: bounds use every draw; a sweep's thousands of cells cost a tenth of the time.
+COUNT_TRIALS = 5000
+
+
 def candidates(estimates, column, upper, trials: int, level: float = P95) -> int:
     """How many cells can be the maximum: the size of the set C of cells whose upper bound
     reaches the largest lower bound, each cell's interval at the Šidák level that makes the
@@ -41,7 +46,8 @@ def candidates(estimates, column, upper, trials: int, level: float = P95) -> int
     A percentile of a cell's draws is at most their maximum: cells whose maximum lies below
     the largest lower bound are neither searched for it nor candidates, so only the cells
     near the top have their percentiles computed, one column at a time (a sweep's thousands
-    of cells, or a streamed Monte Carlo's cells not kept, are never all needed).
+    of cells, or a streamed Monte Carlo's cells not kept, are never all needed). The callers
+    count from the first :data:`COUNT_TRIALS` draws (:func:`candidate_count`).
     """
     from scipy.special import ndtr, ndtri
 
@@ -74,9 +80,10 @@ def candidates(estimates, column, upper, trials: int, level: float = P95) -> int
 
 
 def candidate_count(estimates, draws, level: float = P95) -> int:
-    """:func:`candidates` of the cells of a whole array of draws (M, T)."""
+    """:func:`candidates` of the cells of a whole array of draws (M, T), counted from its first
+    :data:`COUNT_TRIALS` draws."""
     y = np.atleast_1d(np.asarray(estimates, float))
-    d = np.asarray(draws, float).reshape(len(draws), y.size)
+    d = np.asarray(draws, float).reshape(len(draws), y.size)[:COUNT_TRIALS]
     return candidates(y, lambda j: np.ascontiguousarray(d[:, j]), d.max(axis=0), len(d), level)
 
 
