@@ -63,6 +63,9 @@ class Looks:
         default_factory=dict
     )  #: (set, cell, block) → draws drawn again, kept for a later look
     stored: int = 0  #: their bytes
+    #: per interval, how many cells can be its maximum: counted once, from the first block's
+    #: first draws (:func:`.montecarlo.candidate_count`'s), and kept for every look after it
+    counts: dict = field(default_factory=dict)
 
     def intervals(self, specs: dict, block_ids, grow: bool = False) -> dict[str, tuple[float, float, float]]:
         """``{name: (low, high, T_eff)}`` of every interval from the trials of ``block_ids``.
@@ -86,9 +89,11 @@ class Looks:
             upper = np.max(
                 [blk.add_cmax[(s, spec.add)] if spec.add else blk.cmax[s] for blk in chosen], axis=0
             )
-            counted = min(trials, COUNT_TRIALS)  # counted from the first draws, as candidate_count
-            column = self._cell(spec, add, chosen, block_ids, counted)
-            t_eff = float(candidates(y, column, upper, counted, self.level))
+            if name not in self.counts:  # from the first draws, as candidate_count counts them
+                counted = min(trials, COUNT_TRIALS)
+                column = self._cell(spec, add, chosen, block_ids, counted)
+                self.counts[name] = float(candidates(y, column, upper, counted, self.level))
+            t_eff = self.counts[name]
             first = int(np.argmax(y))
             drawn = (
                 {}
@@ -194,23 +199,37 @@ class Looks:
 
     def _cell(self, spec, add, chosen, block_ids, first: int) -> Callable[[int], np.ndarray]:
         """Cell j's ``first`` draws over ``block_ids`` (plus the per-trial addition): kept, or
-        drawn again (only the blocks that hold them). ``upper`` stays a bound of these too."""
+        drawn again with the rest of its group, each group once (a sweep's tied cells, hundreds
+        of a group, are counted one after another). ``upper`` stays a bound of these too."""
         ids, n = [], 0
         for b, blk in zip(block_ids, chosen):
             if n >= first:
                 break
             ids.append(b)
             n += blk.m
-        few = [blk for b, blk in zip(block_ids, chosen) if b in ids]
+        few = [self.blocks[b] for b in ids]
+        s = spec.cells
+        groups: dict[int, dict[int, np.ndarray]] = {}
+
+        def group(g: int) -> dict[int, np.ndarray]:
+            if g not in groups:
+                parts = []
+                for b in ids:
+                    v, idx = self.cells(
+                        self.draws.error(b, self.blocks[b].m, g, self.positions, self.n)[0], g
+                    )[s]
+                    parts.append(v)
+                values = np.concatenate(parts)[:first]
+                del parts
+                groups[g] = {int(c): np.ascontiguousarray(values[:, q]) for q, c in enumerate(idx)}
+            return groups[g]
 
         def column(j: int) -> np.ndarray:
-            s = spec.cells
             if kept_by_all(few, s, j):
-                c = self._column(s, j, ids, {})
+                c = self._column(s, j, ids, {})[:first]
             else:
-                c = self._redraw(int(self.where[s][j]), {s: {j}}, ids)[s][j]
-            c = c + add[: len(c)] if add is not None else c
-            return c[:first]
+                c = group(int(self.where[s][j])).pop(int(j))  # asked once: the count keeps it
+            return c + add[: len(c)] if add is not None else c
 
         return column
 
