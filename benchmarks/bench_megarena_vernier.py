@@ -84,7 +84,37 @@ def noisy_copies(files, args, folder: Path) -> list[str]:
     return out
 
 
+def smoke_frames(folder: Path) -> list[str]:
+    """``--smoke``: two small frames calflow's camera renders, their truth, and that truth as the
+    library's CSV (no library needed: the script's whole path runs, on frames of known pose)."""
+    import tifffile
+
+    from calflow.instruments.pattern import Camera
+
+    cam = Camera(width=384, height=336, sensor_pixel_um=5.0, magnification=10.0)
+    pattern = MegarenaPattern(4.0, 6)
+    rows = []
+    for k, (x, y, theta) in enumerate([(300.0, 420.0, 33.0), (250.0, 380.0, -12.0)]):
+        name = folder / f"smoke_{k}.tif"
+        tifffile.imwrite(name, cam.render(pattern, x, y, theta, rng=k))
+        t, half = math.radians(theta), 0.5 * cam.pixel_um  # the library's pose (docs/instruments.md)
+        px, py = x + (math.cos(t) + math.sin(t)) * half, y + (math.cos(t) - math.sin(t)) * half
+        rows.append(f"{name.name},1,{-px!r},{-py!r},{t!r},{cam.pixel_um!r},0")
+    truth = "file,found,x,y,alpha,pixelSize,ms\n" + "\n".join(rows) + "\n"
+    (folder / "truth.csv").write_text(truth)
+    return [
+        *(str(folder / f"smoke_{k}.tif") for k in range(2)),
+        "--period-um", "4", "--depth", "6", "--library-csv", str(folder / "truth.csv"),
+        "--truth", str(folder / "truth.csv"), "--fit-region", "1", "--throughput-frames", "4",
+    ]  # fmt: skip
+
+
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--smoke" in argv:
+        argv.remove("--smoke")
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(smoke_frames(Path(tmp)) + argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("images", nargs="+", help="image files (PNG, JPEG, TIFF) of one Megarena target")
     p.add_argument("--period-um", type=float, required=True)

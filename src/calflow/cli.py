@@ -196,7 +196,7 @@ def parser() -> argparse.ArgumentParser:
         _run("calflow.certificate.verify:run"),
         "check a certificate (PDF or DCC): its signature and chain, and that its values equal the results on disk",
     )
-    vc.add_argument("file", help="reports/<campaign>/certificate.pdf or certificate.xml")
+    vc.add_argument("file", help="the certificate's PDF or DCC (reports/<campaign>/certificate.pdf or .xml)")
     vc.add_argument("--trust", help="PEM file of the CA certificate(s) the signer's chain must reach")
     vc.add_argument("--summary", help="the results it certifies (default: results/<campaign>/summary.json)")
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from calflow.configuration import layout
 from calflow.errors import CalflowError
 
 
@@ -72,7 +73,7 @@ def read_dcc(xml: bytes) -> dict:
         conformity = q.findtext("dcc:measurementMetaData/dcc:metaData/dcc:conformity", namespaces=ns)
         entry["decision"] = back.get(conformity) if conformity else None
         results[key] = entry
-    return {"number": number, "serial": serial, "results": results}
+    return {"number": number, "serial": serial, "quantities": results}
 
 
 def compare(dcc: dict, summary: dict, name: str) -> int:
@@ -80,7 +81,7 @@ def compare(dcc: dict, summary: dict, name: str) -> int:
     the number of results compared."""
     from calflow.certificate.document import digest, rows
 
-    for key, got in dcc["results"].items():
+    for key, got in dcc["quantities"].items():
         parent_key, _, leaf = key.rpartition(".")
         parent = _dig(summary, parent_key) if parent_key else summary
         if not isinstance(parent, dict) or leaf not in parent:
@@ -100,7 +101,7 @@ def compare(dcc: dict, summary: dict, name: str) -> int:
                 f"{name}: result {key}: decision {got['decision']!r}, the results give {(cf or {}).get('decision')!r}"
             )
     for r in rows(summary):
-        if r["uncertainty"] and isinstance(r["value"], (int, float)) and r["dotted"] not in dcc["results"]:
+        if r["uncertainty"] and isinstance(r["value"], (int, float)) and r["dotted"] not in dcc["quantities"]:
             raise Refused(
                 f"{name}: result {r['dotted']} of the results on disk is missing from the certificate"
             )
@@ -109,7 +110,7 @@ def compare(dcc: dict, summary: dict, name: str) -> int:
         raise Refused(
             f"{name}: certificate number {dcc['number']}, the results on disk give one ending {expected}: they differ"
         )
-    return len(dcc["results"])
+    return len(dcc["quantities"])
 
 
 def check_xml_signature(xml: bytes, trust: str | None, name: str) -> str:
@@ -203,9 +204,7 @@ def verify(path: str, summary_path: str | None = None, trust: str | None = None)
     else:
         raise Refused(f"{path}: expected a certificate.pdf or certificate.xml")
     summary_file = (
-        Path(summary_path)
-        if summary_path
-        else file.resolve().parents[2] / "results" / file.parent.name / "summary.json"
+        Path(summary_path) if summary_path else file.resolve().parents[2] / layout.summary(file.parent.name)
     )
     if not summary_file.is_file():
         raise Refused(
