@@ -56,11 +56,11 @@ def write_gds(pattern: Pattern, path, layer: int = 1, datatype: int = 0) -> Path
     ):  # y code: sites (2·cell_row + 1, 2C), bit XOR (C // 2 odd)
         for first in (0, 1) if bit else (2, 3):
             place(2 * cell_row + 1, 2 * first, 1, (half_c - first + 3) // 4, 2, 8)
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    lib.write_gds(str(tmp))
-    os.replace(tmp, path)
-    return path
+    from calflow.data.io import atomic_path
+
+    with atomic_path(path) as tmp:
+        lib.write_gds(str(tmp))
+    return Path(path)
 
 
 def read_gds_sites(path, pattern: Pattern) -> np.ndarray:

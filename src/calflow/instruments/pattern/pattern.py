@@ -34,7 +34,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -213,11 +212,9 @@ class Pattern:
 
     def save(self, path) -> Path:
         """Write the pattern file (JSON) atomically: a temporary name, then renamed."""
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        os.replace(tmp, path)
-        return path
+        from calflow.data.io import write_text
+
+        return write_text(json.dumps(self.to_dict(), indent=1) + "\n", path)
 
     @classmethod
     def load(cls, path) -> Pattern:

@@ -12,7 +12,6 @@ few thousand for a few millimetres, about a million for a whole 12-bit target (1
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -55,11 +54,11 @@ def write_gds(pattern: MegarenaPattern, path, layer: int = 1, datatype: int = 0)
                             dot, origin=(c0 * p, -r0 * p), columns=nc, rows=nr, spacing=(3 * p, -3 * p)
                         )
                     )
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    lib.write_gds(str(tmp))
-    os.replace(tmp, path)
-    return path
+    from calflow.data.io import atomic_path
+
+    with atomic_path(path) as tmp:
+        lib.write_gds(str(tmp))
+    return Path(path)
 
 
 def read_gds_sites(path, pattern: MegarenaPattern) -> np.ndarray:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -199,11 +198,9 @@ class MegarenaPattern:
 
     def save(self, path) -> Path:
         """Write the pattern file (JSON) atomically: a temporary name, then renamed."""
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        os.replace(tmp, path)
-        return path
+        from calflow.data.io import write_text
+
+        return write_text(json.dumps(self.to_dict(), indent=1) + "\n", path)
 
     @classmethod
     def from_dict(cls, data, where: str = "pattern") -> MegarenaPattern:
