@@ -190,8 +190,9 @@ def annotate(summary: dict, campaign: dict, files: list[str], settings: dict | N
     return summary
 
 
-def stage_settings_or_fail(text: str | None) -> dict:
-    """The ``--settings`` JSON of ``calflow summarise`` (config ``stages.<id>``)."""
+def json_object(text: str | None, where: str) -> dict:
+    """A JSON object given on a command line (``{}`` when absent); anything else is refused in
+    one line naming ``where`` (``calflow summarise: --settings``)."""
     import json
 
     if not text:
@@ -199,10 +200,15 @@ def stage_settings_or_fail(text: str | None) -> dict:
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ConfigError(f"calflow summarise: --settings: expected JSON, got {text!r} ({exc})") from None
+        raise ConfigError(f"{where}: expected JSON, got {text!r} ({exc})") from None
     if not isinstance(value, dict):
-        raise ConfigError(f"calflow summarise: --settings: expected a JSON object, got {text!r}")
+        raise ConfigError(f"{where}: expected a JSON object, got {text!r}")
     return value
+
+
+def stage_settings_or_fail(text: str | None) -> dict:
+    """The ``--settings`` JSON of ``calflow summarise`` (config ``stages.<id>``)."""
+    return json_object(text, "calflow summarise: --settings")
 
 
 def _undecided(limit, rule, why: str) -> dict:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from calflow.certificate.annotate import json_object
 from calflow.certificate.document import rows
 
 
@@ -47,23 +48,6 @@ def render(summary: dict, campaign: dict, command: str, doc: dict | None = None)
     )
 
 
-def json_option(text: str | None, option: str) -> dict:
-    """A JSON object given on the command line (``{}`` when absent), refused in one line."""
-    import json
-
-    from calflow.errors import ConfigError
-
-    if not text:
-        return {}
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"calflow certificate: {option}: expected JSON, got {text!r} ({exc})") from None
-    if not isinstance(value, dict):
-        raise ConfigError(f"calflow certificate: {option}: expected a JSON object, got {text!r}")
-    return value
-
-
 def run(args) -> None:
     """``calflow certificate``: the page (and the DCC) from the campaign's summary."""
     from calflow.certificate.document import record
@@ -74,8 +58,8 @@ def run(args) -> None:
 
     campaign = campaign_of(args)
     summary = load_summary(args.summary)
-    laboratory = json_option(getattr(args, "laboratory", None), "--laboratory")
-    item = json_option(getattr(args, "item", None), "--item")
+    laboratory = json_object(getattr(args, "laboratory", None), "calflow certificate: --laboratory")
+    item = json_object(getattr(args, "item", None), "calflow certificate: --item")
     command = f"snakemake --cores 2 {layout.certificate(campaign['name'])}"
     from calflow.certificate import signing
     from calflow.certificate.dcc import build
