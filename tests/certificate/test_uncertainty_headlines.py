@@ -20,7 +20,7 @@ from calflow.metrics.uncertainty import (
     pooled_scatter,
     welch_satterthwaite,
 )
-from calflow.metrics.uncertainty.montecarlo import candidate_count, lower_risk
+from calflow.metrics.uncertainty.montecarlo import candidate_count, candidates, lower_risk
 from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
 
 
@@ -136,6 +136,56 @@ def test_candidates_are_the_cells_that_can_be_the_maximum(cells, seed):
     assert candidate_count(np.zeros(cells), tied) == cells
     y = np.r_[50.0, np.zeros(cells - 1)]
     assert candidate_count(y, y + tied) == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    cells=st.integers(2, 10),
+    spread=st.floats(0.0, 4.0),
+    common=st.floats(0.0, 50.0),
+    seed=st.integers(0, 2**16),
+)
+def test_what_the_cells_share_does_not_make_them_candidates(cells, spread, common, seed):
+    """A per-trial error shared by every cell (a common term, a per-trial addition) cancels in
+    the paired differences: the count is the same with it as without it, however large. The
+    draws are multiples of 2⁻⁶ so that adding and subtracting the shared error is exact."""
+    rng = np.random.default_rng(seed)
+    y = np.round(64 * spread * rng.standard_normal(cells)) / 64
+    d = y + np.round(64 * rng.standard_normal((3000, cells))) / 64
+    shared = np.round(64 * common * rng.standard_normal((3000, 1))) / 64
+    assert candidate_count(y, d + shared) == candidate_count(y, d)
+
+
+@settings(max_examples=40, deadline=None)
+@given(cells=st.integers(2, 10), spread=st.floats(0.0, 4.0), seed=st.integers(0, 2**16))
+def test_candidates_read_only_cells_that_can_count_and_each_once(cells, spread, seed):
+    """Skipping the cells whose largest draw lies below the top's smallest gives the count from
+    every cell; no cell's draws are asked twice (a streamed cell is drawn again once)."""
+    rng = np.random.default_rng(seed)
+    y = spread * rng.standard_normal(cells)
+    d = y + rng.standard_normal((2000, cells)) * rng.uniform(0.1, 2.0, cells)
+    asked = []
+
+    def column(j):
+        asked.append(j)
+        return d[:, j]
+
+    pruned = candidates(y, column, d.max(axis=0), 2000)
+    assert len(asked) == len(set(asked))
+    assert pruned == candidates(y, lambda j: d[:, j], np.full(cells, np.inf), 2000)
+    assert 1 <= pruned <= cells
+
+
+@settings(max_examples=30, deadline=None)
+@given(cells=st.integers(3, 10), gap=st.floats(6.0, 40.0), seed=st.integers(0, 2**16))
+def test_a_cell_clearly_below_the_top_is_not_a_candidate_even_if_the_intervals_overlap(cells, gap, seed):
+    """Two cells tie at the top; the others lie ``gap`` standard deviations of a difference
+    below them but carry a common error ten times larger, so that every cell's own interval
+    overlaps the top's: only the two tied cells count."""
+    rng = np.random.default_rng(seed)
+    y = np.r_[0.0, 0.0, np.full(cells - 2, -gap * math.sqrt(2.0))]
+    d = y + rng.standard_normal((4000, cells)) + 10.0 * rng.standard_normal((4000, 1))
+    assert candidate_count(y, d) == 2
 
 
 def test_ap_interval_covers_the_truth_when_eight_targets_tie():

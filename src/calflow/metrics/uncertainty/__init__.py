@@ -29,8 +29,9 @@ A maximum of noisy means is biased upwards and so are trials drawn around it, so
 JCGM 101 probabilistically symmetric interval of the maximum covers its true value too
 rarely when targets nearly tie (≈ 86 % for eight targets three cycles each, measured);
 the 95 % interval is built instead from each target's bias-corrected percentile interval
-and Šidák's adjustment over the targets that can be the maximum
-(:func:`maximum_interval`). U is the interval's half-width, ``dof_eff`` the
+and Šidák's adjustment over the targets that can be the maximum, those whose paired
+difference to the largest is not significantly negative (:func:`maximum_interval`,
+:func:`.montecarlo.candidates`). U is the interval's half-width, ``dof_eff`` the
 Welch–Satterthwaite degrees of freedom of the budget, k = t_0.975(ν_eff) and u = U/k (the
 trials' own standard deviation does not exist when the scatter is known from few
 readings). Each term's contribution in ``budget`` is the robust standard deviation (half
