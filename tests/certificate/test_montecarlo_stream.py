@@ -16,6 +16,7 @@ from calflow.metrics.uncertainty import stream as stream_module
 from calflow.metrics.uncertainty.adaptive import numerical_tolerance, spread
 from calflow.metrics.uncertainty.draws import Draws, block_sizes
 from calflow.metrics.uncertainty.stream import Maximum, Span, simulate
+from calflow.metrics.uncertainty.tails import BlockTails, Difference, TailSample
 
 TERMS = [
     Term("cal", 0.5, scope="common", relative=True),
@@ -47,6 +48,9 @@ def _whole(draws, positions, n, sizes):
     seed=st.integers(0, 2**32 - 1),
 )
 @example(cells=6, d=1, group=2, watch=0, trials=60, block=25, spread_=0.0, seed=1)
+@example(
+    cells=2, d=1, group=1, watch=1, trials=20, block=13, spread_=0.25, seed=2
+)  # a kept column partitioned in place
 def test_streamed_maximum_is_the_whole_arrays(cells, d, group, watch, trials, block, spread_, seed):
     """Blocks, groups, kept and redrawn cells: the interval of the maximum is exactly
     maximum_interval's over the whole (M, cells) array of the same draws."""
@@ -182,3 +186,47 @@ def test_adaptive_stops_at_the_tolerance_and_reproduces_to_the_byte():
     for key in "EMBAR":
         assert r[key].monte_carlo["reached"], key
         assert r[key].monte_carlo["spread"] <= r[key].monte_carlo["tolerance"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    sizes=st.lists(st.integers(1, 80), min_size=1, max_size=4),
+    scale=st.floats(0.01, 100.0),
+    qs=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=4),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_tails_give_the_whole_columns_percentiles(sizes, scale, qs, seed):
+    """Percentiles read off the blocks' tails are np.quantile's of the whole column, to the
+    byte, whether the tails hold them or the column is asked for; so is the share below."""
+    rng = np.random.default_rng(seed)
+    cols = [scale * rng.standard_normal((m, 3)) for m in sizes]
+    y = scale * rng.standard_normal(3)
+    blocks = []
+    for c in cols:
+        blocks.append(BlockTails(len(c), 3))
+        blocks[-1].take(c, np.arange(3), y)
+    whole = np.concatenate(cols)
+    qs = [*qs, 0.001, 0.999]
+    for j in range(3):
+        sample = TailSample(blocks, j, lambda j=j: whole[:, j])
+        assert sample.share_below() == np.mean(whole[:, j] < y[j])
+        assert sample.quantile(qs) == np.quantile(whole[:, j], qs).tolist()
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    m=st.integers(2, 3000),
+    q=st.floats(0.0, 1.0),
+    shift=st.floats(-1e3, 1e3),
+    add=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_a_pairs_cap_is_never_below_its_percentile(m, q, shift, add, seed):
+    """The union bound of a range's pair (max cell − min cell + addition) is no smaller than
+    the percentile it stands for, so skipping the pairs it rules out changes no bound."""
+    rng = np.random.default_rng(seed)
+    top, bottom = shift + rng.standard_normal(m), rng.standard_normal(m) * rng.uniform(0.1, 3.0)
+    extra = np.abs(rng.standard_normal(m)) if add else np.zeros(1)
+    x = top - bottom + (extra if add else 0.0)
+    pair = Difference(x, 0.0, np.sort(top), np.sort(bottom), float(extra.max()))
+    assert pair.cap(q) >= np.quantile(x, q)

@@ -16,9 +16,9 @@ import numpy as np
 
 from calflow.metrics.uncertainty.draws import Draws
 from calflow.metrics.uncertainty.montecarlo import COUNT_TRIALS, candidates, largest_bounds
+from calflow.metrics.uncertainty.tails import Difference, TailSample
 
 STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
-WATCH_MORE = 512  #: the first block's candidates of a maximum whose draws the blocks after it keep too
 
 
 @dataclass(frozen=True)
@@ -67,24 +67,22 @@ class Looks:
     #: first draws (:func:`.montecarlo.candidate_count`'s), and kept for every look after it
     counts: dict = field(default_factory=dict)
 
-    def intervals(self, specs: dict, block_ids, grow: bool = False) -> dict[str, tuple[float, float, float]]:
+    def intervals(self, specs: dict, block_ids) -> dict[str, tuple[float, float, float]]:
         """``{name: (low, high, T_eff)}`` of every interval from the trials of ``block_ids``.
 
-        A maximum's bounds are the largest of its cells' (:func:`largest_bounds`): from the
-        cell of the largest estimate, then over the cells whose largest draw is not below both
-        bounds found so far (no other can change them) — the same bounds as from every cell.
-        Cells whose draws were not kept are drawn again group by group, each group once for
-        every interval. ``grow``: keep the candidates' draws in the blocks still to come."""
+        A maximum's bounds are the largest of its cells' (:func:`largest_bounds`), read off the
+        tails every block kept of its cells (:mod:`.tails`; a cell's column is drawn again
+        only where a percentile is not in them). A range's need the draws of the cells that
+        are the largest or smallest in some trial: kept, or drawn again group by group."""
         block_ids = list(block_ids)
         chosen = [self.blocks[b] for b in block_ids]
         trials = sum(blk.m for blk in chosen)
-        state, out = {}, {}
+        spans, out = {}, {}
         for name, spec in specs.items():
             s, y = spec.cells, np.asarray(spec.estimates, float)
             add = np.concatenate([blk.extras[spec.add] for blk in chosen]) if spec.add else None
-            counts_max = sum(np.bincount(blk.amax[s], minlength=y.size) for blk in chosen)
             if isinstance(spec, Span):
-                state[name] = ("span", spec, y, add, counts_max)
+                spans[name] = (spec, y, add)
                 continue
             upper = np.max(
                 [blk.add_cmax[(s, spec.add)] if spec.add else blk.cmax[s] for blk in chosen], axis=0
@@ -94,69 +92,34 @@ class Looks:
                 column = self._cell(spec, add, chosen, block_ids, counted)
                 self.counts[name] = float(candidates(y, column, upper, counted, self.level))
             t_eff = self.counts[name]
-            first = int(np.argmax(y))
-            drawn = (
-                {}
-                if kept_by_all(chosen, s, first)
-                else self._redraw(int(self.where[s][first]), {s: {first}}, block_ids)[s]
-            )
-            lo, hi = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, np.array([first]), drawn)
-            cands = np.array([j for j in np.argsort(-upper, kind="stable") if j != first], int)
-            cands = cands[upper[cands] >= min(lo, hi)]
-            kept = np.array([j for j in cands if kept_by_all(chosen, s, j)], int)
-            if kept.size:
-                a, b = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, kept, {})
-                lo, hi = max(lo, a), max(hi, b)
-            if grow and cands.size:
-                self.grow(s, cands)
-            state[name] = ("max", spec, y, add, upper, t_eff, [lo, hi], cands[~np.isin(cands, kept)])
-        # the cells no block kept, group by group (the groups of the largest draws first)
+            tails = [blk.tails[name] for blk in chosen]
+
+            def sample(j, s=s, add=add, tails=tails):
+                def whole():
+                    c = self._redraw(int(self.where[s][j]), {s: {int(j)}}, block_ids)[s][int(j)]
+                    return c + add if add is not None else c
+
+                return TailSample(tails, int(j), whole)
+
+            lo, hi = largest_bounds(y, sample, upper, trials, self.level, t_eff)
+            out[name] = (lo, hi, t_eff)
+        # a range's cells no block kept, group by group
         wanted: dict[int, dict[str, set]] = {}
-        for st in state.values():
-            if st[0] == "max":
-                for j in st[-1]:
-                    wanted.setdefault(int(self.where[st[1].cells][j]), {}).setdefault(st[1].cells, set()).add(
+        for spec, y, _ in spans.values():
+            counts_max = sum(np.bincount(blk.amax[spec.cells], minlength=y.size) for blk in chosen)
+            counts_min = sum(np.bincount(blk.amin[spec.cells], minlength=y.size) for blk in chosen)
+            for j in np.union1d(np.flatnonzero(counts_max), np.flatnonzero(counts_min)):
+                if not kept_by_all(chosen, spec.cells, int(j)):
+                    wanted.setdefault(int(self.where[spec.cells][j]), {}).setdefault(spec.cells, set()).add(
                         int(j)
                     )
-            else:
-                spec, counts_max = st[1], st[4]
-                counts_min = sum(np.bincount(blk.amin[spec.cells], minlength=st[2].size) for blk in chosen)
-                need = np.union1d(np.flatnonzero(counts_max), np.flatnonzero(counts_min))
-                for j in need:
-                    if not kept_by_all(chosen, spec.cells, int(j)):
-                        wanted.setdefault(int(self.where[spec.cells][j]), {}).setdefault(
-                            spec.cells, set()
-                        ).add(int(j))
         drawn: dict[str, dict[int, np.ndarray]] = {}
         for g, sets in wanted.items():
-            cols = self._redraw(g, sets, block_ids)
-            for st in state.values():
-                if st[0] != "max" or st[1].cells not in cols:
-                    continue
-                spec, y, add, upper, t_eff, bounds, rest = st[1:]
-                mine = cols[spec.cells]
-                here = np.array([j for j in rest if int(j) in mine and upper[j] >= min(bounds)], int)
-                if here.size:
-                    a, b = self._bounds(spec, y, add, upper, trials, t_eff, block_ids, here, mine)
-                    bounds[0], bounds[1] = max(bounds[0], a), max(bounds[1], b)
-            for s_name, c in cols.items():  # a range's candidates are needed all at once
-                if any(st[0] == "span" and st[1].cells == s_name for st in state.values()):
-                    drawn.setdefault(s_name, {}).update(c)
-        for name, st in state.items():
-            if st[0] == "max":
-                out[name] = (st[6][0], st[6][1], st[5])
-            else:
-                out[name] = self._span(
-                    st[1], st[2], st[3], chosen, block_ids, trials, drawn.get(st[1].cells, {})
-                )
-        return out
-
-    def grow(self, s: str, cells) -> None:
-        """Keep the draws of ``cells`` of set ``s`` in the blocks to come (at most
-        :data:`WATCH_MORE` more, those of the largest draws)."""
-        current = self.watch[s]
-        extra = np.asarray([j for j in cells if j not in set(current.tolist())], int)[:WATCH_MORE]
-        self.watch = {**self.watch, s: np.union1d(current, extra)}
+            for s_name, c in self._redraw(g, sets, block_ids).items():
+                drawn.setdefault(s_name, {}).update(c)
+        for name, (spec, y, add) in spans.items():
+            out[name] = self._span(spec, y, add, chosen, block_ids, trials, drawn.get(spec.cells, {}))
+        return {name: out[name] for name in specs}
 
     def _redraw(self, g: int, sets: dict[str, set], block_ids) -> dict[str, dict[int, np.ndarray]]:
         """The draws of some cells of group ``g`` over ``block_ids``: those a block kept or an
@@ -238,13 +201,6 @@ class Looks:
             return drawn[j]
         return np.concatenate([self.blocks[b].kept[s][j] for b in block_ids])
 
-    def _bounds(self, spec, y, add, upper, trials, t_eff, block_ids, cells, drawn):
-        def column(q):
-            c = self._column(spec.cells, int(cells[q]), block_ids, drawn)
-            return c + add if add is not None else c
-
-        return largest_bounds(y[cells], column, upper[cells], trials, self.level, t_eff)
-
     def _span(self, spec, y, add, chosen, block_ids, trials, drawn) -> tuple[float, float, float]:
         """A range's interval as a maximum over pairs (max cell − min cell), from the cells that
         are the largest or the smallest in some trial."""
@@ -265,9 +221,12 @@ class Looks:
         rows_top = [self._column(s, int(j), block_ids, drawn) for j in top]
         rows_bottom = [self._column(s, int(j), block_ids, drawn) for j in bottom]
         nb = bottom.size
+        sorted_top = [np.sort(r) for r in rows_top]
+        sorted_bottom = [np.sort(r) for r in rows_bottom]
 
         def column(q):
             c = rows_top[q // nb] - rows_bottom[q % nb]
-            return c + add if add is not None else c
+            c = c + add if add is not None else c
+            return Difference(c, e[q], sorted_top[q // nb], sorted_bottom[q % nb], float(extra.max()))
 
         return (*largest_bounds(e, column, upper, trials, self.level, t_eff), t_eff)

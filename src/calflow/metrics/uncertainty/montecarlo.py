@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from calflow.metrics.uncertainty.budget import P95, Uncertainty, coverage_factor, welch_satterthwaite
+from calflow.metrics.uncertainty.tails import Column
 
 
 def chi_rp_factor(d: int) -> float:
@@ -142,7 +143,8 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
     the lower ones at the Šidák level over ``t_eff`` candidates with the risk
     :func:`lower_risk` leaves them, the upper ones at each cell's own 1 − (1 − level)/2.
 
-    ``column(j)``: cell j's draws (M,); ``upper`` (T,): a number no smaller than any of
+    ``column(j)``: cell j's draws (M,), or a :class:`.tails.Column` (its tails, a pair's
+    difference with a cap on its percentiles); ``upper`` (T,): a number no smaller than any of
     them (their maximum). A percentile of a cell's draws is at most their maximum, so a cell
     whose ``upper`` lies below both bounds found so far cannot change them and its
     percentiles are not computed: the result is the same as from every cell, at the cost of
@@ -163,14 +165,21 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
         if upper[j] < lo and upper[j] < hi:
             break
         x = column(j)
-        z0 = ndtri(np.clip(np.mean(x < y[j]), 1.0 / trials, 1.0 - 1.0 / trials))
-        # both percentiles from one partial sort when both can move (the same numbers)
-        want = [q for q, bound in ((ndtr(2 * z0 + za), lo), (ndtr(2 * z0 - zb), hi)) if upper[j] >= bound]
-        found = iter(np.quantile(x, want).tolist())
-        if upper[j] >= lo:
-            lo = max(lo, next(found))
-        if upper[j] >= hi:
-            hi = max(hi, next(found))
+        if isinstance(x, np.ndarray):
+            x = Column(x, y[j])
+        z0 = ndtri(np.clip(x.share_below(), 1.0 / trials, 1.0 - 1.0 / trials))
+        # both percentiles from one partial sort when both can move (the same numbers); one
+        # whose cap lies below the bound found so far cannot move it
+        sides = [
+            (side, q)
+            for side, q, bound in ((0, ndtr(2 * z0 + za), lo), (1, ndtr(2 * z0 - zb), hi))
+            if upper[j] >= bound and x.cap(q) >= bound
+        ]
+        for (side, _), v in zip(sides, x.quantile([q for _, q in sides]), strict=True):
+            if side == 0:
+                lo = max(lo, v)
+            else:
+                hi = max(hi, v)
     return lo, hi
 
 

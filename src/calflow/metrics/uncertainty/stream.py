@@ -25,6 +25,7 @@ from calflow.metrics.uncertainty.adaptive import DIGITS, MAX_BLOCKS, stable
 from calflow.metrics.uncertainty.budget import P95
 from calflow.metrics.uncertainty.draws import BLOCK, Draws, block_sizes
 from calflow.metrics.uncertainty.looks import Looks, Maximum, Span
+from calflow.metrics.uncertainty.tails import BlockTails
 
 WATCH = 64  #: cells of a set whose draws every block keeps: those with the largest (and smallest) estimates
 KEPT_BYTES = 320e6  #: the watched cells' draws the blocks keep, all blocks together (bytes)
@@ -48,9 +49,17 @@ class _Block:
     extremes, and the draws of the watched cells; per input alone, the per-trial extremes."""
 
     def __init__(
-        self, m: int, sizes: dict[str, int], inputs: list[str], watch: dict[str, np.ndarray], room: float
+        self,
+        m: int,
+        sizes: dict[str, int],
+        inputs: list[str],
+        watch: dict[str, np.ndarray],
+        room: float,
+        maxima: dict[str, Maximum],
     ):
         self.m, self.watch, self.room = m, watch, room  # room: bytes the block may keep
+        self.maxima = maxima
+        self.tails = {name: BlockTails(m, sizes[spec.cells]) for name, spec in maxima.items()}
         self.tmax = {s: np.full(m, -np.inf) for s in sizes}
         self.tmin = {s: np.full(m, np.inf) for s in sizes}
         self.amax = {s: np.zeros(m, int) for s in sizes}
@@ -77,6 +86,10 @@ class _Block:
                 if cells == s:
                     self.add_cmax.setdefault((s, add), np.full(self.cmax[s].size, -np.inf))
                     self.add_cmax[(s, add)][idx] = (v + self.extras[add][:, None]).max(axis=0)
+            for name, spec in self.maxima.items():
+                if spec.cells == s:
+                    mine = v + self.extras[spec.add][:, None] if spec.add else v
+                    self.tails[name].take(mine, idx, np.asarray(spec.estimates, float)[idx])
             for q in np.flatnonzero(np.isin(idx, self.watch[s])):
                 if self.room < 8 * self.m:
                     break
@@ -132,6 +145,7 @@ def simulate(
     inputs = ["sample", *(t.name for t in draws.terms)]
     adds = {(sp.cells, sp.add) for sp in intervals.values() if isinstance(sp, Maximum) and sp.add}
     fixed = block_sizes(trials, block) if trials is not None else None
+    maxima = {name: sp for name, sp in intervals.items() if isinstance(sp, Maximum)}
     run = Looks(
         draws,
         positions,
@@ -147,7 +161,7 @@ def simulate(
     for b in range(len(fixed) if fixed is not None else max_blocks):
         m = fixed[b] if fixed is not None else block
         kept = sum(8 * blk.m * len(c) for blk in run.blocks for c in blk.kept.values())
-        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept)
+        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept, maxima)
         blk.extras = extras(b, m) if extras else {}
         for g in range(len(draws.groups)):
             total, pieces = draws.error(b, m, g, positions, n)
@@ -163,7 +177,7 @@ def simulate(
         run.blocks.append(blk)
         if fixed is not None:
             continue
-        for name, found_b in run.intervals(intervals, [b], grow=b == 0).items():
+        for name, found_b in run.intervals(intervals, [b]).items():
             per_block[name].append(found_b[:2])
         if b == 0:
             continue

@@ -1,0 +1,165 @@
+"""The tails of each cell's draws, kept block by block, that a maximum's bounds are read from.
+
+A maximum's interval (:func:`.montecarlo.largest_bounds`) needs of each cell only the share of
+its draws below its estimate (the bias correction z₀) and two percentiles: the upper bound at
+ndtr(2 z₀ + 1.96) and the lower one at ndtr(2 z₀ + z_a), z_a ≤ −1.96 (:func:`.montecarlo.lower_risk`).
+While z₀ is small these lie in the cell's top and bottom few per cent. So every block keeps,
+for every cell of a maximum, how many of its draws lie below the estimate and its
+:data:`TAIL` lowest and highest draws (sorted): a few kilobytes a cell, where the whole column
+is 8 bytes a trial. A percentile is read off the tails of the blocks looked at when it is
+provably there — the order statistic of all their draws at that rank is one of the kept ones,
+no block's unkept draws being on its side of it — and is then the same number as
+``np.quantile`` of the whole column; otherwise (a large z₀, a short block) the column is asked
+for (drawn again, :mod:`.looks`). Without the tails, a sweep whose hundreds of cells tie for
+the maximum (ISO 230-2's B and R, a constant backlash) had every one of them drawn again at
+every look.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+TAIL = 0.05  #: share of a block's draws kept at each end of every cell of a maximum
+
+
+def tail_size(m: int) -> int:
+    """Draws kept at each end of a cell in a block of ``m`` trials (all of them in a short block)."""
+    return min(int(m), max(2, math.ceil(TAIL * m)))
+
+
+class BlockTails:
+    """One block's tails of one maximum's cells: ``low``/``high`` (cells, k) sorted ascending,
+    ``below`` (cells,) the draws under each cell's estimate."""
+
+    def __init__(self, m: int, cells: int):
+        self.m, self.k = int(m), tail_size(m)
+        self.low = np.full((cells, self.k), np.nan)
+        self.high = np.full((cells, self.k), np.nan)
+        self.below = np.zeros(cells, np.int64)
+
+    def take(self, values: np.ndarray, idx: np.ndarray, estimates: np.ndarray) -> None:
+        """``values`` (m, G): the block's draws of cells ``idx``, compared with their ``estimates``."""
+        self.below[idx] = np.count_nonzero(values < estimates[None, :], axis=0)
+        cols = values.T.copy()  # a copy: partitioned in place, and values is the caller's
+        k, m = self.k, self.m
+        if k < m:
+            cols.partition(sorted({k - 1, m - k}), axis=1)
+        self.low[idx] = np.sort(cols[:, :k], axis=1)
+        self.high[idx] = np.sort(cols[:, m - k :], axis=1)
+
+
+def _virtual_index(n: int, q: float) -> float:
+    """Where ``np.quantile``'s default (linear) method reads quantile q of n sorted values, by
+    the same arithmetic (Hyndman and Fan's method 7), so the numbers are the same."""
+    return (n - 1) * q
+
+
+def _lerp(a: float, b: float, t: float) -> float:
+    """numpy's interpolation between neighbouring order statistics (the same rounding)."""
+    d = b - a
+    return float(b - d * (1.0 - t)) if t >= 0.5 else float(a + d * t)
+
+
+class Column:
+    """A cell's whole column of draws (M,) and its estimate, as :func:`.montecarlo.largest_bounds`
+    reads a cell: the share below the estimate and percentiles (``np.quantile``'s)."""
+
+    def __init__(self, x: np.ndarray, estimate: float):
+        self.x, self.estimate = x, estimate
+
+    def share_below(self) -> float:
+        return float(np.mean(self.x < self.estimate))
+
+    def quantile(self, qs) -> list[float]:
+        return np.quantile(self.x, list(qs)).tolist() if len(qs) else []
+
+    def cap(self, q: float) -> float:
+        """A number no smaller than the q-percentile (none known here: +∞)."""
+        return math.inf
+
+
+class Difference(Column):
+    """A range's pair of cells: the column x_top − x_bottom (+ a per-trial addition ≤ ``add_max``)
+    and the two cells' sorted columns, which bound its percentiles without a partial sort.
+
+    Of the n trials, at most n − 1 − (r + k) have x_top above its order statistic X₍ᵣ₊ₖ₎ and
+    at most k have x_bottom below Y₍ₖ₎, so at least r + 1 differences are ≤ X₍ᵣ₊ₖ₎ − Y₍ₖ₎:
+    the r-th smallest difference, and a percentile read at or below it, is no larger (the
+    union bound, whichever k: a few are tried)."""
+
+    def __init__(self, x, estimate, top_sorted, bottom_sorted, add_max: float):
+        super().__init__(x, estimate)
+        self.top, self.bottom, self.add_max = top_sorted, bottom_sorted, add_max
+
+    def cap(self, q: float) -> float:
+        n = self.x.size
+        r = min(math.ceil(_virtual_index(n, q)), n - 1)
+        room = n - 1 - r
+        best = min(self.top[r + k] - self.bottom[k] for k in {0, room // 4, room // 2, 3 * room // 4, room})
+        size = abs(self.top[-1]) + abs(self.bottom[0]) + abs(self.add_max)
+        return float(best + self.add_max + 1e-9 * size)  # far above the rounding of x_top − x_bottom + add
+
+
+class TailSample:
+    """One cell's draws over some blocks, as far as its tails tell: the share below its
+    estimate and percentiles (:meth:`quantile`), the whole column asked of ``column`` when a
+    percentile is not provably in the tails."""
+
+    def __init__(self, blocks: list[BlockTails], j: int, column: Callable[[], np.ndarray]):
+        self.n = sum(b.m for b in blocks)
+        self.below = int(sum(int(b.below[j]) for b in blocks))
+        self._blocks, self._j, self._column, self._full = blocks, j, column, None
+        self._low = self._high = None
+
+    def share_below(self) -> float:
+        """The share of the draws below the estimate (``np.mean(x < y)``: the same number)."""
+        return self.below / self.n
+
+    def cap(self, q: float) -> float:
+        return math.inf
+
+    def _order(self, r: int) -> float | None:
+        """The r-th smallest of all the draws (0-based), if the tails hold it provably."""
+        if self._low is None:
+            self._low = np.sort(np.concatenate([b.low[self._j] for b in self._blocks]))
+            self._high = np.sort(np.concatenate([b.high[self._j] for b in self._blocks]))
+            # a block's unkept draws lie between its kept low and high tails
+            short = [b for b in self._blocks if b.k < b.m]
+            self._low_ok = min((b.low[self._j, -1] for b in short), default=np.inf)
+            self._high_ok = max((b.high[self._j, 0] for b in short), default=-np.inf)
+        if r < self._low.size and self._low[r] <= self._low_ok:
+            return float(self._low[r])
+        top = self.n - 1 - r  # rank from the top
+        if 0 <= top < self._high.size:
+            v = self._high[self._high.size - 1 - top]
+            if v >= self._high_ok:
+                return float(v)
+        return None
+
+    def quantile(self, qs) -> list[float]:
+        """``np.quantile(column, qs)`` from the tails, or from the column where they do not tell."""
+        out = []
+        for q in qs:
+            v = self._one(float(q))
+            if v is None:
+                if self._full is None:
+                    self._full = np.asarray(self._column(), float)
+                v = float(np.quantile(self._full, q))
+            out.append(v)
+        return out
+
+    def _one(self, q: float) -> float | None:
+        n = self.n
+        v = _virtual_index(n, q)
+        if v >= n - 1:
+            return self._order(n - 1)
+        if v < 0:
+            return self._order(0)
+        i = math.floor(v)
+        a, b = self._order(i), self._order(i + 1)
+        if a is None or b is None:
+            return None
+        return _lerp(a, b, v - i)
