@@ -230,3 +230,22 @@ def test_a_pairs_cap_is_never_below_its_percentile(m, q, shift, add, seed):
     x = top - bottom + (extra if add else 0.0)
     pair = Difference(x, 0.0, np.sort(top), np.sort(bottom), float(extra.max()))
     assert pair.cap(q) >= np.quantile(x, q)
+
+
+@pytest.mark.parametrize("block", [0, 1, 3])
+def test_every_block_draws_the_same_error_whether_its_inputs_are_apart_or_summed(block):
+    """Block 0 draws each input apart (the budget's), later blocks the sample and per-cell terms
+    as one normal: per cell and axis the variance is the same, σ² E[ν/χ²_ν] / n + Σ u²
+    (relative terms scaled by the position), and the common terms stay shared by every cell."""
+    dof, s_ = 9.0, np.array([0.2, 0.1])
+    pos, n = np.array([[100.0, 50.0], [900.0, 300.0], [10.0, 10.0]]), np.array([2.0, 5.0, 3.0])
+    terms = [Term("cal", 0.5, scope="common", relative=True), Term("drift", [0.02, 0.05], scope="target"),
+             Term("lin", 30.0, scope="target", relative=True), Term("offset", 0.03, scope="common")]  # fmt: skip
+    draws = Draws(s_, dof, 3, 2, terms, 7)
+    e = draws.error(block, 200_000, 0, pos, n)[0]
+    common = (0.5e-6 * pos) ** 2 + 0.03**2
+    want = s_**2 * dof / (dof - 2) / n[:, None] + np.array([0.02, 0.05]) ** 2 + (30e-6 * pos) ** 2 + common
+    assert e.var(axis=0) == pytest.approx(want, rel=0.03)
+    # the shared offset and scale error: covariance between cells
+    cov = np.mean((e[:, 0, 0] - e[:, 0, 0].mean()) * (e[:, 2, 0] - e[:, 2, 0].mean()))
+    assert cov == pytest.approx(0.03**2 + 0.5e-6**2 * pos[0, 0] * pos[2, 0], rel=0.1)

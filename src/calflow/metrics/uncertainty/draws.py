@@ -87,9 +87,36 @@ class Draws:
         return out
 
     def error(self, block: int, m: int, group: int, positions, n) -> tuple[np.ndarray, dict]:
-        """(m, G, d): the error of the group's means in the block (every input), and the pieces."""
-        parts = self.pieces(block, m, group, positions, n)
-        total = np.zeros((m, self.groups[group].size, self.d))
-        for e in parts.values():
-            total += e
-        return total, parts
+        """(m, G, d): the error of the group's means in the block (every input), and the pieces.
+
+        Block 0 draws every input apart (:meth:`pieces`: the budget is each input's effect
+        alone, from the first block). The blocks after it need only the sum: the sample term
+        and the terms acting on each cell apart are independent normals given the trial's
+        scatter, so their sum is one normal with the sum of their variances, drawn once (half
+        the normals of a sweep with a per-target term); common terms are drawn as they are.
+        The pieces of those blocks are not given (``{}``)."""
+        if block == 0:
+            parts = self.pieces(block, m, group, positions, n)
+            total = np.zeros((m, self.groups[group].size, self.d))
+            for e in parts.values():
+                total += e
+            return total, parts
+        idx = self.groups[group]
+        sigma = self.s[None, :] * self.scale(block, m)[:, None]  # (m, d)
+        var = np.broadcast_to(
+            (sigma * sigma)[:, None, :] / n[idx][None, :, None], (m, idx.size, self.d)
+        ).copy()
+        common = []
+        for i, t in enumerate(self.terms):
+            u = t.per_axis(self.d)
+            if t.scope == "common":
+                common.append((i, t, u))
+                continue
+            u = u * (1e-6 * positions[idx]) if t.relative else np.broadcast_to(u, (idx.size, self.d))
+            var += (u * u)[None]
+        total = self.rng(block, _SAMPLE, group).standard_normal((m, idx.size, self.d))
+        total *= np.sqrt(var)
+        for i, t, u in common:
+            e = self.rng(block, _TERMS + i).standard_normal((m, 1, self.d)) * u
+            total += e * (1e-6 * positions[idx][None]) if t.relative else e
+        return total, {}
