@@ -163,7 +163,18 @@ class Looks:
     def _cell(self, spec, add, chosen, block_ids, first: int) -> Callable[[int], np.ndarray]:
         """Cell j's ``first`` draws over ``block_ids`` (plus the per-trial addition): kept, or
         drawn again with the rest of its group, each group once (a sweep's tied cells, hundreds
-        of a group, are counted one after another). ``upper`` stays a bound of these too."""
+        of a group, are counted one after another). ``upper`` stays a bound of these too. The
+        first block keeps the first draws of every cell of a maximum when memory allows: then
+        nothing is drawn again."""
+        s = spec.cells
+        kept = self.blocks[0].first.get(s) if block_ids and block_ids[0] == 0 else None
+        if kept is not None and kept.shape[1] >= first:
+
+            def first_draws(j: int) -> np.ndarray:
+                c = kept[int(j), :first]
+                return c + add[:first] if add is not None else c
+
+            return first_draws
         ids, n = [], 0
         for b, blk in zip(block_ids, chosen):
             if n >= first:
@@ -171,7 +182,6 @@ class Looks:
             ids.append(b)
             n += blk.m
         few = [self.blocks[b] for b in ids]
-        s = spec.cells
         groups: dict[int, dict[int, np.ndarray]] = {}
 
         def group(g: int) -> dict[int, np.ndarray]:

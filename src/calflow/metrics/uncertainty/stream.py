@@ -25,10 +25,12 @@ from calflow.metrics.uncertainty.adaptive import DIGITS, MAX_BLOCKS, stable
 from calflow.metrics.uncertainty.budget import P95
 from calflow.metrics.uncertainty.draws import BLOCK, Draws, block_sizes
 from calflow.metrics.uncertainty.looks import Looks, Maximum, Span
+from calflow.metrics.uncertainty.montecarlo import COUNT_TRIALS
 from calflow.metrics.uncertainty.tails import BlockTails
 
 WATCH = 64  #: cells of a set whose draws every block keeps: those with the largest (and smallest) estimates
 KEPT_BYTES = 320e6  #: the watched cells' draws the blocks keep, all blocks together (bytes)
+FIRST_BYTES = 160e6  #: the first block's first draws of a maximum's cells, kept for the count (bytes)
 
 
 @dataclass
@@ -56,9 +58,15 @@ class _Block:
         watch: dict[str, np.ndarray],
         room: float,
         maxima: dict[str, Maximum],
+        first: int = 0,
     ):
         self.m, self.watch, self.room = m, watch, room  # room: bytes the block may keep
         self.maxima = maxima
+        #: per set of a maximum, its cells' first ``first`` draws (cells, first): what the count
+        #: of candidates reads (:func:`.montecarlo.candidates`), kept by the first block
+        self.first = (
+            {sp.cells: np.empty((sizes[sp.cells], min(m, first))) for sp in maxima.values()} if first else {}
+        )
         self.tails = {name: BlockTails(m, sizes[spec.cells]) for name, spec in maxima.items()}
         self.tmax = {s: np.full(m, -np.inf) for s in sizes}
         self.tmin = {s: np.full(m, np.inf) for s in sizes}
@@ -86,6 +94,8 @@ class _Block:
                 if cells == s:
                     self.add_cmax.setdefault((s, add), np.full(self.cmax[s].size, -np.inf))
                     self.add_cmax[(s, add)][idx] = (v + self.extras[add][:, None]).max(axis=0)
+            if s in self.first:
+                self.first[s][idx] = v[: self.first[s].shape[1]].T
             for name, spec in self.maxima.items():
                 if spec.cells == s:
                     mine = v + self.extras[spec.add][:, None] if spec.add else v
@@ -161,7 +171,11 @@ def simulate(
     for b in range(len(fixed) if fixed is not None else max_blocks):
         m = fixed[b] if fixed is not None else block
         kept = sum(8 * blk.m * len(c) for blk in run.blocks for c in blk.kept.values())
-        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept, maxima)
+        first = {sp.cells for sp in maxima.values()}
+        first = (
+            COUNT_TRIALS if b == 0 and 8 * COUNT_TRIALS * sum(sizes[c] for c in first) <= FIRST_BYTES else 0
+        )
+        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept, maxima, first)
         blk.extras = extras(b, m) if extras else {}
         for g in range(len(draws.groups)):
             total, pieces = draws.error(b, m, g, positions, n)
