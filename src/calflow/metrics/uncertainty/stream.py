@@ -113,14 +113,15 @@ class _Block:
 
 
 def _watch(intervals: dict, sizes: dict[str, int]) -> dict[str, np.ndarray]:
-    """Per set, the cells whose draws every block keeps: the largest estimates of a maximum,
-    the largest and smallest of a range (usually every cell an interval needs)."""
+    """Per set, the cells whose draws every block keeps: the largest and smallest estimates of
+    a range (usually every cell its pairs need). A maximum's bounds are read off its cells'
+    tails (:mod:`.tails`), and its count off the first block's first draws."""
     out = {s: [] for s in sizes}
     for spec in intervals.values():
+        if not isinstance(spec, Span):
+            continue
         order = np.argsort(-np.asarray(spec.estimates, float), kind="stable")
-        out[spec.cells] += list(order[:WATCH])
-        if isinstance(spec, Span):
-            out[spec.cells] += list(order[::-1][:WATCH])
+        out[spec.cells] += list(order[:WATCH]) + list(order[::-1][:WATCH])
     return {s: np.unique(np.asarray(v, int)) for s, v in out.items()}
 
 

@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-TAIL = 0.05  #: share of a block's draws kept at each end of every cell of a maximum
+TAIL = 0.03  #: share of a block's draws kept at each end of every cell of a maximum
 
 
 def tail_size(m: int) -> int:
