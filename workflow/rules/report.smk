@@ -26,8 +26,8 @@ rule summarise:
     conda:
         "../envs/calflow.yaml"
     resources:
-        mem_mb=1400,
-        runtime=11,
+        mem_mb=1300,
+        runtime=10,
     params:
         # the summary reads the whole campaign (each family's its own sections, the stage and
         # the reference values), so every section is handed to it and digested

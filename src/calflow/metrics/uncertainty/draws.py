@@ -9,7 +9,9 @@ cells in groups (:data:`GROUP` cells, or the caller's groups), and every (block,
 group) has its own generator, seeded from the Monte Carlo's seed and those three indices
 (``SeedSequence(seed, spawn_key=(block, input, group))``). Any block of any group can then
 be drawn again, alone and in any order, to the byte: memory holds one group of one block,
-and a cell's draws that an interval needs are drawn again when it needs them.
+and a cell's draws that an interval needs are drawn again when it needs them. After the first
+block the sample term and the terms acting on each cell apart are drawn as one normal from
+the sample's generator (:meth:`Draws.error`).
 """
 
 from __future__ import annotations

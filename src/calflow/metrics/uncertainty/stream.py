@@ -7,11 +7,13 @@ mid-points and reversals), the intervals it reports (:class:`Maximum`, :class:`S
 their per-trial statistics. Per block, memory holds one group of cells; what is kept of every
 trial is a handful of numbers (each set's largest and smallest cell and where they are, the
 metric's statistics, each term's alone), and of every cell its extremes and how often it is
-the largest or smallest. An interval's rule (:func:`.montecarlo.maximum_interval`,
-:func:`.montecarlo.largest_bounds`, :func:`.montecarlo.candidates`) then needs the draws of the few cells that can
-set its bounds: those are drawn again, a few at a time, from their blocks' seeds. The numbers
-are those of the whole (M, cells) array; memory grows with the cells only through those
-per-cell counters (a few dozen bytes a cell) and the candidates' columns (8 bytes a trial).
+the largest or smallest. A maximum's rule (:func:`.montecarlo.largest_bounds` with the count
+of :func:`.montecarlo.candidates`) reads each cell's tails, kept by every block
+(:mod:`.tails`), and the first block's first draws of its cells; a range's needs the draws of
+the few cells that are its largest or smallest in some trial, kept or drawn again, a few at a
+time, from their blocks' seeds. The numbers are those of the whole (M, cells) array; memory
+grows with the cells through the per-cell counters and tails (0.5 kB a cell a block) and the
+count's first draws (40 kB a cell, once).
 """
 
 from __future__ import annotations
