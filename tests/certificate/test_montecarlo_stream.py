@@ -249,3 +249,38 @@ def test_every_block_draws_the_same_error_whether_its_inputs_are_apart_or_summed
     # the shared offset and scale error: covariance between cells
     cov = np.mean((e[:, 0, 0] - e[:, 0, 0].mean()) * (e[:, 2, 0] - e[:, 2, 0].mean()))
     assert cov == pytest.approx(0.03**2 + 0.5e-6**2 * pos[0, 0] * pos[2, 0], rel=0.1)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    cells=st.integers(1, 8),
+    group=st.integers(1, 3),
+    trials=st.integers(20, 90),
+    block=st.integers(7, 40),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_streamed_maximum_with_a_per_trial_addition_is_the_whole_arrays(cells, group, trials, block, seed):
+    """A maximum whose cells all carry the same per-trial addition (ISO 230-2's R = |reversal|
+    + 4σ̂): its tails, its count and its bounds are those of the whole array plus the addition."""
+    rng = np.random.default_rng(seed)
+    dev = rng.normal(0, 0.3, cells)
+    groups = [np.arange(a, min(a + group, cells)) for a in range(0, cells, group)]
+    draws = Draws([0.1], 5, cells, 1, TERMS[1:2], seed, groups=groups)
+    positions, n = np.ones((cells, 1)), np.full(cells, 3.0)
+
+    def cells_of(error, g):
+        idx = draws.groups[g]
+        return {"r": (np.abs(dev[idx][None] + error[:, :, 0]), idx)}
+
+    def extras(b, m):
+        return {"add": 0.4 * np.sqrt(draws.chisquare(b, m, 4) / 4)}
+
+    y = np.abs(dev) + 0.4
+    out = simulate(
+        draws, positions, n, cells_of, {"r": cells}, {"R": Maximum("r", y, "add")},
+        lambda name, tmax, tmin, ext: tmax["r"] + ext["add"], extras, trials=trials, block=block,
+    )  # fmt: skip
+    sizes = block_sizes(trials, block)
+    r = np.abs(dev[None] + _whole(draws, positions, n, sizes)[:, :, 0])
+    add = np.concatenate([extras(b, m)["add"] for b, m in enumerate(sizes)])
+    assert out.intervals["R"] == maximum_interval(y, r + add[:, None])
