@@ -12,6 +12,9 @@ Figures, over the frames results.csv lists:
 
 * the moving marker's displacement in the fixed marker's frame, from the first listed frame,
   calflow − library: rms and largest (µm), and the same for its turn (mrad);
+* the turn as the fiducials' centres alone show it (no phase fit: a coarse witness that owes
+  nothing to either decoder's fine part), against each decoder's, and each decoder's largest
+  step from one frame to the next;
 * the fixed marker's scatter (standard deviation of x and y over the frames, µm), calflow's
   and the library's: the set-up's repeatability as each decoder sees it;
 * the markers found and numbers read in every frame of the folder, and calflow's CPU time per
@@ -84,6 +87,18 @@ def calflow_relative(rel) -> tuple[np.ndarray, np.ndarray]:
     return -np.einsum("nij,nj->ni", _rot(theta), q), theta
 
 
+def _without_jump(dturn: np.ndarray, lturn: np.ndarray) -> float:
+    """rms of calflow − library turn (mrad) once the library's largest step between two listed
+    frames is taken out of its series (the frames after it shifted back by that step less the
+    median step), to tell a jump from a drift."""
+    steps = np.diff(lturn)
+    k = int(np.argmax(np.abs(steps)))
+    shift = np.zeros_like(lturn)
+    shift[k + 1 :] = steps[k] - np.median(steps)
+    fixed = dturn + shift
+    return float(1e3 * np.sqrt(np.mean((fixed - fixed.mean()) ** 2)))
+
+
 def smoke_folder(folder: Path) -> list[str]:
     """``--smoke``: five frames of two markers calflow renders and their truth in results.csv."""
     from PIL import Image
@@ -135,7 +150,7 @@ def main(argv=None) -> int:
         return 1
     lib = library_rows(folder / "results.csv")
     numbers = [int(re.search(r"\d+", f.name).group()) for f in files]
-    fixed, rels, found, cpu = [], [], [], 0.0
+    fixed, rels, found, witness, cpu = [], [], [], [], 0.0
     for f in files:
         frame = read_frames([f])[0]
         start = time.process_time()
@@ -144,6 +159,8 @@ def main(argv=None) -> int:
         found.append(sorted(int(n) for n, s in zip(m.number, m.status) if s == "ok"))
         fixed.append(m.of(args.fixed))
         rels.append(relative(m, args.moving, args.fixed, args.period_um))
+        by_number = {int(n): t for n, t in zip(m.number, m.theta_fiducials_deg)}
+        witness.append(math.radians(by_number.get(args.moving, np.nan) - by_number.get(args.fixed, np.nan)))
 
     def stack(parts):
         from calflow.instruments.pattern.decode import Decoded
@@ -159,6 +176,8 @@ def main(argv=None) -> int:
     d = (pos[ok] - pos[ok][0]) - (lpos - lpos[0])
     dist = np.hypot(d[:, 0], d[:, 1])
     dturn = (turn[ok] - turn[ok][0]) - (lturn - lturn[0])
+    fid = np.array(witness)[ok]
+    fid = fid - fid[0]
     lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
     summary = {
         "frames": len(files),
@@ -170,6 +189,21 @@ def main(argv=None) -> int:
         "displacement_diff_max_um": float(dist.max()),
         "turn_diff_rms_mrad": float(1e3 * np.sqrt(np.mean(dturn**2))),
         "turn_diff_max_mrad": float(1e3 * np.abs(dturn).max()),
+        # the largest change of the turn from one listed frame to the next, and where: a decoder
+        # that jumps where the other does not is the one to doubt
+        "turn_step_max_mrad_calflow": float(1e3 * np.abs(np.diff(turn[ok])).max()),
+        "turn_step_max_mrad_library": float(1e3 * np.abs(np.diff(lturn)).max()),
+        "turn_step_max_at_library": int(numbers[ok[int(np.argmax(np.abs(np.diff(lturn)))) + 1]]),
+        "turn_diff_rms_mrad_without_library_jump": _without_jump(dturn, lturn),
+        # the turn the fiducials' centres alone show (no phase fit; noisier): calflow − it and
+        # library − it, rms about their means, and the library's drift from it
+        "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
+        "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
+        "turn_total_mrad": {
+            "calflow": float(1e3 * (turn[ok][-1] - turn[ok][0])),
+            "library": float(1e3 * (lturn[-1] - lturn[0])),
+            "fiducials": float(1e3 * fid[-1]),
+        },
         "relative_offset_mean_um": [float(v) for v in (pos[ok] - lpos).mean(axis=0)],
         "fixed_scatter_um_calflow": [float(np.std(fx.x_um[ok], ddof=1)), float(np.std(fx.y_um[ok], ddof=1))],
         "fixed_scatter_um_library": [float(v) for v in np.std(lib_fixed, axis=0, ddof=1)],

@@ -53,6 +53,9 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
     ey = triple.bottom - triple.top
     per_px = 0.5 * (math.hypot(*ex) + math.hypot(*ey)) / pattern.fiducial_spacing
     ex, ey = ex / math.hypot(*ex), ey / math.hypot(*ey)
+    # the fiducials' own direction of the x axis (the mean of x and y turned back by 90°): a
+    # coarse witness of Θ that owes nothing to the phase planes
+    th_f = math.degrees(math.atan2(ex[1] - ey[0], ex[0] + ey[1]))
     if given_pixel is not None and abs(p / given_pixel / per_px - 1) > MAX_PERIOD_MISMATCH:
         return _fail(
             "no_lobes",
@@ -134,6 +137,7 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
         "centre_y_px": float(node_px[1]),
         "u_centre_x_um": u_c[0],
         "u_centre_y_um": u_c[1],
+        "theta_fiducials_deg": th_f,
     }
 
 
