@@ -4,9 +4,10 @@ number read from its first row of dots.
 From the three fiducials (:mod:`.fiducials`) come the marker's centre, the directions of its
 x and y axes and its period in pixels — coarse, to a fraction of a period. The fine pose is
 the shared phase part (:class:`~calflow.instruments.pattern.phase.PhaseFitter`, thesis
-Sec. 3.5.1 steps 2–6) run on a square of the frame around the marker, its planes refitted on
-the samples inside the marker's grid only (one period in from its edge), so that what lies
-beside the marker does not pull them. With ``K`` the 2 × 2 matrix of the two lobes' spatial
+Sec. 3.5.1 steps 2–6) run on a square of the frame around the marker, faded out beyond a
+period from its outer dots, its planes refitted on the samples inside the marker's grid only
+(one period in from its edge, the corners' fiducials left out), so that what lies beside the
+marker does not pull them. With ``K`` the 2 × 2 matrix of the two lobes' spatial
 frequencies (cycles per pixel; rows along the marker's x and y axes) and ``φ`` their phases
 (radian) at the crop centre ``r₀``, the lattice coordinates of a pixel r are
 
@@ -68,7 +69,16 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
     x1, y1 = min(w, int(round(c[0])) + half), min(h, int(round(c[1])) + half)
     if min(x1 - x0, y1 - y0) < 8 * per_px:
         return _fail("fov_too_small", "the marker is cut by the frame's edge")
+    # what lies beside the marker (another marker, a mechanism's edges) is faded out before the
+    # transform: the crop is kept within a period of the marker's outer dots, tapered over one
+    # more, and filled beyond with the marker's mean level
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    dx, dy = xx - c[0], yy - c[1]
+    reach = np.maximum(np.abs(dx * ex[0] + dy * ex[1]), np.abs(dx * ey[0] + dy * ey[1])) / per_px
+    fade = np.clip((size - 1) / 2 + 2.0 - reach, 0.0, 1.0).astype(np.float32)
     crop = frame[y0:y1, x0:x1]
+    level = float(np.sum(crop * fade) / max(float(fade.sum()), 1.0))
+    crop = level + (crop - level) * fade
     fitter = _fitter(y1 - y0, x1 - x0, round(math.log(1.0 / per_px) / math.log(1.02)))
     planes = fitter.fit(fitter.spectrum(crop[None]))
     ratio = planes.peak_ratio[0]
