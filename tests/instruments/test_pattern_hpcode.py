@@ -220,3 +220,36 @@ def test_a_frame_without_markers_gets_a_status_and_one_reason(name):
     assert len(found) == 1 and found.status[0] in STATUSES and found.status[0] != "ok"
     assert "\n" not in found.reason[0] and found.reason[0]
     assert np.isnan(found.x_um).all() and found.number.tolist() == [-1]
+
+
+def test_calflow_decode_writes_one_row_per_marker(tmp_path, capsys):
+    import csv
+
+    import tifffile
+
+    from calflow.cli import main
+
+    truth = [placed(7, -60.0, 0.0, 12.0), placed(300, 55.0, 5.0, 14.0)]
+    frames = np.stack([render(WIDE, PATTERN, truth, rng=1), np.zeros((WIDE.height, WIDE.width), np.uint8)])
+    tifffile.imwrite(tmp_path / "f.tif", frames, photometric="minisblack")
+    (tmp_path / "p.json").write_text(json.dumps(PATTERN.to_library_dict()))
+    out = tmp_path / "poses.csv"
+    assert (
+        main(["decode", str(tmp_path / "f.tif"), "--pattern", str(tmp_path / "p.json"), "--out", str(out)])
+        == 0
+    )
+    rows = sorted(
+        csv.DictReader(out.open()), key=lambda r: (r["page"], r["number"] == "", int(r["number"] or 0))
+    )
+    assert [(r["page"], r["number"], r["status"]) for r in rows] == [
+        ("0", "7", "ok"),
+        ("0", "300", "ok"),
+        ("1", "", "bad_frame"),
+    ]
+    assert abs(float(rows[0]["x_um"]) - truth[0][1]) < POSE_UM and rows[2]["x_um"] == ""
+    nc = tmp_path / "poses.nc"
+    assert (
+        main(["decode", str(tmp_path / "f.tif"), "--pattern", str(tmp_path / "p.json"), "--out", str(nc)])
+        != 0
+    )
+    assert "one row per marker" in capsys.readouterr().err and not nc.exists()
