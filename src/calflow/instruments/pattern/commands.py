@@ -133,15 +133,15 @@ def run_decode(args) -> int:
         raise CalflowError("--fit-region and --convention vernier: only for Megarena patterns")
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
         raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
-    frames, origin = read_frames(args.frames)
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
-    if megarena:
-        from calflow.instruments.pattern.megarena.commands import decode_parallel
+    if megarena:  # read and decoded chunk by chunk on every core: the stack is never held whole
+        from calflow.instruments.pattern.stream import decode_stream
 
-        result = decode_parallel(frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
+        result, origin = decode_stream(args.frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
     else:
         from calflow.instruments.pattern.decode import decode
 
+        frames, origin = read_frames(args.frames)
         result = decode(frames, pattern, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
