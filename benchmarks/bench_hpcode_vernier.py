@@ -12,9 +12,10 @@ Figures, over the frames results.csv lists:
 
 * the moving marker's displacement in the fixed marker's frame, from the first listed frame,
   calflow − library: rms and largest (µm), and the same for its turn (mrad);
-* the turn as the fiducials' centres alone show it (no phase fit: a coarse witness that owes
-  nothing to either decoder's fine part), against each decoder's, and each decoder's largest
-  step from one frame to the next;
+* the turn and the travel as the fiducials' centres alone show them (no phase fit: a coarse
+  witness that owes nothing to either decoder's fine part), against each decoder's — the
+  travel as the least-squares factor from the decoder's to the fiducials' — and each
+  decoder's largest turn step from one frame to the next;
 * the fixed marker's scatter (standard deviation of x and y over the frames, µm), calflow's
   and the library's: the set-up's repeatability as each decoder sees it;
 * the markers found and numbers read in every frame of the folder, and calflow's CPU time per
@@ -159,8 +160,19 @@ def main(argv=None) -> int:
         found.append(sorted(int(n) for n, s in zip(m.number, m.status) if s == "ok"))
         fixed.append(m.of(args.fixed))
         rels.append(relative(m, args.moving, args.fixed, args.period_um))
-        by_number = {int(n): t for n, t in zip(m.number, m.theta_fiducials_deg)}
-        witness.append(math.radians(by_number.get(args.moving, np.nan) - by_number.get(args.fixed, np.nan)))
+        by_number = {int(n): k for k, n in enumerate(m.number)}
+        i, j = by_number.get(args.moving), by_number.get(args.fixed)
+        if i is None or j is None:
+            witness.append((np.nan, np.full(2, np.nan)))
+        else:  # the fiducials' turn, and the centres' offset in the fixed marker's axes (µm)
+            t = math.radians(m.theta_fiducials_deg[j])
+            off = [
+                m.centre_fiducials_x_px[i] - m.centre_fiducials_x_px[j],
+                m.centre_fiducials_y_px[i] - m.centre_fiducials_y_px[j],
+            ]
+            scale = 0.5 * (m.pixel_um[i] + m.pixel_um[j])
+            turn = math.radians(m.theta_fiducials_deg[i] - m.theta_fiducials_deg[j])
+            witness.append((turn, _rot(-t) @ np.array(off) * scale))
 
     def stack(parts):
         from calflow.instruments.pattern.decode import Decoded
@@ -176,8 +188,16 @@ def main(argv=None) -> int:
     d = (pos[ok] - pos[ok][0]) - (lpos - lpos[0])
     dist = np.hypot(d[:, 0], d[:, 1])
     dturn = (turn[ok] - turn[ok][0]) - (lturn - lturn[0])
-    fid = np.array(witness)[ok]
+    fid = np.array([w[0] for w in witness])[ok]
     fid = fid - fid[0]
+    fid_pos = np.array([w[1] for w in witness])[ok]
+    fid_pos = fid_pos - fid_pos[0]
+
+    def scale(p):  # the fiducials' travel as a fraction of a decoder's: least squares with an
+        # offset, the fiducials' noise on the side it does not bias
+        p, f = p - p.mean(axis=0), fid_pos - fid_pos.mean(axis=0)
+        return float(np.sum(p * f) / np.sum(p * p))
+
     lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
     summary = {
         "frames": len(files),
@@ -199,6 +219,9 @@ def main(argv=None) -> int:
         # library − it, rms about their means, and the library's drift from it
         "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
         "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
+        # the fiducials' travel (centres alone, the markers' mean pixel size) over each decoder's
+        "fiducials_travel_over": {"calflow": scale(pos[ok]), "library": scale(lpos)},
+        "fiducials_travel_um": [float(v) for v in fid_pos[-1]],
         "turn_total_mrad": {
             "calflow": float(1e3 * (turn[ok][-1] - turn[ok][0])),
             "library": float(1e3 * (lturn[-1] - lturn[0])),

@@ -31,7 +31,13 @@ from calflow.instruments.pattern.megarena.decode import _bad_frame, _frames
 
 FIELDS = ("x_um", "y_um", "theta_deg", "u_x_um", "u_y_um", "u_theta_deg", "pixel_um", "u_pixel_um")
 EXTRA = ("theta_x_deg", "pixel_x_um", "theta_y_deg", "pixel_y_um", "centre_x_px", "centre_y_px")
-EXTRA += ("u_centre_x_um", "u_centre_y_um", "theta_fiducials_deg")
+EXTRA += (
+    "u_centre_x_um",
+    "u_centre_y_um",
+    "theta_fiducials_deg",
+    "centre_fiducials_x_px",
+    "centre_fiducials_y_px",
+)
 
 
 @dataclass(frozen=True)

@@ -148,6 +148,8 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
         "u_centre_x_um": u_c[0],
         "u_centre_y_um": u_c[1],
         "theta_fiducials_deg": th_f,
+        "centre_fiducials_x_px": float(c[0]),
+        "centre_fiducials_y_px": float(c[1]),
     }
 
 
