@@ -18,9 +18,11 @@ from the truth; ``--noise SEED`` first blurs the frames (Gaussian, ``--blur-px``
 shot and read noise (``--electrons`` full well, ``--read-e``), writes them as 16-bit PNG to a
 temporary folder, and gives both decoders those.
 
-Speed: calflow's CPU time per frame in this process (one core), then ``calflow decode`` on
-every core over the frames repeated to ``--throughput-frames``, wall time; the driver's time
-per frame on one core (``OMP_NUM_THREADS=1``).
+Speed: calflow's CPU time per frame in this process (one core) over the frames as given (a
+new pixel size per frame builds a new plan of the phase planes), and over the frames of the
+first one's size repeated to ``--throughput-frames`` one after the other (one camera: one
+plan), against the driver's time per frame on one core (``OMP_NUM_THREADS=1``) on those
+files; then the same frames decoded on every core, wall time.
 
     .venv/bin/python benchmarks/bench_megarena_vernier.py --period-um 9 --depth 12 \\
         --driver /path/to/driver --fit-region 0.5 --json IMAGE...
@@ -197,6 +199,16 @@ def main(argv=None) -> int:
     first = np.stack([f for f in frames if f.shape == frames[0].shape])
     reps = max(1, math.ceil(args.throughput_frames / len(first)))
     many = np.concatenate([first] * reps)[: args.throughput_frames]
+    # the same frames one after the other on one core, as a lab's camera gives them (one pixel
+    # size: the phase planes' plan is built once), against the library's time on those files
+    t0 = time.process_time()
+    decode(many, pattern, workers=1, fit_region=args.fit_region)
+    one_camera_ms = 1000 * (time.process_time() - t0) / len(many)
+    same = [
+        r["library"]["ms"]
+        for r, f in zip(rows, frames)
+        if f.shape == frames[0].shape and "ms" in r["library"]
+    ]
     t0 = time.perf_counter()
     decode_parallel(many, pattern, 0, fit_region=args.fit_region)
     wall = time.perf_counter() - t0
@@ -213,6 +225,8 @@ def main(argv=None) -> int:
         "calflow_cpu_ms_per_frame": cpu_ms,
         "library_ms_per_frame": float(np.mean(lib_ms)) if lib_ms else None,
         "speed_ratio": (float(np.mean(lib_ms)) / cpu_ms) if lib_ms else None,
+        "calflow_cpu_ms_per_frame_one_camera": one_camera_ms,
+        "speed_ratio_one_camera": (float(np.mean(same)) / one_camera_ms) if same else None,
         "calflow_decode_frames_per_s_all_cores": len(many) / wall,
         "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "load_1min": os.getloadavg()[0],

@@ -37,6 +37,7 @@ SMOKE = {
     "bench_nano.py": ["--smoke"],
     "bench_max_coverage.py": ["--seeds", "4", "--trials", "500", "--json"],
     "bench_megarena_vernier.py": ["--smoke", "--json"],
+    "bench_hpcode_vernier.py": ["--smoke", "--json"],
 }
 #: whole workflow runs of full-size campaigns, or processes killed on purpose: not run here
 SLOW = {

@@ -146,3 +146,57 @@ def test_camera_sensor_options_are_checked(pattern_file, monkeypatch):
     emulated = {"factory": "simulated_camera", "options": {"camera": CAMERA, **PHYSICS}}
     sensor = camera_sensor(source=emulated, pattern=pattern_file, camera=CAMERA)
     assert sensor.pattern.range_um == (1500.0, 1500.0) and sensor.camera.width == 352
+
+
+MEGARENA_CAMERA = {"width": 384, "height": 336, "sensor_pixel_um": 5.0, "magnification": 10.0}  # 0.5 µm
+MEGARENA_POSES = np.array([[300.0, 400.0, 0.0], [310.5, 390.25, 0.4]])  # camera point µm, degree
+
+
+def megarena_source():
+    """A frame source serving frames of a Megarena target at known poses (a plug-in of the tests)."""
+    from calflow.instruments.pattern import Camera
+    from calflow.instruments.pattern.megarena import MegarenaPattern
+    from calflow.instruments.readings import render_poses
+
+    poses = render_poses(*MEGARENA_POSES.T)
+    camera = Camera(**MEGARENA_CAMERA)
+    return Frames(camera.render_batch(MegarenaPattern(4.0, 6), poses, np.random.default_rng(3)))
+
+
+@pytest.mark.parametrize("given", [True, False], ids=["pixel size given", "pixel size measured"])
+def test_the_camera_sensor_reads_a_megarena_target(tmp_path, monkeypatch, given):
+    import json
+
+    from calflow.gcs.camera import camera_sensor
+    from calflow.instruments.pattern.megarena import MegarenaPattern
+
+    path = tmp_path / "megarena.json"  # the Vernier library's file, as a lab has it
+    path.write_text(json.dumps(MegarenaPattern(4.0, 6).to_library_dict()))
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    camera = MEGARENA_CAMERA if given else {"width": 384, "height": 336}
+    sensor = camera_sensor(
+        source={"factory": "test_gcs_camera:megarena_source"}, pattern=str(path), camera=camera
+    )
+    assert sensor.pattern.layout == "megarena" and sensor.measure_pixel is not given
+    for x, y, theta in MEGARENA_POSES:
+        r = sensor.read({}, 0.0)
+        assert r["decode_status"] == 0
+        assert (
+            abs(r["meas_x"] - x) < 0.01
+            and abs(r["meas_y"] - y) < 0.01
+            and abs(r["meas_theta"] - theta) < 1e-3
+        )
+    sensor.close()
+
+
+def test_hpcode_markers_are_refused_by_the_camera_sensor(tmp_path, monkeypatch):
+    import json
+
+    from calflow.gcs.camera import camera_sensor
+
+    path = tmp_path / "markers.json"
+    path.write_text(json.dumps({"HPCodePattern": {"period": 15.5, "size": 17}}))
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    with pytest.raises(RigError) as err:
+        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=str(path))
+    assert "\n" not in str(err.value) and "HP-code" in str(err.value) and str(path) in str(err.value)

@@ -104,7 +104,9 @@ def test_library_file_is_read_as_it_is(tmp_path):
         ),
         ({"MegarenaPattern": {"period": 9.0, "codeDepth": 8, "dotSize": 9.0}}, "MegarenaPattern.dotSize"),
         ({"MegarenaPattern": {"period": 9.0, "bitSequence": [1, 0, 1]}}, "MegarenaPattern.bitSequence"),
-        ({"PeriodicPattern": {"period": 9.0}}, "(top level)"),
+        ({"PeriodicPattern": {"period": 9.0}}, "PeriodicPattern.nRows"),
+        ({"PeriodicPattern": {"period": 9.0, "nRows": 37, "nCols": 31}}, "PeriodicPattern.nCols"),
+        ({"HPCodePattern": {"period": 9.0, "size": 16}}, "HPCodePattern.size"),
         ({"format": "calflow-pattern", "version": 1, "layout": "hexagons"}, "layout"),
     ],
 )

@@ -75,3 +75,20 @@ def test_megarena_frames_decode_into_a_run_the_replay_rig_serves(tmp_path, camer
     assert main([*args, "--out", str(run)]) == 0
     served = open_dataset(run, kind="run")
     assert np.array_equal(served["meas_x"].values, ds["meas_x"].values)
+
+
+def test_the_workflow_replays_a_megarena_recording_end_to_end(tmp_path):
+    """Snakemake: the decode_frames rule decodes the library's Megarena pattern file and the
+    stack (pixel size measured from each frame), then the acquire rule's replay rig serves the
+    run: the poses the frames were rendered at, every frame decoded."""
+    from conftest import make_workdir, snakemake
+
+    campaign = _campaign(tmp_path, {"width": CAMERA["width"], "height": CAMERA["height"]})
+    work = make_workdir(tmp_path, {"rec": yaml.safe_load(campaign.read_text())})
+    proc = snakemake(work, "results/rec/runs/identification.nc")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (work / "results/rec/logs/decode_frames_identification.log").exists()
+    run = open_dataset(work / "results/rec/runs/identification.nc", kind="run")
+    assert validate_dataset(run) == [] and np.all(run["decode_status"].values == 0)
+    assert np.max(np.abs(run["meas_x"].values - POSES[:, 0])) < 0.01
+    assert np.max(np.abs(run["meas_theta"].values - POSES[:, 2])) < 1e-3

@@ -13,10 +13,14 @@ frames")::
             table: data/ident.csv           # frame, time, cmd_<joint>, thermometers
             pattern: data/pattern.json      # the pattern file (calflow pattern make), any layout
             camera: {}                      # optional: camera-model fields (size, pixel, optics)
+            marker: 1                       # HP-code markers: the one measured (default: the
+            reference_marker: 0             #   lowest number seen) and the fixed one it is
+                                            #   measured against (optional)
 
 The workflow's ``decode_frames`` rule runs this command into
 ``results/<campaign>/decoded/<run>.nc``, a run dataset: ``meas_*`` the decoded pose in the
-pattern frame (Eq. 4.26), ``u_meas_*`` their standard uncertainties, ``decode_status``,
+pattern frame (Eq. 4.26) — with a reference marker, the reference's centre in the measured
+marker's frame, so that the signs are a camera's — ``u_meas_*`` their standard uncertainties, ``decode_status``,
 ``frame_sha256``; the replay rig then serves it as the run (``calflow acquire --decoded``).
 Frames stay in their files. A changed decoder reruns this rule; nothing reads the frames
 again but it.
@@ -62,9 +66,12 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     else:  # a lab's target: the pixel size measured from each frame unless the camera says it
         given = {"sensor_pixel_um", "magnification"} & set(e.get("camera") or {})
         options = {"pixel_um": camera.pixel_um} if given else {}
+    options.update(_markers(e, pattern, run_id))
     readings, shas = [], []
     for rows, block, digests in frames.chunks(CHUNK):
         try:
+            if pattern.layout == "hpcode" and options.get("marker") is None:
+                options["marker"] = _first_marker(block, pattern, options)
             d = decode_frames(block, pattern, **options)
         except ValueError as exc:  # the camera cannot decode this pattern (field of view)
             raise DataError(f"{e['file']}: rig.options.recordings.{run_id}: {exc}") from None
@@ -101,6 +108,11 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
             "frames_sha256": file_sha256(e["file"]) if frames.stack else _digest_of(shas),
             "pattern_sha256": file_sha256(e["pattern"]),
             "decoder_sha256": package_digest("calflow.instruments"),
+            **{
+                k: str(options[k])
+                for k in ("marker", "reference")
+                if options.get(k) is not None and pattern.layout == "hpcode"
+            },
         },
     )
     sensors = [f"meas_{a}" for a in axes] + [f"u_meas_{a}" for a in axes] + ["decode_status"]
@@ -139,3 +151,28 @@ def run(args) -> None:
         )
     output_folder(args.out)
     write_dataset(decode_recording(recordings[args.run], args.run, c), args.out)
+
+
+def _markers(e: dict, pattern, run_id: str) -> dict:
+    """The HP-code markers a recording names (``marker``, ``reference_marker``), refused in one
+    line for a pattern of another layout."""
+    named = {k: e.get(k) for k in ("marker", "reference_marker") if e.get(k) is not None}
+    if named and pattern.layout != "hpcode":
+        key = next(iter(named))
+        raise DataError(
+            f"{e['pattern']}: rig.options.recordings.{run_id}.{key}: only for HP-code markers "
+            f"(layout hpcode); this pattern's layout is {pattern.layout!r}"
+        )
+    if pattern.layout != "hpcode":
+        return {}
+    return {"marker": e.get("marker"), "reference": e.get("reference_marker")}
+
+
+def _first_marker(block, pattern, options: dict) -> int | None:
+    """The lowest marker number decoded in the frames (the reference's left out), so that every
+    chunk of the recording measures the same marker; None while none is seen."""
+    from calflow.instruments.pattern.hpcode import decode_markers
+
+    found = decode_markers(block, pattern, options.get("pixel_um"))
+    numbers = set(found.number[found.status == "ok"].tolist()) - {options.get("reference"), -1}
+    return min(numbers) if numbers else None

@@ -35,7 +35,7 @@ from calflow.plan import Plan
 
 # format -> the joints an instrument's file of that format records (None: the file says)
 FORMATS = {"nc": None, "ecmc_iso230": ("x",), "laser_tracker": ("x", "y"), "csv": None, "frames": None}
-KEYS = {"frames": ("file", "format", "table", "pattern", "camera")}  # beyond file, format, mapping
+KEYS = {"frames": ("file", "format", "table", "pattern", "camera", "marker", "reference_marker")}
 RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
 
 
@@ -81,6 +81,12 @@ def entry(spec: Any) -> dict:
                 raise BadEntry(f".{key}", what, spec.get(key))
         if not isinstance(spec.get("camera", {}), Mapping):
             raise BadEntry(".camera", "a mapping of camera-model fields", spec.get("camera"))
+        for key in ("marker", "reference_marker"):  # HP-code markers' numbers
+            v = spec.get(key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
+                raise BadEntry(f".{key}", "the number of an HP-code marker (an integer, 0 or more)", v)
+        if spec.get("reference_marker") is not None and spec.get("marker") == spec["reference_marker"]:
+            raise BadEntry(".reference_marker", "another marker than .marker", spec["reference_marker"])
         return {**{k: spec.get(k) for k in keys}, "camera": dict(spec.get("camera") or {}), "mapping": None}
     if fmt == "csv" and not (isinstance(spec.get("mapping"), str) and spec["mapping"]):
         raise BadEntry(

@@ -19,11 +19,15 @@ allowed ``module:callable``. Options::
       factory: camera
       options:
         source: {factory: genicam, options: {cti: /opt/vendor/lib/producer.cti, serial: "22FK019"}}
-        pattern: pattern.json        # the pattern file (calflow pattern make)
+        pattern: pattern.json        # the pattern file: calflow's (calflow pattern make, any
+                                     #   layout) or the Vernier library's MegarenaPattern JSON
         camera: {}                   # camera-model fields the decoder uses (pixel size, optics)
 
 An emulated source that renders a known pattern with a known camera model (its ``pattern``
-and ``camera`` attributes) needs neither option.
+and ``camera`` attributes) needs neither option. For a lab's target (a Megarena pattern) the
+pixel size is the camera's when ``camera`` gives ``sensor_pixel_um`` or ``magnification`` and
+is measured from each frame when it does not, as for a frames recording. HP-code markers
+(several a frame) are not read by this sensor: record frames and replay them.
 """
 
 from __future__ import annotations
@@ -56,8 +60,9 @@ class CameraSensor:
     sensors = READINGS
     thermometers: tuple[str, ...] = ()
 
-    def __init__(self, source: FrameSource, pattern, camera) -> None:
+    def __init__(self, source: FrameSource, pattern, camera, measure_pixel: bool = False) -> None:
         self.source, self.pattern, self.camera = source, pattern, camera
+        self.measure_pixel = measure_pixel  # a lab's target, its pixel size from each frame
         self.frames = 0
 
     def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
@@ -77,7 +82,7 @@ class CameraSensor:
         if problem:
             raise RigError(f"gcs rig: camera sensor: frame {self.frames}: {problem}")
         try:
-            return decode_readings(frame[None], self.pattern, self.camera)[0]
+            return decode_readings(frame[None], self.pattern, None if self.measure_pixel else self.camera)[0]
         except ValueError as exc:  # the camera cannot decode this pattern (field of view)
             raise RigError(f"gcs rig: camera sensor: {exc}") from None
 
@@ -87,7 +92,8 @@ class CameraSensor:
 
 def camera_sensor(source=None, pattern=None, camera=None) -> CameraSensor:
     """Built-in sensor ``camera`` of the ``gcs`` rig (module docstring)."""
-    from calflow.instruments.pattern import Pattern
+    from calflow.errors import CalflowError
+    from calflow.instruments.pattern.layouts import load_pattern
     from calflow.instruments.readings import camera_of
 
     if not isinstance(source, Mapping) or "factory" not in source:
@@ -105,15 +111,24 @@ def camera_sensor(source=None, pattern=None, camera=None) -> CameraSensor:
         pat = grabber.pattern
     else:
         try:
-            pat = Pattern.load(pattern)
-        except (OSError, ValueError) as exc:
+            pat = load_pattern(pattern)
+        except (OSError, ValueError, CalflowError) as exc:
             grabber.close()
-            raise RigError(f"{pattern}: pattern file: {exc}") from None
+            text = str(exc)
+            raise RigError(text if text.startswith(pattern) else f"{pattern}: pattern file: {text}") from None
+    layout = getattr(pat, "layout", "cell2x2")
+    if layout == "hpcode":
+        grabber.close()
+        raise RigError(
+            f"{pattern}: gcs rig: sensor.options.pattern: HP-code markers are not read by the camera "
+            "sensor; expected a cell2x2 or megarena pattern (record frames and replay them)"
+        )
     if camera is None and getattr(grabber, "camera", None) is not None:
-        model = grabber.camera
+        model, measure = grabber.camera, False
     else:
         model = camera_of(camera or {}, "sensor.options.camera", RigError)
-    return CameraSensor(grabber, pat, model)
+        measure = layout != "cell2x2" and not {"sensor_pixel_um", "magnification"} & set(camera or {})
+    return CameraSensor(grabber, pat, model, measure)
 
 
 def load_source(spec: Mapping[str, Any]) -> FrameSource:

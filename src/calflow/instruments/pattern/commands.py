@@ -41,13 +41,14 @@ def decode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--pattern",
         required=True,
-        help="the pattern file: calflow's (calflow pattern make) or the Vernier library's MegarenaPattern JSON",
+        help="the pattern file: calflow's (calflow pattern make) or the Vernier library's "
+        "MegarenaPattern or HPCodePattern JSON (HP-code markers: one CSV row per marker)",
     )
     p.add_argument(
         "--pixel-um",
         type=float,
         help="pixel size in the object plane, µm (cell2x2 default: the default camera's; "
-        "megarena default: measured from each frame)",
+        "megarena and hpcode default: measured from each frame)",
     )
     p.add_argument(
         "--fit-region",
@@ -60,7 +61,7 @@ def decode_arguments(p: argparse.ArgumentParser) -> None:
         "--convention",
         choices=("calflow", "vernier"),
         default="calflow",
-        help="megarena: poses in calflow's convention or as the Vernier library prints them "
+        help="megarena, hpcode: poses in calflow's convention or as the Vernier library prints them "
         "(x, y, alpha, pixelSize; docs/instruments.md)",
     )
     p.add_argument("--jobs", type=int, default=0, help="processes decoding frames (default: every core)")
@@ -126,19 +127,21 @@ def run_decode(args) -> int:
         raise CalflowError(f"--out {args.out}: expected a .csv or .nc file name")
     pattern = load_pattern(args.pattern)
     megarena = pattern.layout == "megarena"
+    if pattern.layout == "hpcode":
+        return _decode_markers(args, pattern)
     if not megarena and (args.fit_region != 1.0 or args.convention != "calflow"):
         raise CalflowError("--fit-region and --convention vernier: only for Megarena patterns")
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
         raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
-    frames, origin = read_frames(args.frames)
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
-    if megarena:
-        from calflow.instruments.pattern.megarena.commands import decode_parallel
+    if megarena:  # read and decoded chunk by chunk on every core: the stack is never held whole
+        from calflow.instruments.pattern.stream import decode_stream
 
-        result = decode_parallel(frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
+        result, origin = decode_stream(args.frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
     else:
         from calflow.instruments.pattern.decode import decode
 
+        frames, origin = read_frames(args.frames)
         result = decode(frames, pattern, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
@@ -153,6 +156,33 @@ def run_decode(args) -> int:
     bad = int((result.status != "ok").sum())
     if args.out:
         print(f"{args.out}: {len(result)} frames, {len(result) - bad} decoded, {bad} not", file=sys.stderr)
+    return 0
+
+
+def _decode_markers(args, pattern) -> int:
+    """HP-code markers: one CSV row per marker found (:mod:`.hpcode.table`)."""
+    from calflow.instruments.pattern.frames import read_frames
+    from calflow.instruments.pattern.hpcode import decode_markers
+    from calflow.instruments.pattern.hpcode.table import markers_csv
+
+    if args.fit_region != 1.0:
+        raise CalflowError("--fit-region: only for Megarena patterns (a marker is fitted on itself)")
+    if args.out and args.out.lower().endswith(".nc"):
+        raise CalflowError(f"--out {args.out}: HP-code markers are written one row per marker; write a .csv")
+    frames, origin = read_frames(args.frames)
+    found = decode_markers(frames, pattern, args.pixel_um)
+    text = markers_csv(found, origin, args.convention)
+    if args.out:
+        from calflow.data.io import write_text
+
+        write_text(text, args.out)
+        ok = int((found.status == "ok").sum())
+        print(
+            f"{args.out}: {len(origin)} frames, {ok} markers decoded, {len(found) - ok} rows not",
+            file=sys.stderr,
+        )
+    else:
+        sys.stdout.write(text)
     return 0
 
 

@@ -2,7 +2,7 @@
 
 A layout says what the sites of a target are and how its absolute code is read; the phase
 part of the decoding (:mod:`.phase`) is shared by all. calflow registers its own ``cell2x2``
-and FEMTO-ST's ``megarena``; a lab's own encoding plugs in as a :class:`Layout` registered
+FEMTO-ST's ``megarena`` and its ``hpcode`` markers; a lab's own encoding plugs in as a :class:`Layout` registered
 as an entry point of the group ``calflow.pattern_layouts`` in its ``pyproject.toml``::
 
     [project.entry-points."calflow.pattern_layouts"]
@@ -39,6 +39,8 @@ from typing import Any
 
 from calflow.errors import CalflowError
 from calflow.instruments.pattern.decode import decode as decode_cell2x2
+from calflow.instruments.pattern.hpcode.decode import decode as decode_hpcode
+from calflow.instruments.pattern.hpcode.pattern import read_hpcode
 from calflow.instruments.pattern.megarena.decode import decode as decode_megarena
 from calflow.instruments.pattern.megarena.pattern import read_megarena
 from calflow.instruments.pattern.pattern import read_cell2x2
@@ -70,6 +72,14 @@ MEGARENA = Layout(
     read=read_megarena,
     decode=decode_megarena,
     foreign_keys=("MegarenaPattern",),
+)
+
+HPCODE = Layout(
+    name="hpcode",
+    description="FEMTO-ST's HP-code markers: numbered dot squares framed by three QR-like fiducials, several a frame",
+    read=read_hpcode,
+    decode=decode_hpcode,
+    foreign_keys=("HPCodePattern", "PeriodicPattern"),
 )
 
 

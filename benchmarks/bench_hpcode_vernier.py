@@ -1,0 +1,250 @@
+"""calflow's HP-code markers side by side with the Vernier library on a sequence of frames.
+
+The folder holds the frames (``Image<N>.png``, any image file calflow reads) and the
+library's poses of two markers in ``results.csv`` as its test program writes them
+(``image;no;x;y;alpha;pixelSize;no;x;y;alpha;pixelSize;``: the marker numbered 0, then the one
+numbered 1, each as ``HPCodePatternDetector::get2DPose`` gives it). The library's test data
+``test/data/Image140`` is such a folder (GPL-3.0 data: it stays outside calflow's
+repository; give its path). ``--fixed`` names the marker that does not move (the reference),
+``--moving`` the other.
+
+Figures, over the frames results.csv lists:
+
+* the moving marker's displacement in the fixed marker's frame, from the first listed frame,
+  calflow − library: rms and largest (µm), and the same for its turn (mrad);
+* the turn and the travel as the fiducials' centres alone show them (no phase fit: a coarse
+  witness that owes nothing to either decoder's fine part), against each decoder's — the
+  travel as the least-squares factor from the decoder's to the fiducials' — and each
+  decoder's largest turn step from one frame to the next;
+* the fixed marker's scatter (standard deviation of x and y over the frames, µm), calflow's
+  and the library's: the set-up's repeatability as each decoder sees it;
+* the markers found and numbers read in every frame of the folder, and calflow's CPU time per
+  frame (one core; CPU time holds under load, wall time does not).
+
+``--smoke`` renders a short sequence with calflow's own renderer (two markers, the second
+moving and turning) and writes their true poses as the library would print them, so the whole
+script runs with no library.
+
+    .venv/bin/python benchmarks/bench_hpcode_vernier.py /path/to/vernier/test/data/Image140 \\
+        --period-um 15.5 --size 17 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import platform
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from calflow.instruments.pattern.frames import read_frames
+from calflow.instruments.pattern.hpcode import HPCodePattern, decode_markers, relative
+
+
+def library_rows(path: Path) -> dict[int, dict[int, np.ndarray]]:
+    """results.csv → {image number: {marker number: (x, y, alpha, pixelSize)}}; the file's
+    ``no`` columns are not the markers' numbers (its writer prints 0 for both): the first
+    group is marker 0's, the second marker 1's."""
+    out = {}
+    with open(path, newline="") as fh:
+        for row in csv.reader(fh, delimiter=";"):
+            if not row or not row[0].strip().isdigit():
+                continue
+            vals = [float(v) for v in row[1:11]]
+            out[int(row[0])] = {0: np.array(vals[1:5]), 1: np.array(vals[6:10])}
+    return out
+
+
+def _rot(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s], [s, c]]) if np.ndim(a) == 0 else np.stack([[c, -s], [s, c]]).transpose(2, 0, 1)
+
+
+def library_relative(rows: dict[int, dict[int, np.ndarray]], frames, fixed: int, moving: int):
+    """The moving marker's centre in the fixed marker's frame and its turn, from the library's
+    poses: its centre sits at R(alpha)·(x, y) in the camera, so the offset is
+    R(alpha_m − alpha_f)·p_m − p_f (µm) and the turn alpha_m − alpha_f (radian)."""
+    pos, turn = [], []
+    for f in frames:
+        pf, pm = rows[f][fixed], rows[f][moving]
+        pos.append(_rot(pm[2] - pf[2]) @ pm[:2] - pf[:2])
+        turn.append(pm[2] - pf[2])
+    return np.array(pos), np.array(turn)
+
+
+def calflow_relative(rel) -> tuple[np.ndarray, np.ndarray]:
+    """calflow's relative pose (the fixed marker's centre in the moving one's frame, Θ the
+    moving marker's turn) → the moving marker's centre in the fixed one's frame: −R(Θ)·(x, y)."""
+    theta = np.radians(rel.theta_deg)
+    q = np.stack([rel.x_um, rel.y_um], axis=1)
+    return -np.einsum("nij,nj->ni", _rot(theta), q), theta
+
+
+def _without_jump(dturn: np.ndarray, lturn: np.ndarray) -> float:
+    """rms of calflow − library turn (mrad) once the library's largest step between two listed
+    frames is taken out of its series (the frames after it shifted back by that step less the
+    median step), to tell a jump from a drift."""
+    steps = np.diff(lturn)
+    k = int(np.argmax(np.abs(steps)))
+    shift = np.zeros_like(lturn)
+    shift[k + 1 :] = steps[k] - np.median(steps)
+    fixed = dturn + shift
+    return float(1e3 * np.sqrt(np.mean((fixed - fixed.mean()) ** 2)))
+
+
+def smoke_folder(folder: Path) -> list[str]:
+    """``--smoke``: five frames of two markers calflow renders and their truth in results.csv."""
+    from PIL import Image
+
+    from calflow.instruments.pattern import Camera
+    from calflow.instruments.pattern.hpcode.render import render
+
+    cam = Camera(width=480, height=360)
+    pattern = HPCodePattern(4.0, 17)
+    lines = ["image;no;x;y;alpha;pixelSize;no;x;y;alpha;pixelSize;"]
+    for k in range(5):
+        poses = [(0, 40.0, -10.0, 3.0), (1, -30.0 + 0.4 * k, 12.0 - 0.3 * k, -2.0 + 0.05 * k)]
+        Image.fromarray(render(cam, pattern, poses, rng=k)).save(folder / f"Image{k}.png")
+        cells = []
+        for _, x, y, th in poses:
+            t = math.radians(th)  # the library's pose of the same marker (docs/instruments.md)
+            lx = -(x + 0.5 * cam.pixel_um * (math.cos(t) + math.sin(t)))
+            ly = -(y + 0.5 * cam.pixel_um * (math.cos(t) - math.sin(t)))
+            cells.append(f"0;{lx!r};{ly!r};{t!r};{cam.pixel_um!r}")
+        lines.append(f"{k};{';'.join(cells)};")
+    (folder / "results.csv").write_text("\n".join(lines) + "\n")
+    return [str(folder), "--period-um", "4", "--size", "17"]
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--smoke" in argv:
+        argv.remove("--smoke")
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(smoke_folder(Path(tmp)) + argv)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("folder", help="frames Image<N>.png and the library's results.csv")
+    p.add_argument("--period-um", type=float, required=True, help="the markers' period (µm)")
+    p.add_argument(
+        "--size", type=int, required=True, help="dots a side (the library's half periods + 1, halved)"
+    )
+    p.add_argument("--fixed", type=int, default=0, help="the fixed marker's number")
+    p.add_argument("--moving", type=int, default=1, help="the moving marker's number")
+    p.add_argument("--json", action="store_true", help="print one JSON object last")
+    args = p.parse_args(argv)
+    folder = Path(args.folder)
+    pattern = HPCodePattern(args.period_um, args.size)
+    files = sorted(
+        (f for f in folder.iterdir() if re.fullmatch(r"[A-Za-z_]*\d+\.(png|jpe?g|tiff?)", f.name, re.I)),
+        key=lambda f: int(re.search(r"\d+", f.name).group()),
+    )
+    if not files:
+        print(f"{folder}: no frames Image<N>.png", file=sys.stderr)
+        return 1
+    lib = library_rows(folder / "results.csv")
+    numbers = [int(re.search(r"\d+", f.name).group()) for f in files]
+    fixed, rels, found, witness, cpu = [], [], [], [], 0.0
+    for f in files:
+        frame = read_frames([f])[0]
+        start = time.process_time()
+        m = decode_markers(frame, pattern)
+        cpu += time.process_time() - start
+        found.append(sorted(int(n) for n, s in zip(m.number, m.status) if s == "ok"))
+        fixed.append(m.of(args.fixed))
+        rels.append(relative(m, args.moving, args.fixed, args.period_um))
+        by_number = {int(n): k for k, n in enumerate(m.number)}
+        i, j = by_number.get(args.moving), by_number.get(args.fixed)
+        if i is None or j is None:
+            witness.append((np.nan, np.full(2, np.nan)))
+        else:  # the fiducials' turn, and the centres' offset in the fixed marker's axes (µm)
+            t = math.radians(m.theta_fiducials_deg[j])
+            off = [
+                m.centre_fiducials_x_px[i] - m.centre_fiducials_x_px[j],
+                m.centre_fiducials_y_px[i] - m.centre_fiducials_y_px[j],
+            ]
+            scale = 0.5 * (m.pixel_um[i] + m.pixel_um[j])
+            turn = math.radians(m.theta_fiducials_deg[i] - m.theta_fiducials_deg[j])
+            witness.append((turn, _rot(-t) @ np.array(off) * scale))
+
+    def stack(parts):
+        from calflow.instruments.pattern.decode import Decoded
+
+        keys = ("x_um", "y_um", "theta_deg", "u_x_um", "u_y_um", "u_theta_deg", "status", "reason")
+        return Decoded(**{k: np.concatenate([getattr(d, k) for d in parts]) for k in keys})
+
+    fx, rel = stack(fixed), stack(rels)
+    listed = [i for i, n in enumerate(numbers) if n in lib]
+    ok = [i for i in listed if rel.status[i] == "ok"]
+    pos, turn = calflow_relative(rel)
+    lpos, lturn = library_relative(lib, [numbers[i] for i in ok], args.fixed, args.moving)
+    d = (pos[ok] - pos[ok][0]) - (lpos - lpos[0])
+    dist = np.hypot(d[:, 0], d[:, 1])
+    dturn = (turn[ok] - turn[ok][0]) - (lturn - lturn[0])
+    fid = np.array([w[0] for w in witness])[ok]
+    fid = fid - fid[0]
+    fid_pos = np.array([w[1] for w in witness])[ok]
+    fid_pos = fid_pos - fid_pos[0]
+
+    def scale(p):  # the fiducials' travel as a fraction of a decoder's: least squares with an
+        # offset, the fiducials' noise on the side it does not bias
+        p, f = p - p.mean(axis=0), fid_pos - fid_pos.mean(axis=0)
+        return float(np.sum(p * f) / np.sum(p * p))
+
+    lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
+    summary = {
+        "frames": len(files),
+        "frames_listed": len(listed),
+        "frames_compared": len(ok),
+        "markers_per_frame": sorted({len(f) for f in found}),
+        "numbers_read": sorted({n for f in found for n in f}),
+        "displacement_diff_rms_um": float(np.sqrt(np.mean(dist**2))),
+        "displacement_diff_max_um": float(dist.max()),
+        "turn_diff_rms_mrad": float(1e3 * np.sqrt(np.mean(dturn**2))),
+        "turn_diff_max_mrad": float(1e3 * np.abs(dturn).max()),
+        # the largest change of the turn from one listed frame to the next, and where: a decoder
+        # that jumps where the other does not is the one to doubt
+        "turn_step_max_mrad_calflow": float(1e3 * np.abs(np.diff(turn[ok])).max()),
+        "turn_step_max_mrad_library": float(1e3 * np.abs(np.diff(lturn)).max()),
+        "turn_step_max_at_library": int(numbers[ok[int(np.argmax(np.abs(np.diff(lturn)))) + 1]]),
+        "turn_diff_rms_mrad_without_library_jump": _without_jump(dturn, lturn),
+        # the turn the fiducials' centres alone show (no phase fit; noisier): calflow − it and
+        # library − it, rms about their means, and the library's drift from it
+        "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
+        "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
+        # the fiducials' travel (centres alone, the markers' mean pixel size) over each decoder's
+        "fiducials_travel_over": {"calflow": scale(pos[ok]), "library": scale(lpos)},
+        "fiducials_travel_um": [float(v) for v in fid_pos[-1]],
+        "turn_total_mrad": {
+            "calflow": float(1e3 * (turn[ok][-1] - turn[ok][0])),
+            "library": float(1e3 * (lturn[-1] - lturn[0])),
+            "fiducials": float(1e3 * fid[-1]),
+        },
+        "relative_offset_mean_um": [float(v) for v in (pos[ok] - lpos).mean(axis=0)],
+        "fixed_scatter_um_calflow": [float(np.std(fx.x_um[ok], ddof=1)), float(np.std(fx.y_um[ok], ddof=1))],
+        "fixed_scatter_um_library": [float(v) for v in np.std(lib_fixed, axis=0, ddof=1)],
+        "fixed_u_um_calflow": [float(np.median(fx.u_x_um[ok])), float(np.median(fx.u_y_um[ok]))],
+        "moving_travel_um": [float(v) for v in pos[ok][-1] - pos[ok][0]],
+        "cpu_s_per_frame": cpu / len(files),
+        "load_1min": os.getloadavg()[0],
+        "machine": f"{platform.machine()} {platform.system()} Python {platform.python_version()}",
+    }
+    for k, v in summary.items():
+        print(f"{k}: {v}")
+    failed = [numbers[i] for i in listed if rel.status[i] != "ok"]
+    if failed:
+        print(f"frames listed but not decoded by calflow: {failed}")
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    return 0 if len(ok) >= 2 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,120 @@
+"""Frames decoded as they are read, on every core: ``calflow decode`` over a recording too
+large to hold.
+
+The files' frames are listed from their headers (a TIFF stack's pages, each checked whole;
+one frame per PNG or JPEG), cut into chunks of :data:`CHUNK` frames, and a pool of processes
+each reads its chunk from the files and decodes it (one core a process, the phase planes'
+plans kept between a process's chunks): the parent holds the poses, never the frames, so the
+memory is the pool's chunks whatever the recording's length. The result is the one
+:func:`~calflow.instruments.pattern.layouts.decode_frames` gives on the whole stack.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from calflow.errors import DataError
+from calflow.instruments.pattern.frames import JPEG, PNG, TIFF, _read, tiff_pages
+
+CHUNK = 16  # frames a process reads and decodes at once
+
+
+def frame_index(paths) -> list[tuple[str, int]]:
+    """(file, page) of every frame of these files, from their headers; a missing, unknown or
+    truncated file is refused in one line."""
+    index: list[tuple[str, int]] = []
+    for path in map(Path, paths):
+        if not path.is_file():
+            raise DataError(f"{path}: no such image file")
+        suffix = path.suffix.lower()
+        if suffix in TIFF:
+            index += [(str(path), page) for page in range(tiff_pages(path))]
+        elif suffix in PNG + JPEG:
+            index.append((str(path), 0))
+        else:
+            raise DataError(
+                f"{path}: unknown image type {suffix or '(none)'!r}; expected .tif, .tiff, .png, .jpg or .jpeg"
+            )
+    if not index:
+        raise DataError("no frames: expected at least one image file")
+    return index
+
+
+def read_chunk(units: list[tuple[str, int]], shape: tuple[int, int] | None = None) -> np.ndarray:
+    """The frames (n, h, w) at ``units`` ((file, page) each), all of ``shape`` when given."""
+    import tifffile
+
+    frames = []
+    for path, page in units:
+        p = Path(path)
+        if p.suffix.lower() in TIFF:
+            try:
+                with tifffile.TiffFile(p) as tif:
+                    frame = tif.pages[page].asarray()
+            except Exception as exc:  # tifffile's and the OS's errors alike
+                raise DataError(f"{p}: frame {page}: not readable ({type(exc).__name__}: {exc})") from None
+            if frame.ndim != 2:
+                raise DataError(f"{p}: frame {page} of shape {frame.shape}; expected a monochrome frame")
+            if frame.dtype.kind not in "uif":
+                raise DataError(f"{p}: pixels of type {frame.dtype}; expected integers or floats")
+        else:
+            frame = _read(p)[0]
+        if shape is not None and frame.shape != tuple(shape):
+            raise DataError(
+                f"{p}: frame {page} is {frame.shape[1]} × {frame.shape[0]} pixels; "
+                f"expected {shape[1]} × {shape[0]} like the frames before it"
+            )
+        frames.append(frame)
+    return np.stack(frames)
+
+
+def decode_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, **options):
+    """Decode every frame of ``paths`` (module docstring) with the pattern's layout, over ``jobs``
+    processes (0: every core this process may use). Returns (result, [(file, page)…])."""
+    index = frame_index(paths)
+    shape = read_chunk(index[:1]).shape[1:]
+    chunks = [index[i : i + chunk] for i in range(0, len(index), chunk)]
+    if jobs <= 0:
+        jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    jobs = max(1, min(jobs, len(chunks)))
+    work = [(units, shape, pattern, options) for units in chunks]
+    if jobs == 1:
+        parts = [_decode_chunk(w) for w in work]
+    else:
+        methods = multiprocessing.get_all_start_methods()
+        context = multiprocessing.get_context("fork" if "fork" in methods else None)
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+            parts = list(pool.map(_decode_chunk, work))
+    return _joined(parts), index
+
+
+def _decode_chunk(job):
+    from calflow.instruments.pattern.layouts import decode_frames
+
+    units, shape, pattern, options = job
+    extra = {"workers": 1} if getattr(pattern, "layout", "cell2x2") != "cell2x2" else {}
+    return decode_frames(read_chunk(units, shape), pattern, **extra, **options)
+
+
+def _joined(parts):
+    """One result of the chunks' results: every per-frame array concatenated, the rest the
+    first chunk's."""
+    first = parts[0]
+    if len(parts) == 1:
+        return first
+    values = {}
+    for f in dataclasses.fields(first):
+        v = getattr(first, f.name)
+        if isinstance(v, np.ndarray) and v.shape[:1] == (len(first),):
+            values[f.name] = np.concatenate([getattr(p, f.name) for p in parts])
+        elif f.name == "details" and v is not None:
+            values[f.name] = [d for p in parts for d in p.details]
+        else:
+            values[f.name] = v
+    return type(first)(**values)

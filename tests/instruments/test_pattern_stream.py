@@ -1,0 +1,56 @@
+"""``calflow decode`` reads and decodes a recording chunk by chunk on every core: the same
+poses as the whole stack decoded at once, whatever the chunks and processes; bad files and
+frames of another size in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calflow.errors import DataError
+from calflow.instruments.pattern import Camera
+from calflow.instruments.pattern.megarena import MegarenaPattern, decode
+from calflow.instruments.pattern.stream import decode_stream
+
+CAMERA = Camera(width=256, height=224, sensor_pixel_um=5.0, magnification=10.0)
+PATTERN = MegarenaPattern(4.0, 6)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    import tifffile
+    from PIL import Image
+
+    folder = tmp_path_factory.mktemp("stream")
+    poses = [(300.0 + 7.3 * k, 400.0 - 5.1 * k, 3.0 * k - 9.0) for k in range(7)]
+    frames = np.stack([CAMERA.render(PATTERN, *pose, rng=k) for k, pose in enumerate(poses)])
+    frames[3] = 0  # a blank frame among them
+    tifffile.imwrite(folder / "stack.tif", frames[:6], photometric="minisblack")
+    Image.fromarray(frames[6]).save(folder / "last.png")
+    return folder, frames
+
+
+@pytest.mark.parametrize("jobs, chunk", [(1, 16), (2, 2), (2, 5)])
+def test_the_stream_gives_the_whole_stacks_poses(recording, jobs, chunk):
+    folder, frames = recording
+    result, origin = decode_stream([folder / "stack.tif", folder / "last.png"], PATTERN, jobs, chunk)
+    whole = decode(frames, PATTERN, workers=1)
+    assert origin == [(str(folder / "stack.tif"), k) for k in range(6)] + [(str(folder / "last.png"), 0)]
+    assert result.status.tolist() == whole.status.tolist() and result.status[3] == "bad_frame"
+    assert (result.status == "ok").sum() == 6
+    for key in ("x_um", "y_um", "theta_deg", "u_x_um", "pixel_um"):
+        assert np.array_equal(getattr(result, key), getattr(whole, key), equal_nan=True), key
+
+
+def test_bad_files_are_refused_in_one_line(recording, tmp_path):
+    folder, _ = recording
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes((folder / "stack.tif").read_bytes()[:-5000])
+    with pytest.raises(DataError, match="cut.tif: not a readable TIFF"):
+        decode_stream([cut], PATTERN, 1)
+    other = tmp_path / "small.tif"
+    import tifffile
+
+    tifffile.imwrite(other, np.zeros((100, 120), np.uint8))
+    with pytest.raises(DataError, match=r"small.tif: frame 0 is 120 × 100 pixels; expected 256 × 224"):
+        decode_stream([folder / "stack.tif", other], PATTERN, 2, 4)
