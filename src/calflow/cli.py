@@ -13,7 +13,7 @@ import sys
 
 from calflow import __version__, footprint
 from calflow.errors import CalflowError
-from calflow.step import KINDS, Option
+from calflow.step import KINDS, Job, Option
 from calflow.steps import entry_point, entry_points, options_of, steps
 
 __all__ = ["entry_point", "entry_points", "main", "parser"]
@@ -99,8 +99,10 @@ def _error(message: str) -> int:
 
 
 def _step(args) -> int:
+    """Run the step the command line names, handed its :class:`calflow.step.Job`."""
+    job = Job.of(args.command, **{k: v for k, v in vars(args).items() if k not in ("func", "command")})
     try:
-        status = args.func(args)
+        status = args.func(job)
     except (CalflowError, ValueError) as exc:  # library ValueErrors are worded for users
         return _error(str(exc))
     except OSError as exc:  # a file or folder the system refused: name it, no traceback

@@ -13,8 +13,8 @@ what was expected. The check reads the hooks' source (:mod:`ast`), so registerin
 imports none of its numerical modules (``calflow --help`` and the Snakefile read the registry).
 
 Every step hook has one calling convention, ``hook(c, args)``: ``c`` the loaded campaign (a
-read-only mapping of its sections and its ``name``), ``args`` an :class:`argparse.Namespace` of
-the step's inputs (:data:`STEP_ARGS`). The rest of the contract that is not a hook is here too:
+read-only mapping of its sections and its ``name``), ``args`` a :class:`calflow.step.Job`: the step's
+inputs by name, read-only (:data:`STEP_ARGS`). The rest of the contract that is not a hook is here too:
 the names a family's Snakemake rules may use (:data:`RULE_GLOBALS`), its template and schema
 file names (:data:`TEMPLATE`, :data:`SCHEMA`), and the public core a family outside calflow
 imports (:data:`PUBLIC_CORE`). docs/families.md describes all of it; a test checks the two agree.

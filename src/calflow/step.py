@@ -14,7 +14,9 @@ an exit status or None.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 #: What every step that reads a campaign reads: the robot (it names the family) and the start,
@@ -104,3 +106,36 @@ class Step:
         """The campaign keys a job of this step is handed, in order: :data:`STAMP`, the
         step's :attr:`reads`, then ``per_job`` (what its rule adds), each once."""
         return list(dict.fromkeys([*STAMP, *self.reads, *per_job]))
+
+
+@dataclass(frozen=True)
+class Job:
+    """What one run of a step hands its function and the family's hooks it calls: the step's
+    name and the values of its declared options (files by their option's name, where it writes
+    as ``out``), read-only. ``job.run`` is the value of ``--run``; asking for a name the step
+    does not declare is an :class:`AttributeError` naming the step.
+
+    The core builds it from the command line (:func:`calflow.cli.main`) and for the family's
+    hooks it calls itself (the summary's truth, the report's figures); a family's code builds
+    one to call its own hooks (:meth:`with_values`).
+    """
+
+    step: str
+    values: Mapping[str, Any]
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        values = object.__getattribute__(self, "values")
+        if name not in values:
+            step = object.__getattribute__(self, "step")
+            raise AttributeError(f"calflow {step}: no input {name!r}; it has {', '.join(sorted(values))}")
+        return values[name]
+
+    def with_values(self, **values: Any) -> Job:
+        """The same job with ``values`` set (the loaded truth in place of its file)."""
+        return Job(self.step, MappingProxyType({**self.values, **values}))
+
+    @classmethod
+    def of(cls, step: str, **values: Any) -> Job:
+        return cls(step, MappingProxyType(dict(values)))

@@ -3,7 +3,6 @@ science its robot family holds (``Family.steps``), and the summary's and report'
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -33,7 +32,7 @@ def summarise(args) -> None:
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
-    summary = family.step("summarise")(campaign, argparse.Namespace(**{**vars(args), "truth": truth}))
+    summary = family.step("summarise")(campaign, args.with_values(truth=truth))
     from calflow.certificate.annotate import annotate, stage_settings_or_fail
 
     summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
