@@ -29,6 +29,14 @@ Every step that reads a campaign reads its `robot` and `start` too.
 A rule may add what one job reads besides (the plan of the run it acquires). This page is
 generated: `python -m calflow.steps.table > docs/steps.md`.
 
+A new step is one declaration and one function: a `Step` (in `calflow.steps`, or a family's
+`commands`) naming `"module:function"`, and that function, `run(job)`, reading its options
+from the `calflow.step.Job` it is handed (`job.out`, `job.run`; its campaign through
+`calflow.configuration.handed.campaign_of(job)`). `calflow <step> --help` shows it at once; a
+rule runs it with `params: **reads("<step>")` and `--sections {params.sections:q}` in its
+shell, and reruns when a key it declares or the code it reaches changes
+(`tests/families/test_new_step.py` does exactly this from a family written in the test).
+
 | step | reads | writes | rule | runs |
 |---|---|---|---|---|
 """
