@@ -18,7 +18,6 @@ core rule names a robot (docs/families.md).
 
 from __future__ import annotations
 
-import argparse
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -27,23 +26,9 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from calflow.errors import CalflowError
+from calflow.step import Option, Step
 
 GROUP = "calflow.families"
-
-
-@dataclass(frozen=True)
-class Command:
-    """A CLI subcommand a family adds: ``calflow <name> ...``.
-
-    ``arguments(parser)`` declares its options (argparse only, nothing heavy);
-    ``run`` names the function ``run(args) -> int | None`` it calls (hooks ``commands.arguments``
-    and ``commands.run`` of :data:`calflow.family_contract.HOOKS`).
-    """
-
-    name: str
-    help: str
-    arguments: Callable[[argparse.ArgumentParser], None]
-    run: str
 
 
 @dataclass(frozen=True)
@@ -51,7 +36,7 @@ class Family:
     """One family of robots: what it contributes to each part of the workflow.
 
     Its fields fall into the contract's contribution kinds (:data:`calflow.family_contract.KINDS`);
-    every hook — a ``"module:attribute"`` string, or an argparse hook held directly — has its
+    every hook — a ``"module:attribute"`` string — has its
     signature declared once in :data:`calflow.family_contract.HOOKS` and is checked when the
     family registers. docs/families.md describes each field and hook.
 
@@ -62,14 +47,16 @@ class Family:
     * rig: ``rigs`` (robot → short name → factory), ``rig_options`` (what a run adds to the rig
       options), ``options`` (factory → its option check; every rig factory has one), ``sensors``
       (of the ``gcs`` rig), ``emulator``.
-    * plans: ``plans`` (robot → plan name → builder), ``acquire_arguments``.
+    * plans: ``plans`` (robot → plan name → builder).
     * steps: ``steps`` (``check``, ``identify``, ``metrics``, ``summarise``, ``figures``, each
-      ``hook(c, args)``), ``identify_arguments``.
+      ``hook(c, args)``), ``step_options`` (core step → the :class:`calflow.step.Option` s the
+      family adds to it: ``calflow acquire --luts``).
     * report: ``templates`` (the package whose ``templates/`` holds ``<robot>.html.j2``),
       ``index_row``, ``headline``, ``modes``, ``reference``, ``summary_sections``.
     * certificate: ``uncertainty``, ``certified``. lifecycle: ``history_entry``.
     * workflow: ``workflow`` (a :class:`calflow.family_workflow.FamilyWorkflow`), ``rules``
-      (``("package", "file.smk", ...)``), ``studies``. commands: ``commands``.
+      (``("package", "file.smk", ...)``), ``studies``. commands: ``commands`` (the family's own
+      steps, each a :class:`calflow.step.Step`).
     """
 
     name: str
@@ -79,9 +66,8 @@ class Family:
     rig_options: str
     steps: Mapping[str, str]
     templates: str
-    acquire_arguments: Callable[[argparse.ArgumentParser], None] | None = None
-    identify_arguments: Callable[[argparse.ArgumentParser], None] | None = None
-    commands: tuple[Command, ...] = ()
+    step_options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
+    commands: tuple[Step, ...] = ()
     sensors: Mapping[str, str] = field(default_factory=dict)
     emulator: str | None = None
     joints: Mapping[str, tuple[str, ...]] = field(default_factory=dict)

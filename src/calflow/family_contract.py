@@ -13,8 +13,8 @@ what was expected. The check reads the hooks' source (:mod:`ast`), so registerin
 imports none of its numerical modules (``calflow --help`` and the Snakefile read the registry).
 
 Every step hook has one calling convention, ``hook(c, args)``: ``c`` the loaded campaign (a
-read-only mapping of its sections and its ``name``), ``args`` an :class:`argparse.Namespace` of
-the step's inputs (:data:`STEP_ARGS`). The rest of the contract that is not a hook is here too:
+read-only mapping of its sections and its ``name``), ``args`` a :class:`calflow.step.Job`: the step's
+inputs by name, read-only (:data:`STEP_ARGS`). The rest of the contract that is not a hook is here too:
 the names a family's Snakemake rules may use (:data:`RULE_GLOBALS`), its template and schema
 file names (:data:`TEMPLATE`, :data:`SCHEMA`), and the public core a family outside calflow
 imports (:data:`PUBLIC_CORE`). docs/families.md describes all of it; a test checks the two agree.
@@ -46,7 +46,7 @@ class Hook:
     ``keywords``: keyword arguments the core passes besides; ``options``: also takes the
     options of a campaign as keyword arguments (``factory(**options)``); ``shape``: ``one``
     (a ``"module:attr"``), ``by_name`` (name → ``"module:attr"``), ``by_robot`` (robot → name
-    → ``"module:attr"``) or ``object`` (a callable held directly, e.g. argparse hooks);
+    → ``"module:attr"``);
     ``label``: what the docs call it (``factory``, ``builder``); ``returns``: what the core
     expects back, in words.
     """
@@ -90,14 +90,12 @@ HOOKS: tuple[Hook, ...] = (
     Hook("emulator", "emulator", "rig", None, "a calflow.gcs.emulation.campaign_emulator.Emulator"),
     # plans: what a run commands
     Hook("plans", "plans", "plans", ("c", "args"), "a calflow.plan.Acquisition", True, "by_robot", "builder"),
-    Hook("acquire_arguments", "acquire_arguments", "plans", ("p",), "None", False, "object"),
     # steps: one calling convention, hook(c, args)
     Hook("steps.check", "steps", "steps", ("c", "args"), "a calflow.configuration.campaign.Resolution or None; ConfigError naming file and key"),
     Hook("steps.identify", "steps", "steps", ("c", "args"), "None; writes args.out", True),
     Hook("steps.metrics", "steps", "steps", ("c", "args"), "None; writes args.out", True),
     Hook("steps.summarise", "steps", "steps", ("c", "args"), "the summary, a JSON-able dict", True),
     Hook("steps.figures", "steps", "steps", ("c", "args"), "(figures, notes)", True),
-    Hook("identify_arguments", "identify_arguments", "steps", ("p",), "None", False, "object"),
     # report
     Hook("headline", "headline", "report", ("summary",), "{label, key, unit} or None"),
     Hook("reference", "reference", "report", None, "a dict of published values with a source", False, "by_name"),
@@ -109,7 +107,6 @@ HOOKS: tuple[Hook, ...] = (
     Hook("workflow", "workflow", "workflow", None, "a calflow.family_workflow.FamilyWorkflow"),
     Hook("studies", "studies", "workflow", ("path", "campaign_dir"), "the study, a dict"),
     # commands: calflow <name>
-    Hook("commands.arguments", "commands", "commands", ("p",), "None", False, "object"),
     Hook("commands.run", "commands", "commands", ("args",), "exit status or None"),
 )
 # fmt: on
@@ -117,7 +114,7 @@ HOOKS: tuple[Hook, ...] = (
 #: The inputs each step hook finds on ``args`` (besides the subcommand's own options).
 STEP_ARGS: Mapping[str, tuple[str, ...]] = {
     "check": ("campaign",),  # the campaign file (a Path), for the error's file name
-    "identify": ("campaign", "model_name", "run", "out"),  # + the family's identify_arguments
+    "identify": ("campaign", "model_name", "run", "out"),  # + the family's step_options["identify"]
     "metrics": ("campaign", "run", "out"),
     "summarise": ("campaign", "files", "truth"),  # truth: the rig's truth and error budget, or None
     "figures": ("summary", "inputs"),  # inputs: calflow.report.figures.Inputs of the result files
@@ -137,7 +134,7 @@ RULE_GLOBALS = (
     "CONDA_ENV",  # the environment file, an absolute path
     "REPORT_DIR",  # the captions of report() outputs
     "campaign_file",  # wildcards -> the campaign's file
-    "reads",  # **reads(command, *sections, acquires=False): the sections a job is handed, and its rerun digest
+    "reads",  # **reads(step, *sections): the sections a job is handed (its step's, then these), and its rerun digest
     "rig_slots",  # wildcards -> the rig's resource slots (one run at a time per real rig)
     "models_of",  # models_of(campaign): the models it identifies
     "code_digest",  # code_digest(command, robot): the digest of a subcommand's code
@@ -151,7 +148,8 @@ RULE_GLOBALS = (
 PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow": ("__version__",),
     "calflow.configuration": ("layout",),
-    "calflow.family": ("Family", "Command"),
+    "calflow.family": ("Family",),
+    "calflow.step": ("Option", "Step"),
     "calflow.family_contract": ("*",),
     "calflow.family_workflow": ("FamilyWorkflow",),
     "calflow.configuration.layout": ("*",),
@@ -234,16 +232,14 @@ def check_family(fam: Any) -> None:
     def refuse(where: str, what: str) -> None:
         raise FamilyError(f"family {name!r}: hook {where}: {what}")
 
+    _check_steps(fam, refuse)
     for h in HOOKS:
         value = getattr(fam, h.field)
         targets = _targets(h, value)
         if h.required and not targets:
             refuse(h.name, f"missing; expected {h.call} -> {h.returns}")
         for where, target in targets:
-            if h.shape == "object":
-                _check_object(where, target, h, refuse)
-            else:
-                _check_target(where, target, h, refuse)
+            _check_target(where, target, h, refuse)
     for robot in fam.robots:
         if robot not in fam.rigs or robot not in fam.plans:
             refuse("rigs/plans", f"expected a rig and plans for robot {robot!r}")
@@ -253,16 +249,21 @@ def check_family(fam: Any) -> None:
     _check_files(fam, refuse)
 
 
-def _check_object(where: str, target: Any, h: Hook, refuse) -> None:
-    if not callable(target):
-        refuse(where, f"expected a callable {h.call}, got {target!r}")
-    try:
-        sig = inspect.signature(target)
-    except (TypeError, ValueError):
-        return
-    problem = _mismatch(from_signature(sig), h)
-    if problem:
-        refuse(where, f"expected {h.call}, got {problem}")
+def _check_steps(fam: Any, refuse) -> None:
+    """The family's own steps are :class:`calflow.step.Step` s, and what it adds to the core's
+    steps are :class:`calflow.step.Option` s of a core step."""
+    from calflow.step import Option, Step
+
+    for s in fam.commands:
+        if not isinstance(s, Step):
+            refuse("commands", f"expected a calflow.step.Step, got {s!r}")
+    known = {"acquire", "identify"}
+    for name, options in fam.step_options.items():
+        if name not in known:
+            refuse(f"step_options.{name}", f"expected options of one of {sorted(known)}")
+        for o in options:
+            if not isinstance(o, Option):
+                refuse(f"step_options.{name}", f"expected calflow.step.Option s, got {o!r}")
 
 
 def _check_target(where: str, target: Any, h: Hook, refuse) -> None:

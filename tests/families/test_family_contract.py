@@ -112,11 +112,17 @@ def test_a_value_where_a_function_is_expected_is_refused(module):
     assert "got a function" in _refused(fam)
 
 
-def test_hooks_held_directly_are_checked_too():
-    fam = dataclasses.replace(_xytheta(), name="lab", acquire_arguments=lambda: None)
-    assert "acquire_arguments(p)" in _refused(fam)
-    fam = dataclasses.replace(_xytheta(), name="lab", acquire_arguments="--luts")
-    assert "expected a callable" in _refused(fam)
+def test_steps_and_their_options_are_declared_objects():
+    """A family's own steps are calflow.step.Step, what it adds to a core step Options of a step
+    that takes them; a Step's function is checked like any hook."""
+    from calflow.step import Option
+
+    fam = dataclasses.replace(_xytheta(), name="lab", step_options={"acquire": ("--luts",)})
+    assert "step_options.acquire: expected calflow.step.Option" in _refused(fam)
+    fam = dataclasses.replace(_xytheta(), name="lab", step_options={"summarise": (Option("--x"),)})
+    assert "step_options.summarise" in _refused(fam)
+    fam = dataclasses.replace(_xytheta(), name="lab", commands=(("lab-step", "help", "m:f"),))
+    assert "commands: expected a calflow.step.Step" in _refused(fam)
     command = dataclasses.replace(_xytheta().commands[0], run="calflow.configuration.layout:run")
     fam = dataclasses.replace(_xytheta(), name="lab", commands=(command,))
     assert f"commands.{command.name}.run" in _refused(fam)

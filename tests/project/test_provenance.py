@@ -90,8 +90,10 @@ def test_every_core_look_up_of_a_family_hook_is_declared():
         found.add(module)
     # calflow.family and its contract check (family_contract, hook_source) resolve what they
     # are given; calflow.provenance only names the look-ups; calflow.moved imports the new home
-    # of an old path a user's script names (no step imports an old path)
+    # of an old path a user's script names (no step imports an old path); calflow.cli resolves
+    # the function of the step it runs (where that step's closure starts)
     declared = {k.partition(":")[0] for k in FAMILY_HOOKS} | {
+        "calflow.cli",
         "calflow.moved",
         "calflow.family",
         "calflow.family_contract",

@@ -20,7 +20,7 @@ rule acquire:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", plan_section, acquires=True),
+        **reads("acquire", plan_section),
         campaign=campaign_file,
         args=input_args,
     shell:
@@ -49,7 +49,7 @@ rule decode_frames:
         mem_mb=600,
         runtime=5,
     params:
-        **reads("decode-run", "rig"),
+        **reads("decode-run"),
         campaign=campaign_file,
         frames=frames_digest,
     shell:

@@ -16,6 +16,8 @@ from calflow.family_workflow import frame_files, frame_recordings, hooks, load_s
 from calflow.lifecycle.settings import check_stage_settings
 from calflow.lifecycle.members import histories_on_disk, on_disk
 from calflow.lifecycle.stages import check_needs, stages_of
+from calflow.step import ALL
+from calflow.steps import step as lookup_step
 from calflow.configuration.workflow_config import load as load_checked_config
 from calflow.certificate.annotate import check_stages
 
@@ -110,22 +112,23 @@ def campaign_file(wildcards):
     return f"{CAMPAIGN_DIR}/{wildcards.campaign}.yaml"
 
 
-def reads(step, *keys, acquires=False):
-    """The params of a job that runs ``calflow <step>`` on a campaign and reads its sections
-    ``keys``: ``sections``, handed to the job (``--sections {params.sections:q}``: it cannot read
-    another, calflow.configuration.campaign.Campaign.only), and ``digest``, of the same sections
-    and the step's code. Snakemake reruns a job when its params change, so the job reruns
-    exactly when a section it reads, or the calflow code it runs, changes.
+def reads(step, *keys):
+    """The params of a job that runs ``calflow <step>`` on a campaign: ``sections``, handed to
+    the job (``--sections {params.sections:q}``: it cannot read another,
+    calflow.configuration.campaign.Campaign.only), and ``digest``, of the same sections and the
+    step's code. Snakemake reruns a job when its params change, so the job reruns exactly when
+    a section it reads, or the calflow code it runs, changes.
 
-    A key may be one key of a section (``"validation.heldout"``: the job is handed that key
-    only), a function of the wildcards giving a section's name (or None, or a list of names:
-    a family's answer), or :data:`ALL`. ``acquires``: the job moves the rig, so it reads what
-    every acquisition reads too (:data:`ACQUISITION`). Every job is handed :data:`STAMP`. Use
-    as ``params: **reads("metrics", ...)``.
+    The sections are those the step declares (calflow.step.Step.sections: the robot and the
+    start, then its ``reads``), then ``keys``, what this rule's jobs read besides: one key of a
+    section (``"validation.heldout"``: the job is handed that key only), a function of the
+    wildcards giving a section's name (or None, or a list of names: a family's answer), or
+    :data:`ALL`. Use as ``params: **reads("metrics", ...)``.
     """
+    declared = lookup_step(step).sections()
 
     def _keys(w):
-        names = [*STAMP, *(ACQUISITION if acquires else ())]
+        names = list(declared)
         for key in keys:
             key = key(w) if callable(key) else key
             names += [key] if isinstance(key, str) else list(key or ())
@@ -140,19 +143,6 @@ def reads(step, *keys, acquires=False):
         return digest([code_digest(step, c["robot"])] + values)
 
     return {"sections": _sections, "digest": _digest}
-
-
-# What every step reads: the robot (it names the family) and the campaign's start, which
-# every file a step writes is stamped with (calflow.commands.common.meta).
-STAMP = ("robot", "start")
-# What every acquisition reads besides: the rig (its options and each run's) and the seed;
-# its plan's sections too.
-ACQUISITION = ("seed", "rig")
-
-
-# The key of a step that reads the whole campaign (the summary, the report): it is handed all
-# of it, sections the file leaves out included, and its digest covers all of it.
-ALL = "*"
 
 
 def hooks_of(name):

@@ -22,13 +22,7 @@ rule acquire_validation_heldout:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads(
-            "acquire",
-            "validation.heldout",
-            "validation.dwell_s",
-            "identification",
-            acquires=True,
-        ),
+        **reads("acquire", "validation.heldout", "validation.dwell_s", "identification"),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation_heldout"

@@ -30,8 +30,8 @@ rule summarise:
         runtime=10,
     params:
         # the summary reads the whole campaign (each family's its own sections, the stage and
-        # the reference values), so every section is handed to it and digested
-        **reads("summarise", ALL),
+        # the reference values): its step declares every section, handed to it and digested
+        **reads("summarise"),
         campaign=campaign_file,
         truth=lambda w, input: f"--truth {input.truth}" if input.truth else "",
         budget=lambda w, input: f"--budget {input.budget}" if input.budget else "",
@@ -72,9 +72,9 @@ rule report:
         mem_mb=800,
         runtime=2,
     params:
-        # the report shows the whole campaign (its settings beside the results): every
-        # section is handed to it and digested
-        **reads("report", ALL),
+        # the report shows the whole campaign (its settings beside the results): its step
+        # declares every section, handed to it and digested
+        **reads("report"),
         campaign=campaign_file,
     shell:
         "calflow report --campaign {params.campaign} --sections {params.sections:q}"

@@ -3,7 +3,6 @@ inverse against the simulated rig's truth, the designed plan against the random 
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
@@ -11,6 +10,7 @@ import pytest
 from rig_noise import NOISE_OFF
 
 from calflow.identification import design
+from calflow.step import Job
 from calflow_hexapod.models.calibration import command
 from calflow_hexapod.models.geometry import AXES, h811
 from calflow_hexapod.models.kinematics import inverse
@@ -122,7 +122,7 @@ def test_bound_shrinks_with_more_poses():
 
 def test_designed_plan_carries_more_information_than_random(tmp_path):
     c = campaign(plan="optimal")
-    acq = campaign_plans.identification(c, argparse.Namespace())
+    acq = campaign_plans.identification(c, Job.of("acquire"))
     record = json.loads(acq.attrs["design"])
     q = commands(acq.plan)
     rq = commands(plans.identification(40, 0.7, c["seed"]))
@@ -139,7 +139,7 @@ def test_designed_plan_carries_more_information_than_random(tmp_path):
 
 def test_plans_without_a_model_say_so():
     with pytest.raises(Exception, match="--model"):
-        campaign_plans.validation_heldout(campaign(), argparse.Namespace(model=None))
+        campaign_plans.validation_heldout(campaign(), Job.of("acquire", model=None))
 
 
 def test_noise_model_of_the_simulated_hexapod_behind_the_emulator():
@@ -166,4 +166,4 @@ def test_too_large_an_iso_cube_is_one_line(tmp_path):
     c = campaign()
     c["iso9283"] = {"fraction": 0.9, "cycles": 30}
     with pytest.raises(CalflowError, match=r"campaign hexapod-test: iso9283.fraction"):
-        campaign_plans.iso9283(c, argparse.Namespace(model=["unused.nc"]))
+        campaign_plans.iso9283(c, Job.of("acquire", model=["unused.nc"]))

@@ -23,7 +23,6 @@ variant of the campaign, e.g. a study's); so does :func:`thaw`.
 from __future__ import annotations
 
 import hashlib
-from argparse import Namespace
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ from typing import Any
 
 from calflow.configuration.config import check_campaign_data, check_campaign_name, digest
 from calflow.errors import ConfigError
+from calflow.step import Job
 
 #: YAML parses of campaign files in this process, by resolved path (a test counts them).
 PARSES: Counter[str] = Counter()
@@ -361,7 +361,7 @@ def load(path: str | Path, rig_plugins: list[str] | str | None = None) -> Campai
         return _LOADED[key]
     sections = freeze(check_campaign_data(thaw(data), path, rig_plugins))
     check = family_of(sections["robot"]).steps.get("check")
-    resolution = (resolve(check)(sections, Namespace(campaign=path)) if check else None) or Resolution()
+    resolution = (resolve(check)(sections, Job.of("check", campaign=path)) if check else None) or Resolution()
     if not isinstance(resolution, Resolution):
         raise TypeError(
             f"{check}: expected a calflow.configuration.campaign.Resolution or None, got {type(resolution).__name__}"

@@ -38,7 +38,7 @@ def handed(c: Campaign, sections: str | None, step: str) -> Campaign | Sections:
 def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
     """The campaign a subcommand's job reads: file ``args.campaign`` (:func:`campaign`), only
     the sections its rule hands it (``args.sections``, :func:`handed`; all when not given)."""
-    step = f"calflow {getattr(args, 'command', None) or 'step'}"
+    step = f"calflow {getattr(args, 'step', None) or 'step'}"
     return handed(campaign(args.campaign, rig_plugins), getattr(args, "sections", None), step)
 
 

@@ -2,43 +2,11 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 from calflow.configuration import layout
 from calflow.errors import ConfigError
-
-
-def history_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stage", required=True, help="the stage's id (campaign key 'stage')")
-    p.add_argument(
-        "--summaries",
-        nargs="*",
-        default=[],
-        help="the summary.json of every campaign of the stage on disk (results/<campaign>/summary.json); "
-        "none when every campaign of the stage has gone",
-    )
-    p.add_argument(
-        "--campaigns",
-        nargs="+",
-        help="their campaign files, in the same order (default: <campaign-dir>/<campaign>.yaml)",
-    )
-    p.add_argument("--campaign-dir", default="config/campaigns", help="the folder of the campaign files")
-    p.add_argument("--results", default=layout.RESULTS, help="the results folder the summaries are in")
-    p.add_argument("--settings", default="{}", help="JSON: the stage's settings (config 'stages.<id>')")
-    p.add_argument(
-        "--out",
-        required=True,
-        help="history.json; an earlier one there is read first (the campaigns that left it, and "
-        "what it knew of campaigns without a campaign file)",
-    )
-
-
-def report_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--history", required=True)
-    p.add_argument("--html", required=True)
-    p.add_argument("--pdf")
 
 
 def run_history(args) -> None:

@@ -2,8 +2,8 @@
 
 Snakemake does not track code inside an installed package; each rule carries in its
 ``params`` the digest of the code its ``calflow`` command runs. That code is derived, never
-listed: the command's entry point (what :func:`calflow.cli.entry_point` says the
-subcommand calls) and every calflow or family module it reaches through imports —
+listed: the command's entry point (the function its step declares,
+:func:`calflow.steps.entry_point`) and every calflow or family module it reaches through imports —
 module-level imports and imports inside functions, relative imports, ``from x import y``
 with ``y`` a submodule, ``importlib.import_module("...")`` and ``"module:attribute"``
 strings (the core's own look-ups, such as its built-in rigs). Where the core looks a hook
@@ -51,10 +51,14 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.lifecycle.history": ("history_entry",),
     "calflow.family:option_check": ("*options",),
     "calflow.certificate.annotate": ("uncertainty",),
-    "calflow.cli:cmd_identify": ("steps:identify",),
-    "calflow.cli:cmd_metrics": ("steps:metrics",),
-    "calflow.cli:cmd_summarise": ("steps:summarise",),
+    "calflow.commands.campaign:identify": ("steps:identify",),
+    "calflow.commands.campaign:metrics": ("steps:metrics",),
+    "calflow.commands.campaign:summarise": ("steps:summarise",),
 }
+
+#: The modules that dispatch to a step's function rather than run it: the command line, and
+#: the declarations that name each step's function (:mod:`calflow.steps`).
+DISPATCH = frozenset({"calflow.cli", "calflow.steps", "calflow.steps.campaign", "calflow.steps.tools"})
 
 # ---------------------------------------------------------------------------- closures
 
@@ -125,7 +129,7 @@ def closure(target: str, robot: str | None = None) -> tuple[str, ...]:
 @cache
 def _targets() -> frozenset[tuple[str, str]]:
     """``(module, function)`` of every subcommand's entry point."""
-    from calflow.cli import entry_points
+    from calflow.steps import entry_points
 
     return frozenset(tuple(t.partition(":")[::2]) for t in entry_points().values())
 
@@ -155,7 +159,7 @@ def _walk(todo: list, robot: str | None, others: frozenset, seen: set, entered: 
             entered.add(module)
             nxt += hook_targets(FAMILY_HOOKS.get(module, ()), robot)
         nxt += hook_targets(FAMILY_HOOKS.get(f"{module}:{key}", ()), robot)
-        if module == "calflow.cli":  # the other subcommands: dispatched to, not run
+        if module in DISPATCH:  # the other subcommands: dispatched to, not run
             nxt = [i for i in nxt if i not in others]
         todo += [i for i in nxt if i not in seen]
 
@@ -179,11 +183,11 @@ def _next(module: str, key: str) -> tuple[tuple[str, str], ...]:
 def code_digest(command: str, robot: str | None = None) -> str:
     """SHA-256 over calflow's version and the normalised source of every module ``calflow
     <command>`` reaches for campaigns of ``robot`` (:func:`closure` of the command's entry
-    point, :func:`calflow.cli.entry_point`). ``robot`` None: a command over every family's
+    point, :func:`calflow.steps.entry_point`). ``robot`` None: a command over every family's
     campaigns (``calflow index``)."""
 
     def compute() -> dict:
-        from calflow.cli import entry_point
+        from calflow.steps import entry_point
 
         return {"digest": module_digest(*closure(entry_point(command), robot))}
 

@@ -9,7 +9,6 @@ are formatted from the summary, so a test can read them back and compare.
 
 from __future__ import annotations
 
-import argparse
 import math
 import platform
 import shlex
@@ -23,6 +22,7 @@ import yaml
 from calflow import __version__
 from calflow.configuration import layout
 from calflow.configuration.campaign import dig, thaw
+from calflow.step import Job
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 DEPENDENCIES = (
@@ -175,7 +175,7 @@ def figures_for(summary: dict, files: list[str] | None, campaign: dict | None = 
 
     inputs = common.classify(files)
     step = family_of(summary["robot"]).step("figures")  # a step hook: figures(c, args)
-    figs, notes = step(campaign, argparse.Namespace(summary=summary, inputs=inputs))
+    figs, notes = step(campaign, Job.of("report", summary=summary, inputs=inputs))
     return common.by_section(common.number(figs)), notes
 
 

@@ -6,9 +6,8 @@ family's own subcommands. Kept free of numerical imports: it is read by ``calflo
 
 from __future__ import annotations
 
-import argparse
-
-from calflow.family import Command, Family
+from calflow.family import Family
+from calflow.step import Option, Step
 
 _P = "calflow.xytheta.plans.campaign"
 _C = "calflow.xytheta.steps"
@@ -32,93 +31,140 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
     return options
 
 
-def _acquire_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--luts", help="XY error tables for compensated square / random-points runs")
-    p.add_argument(
-        "--compensation",
-        choices=["none", "linear", "cubic"],
-        default="none",
-        help="lookup-table compensation of the square / random-points runs (Sec. 4.4.2)",
-    )
-    p.add_argument("--export", help="a model's export folder, for --plan validation_export (docs/export.md)")
+_CAMPAIGN = Option("--campaign", required=True, kind="path")
+_OUT = Option("--out", required=True, kind="path")
 
+#: The options the family adds to the core's steps.
+STEP_OPTIONS = {
+    "acquire": (
+        Option("--luts", "XY error tables for compensated square / random-points runs", "path"),
+        Option(
+            "--compensation",
+            "lookup-table compensation of the square / random-points runs (Sec. 4.4.2)",
+            default="none",
+            choices=("none", "linear", "cubic"),
+        ),
+        Option("--export", "a model's export folder, for --plan validation_export (docs/export.md)", "path"),
+    ),
+    "identify": (
+        Option("--luts", "XY error tables (models with position_table)", "path"),
+        Option("--base", "base model (models with angle_table)", "path"),
+        Option("--residuals", "angle-residual run commanded through the base model", "path"),
+    ),
+}
 
-def _identify_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--luts", help="XY error tables (models with position_table)")
-    p.add_argument("--base", help="base model (models with angle_table)")
-    p.add_argument("--residuals", help="angle-residual run commanded through the base model")
+_STUDY = (
+    Option("--study", "study file, config/studies/<name>.yaml", "path", required=True),
+    Option("--campaign-dir", "folder of the base campaign file", "path", default="config/campaigns"),
+)
 
-
-def _characterise_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--x", required=True)
-    p.add_argument("--y", required=True)
-    p.add_argument("--out", required=True)
-
-
-def _observability_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--out", required=True)
-
-
-def _bench_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--out", required=True)
-    p.add_argument("--throughput", help="where to write the decoder's throughput on this machine (JSON)")
-
-
-def _budget_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--jobs", type=int, default=1, help="replays run in parallel (processes)")
-    p.add_argument("--out", required=True)
-
-
-def _export_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument(
-        "--model", nargs="+", required=True, help="model files, results/<campaign>/models/<model>.nc"
-    )
-    p.add_argument(
-        "--out", required=True, help="folder of the exports; each model's in <out>/<model file's stem>"
-    )
-
-
-def _export_verify_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--run", nargs="+", required=True, help="validation_export runs")
-    p.add_argument(
-        "--heldout", nargs="+", required=True, help="metrics of the models' in-process held-out runs"
-    )
-    p.add_argument("--out", nargs="+", required=True, help="one metrics file per --run, in the same order")
-
-
-def _study(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--study", required=True, help="study file, config/studies/<name>.yaml")
-    p.add_argument("--campaign-dir", default="config/campaigns", help="folder of the base campaign file")
-
-
-def _point_arguments(p: argparse.ArgumentParser) -> None:
-    _study(p)
-    p.add_argument("--seed", required=True, help="seed N, or seeds FIRST-LAST run in this one job")
-    p.add_argument("--noise", required=True, help="sensor noise (um), one of the study's noise_um")
-    p.add_argument(
-        "--poses", type=int, required=True, help="number of identification poses, one of the study's"
-    )
-    p.add_argument("--off-grid", action="store_true", help="allow noise/poses outside the study's grid")
-    p.add_argument("--out", required=True)
-
-
-def _aggregate_arguments(p: argparse.ArgumentParser) -> None:
-    _study(p)
-    p.add_argument("--points", nargs="+", required=True)
-    p.add_argument("--partial", action="store_true", help="allow missing grid points")
-    p.add_argument("--out", required=True)
-
-
-def _page_arguments(p: argparse.ArgumentParser) -> None:
-    _study(p)
-    p.add_argument("--aggregate", required=True)
-    p.add_argument("--out", required=True)
+# fmt: off
+COMMANDS = (
+    Step(
+        "characterise",
+        "XY error tables from the characterisation sweeps (Sec. 4.4.1)",
+        f"{_C}:characterise",
+        (_CAMPAIGN, Option("--x", required=True, kind="path"), Option("--y", required=True, kind="path"), _OUT),
+        inputs=("run",),
+        writes=("luts",),
+    ),
+    Step(
+        "observability",
+        "observability indices against the number of poses (Fig. 4.21)",
+        f"{_C}:observability",
+        (_CAMPAIGN, _OUT),
+        reads=("seed", "identification", "observability"),
+        writes=("metrics",),
+    ),
+    Step(
+        "error-budget",
+        "replay the calibration with each rig effect off: the error budget (simulated rigs)",
+        "calflow.xytheta.stage.error_budget:error_budget_command",
+        (_CAMPAIGN, Option("--jobs", "replays run in parallel (processes)", "int", default=1), _OUT),
+        reads=(
+            "seed", "rig", "characterisation", "identification", "angle_residuals", "models",
+            "validation.heldout", "validation.dwell_s",
+        ),
+        writes=("truth",),
+    ),
+    Step(
+        "instrument-bench",
+        "the camera and decoder of a rig that reads through images, on rendered frames (report)",
+        "calflow.xytheta.stage.bench:bench_command",
+        (_CAMPAIGN, _OUT, Option("--throughput", "where to write the decoder's throughput on this machine (JSON)", "path")),
+        reads=("rig", "seed", "identification.theta_deg"),
+        writes=("metrics", "campaign"),
+    ),
+    Step(
+        "design-study",
+        "Cramér–Rao σ against poses and rig time, random against designed",
+        "calflow.xytheta.design.study:study",
+        (_CAMPAIGN, _OUT),
+        reads=("seed", "rig", "identification", "models", "design_study"),
+        writes=("metrics",),
+    ),
+    Step(
+        "export",
+        "a model's controller files and bundle for users' code (docs/export.md)",
+        "calflow.xytheta.export.command:export",
+        (
+            _CAMPAIGN,
+            Option("--model", "model files, results/<campaign>/models/<model>.nc", "path", required=True, many="+"),
+            Option("--out", "folder of the exports; each model's in <out>/<model file's stem>", "path", required=True),
+        ),
+        inputs=("model",),
+        writes=("campaign",),
+    ),
+    Step(
+        "export-verify",
+        "accuracy through the exported files beside the in-process model's",
+        "calflow.xytheta.export.command:verify",
+        (
+            _CAMPAIGN,
+            Option("--run", "validation_export runs", "path", required=True, many="+"),
+            Option("--heldout", "metrics of the models' in-process held-out runs", "path", required=True, many="+"),
+            Option("--out", "one metrics file per --run, in the same order", "path", required=True, many="+"),
+        ),
+        inputs=("run", "metrics"),
+        writes=("metrics",),
+    ),
+    Step(
+        "mc-point",
+        "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
+        f"{_S}:point",
+        (
+            *_STUDY,
+            Option("--seed", "seed N, or seeds FIRST-LAST run in this one job", required=True),
+            Option("--noise", "sensor noise, one of the study's noise_um", required=True, units="um"),
+            Option("--poses", "number of identification poses, one of the study's", "int", required=True),
+            Option("--off-grid", "allow noise/poses outside the study's grid", "flag"),
+            _OUT,
+        ),
+        writes=("study_point",),
+    ),
+    Step(
+        "mc-aggregate",
+        "aggregate the points of a Monte-Carlo study",
+        f"{_S}:aggregate",
+        (
+            *_STUDY,
+            Option("--points", required=True, kind="path", many="+"),
+            Option("--partial", "allow missing grid points", "flag"),
+            _OUT,
+        ),
+        inputs=("study_point",),
+        writes=("study",),
+    ),
+    Step(
+        "mc-report",
+        "render the page of a Monte-Carlo study",
+        f"{_S}:page",
+        (*_STUDY, Option("--aggregate", required=True, kind="path"), _OUT),
+        inputs=("study",),
+        writes=("study_page",),
+    ),
+)
+# fmt: on
 
 
 FAMILY = Family(
@@ -156,65 +202,8 @@ FAMILY = Family(
     templates="calflow.xytheta.report",
     schemas="calflow.xytheta",
     history_entry="calflow.xytheta.report.history:history_entry",
-    acquire_arguments=_acquire_arguments,
-    identify_arguments=_identify_arguments,
-    commands=(
-        Command(
-            "characterise",
-            "XY error tables from the characterisation sweeps (Sec. 4.4.1)",
-            _characterise_arguments,
-            f"{_C}:characterise",
-        ),
-        Command(
-            "observability",
-            "observability indices against the number of poses (Fig. 4.21)",
-            _observability_arguments,
-            f"{_C}:observability",
-        ),
-        Command(
-            "error-budget",
-            "replay the calibration with each rig effect off: the error budget (simulated rigs)",
-            _budget_arguments,
-            "calflow.xytheta.stage.error_budget:error_budget_command",
-        ),
-        Command(
-            "instrument-bench",
-            "the camera and decoder of a rig that reads through images, on rendered frames (report)",
-            _bench_arguments,
-            "calflow.xytheta.stage.bench:bench_command",
-        ),
-        Command(
-            "design-study",
-            "Cramér–Rao σ against poses and rig time, random against designed",
-            _observability_arguments,
-            "calflow.xytheta.design.study:study",
-        ),
-        Command(
-            "export",
-            "a model's controller files and bundle for users' code (docs/export.md)",
-            _export_arguments,
-            "calflow.xytheta.export.command:export",
-        ),
-        Command(
-            "export-verify",
-            "accuracy through the exported files beside the in-process model's",
-            _export_verify_arguments,
-            "calflow.xytheta.export.command:verify",
-        ),
-        Command(
-            "mc-point",
-            "one simulated campaign of a Monte-Carlo study (seed × noise × poses)",
-            _point_arguments,
-            f"{_S}:point",
-        ),
-        Command(
-            "mc-aggregate",
-            "aggregate the points of a Monte-Carlo study",
-            _aggregate_arguments,
-            f"{_S}:aggregate",
-        ),
-        Command("mc-report", "render the page of a Monte-Carlo study", _page_arguments, f"{_S}:page"),
-    ),
+    step_options=STEP_OPTIONS,
+    commands=COMMANDS,
     sensors={  # of the gcs rig; simulated_camera is a frame source of its camera sensor (gcs.camera)
         "simulated_vision": "calflow.xytheta.stage.vision_sensor:simulated_vision",
         "simulated_camera": "calflow.xytheta.stage.vision_sensor:simulated_camera",

@@ -7,27 +7,38 @@ numerical imports: ``calflow --help`` reads it.
 
 from __future__ import annotations
 
-import argparse
-
-from calflow.family import Command, Family
+from calflow.family import Family
+from calflow.step import Option, Step
 
 _P = "calflow_hexapod.plans.campaign"
 _S = "calflow_hexapod.steps"
 
 
-def _budget_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--out", required=True)
+_CAMPAIGN = Option("--campaign", required=True, kind="path")
 
-
-def _export_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--campaign", required=True)
-    p.add_argument("--model", required=True, help="an identified hexapod model (models/M.nc)")
-    p.add_argument("--out", required=True, help="the model's export folder (bundle.json is written last)")
-
-
-def _acquire_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--bundle", help="a hexapod model's export folder, for --plan validation_export")
+#: This family's own steps (``calflow hexapod-export``, ``calflow hexapod-error-budget``).
+COMMANDS = (
+    Step(
+        "hexapod-export",
+        "a hexapod model's identified geometry as a bundle for users' code (bundle.json, geometry.nc)",
+        "calflow_hexapod.export.verification:export_command",
+        (
+            _CAMPAIGN,
+            Option("--model", "an identified hexapod model (models/M.nc)", "path", required=True),
+            Option("--out", "the model's export folder (bundle.json is written last)", "path", required=True),
+        ),
+        inputs=("model",),
+        writes=("campaign",),
+    ),
+    Step(
+        "hexapod-error-budget",
+        "replay a simulated hexapod's calibration with each rig effect off: the error budget",
+        "calflow_hexapod.stage.error_budget:error_budget_command",
+        (_CAMPAIGN, Option("--out", required=True, kind="path")),
+        reads=("seed", "rig", "identification", "models", "validation"),
+        writes=("truth",),
+    ),
+)
 
 
 FAMILY = Family(
@@ -50,7 +61,11 @@ FAMILY = Family(
         }
     },
     rig_options="calflow_hexapod.stage.run_options:rig_options",
-    acquire_arguments=_acquire_arguments,
+    step_options={
+        "acquire": (
+            Option("--bundle", "a hexapod model's export folder, for --plan validation_export", "path"),
+        )
+    },
     steps={
         "check": "calflow_hexapod.checks:check",
         "identify": f"{_S}:identify",
@@ -81,20 +96,7 @@ FAMILY = Family(
     },
     rules=("calflow_hexapod", "rules/hexapod.smk"),
     workflow="calflow_hexapod.workflow:WORKFLOW",
-    commands=(
-        Command(
-            "hexapod-export",
-            "a hexapod model's identified geometry as a bundle for users' code (bundle.json, geometry.nc)",
-            _export_arguments,
-            "calflow_hexapod.export.verification:export_command",
-        ),
-        Command(
-            "hexapod-error-budget",
-            "replay a simulated hexapod's calibration with each rig effect off: the error budget",
-            _budget_arguments,
-            "calflow_hexapod.stage.error_budget:error_budget_command",
-        ),
-    ),
+    commands=COMMANDS,
     sensors={"simulated_tracker": "calflow_hexapod.stage.sensor:simulated_tracker"},
     options={
         "calflow_hexapod.stage.rig:simulated_hexapod": "calflow_hexapod.stage.physics:check_options",

@@ -18,7 +18,7 @@ rule acquire_step_response:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", "step_response", acquires=True),
+        **reads("acquire", "step_response"),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan step_response"

@@ -24,7 +24,7 @@ rule acquire_validation_tests:
         runtime=6,
         rig=rig_slots,
     params:
-        **reads("acquire", "validation", acquires=True),
+        **reads("acquire", "validation"),
         campaign=campaign_file,
         models=lambda w, input: " ".join(f"--model {m}" for m in input.models),
     shell:

@@ -26,7 +26,7 @@ rule acquire_xy_test:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads("acquire", "xy_tests", acquires=True),
+        **reads("acquire", "xy_tests"),
         campaign=campaign_file,
         luts=lambda w, input: f"--luts {input.luts}" if input.luts else "",
     shell:
@@ -55,7 +55,7 @@ rule acquire_angle_residuals:
         rig=rig_slots,
     params:
         # its positions are drawn over the identification's workspace
-        **reads("acquire", "angle_residuals", "identification", acquires=True),
+        **reads("acquire", "angle_residuals", "identification"),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan angle_residuals"

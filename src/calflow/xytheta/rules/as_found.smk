@@ -34,7 +34,6 @@ rule acquire_as_found:
             "validation.heldout",
             "validation.dwell_s",
             "identification",
-            acquires=True,
         ),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(

@@ -42,7 +42,7 @@ rule observability:
         mem_mb=200,
         runtime=1,
     params:
-        **reads("observability", "seed", "identification", "observability"),
+        **reads("observability"),
         campaign=campaign_file,
     shell:
         "calflow observability --campaign {params.campaign} --sections {params.sections:q}"
@@ -63,9 +63,7 @@ rule design_study:
     resources:
         mem_mb=1000,
     params:
-        **reads(
-            "design-study", "seed", "rig", "identification", "models", "design_study"
-        ),
+        **reads("design-study"),
         campaign=campaign_file,
     shell:
         "calflow design-study --campaign {params.campaign} --sections {params.sections:q}"

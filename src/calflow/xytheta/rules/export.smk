@@ -51,13 +51,7 @@ rule acquire_validation_export:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads(
-            "acquire",
-            "validation.heldout",
-            "validation.dwell_s",
-            "identification",
-            acquires=True,
-        ),
+        **reads("acquire", "validation.heldout", "validation.dwell_s", "identification"),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(os.path.dirname(input.manifest), w.model),
     shell:

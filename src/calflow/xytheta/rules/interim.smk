@@ -24,7 +24,7 @@ rule acquire_interim_check:
         rig=rig_slots,
     params:
         # the sequential test stops at the campaign's tolerance unless the check gives its own
-        **reads("acquire", "interim_check", "tolerance_um", acquires=True),
+        **reads("acquire", "interim_check", "tolerance_um"),
         campaign=campaign_file,
         folder=lambda w, input: os.path.join(
             os.path.dirname(input.manifest),

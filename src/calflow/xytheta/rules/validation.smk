@@ -25,7 +25,7 @@ rule acquire_validation_model:
         rig=rig_slots,
     params:
         # the reference targets' plan: the validation section but its held-out targets
-        **reads("acquire", reference_validation, acquires=True),
+        **reads("acquire", reference_validation),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan validation"
@@ -48,20 +48,9 @@ rule error_budget:
         mem_mb=700,
         runtime=5,
     params:
-        **reads(
-            "error-budget",
-            "seed",
-            "start",
-            "rig",
-            "characterisation",
-            "identification",
-            "angle_residuals",
-            "models",
-            "validation.heldout",
-            "validation.dwell_s",
-        ),
-        campaign=campaign_file,
         # the budget's replays read the rig, the calibration's sections, the held-out targets
+        **reads("error-budget"),
+        campaign=campaign_file,
     shell:
         "calflow error-budget --campaign {params.campaign} --sections {params.sections:q} --jobs {threads}"
         " --out {output.budget} > {log} 2>&1"
@@ -87,7 +76,7 @@ rule instrument_bench:
         mem_mb=300,
         runtime=1,
     params:
-        **reads("instrument-bench", "rig", "seed", "identification.theta_deg"),
+        **reads("instrument-bench"),
         campaign=campaign_file,
     shell:
         "calflow instrument-bench --campaign {params.campaign} --sections {params.sections:q} --out {output.bench}"

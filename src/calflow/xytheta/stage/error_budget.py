@@ -34,7 +34,6 @@ with the sensor the rig has without images, side by side in the summary.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
@@ -51,6 +50,7 @@ from calflow.rigs.simulated.budget import (
     require_simulated,
     signed_root,
 )
+from calflow.step import Job
 from calflow.xytheta.stage.physics import EFFECTS, XYThetaTruth, options_off, truth_from_options
 
 REPLAYS = ("baseline", *EFFECTS)  # "baseline": every effect off; any other: that effect off
@@ -123,7 +123,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     c = load(c_path)
 
     def run(plan: str, out: str, model: str | None = None) -> None:  # `calflow acquire`, without a journal
-        args = argparse.Namespace(model=[f(model)] if model else None, luts=None, compensation="none")
+        args = Job.of("acquire", model=[f(model)] if model else None, luts=None, compensation="none")
         write_dataset(acquire_job(c, plan, args)[0], f(out))
 
     def identify(name: str, **files) -> None:
@@ -136,14 +136,14 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
             residuals=None,
             out=f(f"{name}.nc"),
         )
-        commands.identify(c, argparse.Namespace(**{**ns, **{k: f(v) for k, v in files.items()}}))
+        commands.identify(c, Job.of("identify", **{**ns, **{k: f(v) for k, v in files.items()}}))
 
     models = c["models"]
     if any(s.get("position_table") for s in models.values()):
         run("characterisation_x", "cx.nc")
         run("characterisation_y", "cy.nc")
         commands.characterise(
-            argparse.Namespace(campaign=c_path, x=f("cx.nc"), y=f("cy.nc"), out=f("luts.nc"))
+            Job.of("characterise", campaign=c_path, x=f("cx.nc"), y=f("cy.nc"), out=f("luts.nc"))
         )
     run("identification", "identification.nc")
     for name, spec in models.items():
@@ -158,7 +158,7 @@ def replay_heldout(campaign_path: str | Path, rig_options: dict, work: Path) -> 
     for name in models:
         run("validation_heldout", f"heldout_{name}.nc", f"{name}.nc")
         commands.metrics(
-            c, argparse.Namespace(campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
+            c, Job.of("metrics", campaign=c_path, run=f(f"heldout_{name}.nc"), out=f(f"m_{name}.nc"))
         )
         out[name] = [float(v) for v in open_dataset(f(f"m_{name}.nc"))["ap"].values]
     return out

@@ -25,13 +25,7 @@ rule acquire_hexapod_iso9283:
         rig=rig_slots,
     params:
         # the test cube's poses are mapped by the nominal model with identification.initial's frames
-        **reads(
-            "acquire",
-            "iso9283",
-            "validation.dwell_s",
-            "identification.initial",
-            acquires=True,
-        ),
+        **reads("acquire", "iso9283", "validation.dwell_s", "identification.initial"),
         campaign=campaign_file,
     shell:
         "calflow acquire --campaign {params.campaign} --sections {params.sections:q} --plan iso9283"
@@ -53,15 +47,7 @@ rule hexapod_error_budget:
         mem_mb=400,
         runtime=2,
     params:
-        **reads(
-            "hexapod-error-budget",
-            "seed",
-            "start",
-            "rig",
-            "identification",
-            "models",
-            "validation",
-        ),
+        **reads("hexapod-error-budget"),
         campaign=campaign_file,
     shell:
         "calflow hexapod-error-budget --campaign {params.campaign} --sections {params.sections:q}"
@@ -116,13 +102,7 @@ rule acquire_hexapod_closed_loop:
         runtime=1,
         rig=rig_slots,
     params:
-        **reads(
-            "acquire",
-            "validation.heldout",
-            "validation.dwell_s",
-            "identification",
-            acquires=True,
-        ),
+        **reads("acquire", "validation.heldout", "validation.dwell_s", "identification"),
         campaign=campaign_file,
         folder=lambda w, input: os.path.dirname(input.bundle),
     shell:
