@@ -14,23 +14,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 
 # ---------------------------------------------------------------------------- hypothesis
-# Profiles, as hypothesis's docs recommend: "ci" draws the same examples on every run
-# (derandomize: a red CI run is a real failure, reproduced by the next one), "dev" explores
-# fresh examples each run and remembers its finds in .hypothesis/. CI=true selects "ci";
-# HYPOTHESIS_PROFILE names one. A find worth keeping becomes an @example on its test.
-from hypothesis import HealthCheck, settings  # noqa: E402
-
-settings.register_profile(
-    "ci", derandomize=True, database=None, deadline=None, print_blob=True,
-    suppress_health_check=[HealthCheck.too_slow],
-)  # fmt: skip
-settings.register_profile("dev", deadline=None)
-settings.register_profile("explore", deadline=None, max_examples=1000)
-settings.load_profile(
-    os.environ.get("HYPOTHESIS_PROFILE")
-    or ("ci" if os.environ.get("CI", "").lower() in ("1", "true") else "dev")
-)
-
+import hypothesis_profiles  # noqa: E402, F401  (registers and loads the profiles: tests/hypothesis_profiles.py)
 
 # ---------------------------------------------------------------------------- tiers
 # `make test-fast` runs what is not marked `workflow`: the unit and property tests. A test
