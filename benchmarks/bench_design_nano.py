@@ -144,12 +144,15 @@ def main() -> None:
     p.add_argument(
         "--smoke",
         action="store_true",
-        help="CI: nano2d-thesis with 2 training cycles and one validation test of 3 cycles",
+        help="CI: nano2d-thesis with 2 training cycles and two validation tests of 3 cycles",
     )
     args = p.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
     if args.smoke:
-        args.campaign, args.tests = "nano2d-thesis", 1
+        args.campaign, args.tests = (
+            "nano2d-thesis",
+            2,
+        )  # one test of each mode (order: no_calibration, single)
     text = (ROOT / "config" / "campaigns" / f"{args.campaign}.yaml").read_text()
     if args.smoke:  # the same plans and models, on a short training and validation
         text = text.replace("cycles: 12,", "cycles: 2,").replace("\n  cycles: 20\n", "\n  cycles: 3\n")

@@ -66,7 +66,10 @@ def compare(campaign: str, time_scale: float, cycles: int | None = None) -> dict
     from calflow.rigs import load_rig
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
-    if cycles:  # a shorter training plan (--smoke)
+    if cycles:  # a shorter training plan (--smoke); a loaded campaign is immutable
+        import copy
+
+        c = copy.deepcopy(c)
         c["training"] = {**c["training"], "cycles": cycles}
     fam = family_of(c["robot"])
     job = fam.plan(c["robot"], "training")(c, argparse.Namespace(model=None))
