@@ -751,20 +751,25 @@ def test_every_default_certificate_verifies_unsigned_and_refuses_a_tampered_pdf_
         # the printed text: the first result's value, or (no result with a U) the number
         with_u = [r for r in rows(summary) if r["uncertainty"] and isinstance(r["value"], (int, float))]
         pdf = pdf_file.read_bytes()
-        if with_u:
-            shown, what = f"{with_u[0]['value']:.4f}", f"result {with_u[0]['dotted']}"
+        if with_u:  # (drawn in its row, or its budget's caption if the row's cell wraps it)
+            shown = f"{with_u[0]['value']:.4f}"
+            what = bump(shown)  # the refusal quotes what the page shows
         else:
-            shown = what = re.search(r'data-number="([^"]+)"', pdf_file.with_suffix(".html").read_text())[1]
+            shown = re.search(r'data-number="([^"]+)"', pdf_file.with_suffix(".html").read_text())[1]
+            what = "certificate number"
         out = tmp_path / name
         out.mkdir()
         (out / "t.pdf").write_bytes(change_text(pdf, shown, bump(shown)))
         xml = pdf_file.with_suffix(".xml").read_text()
         at = xml.find("<dcc:results")  # the first result's value (not an influence condition's)
-        value = re.compile(r"(<si:value>[^<]*?)(\d)(</si:value>)").search(xml, max(at, 0))
-        (out / "t.xml").write_text(xml[: value.start(2)] + bump(value[2]) + xml[value.end(2) :])
+        # its leading digit: a last digit of 17 may leave the double unchanged
+        value = re.compile(r"<si:value>-?(\d)").search(xml, max(at, 0))
+        if value:  # (a DCC of no result has none)
+            (out / "t.xml").write_text(xml[: value.start(1)] + bump(value[1]) + xml[value.end(1) :])
         text = (thesis_run / summary_file).read_text()
         first = re.search(r'"accuracy_um": (-?\d+\.\d+)', text) or re.search(r": (\d+\.\d+)", text)
-        (out / "s.json").write_text(text[: first.start(1)] + bump(first[1]) + text[first.end(1) :])
+        j = first.start(1) + first[1].startswith("-")  # its leading digit, as in the DCC
+        (out / "s.json").write_text(text[:j] + bump(text[j]) + text[j + 1 :])
         shutil.copy(pdf_file.with_suffix(".xml"), out / "c.xml")
         for tampered, summary_arg, names in (
             (out / "t.pdf", summary_file, what),

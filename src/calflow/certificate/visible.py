@@ -7,8 +7,9 @@ WeasyPrint document) and compares it with the page calflow renders from the summ
 (:func:`calflow.certificate.page.render`, the template that wrote it):
 
 * every page's header and footer (its margin boxes) carry the certificate's number,
-  ``page i of n`` and, for an unsigned file, ``UNSIGNED``; an unsigned file that claims to
-  be signed is refused;
+  ``page i of n`` and, for an unsigned file, ``UNSIGNED``, and every certificate number
+  the pages show (``CF-…``) is that one; an unsigned file that claims to be signed is
+  refused;
 * the first heading carries the number;
 * each row of the results table (value, U, k, dof, interval, limit, decision, PFA, PFR), of
   the as-found/as-left table, each labelled decision and the overall one, the decision rule
@@ -101,12 +102,22 @@ def compare(pdf: bytes, summary: dict, number: str, signed: bool, name: str) -> 
     if not pages:
         raise Refused(f"{name}: the PDF has no page")
     for i, page in enumerate(pages, 1):
-        need = [number, f"page{i}of{len(pages)}"] + ([] if signed else ["UNSIGNED"])
-        for text in need:
+        need = {"the certificate number": number, "its place": f"page{i}of{len(pages)}"}
+        need |= {} if signed else {"that it is": "UNSIGNED"}
+        for what, text in need.items():
             if text not in page["margins"]:
-                raise Refused(f"{name}: page {i}'s header and footer do not show {text!r}")
+                raise Refused(f"{name}: page {i}'s header and footer do not show {what} {text!r}")
         if not signed and "digitallysigned" in page["margins"]:
             raise Refused(f"{name}: page {i} says it is digitally signed; the file carries no signature")
+    for i, page in enumerate(pages, 1):  # every number the page shows is this one
+        for part in ("margins", "body"):
+            text = page[part]
+            for at in (j for j in range(len(text)) if text.startswith("CF-", j)):
+                if text[at : at + len(number)] != number:
+                    shown = text[at : at + len(number)]
+                    raise Refused(
+                        f"{name}: page {i} shows certificate number {shown!r}, the results give {number!r}"
+                    )
     body = "".join(p["body"] for p in pages)
     heading = f"Calibrationcertificate{number}"
     if heading not in body:
