@@ -27,6 +27,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "workflow: runs the Snakemake workflow (left out by make test-fast)")
 
 
+_SOURCES: dict = {}
+
+
 def _runs_workflow(func, module, seen: set) -> bool:
     """Whether ``func``'s source, or a function or fixture of its module it names (to any
     depth), runs the workflow."""
@@ -35,9 +38,13 @@ def _runs_workflow(func, module, seen: set) -> bool:
     if func in seen:
         return False
     seen.add(func)
-    try:
-        source = inspect.getsource(func)
-    except (OSError, TypeError):
+    if func not in _SOURCES:  # each function read once (collection reads thousands of items)
+        try:
+            _SOURCES[func] = inspect.getsource(func)
+        except (OSError, TypeError):
+            _SOURCES[func] = None
+    source = _SOURCES[func]
+    if source is None:
         return False
     if any(call in source for call in WORKFLOW_CALLS) or any(f in source for f in WORKFLOW_FIXTURES):
         return True
@@ -56,12 +63,16 @@ def _runs_workflow(func, module, seen: set) -> bool:
 def pytest_collection_modifyitems(config, items):
     import sys as _sys
 
+    verdicts: dict = {}  # the parametrised items of one test share theirs
     for item in items:
         fixtures = set(getattr(item, "fixturenames", ()))
         func = getattr(item, "function", None)
         module = _sys.modules.get(getattr(func, "__module__", ""), None)
         found = bool(WORKFLOW_FIXTURES & fixtures)
-        if not found and func is not None and module is not None:
+        key = (func, frozenset(fixtures))
+        if not found and key in verdicts:
+            found = verdicts[key]
+        elif not found and func is not None and module is not None:
             seen: set = set()
             found = _runs_workflow(func, module, seen)
             for name in fixtures:  # the module's or conftest's fixtures the test uses
@@ -69,6 +80,7 @@ def pytest_collection_modifyitems(config, items):
                     fmod = _sys.modules.get(getattr(fixturedef.func, "__module__", ""), None)
                     if not found and fmod is not None:
                         found = _runs_workflow(fixturedef.func, fmod, seen)
+            verdicts[key] = found
         if found:
             item.add_marker(pytest.mark.workflow)
 
