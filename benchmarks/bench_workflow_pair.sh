@@ -11,9 +11,10 @@ set -uo pipefail
 smoke=""
 if [ "${1:-}" = "--smoke" ]; then smoke=1; shift; set -- "$1" "$1" "${2:-2}"; fi
 old="$(cd "$1" && pwd)"; new="$(cd "$2" && pwd)"; cores="${3:-2}"
-campaign=xytheta-thesis; change_line='^  cycles: 30 .*'; sm_args=()
-if [ -n "$smoke" ]; then
+campaign=xytheta-thesis; change_line='^  cycles: 30 .*'; sm_args=(); noops=3; changes=2
+if [ -n "$smoke" ]; then  # each step once
     campaign=nano2d-thesis; change_line='^  cycles: 4$'; sm_args=(--config 'campaigns=["nano2d-thesis"]')
+    noops=1; changes=1
 fi
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
@@ -35,9 +36,9 @@ for pair in "old:$old" "new:$new"; do
     sm="$tree/.venv/bin/snakemake"
     cd "$p"
     timed "$name cold" "$sm" --cores "$cores" "${sm_args[@]}"
-    for i in 1 2 3; do timed "$name no-op $i" "$sm" --cores "$cores" "${sm_args[@]}"; done
+    for i in $(seq "$noops"); do timed "$name no-op $i" "$sm" --cores "$cores" "${sm_args[@]}"; done
     cp "config/campaigns/$campaign.yaml" "$work/$name/orig.yaml"
-    for i in 1 2; do  # alternate the cycles so that each round is a change
+    for i in $(seq "$changes"); do  # alternate the cycles so that each round is a change
         cycles=$((19 + i % 2)); [ -z "$smoke" ] || cycles=$((4 + i % 2))
         sed "s/$change_line/  cycles: $cycles/" "$work/$name/orig.yaml" > "config/campaigns/$campaign.yaml"
         timed "$name validation-only $i" "$sm" --cores "$cores" "${sm_args[@]}"
