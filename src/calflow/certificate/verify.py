@@ -225,7 +225,10 @@ def verify(path: str, summary_path: str | None = None, trust: str | None = None)
     if file.suffix == ".pdf":
         from calflow.certificate import visible
 
-        items = visible.compare(data, summary, dcc["number"], status != "unsigned", path)
+        try:
+            items = visible.compare(data, summary, dcc["number"], status != "unsigned", path)
+        except visible.Differs as exc:
+            raise Refused(str(exc)) from None
         shown = f", and its pages show them ({items} rows and statements)"
     return f"{path}: certificate {dcc['number']}: {n} results equal {summary_file}{shown}; {status}"
 

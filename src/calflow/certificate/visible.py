@@ -24,9 +24,15 @@ from __future__ import annotations
 
 from io import BytesIO
 
+from calflow.errors import CalflowError
+
 #: The page's margins (report/templates/style.css ``@page``: 18 mm top, 20 mm bottom), pt:
 #: what lies in them is the header and footer.
 TOP_PT, BOTTOM_PT = 18 / 25.4 * 72, 20 / 25.4 * 72
+
+
+class Differs(CalflowError):
+    """What the pages show differs from the results: one line naming it."""
 
 
 def _squash(text: str) -> str:
@@ -93,35 +99,32 @@ def expected_items(summary: dict) -> list[tuple[str, str]]:
 
 
 def compare(pdf: bytes, summary: dict, number: str, signed: bool, name: str) -> int:
-    """Refuse (:class:`calflow.certificate.verify.Refused`) the first item of the PDF's text
-    that differs from the certificate the summary gives (module notes); the number of items
-    compared."""
-    from calflow.certificate.verify import Refused
-
+    """Raise :class:`Differs` at the first item of the PDF's text that differs from the
+    certificate the summary gives (module notes); the number of items compared."""
     pages = pdf_text(pdf)
     if not pages:
-        raise Refused(f"{name}: the PDF has no page")
+        raise Differs(f"{name}: the PDF has no page")
     for i, page in enumerate(pages, 1):
         need = {"the certificate number": number, "its place": f"page{i}of{len(pages)}"}
         need |= {} if signed else {"that it is": "UNSIGNED"}
         for what, text in need.items():
             if text not in page["margins"]:
-                raise Refused(f"{name}: page {i}'s header and footer do not show {what} {text!r}")
+                raise Differs(f"{name}: page {i}'s header and footer do not show {what} {text!r}")
         if not signed and "digitallysigned" in page["margins"]:
-            raise Refused(f"{name}: page {i} says it is digitally signed; the file carries no signature")
+            raise Differs(f"{name}: page {i} says it is digitally signed; the file carries no signature")
     for i, page in enumerate(pages, 1):  # every number the page shows is this one
         for part in ("margins", "body"):
             text = page[part]
             for at in (j for j in range(len(text)) if text.startswith("CF-", j)):
                 if text[at : at + len(number)] != number:
                     shown = text[at : at + len(number)]
-                    raise Refused(
+                    raise Differs(
                         f"{name}: page {i} shows certificate number {shown!r}, the results give {number!r}"
                     )
     body = "".join(p["body"] for p in pages)
     heading = f"Calibrationcertificate{number}"
     if heading not in body:
-        raise Refused(f"{name}: its heading does not show the certificate number {number}")
+        raise Differs(f"{name}: its heading does not show the certificate number {number}")
     at = body.index(heading) + len(heading)
     items = expected_items(summary)
     for what, want in items:
@@ -130,7 +133,7 @@ def compare(pdf: bytes, summary: dict, number: str, signed: bool, name: str) -> 
             start = _row_start(body, at, want)
             k = next((j for j, (a, b) in enumerate(zip(want, body[start:])) if a != b), len(want))
             lo = max(0, k - 16)
-            raise Refused(
+            raise Differs(
                 f"{name}: the page's text of {what} is not what the results on disk give: "
                 f"it shows {body[start + lo : start + k + 16]!r} where they give {want[lo : k + 16]!r}"
             )
