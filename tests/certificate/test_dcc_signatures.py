@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -176,7 +177,12 @@ def test_a_campaign_without_a_figure_with_u_still_gives_a_valid_dcc_that_says_so
 
 
 def test_unsigned_certificates_say_so_and_verify_on_their_values(project, monkeypatch, capsys):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
     assert certificate(False, monkeypatch, project["pki"]) == 0
+    first = (project["work"] / "reports" / CAMPAIGN / "certificate.pdf").read_bytes()
+    time.sleep(1.1)  # the embedded DCC's dates are the epoch's, not the clock's: the same bytes again
+    assert certificate(False, monkeypatch, project["pki"]) == 0
+    assert (project["work"] / "reports" / CAMPAIGN / "certificate.pdf").read_bytes() == first
     from pdf_check import page_texts
 
     pages = page_texts(project["work"] / "reports" / CAMPAIGN / "certificate.pdf")
