@@ -1,7 +1,7 @@
 """Designed versus random identification poses on xytheta-thesis (issue 15).
 
     python benchmarks/bench_design.py [--json] [--cores 2] [--space-filling F] [--criterion D|MV|discrepancy]
-        [--time-budget F] [--poses N] [--seed N]
+        [--time-budget F] [--poses N] [--seed N] [--smoke]
 
 The bound (before acquisition): the Cramér–Rao σ of Model II's parameters of the
 ``optimal`` plan against the 1200 random poses, under the campaign's noise model, and the
@@ -31,9 +31,34 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ("II", "III", "IV", "V")
 
 
-def _thesis_text(seed: int | None) -> str:
-    """xytheta-thesis's campaign, with another campaign seed (rig noise, poses, targets) if given."""
+#: ``--smoke``: xytheta-thesis shortened (the same steps: characterisation, tables, Models
+#: II–V, held-out validation), so CI runs the benchmark's path in a minute or two
+SMOKE = {
+    "characterisation": {"step_um": 50, "cycles": 2},
+    "xy_tests": {"compensation": []},
+    "identification.poses": 120,
+    "observability": {"max_poses": 200, "steps": 3, "repeats": 1},
+    "angle_residuals": {"positions": 2, "theta_deg": [0, 5], "step_deg": 0.5, "cycles": 2},
+    "validation": {"cycles": 3, "heldout": {"targets": 8, "cycles": 2}},
+}
+
+
+def _thesis_text(seed: int | None, smoke: bool = False) -> str:
+    """xytheta-thesis's campaign, with another campaign seed (rig noise, poses, targets) if
+    given, shortened (:data:`SMOKE`) for ``--smoke``."""
     text = (ROOT / "config/campaigns/xytheta-thesis.yaml").read_text()
+    if smoke:
+        import yaml
+
+        body = yaml.safe_load(text)
+        for key, value in SMOKE.items():
+            section, _, leaf = key.partition(".")
+            if leaf:
+                body[section][leaf] = value
+            else:
+                body[section] = {**body.get(section, {}), **value}
+        body.pop("reference", None)  # the thesis's values are for its full-size campaign
+        text = yaml.safe_dump(body, sort_keys=False)
     if seed is None:
         return text
     lines = [f"seed: {seed}" if line.startswith("seed:") else line for line in text.splitlines()]
@@ -46,11 +71,12 @@ def _campaign_text(
     seed: int | None = None,
     poses: int | None = None,
     time_budget: float | None = None,
+    smoke: bool = False,
 ) -> str:
     extra = "" if poses is None else f", poses: {int(poses)}"
     extra += "" if time_budget is None else f", time_budget: {time_budget}"
     design = f"  plan: optimal\n  design: {{criterion: {criterion}, space_filling: {space_filling}{extra}}}\n"
-    return _thesis_text(seed).replace("identification:\n", "identification:\n" + design, 1)
+    return _thesis_text(seed, smoke).replace("identification:\n", "identification:\n" + design, 1)
 
 
 def _run_workflow(work: Path, campaigns: list[str], cores: int) -> None:
@@ -111,6 +137,7 @@ def main() -> None:
         "--poses", type=int, help="designed poses (design.poses) instead of the fewest reaching the bound"
     )
     ap.add_argument("--keep", help="keep the scratch project here")
+    ap.add_argument("--smoke", action="store_true", help="CI: xytheta-thesis shortened (SMOKE)")
     ap.add_argument(
         "--seed",
         type=int,
@@ -125,9 +152,11 @@ def main() -> None:
             src = ROOT / part
             if not (work / part).exists():
                 (shutil.copytree if src.is_dir() else shutil.copy)(src, work / part)
-        (work / "config/campaigns/xytheta-random.yaml").write_text(_thesis_text(args.seed))
+        (work / "config/campaigns/xytheta-random.yaml").write_text(_thesis_text(args.seed, args.smoke))
         (work / "config/campaigns/xytheta-design.yaml").write_text(
-            _campaign_text(args.space_filling, args.criterion, args.seed, args.poses, args.time_budget)
+            _campaign_text(
+                args.space_filling, args.criterion, args.seed, args.poses, args.time_budget, args.smoke
+            )
         )
         t0 = time.perf_counter()
         _run_workflow(work, ["xytheta-random", "xytheta-design"], args.cores)

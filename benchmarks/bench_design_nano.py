@@ -1,6 +1,6 @@
 """Designed versus grid training plans of the nano campaigns (issue 15).
 
-    python benchmarks/bench_design_nano.py [--json] [--campaign nano1d-thesis] [--tests N] [--seed N]
+    python benchmarks/bench_design_nano.py [--json] [--campaign nano1d-thesis] [--tests N] [--seed N] [--smoke]
 
 For each plan — the thesis's grid (``training.plan: grid``), the designed plan with its
 default sizing (``optimal``: D-optimal positions, the fewest cycles whose Cramér–Rao σ of
@@ -141,9 +141,24 @@ def main() -> None:
         default=None,
         help="another campaign seed: rig noise and room (default: the campaign's)",
     )
+    p.add_argument(
+        "--smoke",
+        action="store_true",
+        help="CI: nano2d-thesis with 2 training cycles and two validation tests of 3 cycles",
+    )
     args = p.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
+    if args.smoke:
+        args.campaign, args.tests = (
+            "nano2d-thesis",
+            2,
+        )  # one test of each mode (order: no_calibration, single)
     text = (ROOT / "config" / "campaigns" / f"{args.campaign}.yaml").read_text()
+    if args.smoke:  # the same plans and models, on a short training and validation
+        text = text.replace("cycles: 12,", "cycles: 2,").replace("\n  cycles: 20\n", "\n  cycles: 3\n")
+        assert "cycles: 2," in text and "\n  cycles: 3\n" in text, (
+            "nano2d-thesis.yaml changed: update --smoke"
+        )
     two_dof = "robot: stage2d" in text
     out = {"campaign": args.campaign, "seed": args.seed}
     with tempfile.TemporaryDirectory() as tmp:
@@ -166,6 +181,7 @@ def main() -> None:
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{args.campaign}.yaml")
     counts = (16, 25, 36, 49, 64, 81) if two_dof else (4, 6, 8, 12, 17, 24, 33)
+    counts = counts[:2] if args.smoke else counts
     out.update(
         grid=grid,
         optimal=designed,

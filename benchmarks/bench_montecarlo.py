@@ -10,6 +10,7 @@ busy with other work, wall times overstate; CPU time does not.
 
     .venv/bin/python benchmarks/bench_montecarlo.py                  # default study, 1 and 2 cores
     .venv/bin/python benchmarks/bench_montecarlo.py --seeds-per-job 8 --cores 1 2 4
+    .venv/bin/python benchmarks/bench_montecarlo.py --smoke    # CI: 2 seeds x 1 noise x 2 pose counts
 """
 
 from __future__ import annotations
@@ -50,16 +51,23 @@ def machine() -> str:
     )
 
 
-def run(study: str, cores: int, seeds_per_job: int | None, tmp: Path) -> tuple[float, int, float, float]:
+#: ``--smoke``: the study shrunk to two point jobs (the same rules, aggregate and page)
+SMOKE = {"seeds": 2, "seeds_per_job": 1, "noise_um": [0.5], "poses": [5, 20], "validation_cycles": 2}
+
+
+def run(
+    study: str, cores: int, seeds_per_job: int | None, tmp: Path, smoke: bool = False
+) -> tuple[float, int, float, float]:
     work = tmp / f"cores{cores}"
     work.mkdir()
     shutil.copy(ROOT / "Snakefile", work / "Snakefile")
     shutil.copytree(ROOT / "workflow", work / "workflow")
     shutil.copytree(ROOT / "config", work / "config")
-    if seeds_per_job:
+    if seeds_per_job or smoke:
         path = work / "config/studies" / f"{study}.yaml"
         body = yaml.safe_load(path.read_text())
-        body["seeds_per_job"] = seeds_per_job
+        body.update(SMOKE if smoke else {})
+        body["seeds_per_job"] = seeds_per_job or body["seeds_per_job"]
         path.write_text(yaml.safe_dump(body))
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     cmd = [
@@ -91,9 +99,11 @@ def main() -> None:
     ap.add_argument("--study", default="montecarlo-xytheta")
     ap.add_argument("--cores", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--seeds-per-job", type=int, help="override the study's seeds_per_job")
+    ap.add_argument("--smoke", action="store_true", help="CI: the study shrunk to a few points")
     args = ap.parse_args()
     print(f"machine: {machine()}")
     body = yaml.safe_load((ROOT / "config/studies" / f"{args.study}.yaml").read_text())
+    body.update(SMOKE if args.smoke else {})
     spj = args.seeds_per_job or body.get("seeds_per_job", 1)
     print(
         f"study {args.study}: {body['seeds']} seeds x noise {body['noise_um']} um x poses {body['poses']}, "
@@ -103,7 +113,7 @@ def main() -> None:
     for cores in args.cores:
         load = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix="calflow-bench-") as tmp:
-            wall, jobs, job_s, cpu = run(args.study, cores, args.seeds_per_job, Path(tmp))
+            wall, jobs, job_s, cpu = run(args.study, cores, args.seeds_per_job, Path(tmp), args.smoke)
         walls[cores] = wall
         print(
             f"--cores {cores}: wall {wall:6.1f} s, CPU {cpu:6.1f} s, {jobs} jobs (sum of their times "

@@ -11,7 +11,8 @@ For ``xytheta-thesis`` (``--campaigns xytheta-thesis``), the identification run 
 the C-863 campaign emulator (time scale at most 100) and Model II is identified on both
 runs; the figure is each parameter's difference in combined standard deviations.
 
-``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 500]`` (about 5 min).
+``python benchmarks/reliability_gcs_campaign.py --json [--time-scale 500]`` (about 5 min);
+``--smoke`` (CI): nano2d-thesis's training shortened to 2 cycles, at time scale 2000.
 
 ``--thesis [CAMPAIGN ...]``: the whole workflow (every plan, models, summary) of each thesis
 campaign through Snakemake with ``rig: gcs`` against its emulator (C-863 for XYΘ at time
@@ -55,7 +56,7 @@ def _cells(ds, sensors):
     return out
 
 
-def compare(campaign: str, time_scale: float) -> dict:
+def compare(campaign: str, time_scale: float, cycles: int | None = None) -> dict:
     from calflow.acquisition.runner import acquire
     from calflow.commands.common import meta
     from calflow.configuration.campaign import load as load_campaign
@@ -65,6 +66,11 @@ def compare(campaign: str, time_scale: float) -> dict:
     from calflow.rigs import load_rig
 
     c = load_campaign(ROOT / "config" / "campaigns" / f"{campaign}.yaml")
+    if cycles:  # a shorter training plan (--smoke); a loaded campaign is immutable
+        import copy
+
+        c = copy.deepcopy(c)
+        c["training"] = {**c["training"], "cycles": cycles}
     fam = family_of(c["robot"])
     job = fam.plan(c["robot"], "training")(c, argparse.Namespace(model=None))
     plan = job.plan
@@ -461,6 +467,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-scale", type=float, default=500.0)
     p.add_argument("--json", action="store_true")
     p.add_argument(
+        "--smoke",
+        action="store_true",
+        help="CI: nano2d-thesis's training at 2 cycles through the emulator at time scale 2000",
+    )
+    p.add_argument(
         "--workflow",
         action="store_true",
         help="instead: the small nano1d campaign through Snakemake, gcs vs simulated",
@@ -487,6 +498,10 @@ def main(argv: list[str] | None = None) -> int:
         help="with --thesis: also compare with simulated runs given the gcs run's sample period",
     )
     a = p.parse_args(argv)
+    if a.smoke:
+        r = compare("nano2d-thesis", 2000.0, cycles=2)
+        print(json.dumps(r, indent=1) if a.json else r)
+        return 0 if r["all_samples"] and r["cells"] > 0 else 1
     if a.thesis is not None:
         names = a.thesis or ["nano2d-thesis", "xytheta-thesis", "nano1d-thesis"]
         if a.only:

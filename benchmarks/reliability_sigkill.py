@@ -17,7 +17,8 @@ completes. Counted per chain:
   commands and indices, a monotonic time axis, and measurements within 10 sigma of the
   sensor noise of the reference's (the noise of a second pass differs).
 
-``python benchmarks/reliability_sigkill.py --kills 50 --json`` (about 3-4 min on 2 cores).
+``python benchmarks/reliability_sigkill.py --kills 50 --json`` (about 3-4 min on 2 cores);
+``--smoke`` (CI): one kill per rig on short plans.
 """
 
 from __future__ import annotations
@@ -214,15 +215,19 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=2024)
     p.add_argument("--workdir", type=Path, default=Path("/tmp/calflow-sigkill"))
     p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    p.add_argument(
+        "--smoke", action="store_true", help="CI: one SIGKILL per rig, on short plans (60 and 40 poses)"
+    )
     a = p.parse_args(argv)
+    poses = {"simulated": 1000, "gcs": 400}
+    if a.smoke:
+        a.kills, a.per_chain, poses = 2, 1, {"simulated": 60, "gcs": 40}
     rng = np.random.default_rng(a.seed)
     chains, total, k = [], 0, 0
-    while total < a.kills:
+    while total < a.kills and k < 4 * a.kills:  # chains whose run ends before its kill count none
         rig = ("simulated", "gcs")[k % 2]
         want = min(a.per_chain, a.kills - total)
-        r = kill_chain(
-            rig, a.workdir / f"chain{k}", kills=want, rng=rng, poses=1000 if rig == "simulated" else 400
-        )
+        r = kill_chain(rig, a.workdir / f"chain{k}", kills=want, rng=rng, poses=poses[rig])
         chains.append(r)
         total += r["kills"]
         k += 1

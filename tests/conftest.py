@@ -14,23 +14,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 
 # ---------------------------------------------------------------------------- hypothesis
-# Profiles, as hypothesis's docs recommend: "ci" draws the same examples on every run
-# (derandomize: a red CI run is a real failure, reproduced by the next one), "dev" explores
-# fresh examples each run and remembers its finds in .hypothesis/. CI=true selects "ci";
-# HYPOTHESIS_PROFILE names one. A find worth keeping becomes an @example on its test.
-from hypothesis import HealthCheck, settings  # noqa: E402
-
-settings.register_profile(
-    "ci", derandomize=True, database=None, deadline=None, print_blob=True,
-    suppress_health_check=[HealthCheck.too_slow],
-)  # fmt: skip
-settings.register_profile("dev", deadline=None)
-settings.register_profile("explore", deadline=None, max_examples=1000)
-settings.load_profile(
-    os.environ.get("HYPOTHESIS_PROFILE")
-    or ("ci" if os.environ.get("CI", "").lower() in ("1", "true") else "dev")
-)
-
+import hypothesis_profiles  # noqa: E402, F401  (registers and loads the profiles: tests/hypothesis_profiles.py)
 
 # ---------------------------------------------------------------------------- tiers
 # `make test-fast` runs what is not marked `workflow`: the unit and property tests. A test
@@ -43,6 +27,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "workflow: runs the Snakemake workflow (left out by make test-fast)")
 
 
+_SOURCES: dict = {}
+
+
 def _runs_workflow(func, module, seen: set) -> bool:
     """Whether ``func``'s source, or a function or fixture of its module it names (to any
     depth), runs the workflow."""
@@ -51,9 +38,13 @@ def _runs_workflow(func, module, seen: set) -> bool:
     if func in seen:
         return False
     seen.add(func)
-    try:
-        source = inspect.getsource(func)
-    except (OSError, TypeError):
+    if func not in _SOURCES:  # each function read once (collection reads thousands of items)
+        try:
+            _SOURCES[func] = inspect.getsource(func)
+        except (OSError, TypeError):
+            _SOURCES[func] = None
+    source = _SOURCES[func]
+    if source is None:
         return False
     if any(call in source for call in WORKFLOW_CALLS) or any(f in source for f in WORKFLOW_FIXTURES):
         return True
@@ -72,12 +63,16 @@ def _runs_workflow(func, module, seen: set) -> bool:
 def pytest_collection_modifyitems(config, items):
     import sys as _sys
 
+    verdicts: dict = {}  # the parametrised items of one test share theirs
     for item in items:
         fixtures = set(getattr(item, "fixturenames", ()))
         func = getattr(item, "function", None)
         module = _sys.modules.get(getattr(func, "__module__", ""), None)
         found = bool(WORKFLOW_FIXTURES & fixtures)
-        if not found and func is not None and module is not None:
+        key = (func, frozenset(fixtures))
+        if not found and key in verdicts:
+            found = verdicts[key]
+        elif not found and func is not None and module is not None:
             seen: set = set()
             found = _runs_workflow(func, module, seen)
             for name in fixtures:  # the module's or conftest's fixtures the test uses
@@ -85,6 +80,7 @@ def pytest_collection_modifyitems(config, items):
                     fmod = _sys.modules.get(getattr(fixturedef.func, "__module__", ""), None)
                     if not found and fmod is not None:
                         found = _runs_workflow(fixturedef.func, fmod, seen)
+            verdicts[key] = found
         if found:
             item.add_marker(pytest.mark.workflow)
 

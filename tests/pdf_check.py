@@ -49,3 +49,53 @@ def outside(path: Path, tolerance_pt: float = 0.5) -> list[str]:
                     f"page {n}: {c.get_text()!r} at x {c.x0:.1f}–{c.x1:.1f} pt, y {c.y0:.1f}–{c.y1:.1f} of {x1:.0f} × {y1:.0f}"
                 )
     return out
+
+
+def _glyphs(font) -> dict[str, bytes]:
+    """A Type0 font's character → its 2-byte glyph code, from the font's /ToUnicode CMap."""
+    import re
+
+    cmap = font["/ToUnicode"].get_object().data.decode("latin-1")
+    out = {}
+    for block in re.findall(r"beginbfchar(.*?)endbfchar", cmap, re.S):
+        for code, uni in re.findall(r"<([0-9a-fA-F]{4})>\s*<([0-9a-fA-F]{4})>", block):
+            out[chr(int(uni, 16))] = bytes.fromhex(code)
+    return out
+
+
+def change_text(pdf: bytes, old: str, new: str) -> bytes:
+    """The PDF with the first drawing of ``old`` (a run of characters of one font, as a
+    WeasyPrint TJ array draws it) redrawn as ``new`` (as long, its glyphs in the same font),
+    saved as an incremental update (as a PDF editor saves): the embedded files, and the
+    other pages, untouched. The content stream is rewritten with pyHanko's writer."""
+    import re
+    from io import BytesIO
+
+    from pyhanko.pdf_utils.generic import NameObject, StreamObject
+    from pyhanko.pdf_utils.incremental_writer import IncrementalPdfFileWriter
+
+    assert len(old) == len(new)
+    writer = IncrementalPdfFileWriter(BytesIO(pdf), strict=False)
+    pages = writer.root["/Pages"]["/Kids"]
+    for i in range(len(pages)):
+        page = pages[i].get_object()
+        data = page["/Contents"].get_object().data
+        for font in page["/Resources"]["/Font"].values():
+            glyphs = _glyphs(font.get_object())
+            if not all(ch in glyphs for ch in old + new):
+                continue
+            # the glyphs of `old` in a TJ array: <code> with kerning numbers between them
+            pattern = rb"[-\d.]*".join(re.escape(b"<" + glyphs[ch].hex().encode() + b">") for ch in old)
+            m = re.search(pattern, data)
+            if not m:
+                continue
+            codes = [b"<" + glyphs[ch].hex().encode() + b">" for ch in new]
+            kerns = re.split(rb"<[0-9a-fA-F]{4}>", m.group())[1:-1]  # between the glyphs
+            redrawn = codes[0] + b"".join(k + c for k, c in zip(kerns, codes[1:], strict=True))
+            stream = StreamObject(stream_data=data[: m.start()] + redrawn + data[m.end() :])
+            page[NameObject("/Contents")] = writer.add_object(stream)
+            writer.update_container(page)
+            out = BytesIO()
+            writer.write(out)
+            return out.getvalue()
+    raise AssertionError(f"{old!r} is not drawn in one run of one font of this PDF")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -176,7 +177,12 @@ def test_a_campaign_without_a_figure_with_u_still_gives_a_valid_dcc_that_says_so
 
 
 def test_unsigned_certificates_say_so_and_verify_on_their_values(project, monkeypatch, capsys):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
     assert certificate(False, monkeypatch, project["pki"]) == 0
+    first = (project["work"] / "reports" / CAMPAIGN / "certificate.pdf").read_bytes()
+    time.sleep(1.1)  # the embedded DCC's dates are the epoch's, not the clock's: the same bytes again
+    assert certificate(False, monkeypatch, project["pki"]) == 0
+    assert (project["work"] / "reports" / CAMPAIGN / "certificate.pdf").read_bytes() == first
     from pdf_check import page_texts
 
     pages = page_texts(project["work"] / "reports" / CAMPAIGN / "certificate.pdf")
@@ -188,6 +194,44 @@ def test_unsigned_certificates_say_so_and_verify_on_their_values(project, monkey
         assert main(["verify-certificate", f"reports/{CAMPAIGN}/certificate.{suffix}"]) == 0
         out = capsys.readouterr().out
         assert out.rstrip().endswith("unsigned") and "4 results equal" in out
+
+
+def test_an_unsigned_pdf_whose_visible_text_differs_by_one_digit_is_refused(project, monkeypatch, capsys):
+    """The printed page, not only its embedded DCC: one digit of a value, U, k, a decision,
+    the number or "page x of y" redrawn in the PDF's content stream (an incremental update,
+    as a PDF editor saves; the DCC left intact) is refused in one line naming what differs."""
+    from pdf_check import change_text
+
+    assert certificate(False, monkeypatch, project["pki"]) == 0
+    rep = project["work"] / "reports" / CAMPAIGN
+    pdf = (rep / "certificate.pdf").read_bytes()
+    s = project["summary"]
+    u = s["models"]["III"]["uncertainty"]["accuracy_um"]
+    number = record(s, {"name": CAMPAIGN, "robot": "xytheta"}, LAB, ITEM, None)["number"]
+
+    def bump(text: str) -> str:  # the last digit one up
+        j = max(i for i, ch in enumerate(text) if ch.isdigit())
+        return text[:j] + str((int(text[j]) + 1) % 10) + text[j + 1 :]
+
+    value = f"{s['models']['III']['as_found']['accuracy_um']:.4f}"
+    cases = [
+        (value, "result models.III.as_found.accuracy_um"),  # the results table's value
+        (f"{u['U']:.3f} ({u['k']:.2f})", "model III as left"),  # U (k) of the as-left row
+        (number, "number"),
+        ("fail", "as-found decision"),  # drawn bold, apart from its label
+        ("page 2 of", "page 2"),
+    ]
+    for old, names in cases:
+        new = old.replace("fail", "pass") if "fail" in old else bump(old)
+        (rep / "t.pdf").write_bytes(change_text(pdf, old, new))
+        summary = ["--summary", f"results/{CAMPAIGN}/summary.json"]
+        assert main(["verify-certificate", f"reports/{CAMPAIGN}/t.pdf", *summary]) != 0, old
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and names in err, (old, err)
+        assert new.replace(" ", "") in err or "do not show" in err or "heading" in err, err
+    # the untouched file still verifies, and says what it compared
+    assert main(["verify-certificate", f"reports/{CAMPAIGN}/certificate.pdf"]) == 0
+    assert "its pages show them" in capsys.readouterr().out
 
 
 def test_signed_certificates_verify_against_their_ca_and_refuse_any_change(

@@ -348,6 +348,10 @@ def test_study_through_snakemake(tmp_path):
     assert (work / "results/studies/mini/logs/aggregate.log").exists()
     html = (work / target).read_text()
     assert html.count("<svg") == 4 and "mini" in html
+    from pdf_check import outside
+
+    # the study writes its page as HTML only (the browser test prints such pages); a PDF it writes is checked here
+    assert {str(p): o[:3] for p in (work / "reports").rglob("*.pdf") if (o := outside(p))} == {}
     proc = snakemake(work, "--config", "studies=[mini]", "-n", "--", target)
     assert proc.returncode == 0 and "Nothing to be done" in proc.stdout + proc.stderr, proc.stdout[-3000:]
     # more seeds: only the new points run, then the aggregate and the page

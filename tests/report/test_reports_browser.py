@@ -186,11 +186,19 @@ def test_every_internal_link_and_anchor_resolves(reports, pages):
     assert problems == [], "\n".join(problems[:40])
 
 
-def test_printing_to_pdf_works(pages):
+def test_printing_to_pdf_works(pages, tmp_path):
     """The browser's own print (the print style sheet, A4): a whole PDF, a campaign report
-    over several pages."""
+    over several pages, and no text past the page's edge (pdfminer.six reads it back) — the
+    pages calflow writes no PDF of (the index, a study's page) included."""
+    from pdf_check import outside
+
+    past = {}
     for rel, facts in pages.items():
         pdf = facts["page"].pdf(format="A4", print_background=True)
         assert pdf.startswith(b"%PDF-") and b"%%EOF" in pdf[-1024:], rel
         n_pages = len(re.findall(rb"/Type\s*/Page\b", pdf))
         assert n_pages >= (2 if rel.endswith("report.html") else 1), (rel, n_pages)
+        (tmp_path / "printed.pdf").write_bytes(pdf)
+        if found := outside(tmp_path / "printed.pdf"):
+            past[rel] = found[:3]
+    assert past == {}

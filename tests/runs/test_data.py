@@ -118,6 +118,8 @@ def test_same_seed_gives_identical_bytes(tmp_path, name, plan):
     from conftest import SMALL_NANO1D, SMALL_XYTHETA
 
     campaign = SMALL_XYTHETA if name == "xy" else SMALL_NANO1D
+    if name == "n1":  # 2 of its 6 training cycles: the same code path, a third of the samples to write
+        campaign = {**campaign, "training": {**campaign["training"], "cycles": 2}}
     digests = []
     for k, seed in enumerate((5, 5, 6)):
         d = tmp_path / str(k)

@@ -13,8 +13,13 @@ naming what differs (exit 1) at the first failure:
    equals the summary's, and the certificate's number is the one the summary gives
    (:func:`calflow.certificate.document.number`: a changed result changes it).
 
+3. for a PDF, its visible text (:mod:`calflow.certificate.visible`): the number, "page i of
+   n" and "UNSIGNED" on every page, and every value, U, k, decision and budget of the page
+   as the template renders them from the summary; a signature covers the text, an unsigned
+   file is checked on it all the same.
+
 An unsigned document passes on its values, and the command says it is unsigned: anyone
-could have written it. (An unsigned PDF's visible text is not compared: its embedded DCC is.)
+could have written it.
 The summary is ``results/<campaign>/summary.json`` beside the ``reports/<campaign>/`` the
 file is in, or ``--summary``.
 """
@@ -214,8 +219,18 @@ def verify(path: str, summary_path: str | None = None, trust: str | None = None)
         dcc = read_dcc(xml)
     except Exception as exc:  # lxml and float() errors on a damaged document
         raise Refused(f"{path}: not a readable calflow DCC ({type(exc).__name__}: {exc})") from None
-    n = compare(dcc, load_summary(summary_file), path)
-    return f"{path}: certificate {dcc['number']}: {n} results equal {summary_file}; {status}"
+    summary = load_summary(summary_file)
+    n = compare(dcc, summary, path)
+    shown = ""
+    if file.suffix == ".pdf":
+        from calflow.certificate import visible
+
+        try:
+            items = visible.compare(data, summary, dcc["number"], status != "unsigned", path)
+        except visible.Differs as exc:
+            raise Refused(str(exc)) from None
+        shown = f", and its pages show them ({items} rows and statements)"
+    return f"{path}: certificate {dcc['number']}: {n} results equal {summary_file}{shown}; {status}"
 
 
 def run(args) -> None:

@@ -275,10 +275,18 @@ def write_pdf(html: str, base_url: str | Path, attachments: dict[str, bytes] | N
 
     logging.getLogger("weasyprint").setLevel(logging.ERROR)
     logging.getLogger("fontTools").setLevel(logging.ERROR)
+    import datetime as dt
+    import os
     from io import BytesIO
 
+    # the embedded files' dates: SOURCE_DATE_EPOCH when set (WeasyPrint stamps them "now"
+    # otherwise), so the same results give the same PDF bytes
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "")
+    when = dt.datetime.fromtimestamp(int(epoch), dt.UTC) if epoch.isdigit() else None
     files = [
-        weasyprint.Attachment(file_obj=BytesIO(data), name=name, relationship="Data")
+        weasyprint.Attachment(
+            file_obj=BytesIO(data), name=name, relationship="Data", created=when, modified=when
+        )
         for name, data in (attachments or {}).items()
     ]
     return weasyprint.HTML(string=html, base_url=str(base_url)).write_pdf(attachments=files)

@@ -77,15 +77,16 @@ def inflation(prior: list[tuple[float, int]], min_pairs: int = 3, alpha: float =
     stage's reproducibility was known may be re-admitted, a re-mount is left out).
     """
     usable = [(w, p) for w, p in prior if p > 0 and np.isfinite(w)]
+    dofs = sorted({p for _, p in usable})  # q_p and the kept pairs' mean, once per distinct p
+    q = dict(zip(dofs, stats.chi2.ppf(1 - alpha, dofs), strict=True))
+    ratio = {p: float(stats.chi2.cdf(q[p], p + 2) / stats.chi2.cdf(q[p], p)) for p in dofs}
     keep = usable
     k2 = 1.0
     for _ in range(20):
         if len(keep) < min_pairs:
             return 1.0, 0
-        q = [stats.chi2.ppf(1 - alpha, p) for _, p in keep]
-        kept_mean = [p * stats.chi2.cdf(qi, p + 2) / stats.chi2.cdf(qi, p) for (_, p), qi in zip(keep, q)]
-        k2 = sum(w for w, _ in keep) / sum(kept_mean)
-        now = [(w, p) for w, p in usable if w / k2 <= stats.chi2.ppf(1 - alpha, p)]
+        k2 = sum(w for w, _ in keep) / sum(p * ratio[p] for _, p in keep)
+        now = [(w, p) for w, p in usable if w / k2 <= q[p]]
         if now == keep:
             break
         keep = now
