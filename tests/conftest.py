@@ -240,7 +240,10 @@ SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created
 @pytest.fixture(scope="session")
 def thesis_run(tmp_path_factory, worker_id) -> Path:
     """The default configuration (the default campaigns, no study) run once per test session
-    under SOURCE_DATE_EPOCH (a campaign run again gives the same bytes): its project folder,
+    under SOURCE_DATE_EPOCH (a campaign run again gives the same bytes) and
+    ``--resources mem_mb=3000`` (it completes scheduled by the rules' declared memory; each
+    job's measured peak is held against its declaration by
+    tests/workflow/test_default_run.py): its project folder,
     with results/ and reports/. Under pytest-xdist the first
     worker that asks runs it and the others wait for it and share it (the pattern of
     pytest-xdist's docs: a file lock in the session's common temporary folder)."""
@@ -256,8 +259,10 @@ def thesis_run(tmp_path_factory, worker_id) -> Path:
             shutil.copy(ROOT / "Snakefile", work / "Snakefile")
             shutil.copytree(ROOT / "workflow", work / "workflow")
             shutil.copytree(ROOT / "config", work / "config")
-            proc = snakemake(
-                work, "--config", "studies=[]", env_extra={**SOURCE_DATE_EPOCH, **module_log(work)}
+            proc = snakemake(  # scheduled by the rules' declared memory, as a 4 GB lab PC would
+                work,
+                *("--resources", "mem_mb=3000", "--config", "studies=[]"),
+                env_extra={**SOURCE_DATE_EPOCH, **module_log(work)},
             )
             assert proc.returncode == 0, proc.stderr[-3000:]
             done.touch()

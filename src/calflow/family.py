@@ -200,3 +200,17 @@ def modes() -> dict[str, str]:
 def all_rules_files() -> list[str]:
     """The Snakemake rules files of every installed family, in entry-point name order."""
     return [path for fam in families() for path in fam.rules_files()]
+
+
+#: names a family module could import before steps were declared by :class:`calflow.step.Step`
+_REPLACED = {
+    "Command": "a family's own steps are calflow.step.Step objects in Family.commands",
+}
+
+
+def __getattr__(name: str):
+    """A removed name fails with what replaced it (docs/families.md, "Steps"), not a bare
+    AttributeError: a family written for the argparse hooks learns what to change."""
+    if name in _REPLACED:
+        raise AttributeError(f"calflow.family.{name} was removed: {_REPLACED[name]} (docs/families.md)")
+    raise AttributeError(f"module 'calflow.family' has no attribute {name!r}")

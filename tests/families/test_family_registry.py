@@ -103,3 +103,14 @@ def test_a_study_needs_its_base_campaign(tmp_path):
     study.write_text(yaml.safe_dump({"campaign": "absent"}))
     with pytest.raises(ConfigError, match="expected a campaign of"):
         load_study(study, tmp_path)
+
+
+def test_a_removed_name_says_what_replaced_it():
+    """A family written for the argparse hooks imports calflow.family.Command: it fails
+    naming the Step that replaced it, not with a bare AttributeError."""
+    import calflow.family as family
+
+    with pytest.raises(AttributeError, match=r"calflow\.step\.Step"):
+        family.Command  # noqa: B018
+    with pytest.raises(AttributeError, match="no attribute 'Nope'"):
+        family.Nope  # noqa: B018
