@@ -3,6 +3,8 @@
 # bench_workflow.sh (cold run, no-op reruns, a validation-only change of xytheta-thesis),
 # once each, in the same session, then every result and report compared byte for byte.
 #   bash benchmarks/bench_workflow_pair.sh OLD_TREE NEW_TREE [CORES]
+#   CAMPAIGNS='["xytheta-thesis","nano1d-thesis","nano2d-thesis"]' bash benchmarks/bench_workflow_pair.sh OLD NEW
+#       only these campaigns (each tree's config otherwise; the changed one stays xytheta-thesis)
 #   bash benchmarks/bench_workflow_pair.sh --smoke TREE   # CI: the tree against itself, on a
 #       shortened nano2d-thesis alone; every result and report must be the same bytes
 # Each tree is a checkout with its own .venv (`make .venv/.calflow-installed`); run it on a
@@ -12,6 +14,7 @@ smoke=""
 if [ "${1:-}" = "--smoke" ]; then smoke=1; shift; set -- "$1" "$1" "${2:-2}"; fi
 old="$(cd "$1" && pwd)"; new="$(cd "$2" && pwd)"; cores="${3:-2}"
 campaign=xytheta-thesis; change_line='^  cycles: 30 .*'; sm_args=(); noops=3; changes=2
+[ -z "${CAMPAIGNS:-}" ] || sm_args=(--config "campaigns=$CAMPAIGNS")
 if [ -n "$smoke" ]; then  # each step once
     campaign=nano2d-thesis; change_line='^  cycles: 4$'; sm_args=(--config 'campaigns=["nano2d-thesis"]')
     noops=1; changes=1
