@@ -149,7 +149,7 @@ PUBLIC_CORE: Mapping[str, tuple[str, ...]] = {
     "calflow": ("__version__",),
     "calflow.configuration": ("layout",),
     "calflow.family": ("Family",),
-    "calflow.step": ("Option", "Step"),
+    "calflow.step": ("Option", "Step", "CAMPAIGN", "OUT"),
     "calflow.family_contract": ("*",),
     "calflow.family_workflow": ("FamilyWorkflow",),
     "calflow.configuration.layout": ("*",),

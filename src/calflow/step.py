@@ -64,6 +64,11 @@ class Option:
         return not self.name.startswith("-")
 
 
+#: The two options most steps take: the campaign file the job reads, and the file it writes.
+CAMPAIGN = Option("--campaign", required=True, kind="path")
+OUT = Option("--out", required=True, kind="path")
+
+
 @dataclass(frozen=True)
 class Step:
     """One step: ``calflow <name>``.

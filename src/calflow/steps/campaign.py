@@ -3,7 +3,7 @@ summary, the report and the certificate (:class:`calflow.step.Step`, one each)."
 
 from __future__ import annotations
 
-from calflow.step import ALL, Option, Step
+from calflow.step import ALL, CAMPAIGN, OUT, Option, Step
 
 _SUMMARY_SETTINGS = "JSON: the stage's settings (config 'stages.<id>'): specification, decision rule"
 
@@ -14,10 +14,10 @@ STEPS: tuple[Step, ...] = (
         "run a plan on the campaign's rig and write the run dataset",
         "calflow.commands.acquire:run",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--plan", required=True),
             Option("--model", "model file(s) whose inverse commands the run", "path", many="append"),
-            Option("--out", required=True, kind="path"),
+            OUT,
             Option("--truth", "where to write the rig's truth (simulated rigs), for tests and reports", "path"),
             Option("--decoded", "a frame recording's decoded run (calflow decode-run), for a replay rig", "path"),
             Option(
@@ -37,9 +37,9 @@ STEPS: tuple[Step, ...] = (
         "decode a replay campaign's recorded camera frames into the run dataset of one run",
         "calflow.commands.decode_run:run",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--run", "the run id of the frame recording (rig.options.recordings)", required=True),
-            Option("--out", required=True, kind="path"),
+            OUT,
         ),
         reads=("rig",),
         writes=("decoded",),
@@ -49,10 +49,10 @@ STEPS: tuple[Step, ...] = (
         "identify one calibration model",
         "calflow.commands.campaign:identify",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--model-name", required=True),
             Option("--run", "the run the model is identified from (its family's identification run)", "path"),
-            Option("--out", required=True, kind="path"),
+            OUT,
         ),
         reads_per_job="the sections of the model (its family's `identify_sections`)",
         inputs=("run", "luts", "model"),
@@ -63,9 +63,9 @@ STEPS: tuple[Step, ...] = (
         "ISO 9283 accuracy and repeatability of a run",
         "calflow.commands.campaign:metrics",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--run", required=True, kind="path"),
-            Option("--out", required=True, kind="path"),
+            OUT,
         ),
         inputs=("run",),
         writes=("metrics",),
@@ -75,12 +75,12 @@ STEPS: tuple[Step, ...] = (
         "write the campaign's summary.json",
         "calflow.commands.campaign:summarise",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--files", "the campaign's model, metrics and table files", "path", required=True, many="+"),
             Option("--truth", kind="path"),
             Option("--budget", "the error budget's replays (calflow error-budget), simulated rigs", "path"),
             Option("--settings", _SUMMARY_SETTINGS, "json"),
-            Option("--out", required=True, kind="path"),
+            OUT,
         ),
         reads=(ALL,),
         inputs=("model", "metrics", "luts", "truth"),
@@ -91,7 +91,7 @@ STEPS: tuple[Step, ...] = (
         "render the campaign report (HTML and PDF)",
         "calflow.commands.campaign:report",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--summary", required=True, kind="path"),
             Option("--files", "run, table and metrics files the figures draw on", "path", many="*"),
             Option("--html", required=True, kind="path"),
@@ -106,7 +106,7 @@ STEPS: tuple[Step, ...] = (
         "render a campaign's certificate (HTML and PDF): U, decisions, as found and as left",
         "calflow.certificate.page:run",
         (
-            Option("--campaign", required=True, kind="path"),
+            CAMPAIGN,
             Option("--summary", required=True, kind="path"),
             Option("--html", required=True, kind="path"),
             Option("--pdf", kind="path"),

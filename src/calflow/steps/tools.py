@@ -5,7 +5,7 @@ and the coded pattern (:class:`calflow.step.Step`, one each)."""
 from __future__ import annotations
 
 from calflow.configuration import layout
-from calflow.step import Option, Step
+from calflow.step import CAMPAIGN, OUT, Option, Step
 
 _STUDY_DIR = "config/campaigns"
 
@@ -93,8 +93,8 @@ STEPS: tuple[Step, ...] = (
         (
             Option("csv", kind="path"),
             Option("--mapping", "YAML file: which column gives which run variable (docs/data.md)", "path", required=True),
-            Option("--campaign", required=True, kind="path"),
-            Option("--out", required=True, kind="path"),
+            CAMPAIGN,
+            OUT,
         ),
         writes=("run",),
     ),
@@ -112,8 +112,8 @@ STEPS: tuple[Step, ...] = (
             ),
             Option("--mapping", "column mapping of a csv recording", "path"),
             Option("--plan", "the run's plan (e.g. metrology, training)", required=True),
-            Option("--campaign", required=True, kind="path"),
-            Option("--out", required=True, kind="path"),
+            CAMPAIGN,
+            OUT,
         ),
         writes=("run",),
     ),

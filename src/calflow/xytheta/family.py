@@ -7,7 +7,7 @@ family's own subcommands. Kept free of numerical imports: it is read by ``calflo
 from __future__ import annotations
 
 from calflow.family import Family
-from calflow.step import Option, Step
+from calflow.step import CAMPAIGN, OUT, Option, Step
 
 _P = "calflow.xytheta.plans.campaign"
 _C = "calflow.xytheta.steps"
@@ -31,8 +31,8 @@ def rig_options(c: dict, factory: str, run_id: str, options: dict, start_s: floa
     return options
 
 
-_CAMPAIGN = Option("--campaign", required=True, kind="path")
-_OUT = Option("--out", required=True, kind="path")
+_CAMPAIGN = CAMPAIGN
+_OUT = OUT
 
 #: The options the family adds to the core's steps.
 STEP_OPTIONS = {

@@ -8,13 +8,13 @@ numerical imports: ``calflow --help`` reads it.
 from __future__ import annotations
 
 from calflow.family import Family
-from calflow.step import Option, Step
+from calflow.step import CAMPAIGN, OUT, Option, Step
 
 _P = "calflow_hexapod.plans.campaign"
 _S = "calflow_hexapod.steps"
 
 
-_CAMPAIGN = Option("--campaign", required=True, kind="path")
+_CAMPAIGN = CAMPAIGN
 
 #: This family's own steps (``calflow hexapod-export``, ``calflow hexapod-error-budget``).
 COMMANDS = (
@@ -34,7 +34,7 @@ COMMANDS = (
         "hexapod-error-budget",
         "replay a simulated hexapod's calibration with each rig effect off: the error budget",
         "calflow_hexapod.stage.error_budget:error_budget_command",
-        (_CAMPAIGN, Option("--out", required=True, kind="path")),
+        (_CAMPAIGN, OUT),
         reads=("seed", "rig", "identification", "models", "validation"),
         writes=("truth",),
     ),
