@@ -20,7 +20,7 @@ from types import MappingProxyType
 from typing import Any
 
 #: What every step that reads a campaign reads: the robot (it names the family) and the start,
-#: which every file a step writes is stamped with (:func:`calflow.configuration.handed.meta`).
+#: which every file a step writes is stamped with (:func:`calflow.data.runs.meta`).
 STAMP = ("robot", "start")
 
 #: The key of a step that reads the whole campaign (the summary, the report): it is handed all

@@ -1,8 +1,9 @@
 """Bad inputs of camera images, written as a new user writes them: the simulated rig's
 ``sensor: images`` (:data:`IMAGE_CAMPAIGNS`) and recorded camera frames (``format: frames``,
-:data:`FRAMES`). Each is refused when the files are loaded — before any job — in one line
-naming the file, the key and what was expected (the rest of the round:
-``test_bad_input_round.py``)."""
+:data:`FRAMES`). Each is refused in one line naming the file, the key and what was expected,
+before anything is written: what the campaign file says when it is loaded, before any job;
+what a recording's files hold (validation reads no data file) by the step that reads them,
+``calflow decode-run`` (the rest of the round: ``test_bad_input_round.py``)."""
 
 from __future__ import annotations
 
@@ -157,10 +158,12 @@ TABLE = "frame,time,cmd_x,cmd_y,cmd_theta,T1\n" + "".join(
 )
 
 
-def frames(name, old, new, *expected, table=TABLE, stack=4, folder=None, pattern=None):
+def frames(name, old, new, *expected, table=TABLE, stack=4, folder=None, pattern=None, at="decode"):
     """A frame recording with one thing changed: the campaign's text, the table, the stack's
-    page count (None: no stack), a folder of frames (file names), the pattern file's text."""
-    return pytest.param(old, new, expected, table, stack, folder, pattern, id=name)
+    page count (None: no stack), a folder of frames (file names), the pattern file's text;
+    refused ``at`` load (what the campaign file says, the files' presence) or by the decoding
+    (what the files hold)."""
+    return pytest.param(old, new, expected, table, stack, folder, pattern, at, id=name)
 
 
 FRAMES = [
@@ -171,12 +174,12 @@ FRAMES = [
         "key 'rig.options.recordings.identification.table'",
         "an existing file",
         table=None,
+        at="load",
     ),
     frames(
         "frames: table without cmd_theta",
         None,
         None,
-        "key 'rig.options.recordings.identification'",
         "data/ident.csv: joints table: column 'cmd_theta' missing",
         table=TABLE.replace("cmd_theta", "theta"),
     ),
@@ -240,6 +243,7 @@ FRAMES = [
         "key 'rig.options.recordings.identification.pattern'",
         "an existing file",
         pattern="",
+        at="load",
     ),
     frames(
         "frames: pattern not JSON",
@@ -260,9 +264,16 @@ FRAMES = [
         "magnification: 5.0}",
         "magnification: 5.0, zoom: 2}",
         "camera.zoom: unknown camera-model field",
+        at="load",
     ),
-    frames("frames: camera width 0", "width: 352", "width: 0", "Camera.width: expected a positive integer"),
-    frames("frames: camera width as text", "width: 352", "width: '352'", "got '352'"),
+    frames(
+        "frames: camera width 0",
+        "width: 352",
+        "width: 0",
+        "Camera.width: expected a positive integer",
+        at="load",
+    ),
+    frames("frames: camera width as text", "width: 352", "width: '352'", "got '352'", at="load"),
     frames(
         "frames: camera of another size than the frames",
         "width: 352",
@@ -274,7 +285,7 @@ FRAMES = [
         "frames: camera too small for the pattern",
         "width: 352, height: 272",
         "width: 64, height: 64",
-        "key 'rig.options.recordings.identification'",
+        "data/pattern.json: rig.options.recordings.identification.camera",
         "needs a field of view",
     ),
     frames(
@@ -284,12 +295,14 @@ FRAMES = [
         "key 'rig.options.recordings.identification.format'",
         "expected one of",
         "got 'frame'",
+        at="load",
     ),
     frames(
         "frames: run id misspelt",
         "      identification:",
         "      identificaton:",
         "key 'rig.options.recordings.identificaton': expected a run this campaign acquires",
+        at="load",
     ),
     frames(
         "frames: run id with '..'",
@@ -298,6 +311,7 @@ FRAMES = [
         "key 'rig.options.recordings'",
         "run ids of letters, digits",
         "got '../identification'",
+        at="load",
     ),
 ]
 
@@ -346,10 +360,11 @@ def _frames_campaign(campaigns: Path) -> str:
     return text[: text.index("rig:\n")] + FRAMES_RIG + text[text.index("characterisation:") :]
 
 
-@pytest.mark.parametrize("old, new, expected, table, stack, folder, pattern", FRAMES)
-def test_a_bad_frame_recording_is_refused_at_load(
-    tmp_path, monkeypatch, rendered, old, new, expected, table, stack, folder, pattern
-):
+LOAD = [p for p in FRAMES if p.values[-1] == "load"]  # what the campaign file says
+DECODE = [p for p in FRAMES if p.values[-1] == "decode"]  # what the recording's files hold
+
+
+def _bad_frames(tmp_path, monkeypatch, rendered, old, new, table, stack, folder, pattern) -> Path:
     campaigns = _frames_project(tmp_path, monkeypatch, rendered, table, stack, folder, pattern)
     text = _frames_campaign(campaigns)
     if old is not None:
@@ -357,6 +372,14 @@ def test_a_bad_frame_recording_is_refused_at_load(
         text = text.replace(old, new, 1)
     path = campaigns / "bad.yaml"
     path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("old, new, expected, table, stack, folder, pattern, at", LOAD)
+def test_a_bad_frame_recording_is_refused_at_load(
+    tmp_path, monkeypatch, rendered, old, new, expected, table, stack, folder, pattern, at
+):
+    path = _bad_frames(tmp_path, monkeypatch, rendered, old, new, table, stack, folder, pattern)
     before = sorted(tmp_path.rglob("*"))
     with pytest.raises(ConfigError) as info:
         load_campaign(path, [])
@@ -367,20 +390,28 @@ def test_a_bad_frame_recording_is_refused_at_load(
     assert sorted(tmp_path.rglob("*")) == before  # nothing written
 
 
-def test_a_good_frame_recording_loads_reading_one_frame(tmp_path, monkeypatch, rendered):
+@pytest.mark.parametrize("old, new, expected, table, stack, folder, pattern, at", DECODE)
+def test_a_bad_frame_recording_is_refused_by_its_decoding(
+    tmp_path, monkeypatch, rendered, capsys, old, new, expected, table, stack, folder, pattern, at
+):
+    """Validation reads no data file: the campaign loads; the step that reads the recording
+    refuses it in one line naming the file, non-zero, with no file written."""
+    from calflow.cli import main
+
+    path = _bad_frames(tmp_path, monkeypatch, rendered, old, new, table, stack, folder, pattern)
+    assert load_campaign(path, [])["rig"]["factory"] == "replay"
+    before = sorted(p for p in tmp_path.rglob("*") if p.is_file())
+    out = tmp_path / "results" / "bad" / "decoded" / "identification.nc"
+    assert main(["decode-run", "--campaign", str(path), "--run", "identification", "--out", str(out)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    for part in expected:
+        assert part in err, err
+    assert sorted(p for p in tmp_path.rglob("*") if p.is_file()) == before  # nothing written
+
+
+def test_a_good_frame_recording_loads(tmp_path, monkeypatch, rendered):
     campaigns = _frames_project(tmp_path, monkeypatch, rendered, TABLE, 4, None, None)
     text = _frames_campaign(campaigns)
     (campaigns / "rec.yaml").write_text(text, encoding="utf-8")
-    assert load_campaign(campaigns / "rec.yaml", [])["rig"]["factory"] == "replay"
-
-
-def test_a_decoded_recording_is_not_read_again_at_load(tmp_path, monkeypatch, rendered):
-    """Once decoded, a no-op run reads no table nor frame (the decoding job checks changes)."""
-    campaigns = _frames_project(tmp_path, monkeypatch, rendered, "", 4, None, None)  # an empty table
-    text = _frames_campaign(campaigns)
-    (campaigns / "rec.yaml").write_text(text, encoding="utf-8")
-    with pytest.raises(ConfigError, match="joints table"):
-        load_campaign(campaigns / "rec.yaml", [])
-    (tmp_path / "results" / "rec" / "decoded").mkdir(parents=True)
-    (tmp_path / "results" / "rec" / "decoded" / "identification.nc").write_bytes(b"")
     assert load_campaign(campaigns / "rec.yaml", [])["rig"]["factory"] == "replay"

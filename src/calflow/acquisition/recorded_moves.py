@@ -27,6 +27,7 @@ from calflow.acquisition.streams import reduce_dwell
 from calflow.data.conventions import run_variables, time_units
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import RigError
+from calflow.instruments.readings import flags
 from calflow.plan import Plan
 
 __all__ = ["acquire_recorded_moves"]
@@ -78,7 +79,7 @@ def acquire_recorded_moves(
         previous = command
         if progress is not None:
             progress(i + 1, len(plan))
-    ds = run_dataset(readings, plan, rig.sensors, rig.thermometers, meta)
+    ds = run_dataset(readings, plan, rig.sensors, rig.thermometers, meta, flags(rig.sensors))
     n = min(r["time"].size for r in records)
     rel = np.array([r["time"][:n] for r in records]) - np.array(starts)[:, None]
     ds["record_time"] = xr.Variable(

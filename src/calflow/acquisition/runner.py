@@ -24,6 +24,7 @@ from calflow.acquisition.checkpoint import Journal
 from calflow.acquisition.streams import reduce_dwell
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import RigError
+from calflow.instruments.readings import flags
 from calflow.plan import Plan
 
 BATCH = 256  # rows per bulk visit: an interruption recomputes at most this many unjournaled rows
@@ -149,7 +150,7 @@ def acquire(
     bulk = bulk and stop is None  # a stop rule looks after every reading
 
     def partial() -> xr.Dataset:
-        return run_dataset(readings, plan, rig.sensors, rig.thermometers, meta)
+        return run_dataset(readings, plan, rig.sensors, rig.thermometers, meta, flags(rig.sensors))
 
     try:
         i = len(readings)
@@ -169,4 +170,4 @@ def acquire(
     finally:
         if journal is not None:
             journal.close()
-    return run_dataset(readings, plan, rig.sensors, rig.thermometers, meta)
+    return run_dataset(readings, plan, rig.sensors, rig.thermometers, meta, flags(rig.sensors))

@@ -7,7 +7,8 @@ run-time compensation, the controller.
 
 from __future__ import annotations
 
-from calflow.configuration.handed import campaign_of, meta
+from calflow.configuration.handed import campaign_of
+from calflow.data.runs import meta
 from calflow.errors import RigError
 from calflow.family import family_of
 from calflow.rigs.campaign_rig import open_rig
@@ -62,8 +63,8 @@ def acquire_job(c: dict, plan_name: str, args, plugins=None, journal_path: str |
 
 
 def run(args) -> None:
+    from calflow.configuration.rig_factory import allowed_modules
     from calflow.data.io import output_folder, write_dataset, write_json
-    from calflow.rigs.plugin import allowed_modules
 
     plugins = allowed_modules(getattr(args, "rig_plugins", None))
     c = campaign_of(args, plugins)

@@ -31,9 +31,10 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from calflow.data.frames import FrameFiles, file_sha256, load_pattern, read_table
 from calflow.data.runs import RunMetadata, run_dataset
 from calflow.errors import DataError
+from calflow.instruments.readings import flags
+from calflow.instruments.recorded_frames import FrameFiles, file_sha256, load_pattern, read_table
 from calflow.plan import Plan
 
 CHUNK = 16  # frames read and decoded at once
@@ -45,6 +46,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     pattern, camera}``) for run ``run_id`` of ``campaign`` (its robot, name and start)."""
     from calflow.data.conventions import robot_joints
     from calflow.data.recordings import entry as normalised
+    from calflow.instruments.pattern.decode import field_of_view_problem
     from calflow.instruments.pattern.layouts import decode_frames
     from calflow.instruments.readings import camera_of, frame_shape, readings_of
     from calflow.provenance import package_digest
@@ -60,11 +62,15 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     table = read_table(e["table"], joints)
     pattern = load_pattern(e["pattern"])
     camera = camera_of(e.get("camera") or {}, f"rig.options.recordings.{run_id}.camera")
+    given = {"sensor_pixel_um", "magnification"} & set(e.get("camera") or {})
+    if pattern.layout == "cell2x2" or given:  # else a lab's target whose pixel size each frame gives
+        problem = field_of_view_problem(*frame_shape(camera), camera.pixel_um, pattern)
+        if problem:  # before any frame is read
+            raise DataError(f"{e['pattern']}: rig.options.recordings.{run_id}.camera: {problem}")
     frames = FrameFiles(e["file"], table.frame, frame_shape(camera))
     if pattern.layout == "cell2x2":
         options = {"camera": camera}
     else:  # a lab's target: the pixel size measured from each frame unless the camera says it
-        given = {"sensor_pixel_um", "magnification"} & set(e.get("camera") or {})
         options = {"pixel_um": camera.pixel_um} if given else {}
     options.update(_markers(e, pattern, run_id))
     readings, shas = [], []
@@ -116,7 +122,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
         },
     )
     sensors = [f"meas_{a}" for a in axes] + [f"u_meas_{a}" for a in axes] + ["decode_status"]
-    ds = run_dataset(readings, plan, sensors, tuple(table.temperatures), meta)
+    ds = run_dataset(readings, plan, sensors, tuple(table.temperatures), meta, flags(sensors))
     del ds.attrs["dwell_s"]  # the recording does not say
     ds["frame_sha256"] = xr.Variable(
         ("sample",),

@@ -344,8 +344,8 @@ def load(path: str | Path, rig_plugins: list[str] | str | None = None) -> Campai
     importable, callable) only when ``rig_plugins``, the allow-list of plug-in modules, is
     given; otherwise no plug-in code is imported. Raises :class:`ConfigError` in one line.
     """
+    from calflow.configuration.rig_factory import builtin
     from calflow.family import family_of, resolve
-    from calflow.rigs.plugin import builtin
 
     path = Path(path)
     check_campaign_name(path.stem)

@@ -20,11 +20,12 @@ from typing import Any
 import jsonschema
 import yaml
 
-from calflow.configuration import layout, yamlfile
+from calflow.configuration import yamlfile
 from calflow.configuration.reference import check as check_reference
+from calflow.configuration.rig_factory import check_rig
 from calflow.errors import ConfigError
 from calflow.family import family_of, missing_family, robots
-from calflow.rigs.plugin import check_rig
+from calflow.family import joints as family_joints
 
 SCHEMA_DIR = Path(__file__).resolve().parents[1] / "schemas"
 CAMPAIGN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -287,38 +288,26 @@ def check_campaign_name(name: str) -> str:
 
 
 def _check_frame_recordings(campaign: dict, path: Path) -> None:
-    """Each run recorded as camera frames checked before any job: its table, pattern file,
-    camera and frames (:func:`calflow.data.frames.check_recording`), for the robot's joints.
-    A run already decoded (``results/<campaign>/decoded/<run>.nc``) is not read again here, so
-    that a no-op run stays cheap: a changed input reruns the decoding, which checks it all."""
+    """A run recorded as camera frames needs a robot with a joint a camera over a pattern
+    measures (x, y, theta). Its files are checked to exist with the replay rig's options
+    (:func:`calflow.rigs.replay.check_options`); what they hold (the joints table, the
+    pattern file, the camera's field of view on it, the frames) is read and checked by the
+    step that decodes them (``calflow decode-run``), never by validation."""
     rig = campaign["rig"]
     recordings = (rig.get("options") or {}).get("recordings")
     if rig["factory"] != "replay" or not isinstance(recordings, dict):
         return
-    recordings = {
-        run: s for run, s in recordings.items() if isinstance(s, dict) and s.get("format") == "frames"
-    }
-    if not recordings:
-        return
-    from calflow.data.conventions import robot_joints
-    from calflow.data.frames import check_recording
-    from calflow.data.recordings import entry
-    from calflow.errors import DataError
-
-    joints = robot_joints(campaign["robot"])
+    joints = family_joints(campaign["robot"])
     for run, spec in recordings.items():
-        if Path(layout.decoded(path.stem, run)).is_file():
-            continue
-        where = f"rig.options.recordings.{run}"
-        if not {"x", "y", "theta"} & set(joints):
+        if (
+            isinstance(spec, dict)
+            and spec.get("format") == "frames"
+            and not {"x", "y", "theta"} & set(joints)
+        ):
             raise ConfigError(
-                f"{path}: key '{where}': expected a robot with a joint a camera over a pattern "
-                f"measures (x, y, theta), got {campaign['robot']!r} (joints {list(joints)})"
+                f"{path}: key 'rig.options.recordings.{run}': expected a robot with a joint a camera over "
+                f"a pattern measures (x, y, theta), got {campaign['robot']!r} (joints {list(joints)})"
             )
-        try:
-            check_recording(entry(spec), joints)
-        except DataError as exc:
-            raise ConfigError(f"{path}: key '{where}': {exc}") from None
 
 
 def check_campaign_data(data: Any, path: Path, rig_plugins: list[str] | str | None = None) -> dict:
@@ -329,7 +318,7 @@ def check_campaign_data(data: Any, path: Path, rig_plugins: list[str] | str | No
     The ``robot`` key chooses the schema (``campaign-<robot>.schema.yaml``). Numbers are
     finite, ranges ordered, ``start`` a real date, averaging windows within their dwell,
     sweeps from ``start_um`` up to ``stop_um``,
-    and the rig's options are checked (:func:`calflow.rigs.plugin.check_rig`). A
+    and the rig's options are checked (:func:`calflow.configuration.rig_factory.check_rig`). A
     ``module:callable`` rig factory is checked (allowed, importable, callable) only when
     ``rig_plugins``, the allow-list of plug-in modules, is given; otherwise no plug-in
     code is imported.

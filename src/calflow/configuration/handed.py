@@ -1,5 +1,5 @@
-"""The campaign as a step sees it: the file its job names, only the sections its rule hands it,
-and the stamp every file the step writes carries (:func:`meta`).
+"""The campaign as a step sees it: the file its job names, only the sections its rule hands it
+(the stamp every file the step writes carries is :func:`calflow.data.runs.meta`).
 
 Every step that reads a campaign reads it through :func:`campaign_of`; the rule hands the job
 ``--campaign FILE --sections a,b.c`` and digests the same sections (``reads`` in
@@ -9,14 +9,8 @@ workflow/rules/common.smk), so reading a section the rule did not hand is an err
 
 from __future__ import annotations
 
-import shlex
-import sys
-
-from calflow import __version__
 from calflow.configuration.campaign import Campaign, Sections
 from calflow.configuration.campaign import load as load_campaign
-from calflow.configuration.config import campaign_digest
-from calflow.data.runs import RunMetadata
 
 
 def campaign(path: str, rig_plugins=None) -> Campaign:
@@ -40,33 +34,3 @@ def campaign_of(args, rig_plugins=None) -> Campaign | Sections:
     the sections its rule hands it (``args.sections``, :func:`handed`; all when not given)."""
     step = f"calflow {getattr(args, 'step', None) or 'step'}"
     return handed(campaign(args.campaign, rig_plugins), getattr(args, "sections", None), step)
-
-
-def _command(argv: list[str]) -> list[str]:
-    """The command line a file's ``history`` records: without ``--sections``, which only limits
-    what the step may read (a step that runs gives the same file with or without it)."""
-    out, skip = [], False
-    for arg in argv:
-        if skip:
-            skip = False
-        elif arg == "--sections":
-            skip = True
-        elif not arg.startswith("--sections="):
-            out.append(arg)
-    return out
-
-
-def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
-    """The global attributes of a file a step writes from campaign ``c`` (the whole campaign or
-    the sections it was handed): the stamp of the whole campaign the file comes from, whichever
-    sections the step reads, and the command line that made it (without ``--sections``)."""
-    return RunMetadata(
-        campaign=c["name"],
-        robot=c["robot"],
-        source=source,
-        plan=plan,
-        config_sha256=campaign_digest(c.campaign if isinstance(c, Sections) else c),
-        start=c["start"],
-        model=model,
-        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in _command(sys.argv[1:]))}",
-    )

@@ -45,6 +45,43 @@ class RunMetadata:
         return attrs
 
 
+def _command(argv: list[str]) -> list[str]:
+    """The command line a file's ``history`` records: without ``--sections``, which only limits
+    what the step may read (a step that runs gives the same file with or without it)."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--sections":
+            skip = True
+        elif not arg.startswith("--sections="):
+            out.append(arg)
+    return out
+
+
+def meta(c: dict, source: str, plan: str, model: str | None = None) -> RunMetadata:
+    """The global attributes of a file a step writes from campaign ``c`` (the whole campaign or
+    the sections it was handed, :mod:`calflow.configuration.handed`): the stamp of the whole
+    campaign the file comes from, whichever sections the step reads, and the command line
+    that made it (without ``--sections``)."""
+    import shlex
+    import sys
+
+    from calflow.configuration.campaign import Sections
+    from calflow.configuration.config import campaign_digest
+
+    return RunMetadata(
+        campaign=c["name"],
+        robot=c["robot"],
+        source=source,
+        plan=plan,
+        config_sha256=campaign_digest(c.campaign if isinstance(c, Sections) else c),
+        start=c["start"],
+        model=model,
+        history=f"calflow {__version__}: {' '.join(shlex.quote(a) for a in _command(sys.argv[1:]))}",
+    )
+
+
 def _var(values, name: str, dims=("sample",)) -> xr.Variable:
     units, long_name = run_variables()[name]
     return xr.Variable(dims, values, attrs={"units": units, "long_name": long_name})
@@ -56,10 +93,13 @@ def run_dataset(
     sensors: Sequence[str],
     thermometers: Sequence[str],
     meta: RunMetadata,
+    flags: Mapping[str, dict] | None = None,
 ) -> xr.Dataset:
     """Assemble a run dataset from one reading per plan row.
 
-    ``readings[i]`` is what the rig's ``read()`` returned after row ``i`` settled.
+    ``readings[i]`` is what the rig's ``read()`` returned after row ``i`` settled. ``flags``:
+    the sensors whose readings are CF flags (an image sensor's ``decode_status``), each with
+    its attributes (:func:`calflow.instruments.readings.flags`); stored as ``int8``.
     """
     n = len(readings)
     data: dict[str, xr.Variable] = {}
@@ -76,12 +116,9 @@ def run_dataset(
         data[f"target_{axis}"] = _var(np.asarray(values[:n], dtype=float), f"target_{axis}")
     for sensor in sensors:
         data[sensor] = _var(np.array([r[sensor] for r in readings], dtype=float), sensor)
-    if "decode_status" in data:  # an image sensor's decoder: CF flags (calflow.instruments.readings)
-        from calflow.instruments.readings import status_attrs
-
-        data["decode_status"] = xr.Variable(
-            ("sample",), data["decode_status"].values.astype("int8"), status_attrs()
-        )
+    for name, attrs in (flags or {}).items():
+        if name in data:
+            data[name] = xr.Variable(("sample",), data[name].values.astype("int8"), attrs)
     if thermometers:
         temps = np.array([[r[t] for t in thermometers] for r in readings], dtype=float).reshape(
             n, len(thermometers)

@@ -1,7 +1,7 @@
 """The config check of the ``gcs`` rig's options (docs/gcs.md, "The gcs rig").
 
 :func:`check_options` is what ``calflow check-config`` and ``snakemake -n`` run
-(:func:`calflow.rigs.plugin.check_rig`): every option's type and range, without opening a
+(:func:`calflow.configuration.rig_factory.check_rig`): every option's type and range, without opening a
 connection or importing a sensor plug-in; a family's sensor has its options checked by its
 family (:attr:`calflow.family.Family.options`). It raises :class:`OptionError` naming the option
 (``axes.x.port``, ``reconnect.tries``, ...), which the config check turns into one line

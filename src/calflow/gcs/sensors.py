@@ -43,7 +43,7 @@ def resolve(target: str, name: str, where: str = "sensor.factory"):
             f"gcs rig: {where}: expected a registered name or 'package.module:callable', got {name!r}"
         )
     module_name, attr = target.split(":")
-    from calflow.rigs.plugin import HOW_TO_ALLOW, is_allowed
+    from calflow.configuration.rig_factory import HOW_TO_ALLOW, is_allowed
 
     if target == name and not is_allowed(module_name):  # not a registered short name: plug-in code
         raise RigError(

@@ -109,6 +109,12 @@ def render_poses(x_m, y_m, theta_deg) -> np.ndarray:
     return np.column_stack([x, y, -t])
 
 
+def flags(sensors) -> dict[str, dict]:
+    """The CF flag attributes of those of ``sensors`` that are flags (``decode_status``), for
+    :func:`calflow.data.runs.run_dataset`."""
+    return {"decode_status": status_attrs()} if "decode_status" in sensors else {}
+
+
 def status_attrs() -> dict:
     """CF flag attributes of the ``decode_status`` run variable."""
     meanings = status_meanings()

@@ -39,7 +39,7 @@ FAMILY_HOOKS: dict[str, tuple[str, ...]] = {
     "calflow.configuration.config": ("schemas",),
     "calflow.configuration.campaign": ("steps:check",),
     "calflow.configuration.reference": ("reference",),
-    "calflow.rigs.plugin": ("rigs",),
+    "calflow.configuration.rig_factory": ("rigs",),
     "calflow.rigs.campaign_rig": ("rig_options",),
     "calflow.commands.acquire": ("plans",),
     "calflow.gcs.sensors": ("sensors",),

@@ -270,9 +270,10 @@ def check_options(
     campaign_start=None,
     decoded=None,
 ) -> None:
-    """The config check of the replay rig's options (:func:`calflow.rigs.plugin.check_rig`):
-    ``recordings`` given, each entry of a mapping well formed and its files present, the
-    tolerance a number >= 0. Recordings are read when a run is acquired, not here."""
+    """The config check of the replay rig's options (:func:`calflow.configuration.rig_factory.check_rig`):
+    ``recordings`` given, each entry of a mapping well formed and its files present (a frame
+    recording's camera-model fields too), the tolerance a number >= 0. Recordings are read
+    when a run is acquired or decoded, not here."""
     from calflow.data.recordings import BadEntry, check_entry
 
     if isinstance(recordings, Mapping):
@@ -285,6 +286,8 @@ def check_options(
                 check_entry(spec)
             except BadEntry as exc:
                 raise OptionError(f"recordings.{run_id}{exc.key}", exc.expected, exc.value) from None
+            if isinstance(spec, Mapping) and spec.get("format") == "frames":
+                _check_camera(run_id, spec.get("camera"))
     elif not isinstance(recordings, (str, os.PathLike)) or not str(recordings):
         raise OptionError(
             "recordings", "a folder of <run id>.nc run files or a mapping run id -> recording", recordings
@@ -300,3 +303,20 @@ def check_options(
         raise OptionError("stream", "a run id (string)", stream)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
         raise OptionError("seed", "an integer", seed)
+
+
+class _CameraFields(ValueError):
+    pass
+
+
+def _check_camera(run_id: str, fields) -> None:
+    """A frame recording's ``camera`` fields, as the decoder's camera model takes them
+    (:func:`calflow.instruments.readings.camera_of`); nothing of the recording is read."""
+    from calflow.instruments.readings import camera_of
+
+    try:
+        camera_of(fields or {}, "camera", error=_CameraFields)
+    except _CameraFields as exc:
+        raise OptionError(
+            f"recordings.{run_id}.camera", f"fields the camera model takes ({exc})", fields
+        ) from None

@@ -71,10 +71,10 @@ def check(sensor="model", camera=None, pattern=None, range_um=None) -> dict:
 def _check_pattern(path: str, camera, range_um) -> None:
     """The pattern file read (one line when it is not one), its range covering ``range_um``
     and the camera's field of view enough to decode it."""
-    from calflow.data.frames import load_pattern
     from calflow.errors import DataError
     from calflow.instruments.pattern.decode import field_of_view_problem
     from calflow.instruments.readings import frame_shape
+    from calflow.instruments.recorded_frames import load_pattern
 
     try:
         pat = load_pattern(path)

@@ -187,4 +187,6 @@ def simulated_xytheta(seed: int = 0, stream: str = "", **physics) -> SimulatedXY
     return SimulatedXYTheta(XYThetaTruth(**o), seed=seed, stream=stream, sensor=sensor)
 
 
-simulated_xytheta.check_options = check_options  # the config check calls it (calflow.rigs.plugin)
+simulated_xytheta.check_options = (
+    check_options  # the config check calls it (calflow.configuration.rig_factory)
+)

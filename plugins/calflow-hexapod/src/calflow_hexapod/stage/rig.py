@@ -262,7 +262,9 @@ def simulated_hexapod(seed: int = 0, stream: str = "", **physics) -> SimulatedHe
     return SimulatedHexapod(HexapodTruth(**o), seed=seed, stream=stream)
 
 
-simulated_hexapod.check_options = check_options  # the config check calls it (calflow.rigs.plugin)
+simulated_hexapod.check_options = (
+    check_options  # the config check calls it (calflow.configuration.rig_factory)
+)
 
 
 def truth_parameters(truth: HexapodTruth):

@@ -215,15 +215,6 @@ class FrameFiles:
                     shas.append(file_sha256(path))
                 yield slice(rows.start, rows.stop), np.stack(frames), shas
 
-    def first(self) -> np.ndarray:
-        """The first frame, checked (type, size): what a check at load reads of the frames."""
-        if self.stack:
-            import tifffile
-
-            with tifffile.TiffFile(self.source) as tif:
-                return self._check(self._page(tif, 0), 0)
-        return self._check(self._image(self.source / self.names[0]), 0)
-
     def _page(self, tif, i: int) -> np.ndarray:
         try:
             return tif.pages[int(self.names[i])].asarray()
@@ -259,30 +250,6 @@ class FrameFiles:
                 f"{frame.shape[1]} × {frame.shape[0]}"
             )
         return frame
-
-
-def check_recording(entry: dict, joints: Sequence[str]) -> None:
-    """The check of a frame recording before any job (``entry``: ``{file, table, pattern,
-    camera}``, :func:`calflow.data.recordings.entry`): the
-    joints table whole, the pattern file, the camera's fields and field of view on that
-    pattern, the frames' count (TIFF pages, or the folder's files the table names) and the
-    first frame's type and size. The table and the page index are read, one frame only; the
-    decoding reads and checks every frame. Raises :class:`DataError` in one line naming the
-    file (or ``camera``) and what was expected."""
-    from calflow.instruments.pattern.decode import field_of_view_problem
-    from calflow.instruments.readings import camera_of, frame_shape
-
-    table = read_table(entry["table"], joints)
-    pattern = load_pattern(entry["pattern"])
-    camera = camera_of(entry.get("camera") or {}, "camera")
-    h, w = frame_shape(camera)
-    measured = pattern.layout != "cell2x2" and not {"sensor_pixel_um", "magnification"} & set(
-        entry.get("camera") or {}
-    )  # a lab's target whose pixel size the decoder measures: the field of view is the frames'
-    problem = None if measured else field_of_view_problem(h, w, camera.pixel_um, pattern)
-    if problem:
-        raise DataError(f"camera: {problem}")
-    FrameFiles(entry["file"], table.frame, (h, w)).first()
 
 
 def load_pattern(path: str | Path):
