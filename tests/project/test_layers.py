@@ -151,3 +151,30 @@ def test_every_module_and_name_the_page_cites_exists(name):
     for part in (attr or "").split(".") if attr else ():
         assert hasattr(found, part), f"docs/architecture.md cites {name}: {found.__name__} has no {part}"
         found = getattr(found, part)
+
+
+@pytest.mark.parametrize(
+    "question, function",
+    [
+        ("AP's and RP's expanded uncertainty U", "calflow.metrics.uncertainty_iso.iso9283_uncertainty"),
+        ("a stage's history rebuilt", "calflow.lifecycle.history.build"),
+        ("the decoder turning a frame's phases and code into x", "calflow.instruments.pattern.decode.decode"),
+    ],
+)
+def test_a_newcomer_finds_the_code_from_readme_in_three_files(question, function):
+    """README.md links to the table of docs/architecture.md, whose row names the module that
+    holds the function: three files opened (README, the page, the module)."""
+    import importlib
+    import inspect
+
+    readme = (ROOT / "README.md").read_text()
+    assert "docs/architecture.md#where-to-find-it" in readme
+    table = DOC[DOC.index("## Where to find it") :]
+    table = table[: table.index("\n## ", 1)]
+    row = next((r for r in table.splitlines() if r.startswith(f"| {question}")), None)
+    assert row is not None and f"`{function}" in row, f"no row for {question!r} naming {function}"
+    module, _, name = function.rpartition(".")
+    found = getattr(importlib.import_module(module), name)
+    assert inspect.isfunction(found) and found.__module__ == module, (
+        f"{function} is defined in {found.__module__}, another file than the one the table names"
+    )
