@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from calflow.configuration.config import check_campaign_data, check_campaign_name, digest
-from calflow.errors import ConfigError
+from calflow.errors import CalflowError, ConfigError
 from calflow.step import Job
 
 #: YAML parses of campaign files in this process, by resolved path (a test counts them).
@@ -260,8 +260,12 @@ class Campaign(FrozenDict):
         return Sections(self, tuple(keys), step)
 
 
-class SectionNotHanded(KeyError):
-    """A step read a campaign section its rule does not hand it (nor digest)."""
+class SectionNotHanded(CalflowError, KeyError):
+    """A step read a campaign section its rule does not hand it (nor digest): a ``KeyError``
+    (a missing key of the mapping), reported as one line as every calflow error is."""
+
+    def __str__(self) -> str:  # KeyError's own quotes the message
+        return str(self.args[0]) if self.args else ""
 
 
 class Sections(FrozenDict):
