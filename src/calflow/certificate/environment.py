@@ -25,7 +25,10 @@ def temperatures(path: str):
     import numpy as np
     import xarray as xr
 
-    with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+    from calflow.summary_routing import already_open
+
+    ds = already_open(path)  # the summary job's own dataset, else only the temperature is read
+    with xr.open_dataset(path, engine="netcdf4", decode_times=False) if ds is None else ds as ds:
         if "temperature" not in ds:
             return None, ()
         t = np.asarray(ds["temperature"].values, float)

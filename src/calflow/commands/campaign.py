@@ -32,10 +32,12 @@ def summarise(args) -> None:
     truth = json.loads(Path(args.truth).read_text()) if args.truth else None
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
-    summary = family.step("summarise")(campaign, args.with_values(truth=truth))
     from calflow.certificate.annotate import annotate, stage_settings_or_fail
+    from calflow.summary_routing import opened_once
 
-    summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
+    with opened_once():  # the family's summary and the certificate read the same files
+        summary = family.step("summarise")(campaign, args.with_values(truth=truth))
+        summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
     write_json(summary, args.out)
 
 
