@@ -68,10 +68,6 @@ def parser() -> argparse.ArgumentParser:
         q.set_defaults(func=_run(s.run))
         for o in options_of(s.name):
             add_option(q, o)
-        if s.arguments:
-            from calflow.family import resolve
-
-            resolve(s.arguments)(q)
         if s.reads_campaign:  # a step that reads a campaign reads only what its rule hands it
             q.add_argument("--sections", help=SECTIONS_HELP)
     return p

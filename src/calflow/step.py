@@ -81,8 +81,8 @@ class Step:
       ``reads_per_job``: in words, what a rule adds per job (the plan's sections …).
     * ``inputs``, ``writes``: the files it reads and writes, as names of
       :mod:`calflow.configuration.layout` functions (``"run"``: ``layout.run``).
-    * ``arguments``: ``"module:function"`` that adds options to an ``argparse`` parser, for a
-      step whose command line has subcommands of its own (``calflow pattern make``).
+    * A step whose command line names an action (``calflow pattern make``) declares it as a
+      positional :class:`Option` with its ``choices``.
     """
 
     name: str
@@ -93,7 +93,6 @@ class Step:
     reads_per_job: str = ""
     inputs: tuple[str, ...] = ()
     writes: tuple[str, ...] = ()
-    arguments: str | None = None
 
     def __post_init__(self) -> None:
         if self.run.count(":") != 1 or not all(self.run.split(":")):

@@ -146,13 +146,56 @@ STEPS: tuple[Step, ...] = (
         "pattern",
         "an encoded dot pattern: its file, GDSII and preview (docs/instruments.md)",
         "calflow.instruments.pattern.commands:run_pattern",
-        arguments="calflow.instruments.pattern.commands:pattern_arguments",
+        (
+            Option(
+                "action", "make: write a pattern file, its GDSII for lithography and a PNG preview",
+                choices=("make",), metavar="make",
+            ),
+            Option("--range", "measuring range, e.g. 9500x4200", required=True, metavar="XxY", units="um"),
+            Option(
+                "--layout", "cell2x2 (calflow's, default) or megarena (FEMTO-ST's)",
+                choices=("cell2x2", "megarena"), default="cell2x2",
+            ),
+            Option("--period-um", "dot pitch; default 4 for cell2x2, 9 for megarena", "float", units="um"),
+            Option("--dot-um", "dot diameter; default half the period", "float", units="um"),
+            Option("--depth", "megarena: code depth, 4 to 12 (default: the smallest that covers the range)", "int"),
+            Option("--out", "folder for pattern.json, pattern.gds, pattern.png", "path", required=True),
+            Option("--name", "file stem (default: pattern)", default="pattern"),
+        ),
     ),
     Step(
         "decode",
         "decode frames of an encoded pattern into x, y, Θ (docs/instruments.md)",
         "calflow.instruments.pattern.commands:run_decode",
-        arguments="calflow.instruments.pattern.commands:decode_arguments",
+        (
+            Option("frames", "image files: TIFF (one frame or a stack) or PNG, monochrome", "path", many="+"),
+            Option(
+                "--pattern",
+                "the pattern file: calflow's (calflow pattern make) or the Vernier library's "
+                "MegarenaPattern or HPCodePattern JSON (HP-code markers: one CSV row per marker)",
+                "path", required=True,
+            ),
+            Option(
+                "--pixel-um",
+                "pixel size in the object plane (cell2x2 default: the default camera's; "
+                "megarena and hpcode default: measured from each frame)",
+                "float", units="um",
+            ),
+            Option(
+                "--fit-region",
+                "megarena: central fraction of the frame the phase planes are fitted on (1: whole frame; "
+                "0.5 as the Vernier library)",
+                "float", default=1.0,
+            ),
+            Option(
+                "--convention",
+                "megarena, hpcode: poses in calflow's convention or as the Vernier library prints them "
+                "(x, y, alpha, pixelSize; docs/instruments.md)",
+                choices=("calflow", "vernier"), default="calflow",
+            ),
+            Option("--jobs", "processes decoding frames (default: every core)", "int", default=0),
+            Option("--out", "poses.csv or poses.nc (default: print CSV)", "path"),
+        ),
     ),
 )
 # fmt: on

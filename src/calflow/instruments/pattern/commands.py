@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import math
@@ -13,59 +12,6 @@ from pathlib import Path
 from calflow.errors import CalflowError
 
 FIELDS = ("x_um", "y_um", "theta_deg", "u_x_um", "u_y_um", "u_theta_deg")
-
-
-def pattern_arguments(p: argparse.ArgumentParser) -> None:
-    sub = p.add_subparsers(dest="pattern_command", required=True)
-    m = sub.add_parser("make", help="write a pattern file, its GDSII for lithography and a PNG preview")
-    m.add_argument("--range", required=True, metavar="XxY", help="measuring range in µm, e.g. 9500x4200")
-    m.add_argument(
-        "--layout",
-        choices=("cell2x2", "megarena"),
-        default="cell2x2",
-        help="cell2x2 (calflow's, default) or megarena (FEMTO-ST's)",
-    )
-    m.add_argument("--period-um", type=float, help="dot pitch (µm; default 4 for cell2x2, 9 for megarena)")
-    m.add_argument("--dot-um", type=float, help="dot diameter (µm; default half the period)")
-    m.add_argument(
-        "--depth",
-        type=int,
-        help="megarena: code depth, 4 to 12 (default: the smallest that covers the range)",
-    )
-    m.add_argument("--out", required=True, help="folder for pattern.json, pattern.gds, pattern.png")
-    m.add_argument("--name", default="pattern", help="file stem (default: pattern)")
-
-
-def decode_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("frames", nargs="+", help="image files: TIFF (one frame or a stack) or PNG, monochrome")
-    p.add_argument(
-        "--pattern",
-        required=True,
-        help="the pattern file: calflow's (calflow pattern make) or the Vernier library's "
-        "MegarenaPattern or HPCodePattern JSON (HP-code markers: one CSV row per marker)",
-    )
-    p.add_argument(
-        "--pixel-um",
-        type=float,
-        help="pixel size in the object plane, µm (cell2x2 default: the default camera's; "
-        "megarena and hpcode default: measured from each frame)",
-    )
-    p.add_argument(
-        "--fit-region",
-        type=float,
-        default=1.0,
-        help="megarena: central fraction of the frame the phase planes are fitted on (1: whole frame; "
-        "0.5 as the Vernier library)",
-    )
-    p.add_argument(
-        "--convention",
-        choices=("calflow", "vernier"),
-        default="calflow",
-        help="megarena, hpcode: poses in calflow's convention or as the Vernier library prints them "
-        "(x, y, alpha, pixelSize; docs/instruments.md)",
-    )
-    p.add_argument("--jobs", type=int, default=0, help="processes decoding frames (default: every core)")
-    p.add_argument("--out", help="poses.csv or poses.nc (default: print CSV)")
 
 
 def _range(text: str) -> tuple[float, float]:
