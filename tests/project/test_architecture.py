@@ -240,3 +240,34 @@ def test_families_register_what_the_core_asks():
         for path in fam.rules_files():
             assert Path(path).is_file(), f"family {fam.name}: rules file {path} missing"
         assert fam.hooks().open_loop_runs or fam.rules, f"family {fam.name} adds no runs to the workflow"
+
+
+def _family_sources() -> dict[str, list[Path]]:
+    """Every installed family's Python files (the plug-in's too): the package of the module
+    its ``calflow.families`` entry point names."""
+    from importlib.metadata import entry_points
+    from importlib.util import find_spec
+
+    out = {}
+    for ep in entry_points(group="calflow.families"):
+        package = ep.module.rpartition(".")[0]
+        spec = find_spec(package)
+        assert spec is not None and spec.submodule_search_locations, f"family {ep.name}: no package {package}"
+        out[ep.name] = [p for d in spec.submodule_search_locations for p in Path(d).rglob("*.py")]
+    return out
+
+
+@pytest.mark.parametrize("word", ["argparse", "Namespace"])
+def test_no_family_knows_the_command_line_parser(word):
+    """A family's steps take typed inputs (calflow.step.Job), not an argparse Namespace: the
+    words appear in no family's code, the plug-in's included."""
+    sources = _family_sources()
+    assert {"xytheta", "nano", "hexapod"} <= set(sources)
+    found = [
+        f"{p}:{i}"
+        for files in sources.values()
+        for p in files
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if word in line
+    ]
+    assert not found, f"{word!r} in a family's code: {', '.join(found[:5])}"
