@@ -88,6 +88,29 @@ def test_route_groups_files_by_section_in_order(tmp_path):
     assert [p for p, _ in out["models"]] == [files[1]]
 
 
+def test_within_one_job_route_opens_each_file_once(tmp_path, monkeypatch):
+    """The summary job's family summary and its certificate route the same files: opened once,
+    each reader its own copy; outside opened_once(), every route opens again."""
+    import calflow.data.io as io
+    from calflow.summary_routing import already_open, opened_once
+
+    files = [_result(tmp_path / f"{i}.nc", "metrics", "a") for i in range(2)]
+    opened = []
+    real = io.open_dataset
+    monkeypatch.setattr(io, "open_dataset", lambda path, *a, **k: opened.append(path) or real(path, *a, **k))
+    sections = {"metrics": "metrics"}
+    with opened_once():
+        first = route(files, sections)
+        first["metrics"][0][1]["w"] = ("n", np.zeros(2))  # one reader adds a variable
+        second = route(files, sections)
+        assert already_open(files[1]) is not None
+    assert sorted(opened) == sorted(files)
+    assert "w" not in second["metrics"][0][1]  # the other reader does not see it
+    assert already_open(files[1]) is None
+    route(files, sections)
+    assert len(opened) == 2 * len(files)
+
+
 def test_route_refuses_a_file_no_section_takes(tmp_path):
     f = _result(tmp_path / "x.nc", "luts", "characterisation")
     with pytest.raises(DataError) as err:
