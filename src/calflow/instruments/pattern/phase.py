@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -52,6 +53,32 @@ def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
     return _tukey(n, alpha).astype(np.float32)
 
 
+@lru_cache(maxsize=4)
+def _window(h: int, w: int) -> np.ndarray:
+    """The frame's Tukey window (h, w), one per frame size (plans of one size share it)."""
+    return tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
+
+
+def _ring(h: int, w: int, f0: float):
+    """The bins (rows, columns, in row order) of a half-plane spectrum of h × w pixels between
+    RING[0]·f0 and RING[1]·f0 cycles per pixel, the half of the j = 0 column with negative row
+    frequencies left out (it mirrors the other half), and each bin's direction (degree).
+
+    Only the rows and columns the ring can reach are looked at, so that a plan for a new
+    frequency costs a fraction of a millisecond rather than a pass over the whole spectrum."""
+    fi_all = np.fft.fftfreq(h)
+    top = int(math.ceil(RING[1] * f0 * h)) + 1  # rows 0..top-1 and h-top..h-1 hold the ring
+    rows = np.arange(h) if 2 * top >= h else np.r_[0:top, h - top : h]
+    cols = np.arange(min(w // 2 + 1, int(math.ceil(RING[1] * f0 * w)) + 1))
+    fi = fi_all[rows][:, None]
+    fj = np.fft.rfftfreq(w)[cols][None, :]
+    rad = np.hypot(fi, fj)
+    ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
+    ri, rj = np.nonzero(ring)
+    angle = np.degrees(np.arctan2(fi[ri, 0], fj[0, rj]))
+    return rows[ri], cols[rj], angle
+
+
 def _fast(n: int) -> int:
     import scipy.fft  # here, not at import: the camera model's users need no scipy
 
@@ -65,13 +92,8 @@ class PhaseFitter:
         h, w = shape
         self.h, self.w, self.f0 = h, w, float(f0)
         self.workers = workers or os.cpu_count() or 1
-        self.window = tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
-        fi = np.fft.fftfreq(h)[:, None]
-        fj = np.fft.rfftfreq(w)[None, :]
-        rad = np.hypot(fi, fj)
-        ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
-        self.ring_i, self.ring_j = np.nonzero(ring)
-        self.ring_angle = np.degrees(np.arctan2(fi[self.ring_i, 0], fj[0, self.ring_j]))
+        self.window = _window(h, w)
+        self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
         self.ni = _fast(2 * self.bi + 1)
