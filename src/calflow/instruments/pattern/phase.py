@@ -48,9 +48,21 @@ class Planes:
 
 
 def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
-    from scipy.signal.windows import tukey as _tukey
+    """The Tukey (tapered cosine) window of n samples, float32 (Harris, Proc. IEEE 66, 1978):
+    w(x) = ½·(1 − cos(2π·d/α)) where d = min(x, 1 − x) < α/2, else 1, at x = k/(n − 1).
 
-    return _tukey(n, alpha).astype(np.float32)
+    The same window as ``scipy.signal.windows.tukey(n, alpha)`` (the tests check it), written
+    here because importing scipy.signal costs every decoding process over a second of CPU."""
+    if n == 1:
+        return np.ones(1, np.float32)
+    x = np.arange(n) / (n - 1)
+    d = np.minimum(x, 1.0 - x)
+    if alpha <= 0:
+        return np.ones(n, np.float32)
+    taper = d < alpha / 2
+    w = np.ones(n)
+    w[taper] = 0.5 * (1.0 - np.cos(2 * np.pi * d[taper] / min(alpha, 1.0)))
+    return w.astype(np.float32)
 
 
 @lru_cache(maxsize=4)
@@ -103,14 +115,17 @@ class PhaseFitter:
         self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
         # sample points of the cropped field, pixels from the frame centre
         self.yc, self.xc = (h - 1) / 2.0, (w - 1) / 2.0
-        ym = np.arange(self.ni) * (h / self.ni)
-        xm = np.arange(self.nj) * (w / self.nj)
-        self.ym, self.xm = np.meshgrid(ym, xm, indexing="ij")
+        self.ym1 = np.arange(self.ni) * (h / self.ni)
+        self.xm1 = np.arange(self.nj) * (w / self.nj)
+        self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
+        # the plane's design matrix (1, x − x_c, y − y_c) over the coarse samples
+        xr, yr = self.xm.ravel(), self.ym.ravel()
+        self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
 
     def spectrum(self, frames: np.ndarray) -> np.ndarray:
         """Step 2: the windowed, mean-removed frames' half-plane spectrum (n, h, w//2+1)."""
-        f = frames.astype(np.float32, copy=True)
-        f -= f.mean(axis=(1, 2), keepdims=True)
+        frames = np.asarray(frames, dtype=np.float32)  # no copy of float32 frames
+        f = frames - frames.mean(axis=(1, 2), keepdims=True)
         f *= self.window
         import scipy.fft
 
@@ -231,14 +246,16 @@ class PhaseFitter:
     def _fit(self, z, wgt, bin_, freq):
         """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6).
         Returns (phase at the frame centre, frequency (x, y) cycles/px, covariance)."""
-        xm, ym = self.xm.ravel(), self.ym.ravel()
-        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
+        A = self.A
         base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
         gx, gy = freq
         if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > 3):
             return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
         for _ in range(2):  # demodulate by the current frequency, fit, again
-            zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
+            # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
+            ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
+            ex = np.exp(2j * np.pi * (base_x - gx) * self.xm1)
+            zz = z * (ey[:, None] * ex[None, :]).ravel()
             ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
             psi = np.angle(zz * np.exp(-1j * ref))
             Aw = A * wgt[:, None]

@@ -30,11 +30,10 @@ def classes(present, known, S, T):
     fraction of sure sites contradicted — or None when no site is sure."""
     # every arrangement's counts are sums over the nine residue classes (S mod 3, T mod 3) of
     # the sites known to carry a dot and known to be empty
-    rs = np.broadcast_to((S % 3)[None, :], known.shape)[known]
-    rt = np.broadcast_to((T % 3)[:, None], known.shape)[known]
-    cell = 3 * rt + rs
-    dot = np.bincount(cell, weights=present[known], minlength=9).reshape(3, 3)  # [t class, s class]
-    seen = np.bincount(cell, minlength=9).reshape(3, 3)
+    rows = (T % 3)[None, :] == np.arange(3)[:, None]  # (3, len(T)): row T is of class t
+    cols = (S % 3)[:, None] == np.arange(3)[None, :]  # (len(S), 3)
+    seen = rows.astype(float) @ known.astype(float) @ cols  # [t class, s class]
+    dot = rows.astype(float) @ (known & present).astype(float) @ cols
     empty = seen - dot
     scores = []
     for a0 in range(3):
