@@ -51,27 +51,45 @@ def read_chunk(units: list[tuple[str, int]], shape: tuple[int, int] | None = Non
     import tifffile
 
     frames = []
-    for path, page in units:
-        p = Path(path)
-        if p.suffix.lower() in TIFF:
-            try:
-                with tifffile.TiffFile(p) as tif:
+    tif, tif_path = None, None  # a TIFF stack is opened once per chunk, not once per frame
+    try:
+        for path, page in units:
+            p = Path(path)
+            if p.suffix.lower() in TIFF:
+                try:
+                    if tif_path != p:
+                        if tif is not None:
+                            tif.close()
+                            tif = None
+                        tif = tifffile.TiffFile(p)
+                        tif_path = p
                     frame = tif.pages[page].asarray()
-            except Exception as exc:  # tifffile's and the OS's errors alike
-                raise DataError(f"{p}: frame {page}: not readable ({type(exc).__name__}: {exc})") from None
-            if frame.ndim != 2:
-                raise DataError(f"{p}: frame {page} of shape {frame.shape}; expected a monochrome frame")
-            if frame.dtype.kind not in "uif":
-                raise DataError(f"{p}: pixels of type {frame.dtype}; expected integers or floats")
-        else:
-            frame = _read(p)[0]
-        if shape is not None and frame.shape != tuple(shape):
-            raise DataError(
-                f"{p}: frame {page} is {frame.shape[1]} × {frame.shape[0]} pixels; "
-                f"expected {shape[1]} × {shape[0]} like the frames before it"
-            )
-        frames.append(frame)
+                except Exception as exc:  # tifffile's and the OS's errors alike
+                    raise DataError(
+                        f"{p}: frame {page}: not readable ({type(exc).__name__}: {exc})"
+                    ) from None
+            else:
+                frame = _read(p)[0]
+            frames.append(_checked(frame, p, page, shape))
+    finally:
+        if tif is not None:
+            tif.close()
     return np.stack(frames)
+
+
+def _checked(frame: np.ndarray, p: Path, page: int, shape) -> np.ndarray:
+    """The frame, or :class:`DataError` when it is not one monochrome frame of ``shape``."""
+    if p.suffix.lower() in TIFF:
+        if frame.ndim != 2:
+            raise DataError(f"{p}: frame {page} of shape {frame.shape}; expected a monochrome frame")
+        if frame.dtype.kind not in "uif":
+            raise DataError(f"{p}: pixels of type {frame.dtype}; expected integers or floats")
+    if shape is not None and frame.shape != tuple(shape):
+        raise DataError(
+            f"{p}: frame {page} is {frame.shape[1]} × {frame.shape[0]} pixels; "
+            f"expected {shape[1]} × {shape[0]} like the frames before it"
+        )
+    return frame
 
 
 def decode_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, **options):
@@ -84,6 +102,7 @@ def decode_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, **options):
         jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     jobs = max(1, min(jobs, len(chunks)))
     work = [(units, shape, pattern, options) for units in chunks]
+    _imported(pattern)  # before the pool forks: the workers inherit the modules, not import them
     if jobs == 1:
         parts = [_decode_chunk(w) for w in work]
     else:
@@ -92,6 +111,17 @@ def decode_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, **options):
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
             parts = list(pool.map(_decode_chunk, work))
     return _joined(parts), index
+
+
+def _imported(pattern) -> None:
+    """Import what decoding frames of ``pattern`` needs (its layout's decoder, scipy's FFT and
+    ndimage): a few tenths of a second each process would otherwise spend."""
+    import scipy.fft  # noqa: F401
+    import scipy.ndimage  # noqa: F401
+
+    from calflow.instruments.pattern.layouts import layout_of
+
+    layout_of(getattr(pattern, "layout", "cell2x2"))
 
 
 def _decode_chunk(job):
