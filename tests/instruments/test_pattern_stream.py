@@ -54,3 +54,26 @@ def test_bad_files_are_refused_in_one_line(recording, tmp_path):
     tifffile.imwrite(other, np.zeros((100, 120), np.uint8))
     with pytest.raises(DataError, match=r"small.tif: frame 0 is 120 × 100 pixels; expected 256 × 224"):
         decode_stream([folder / "stack.tif", other], PATTERN, 2, 4)
+
+
+def test_a_chunk_across_files_reads_each_frame_from_its_own(recording, tmp_path):
+    from calflow.instruments.pattern.stream import read_chunk
+
+    folder, frames = recording
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "reversed.tif", frames[:6][::-1], photometric="minisblack")
+    units = [
+        (str(folder / "stack.tif"), 4),
+        (str(folder / "stack.tif"), 1),
+        (str(tmp_path / "reversed.tif"), 0),
+    ]
+    units += [
+        (str(folder / "last.png"), 0),
+        (str(folder / "stack.tif"), 5),
+        (str(tmp_path / "reversed.tif"), 2),
+    ]
+    got = read_chunk(units, frames.shape[1:])
+    assert np.array_equal(got, frames[[4, 1, 5, 6, 5, 3]])
+    with pytest.raises(DataError, match=r"stack.tif: frame 9: not readable"):
+        read_chunk([(str(folder / "stack.tif"), 0), (str(folder / "stack.tif"), 9)])
