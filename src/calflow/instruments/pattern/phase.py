@@ -162,10 +162,13 @@ class PhaseFitter:
     def noise_power(self, spec: np.ndarray) -> np.ndarray:
         """Mean noise power per bin (n,), from the spectrum's corners beyond 0.4 cycle per pixel,
         where a microscope's optics leave only noise (an undersampled image overstates it)."""
-        hi_i = np.abs(np.fft.fftfreq(self.h)) > 0.4
-        hi_j = np.fft.rfftfreq(self.w) > 0.4
-        corner = spec[:, hi_i][:, :, hi_j]
-        return np.median(np.abs(corner.reshape(len(spec), -1)) ** 2, axis=1) / math.log(2)
+        # the rows beyond 0.4 are one run (the middle of the FFT's order), the columns the last
+        rows = np.flatnonzero(np.abs(np.fft.fftfreq(self.h)) > 0.4)
+        cols = np.flatnonzero(np.fft.rfftfreq(self.w) > 0.4)
+        if len(rows) == 0 or len(cols) == 0:  # a frame too small to have corners
+            return np.full(len(spec), np.nan)
+        corner = np.abs(spec[:, rows[0] : rows[-1] + 1, cols[0] :]) ** 2
+        return np.median(corner.reshape(len(spec), -1), axis=1) / math.log(2)
 
     def fit(self, spec: np.ndarray) -> Planes:
         """Steps 3–6 for every frame: a first pass with a box around each lobe's peak bin, then
