@@ -77,3 +77,23 @@ def test_a_chunk_across_files_reads_each_frame_from_its_own(recording, tmp_path)
     assert np.array_equal(got, frames[[4, 1, 5, 6, 5, 3]])
     with pytest.raises(DataError, match=r"stack.tif: frame 9: not readable"):
         read_chunk([(str(folder / "stack.tif"), 0), (str(folder / "stack.tif"), 9)])
+
+
+def test_a_cell2x2_recording_streams_too(tmp_path):
+    """calflow's own layout goes the same way: chunk by chunk on two processes, the whole
+    stack's poses."""
+    import tifffile
+
+    from calflow.instruments.pattern import Pattern
+    from calflow.instruments.pattern.decode import decode as decode_cell2x2
+
+    camera = Camera(width=224, height=192, sensor_pixel_um=12.0)
+    pattern = Pattern.make(range_um=(2000, 1500))
+    poses = np.array([[500.0 + 90 * k, 400.0 + 70 * k, 20.0 * k] for k in range(5)])
+    frames = camera.render_batch(pattern, poses, rng=3)
+    tifffile.imwrite(tmp_path / "cell.tif", frames, photometric="minisblack")
+    result, origin = decode_stream([tmp_path / "cell.tif"], pattern, 2, 2, pixel_um=camera.pixel_um)
+    whole = decode_cell2x2(frames, pattern, pixel_um=camera.pixel_um)
+    assert len(origin) == 5 and (result.status == "ok").all()
+    for key in ("x_um", "y_um", "theta_deg", "u_x_um"):
+        np.testing.assert_allclose(getattr(result, key), getattr(whole, key), rtol=0, atol=1e-9, err_msg=key)

@@ -120,7 +120,6 @@ def output_names(args, kinds=("json", "gds", "png")) -> dict:
 
 
 def run_decode(args) -> int:
-    from calflow.instruments.pattern.frames import read_frames
     from calflow.instruments.pattern.layouts import load_pattern
 
     if args.out and Path(args.out).suffix.lower() not in (".csv", ".nc"):
@@ -134,15 +133,12 @@ def run_decode(args) -> int:
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
         raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
-    if megarena:  # read and decoded chunk by chunk on every core: the stack is never held whole
-        from calflow.instruments.pattern.stream import decode_stream
+    # read and decoded chunk by chunk on every core: the stack is never held whole
+    from calflow.instruments.pattern.stream import decode_stream
 
-        result, origin = decode_stream(args.frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
-    else:
-        from calflow.instruments.pattern.decode import decode
-
-        frames, origin = read_frames(args.frames)
-        result = decode(frames, pattern, **kwargs)
+    if megarena:
+        kwargs["fit_region"] = args.fit_region
+    result, origin = decode_stream(args.frames, pattern, args.jobs, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
     else:

@@ -128,8 +128,7 @@ def _decode_chunk(job):
     from calflow.instruments.pattern.layouts import decode_frames
 
     units, shape, pattern, options = job
-    extra = {"workers": 1} if getattr(pattern, "layout", "cell2x2") != "cell2x2" else {}
-    return decode_frames(read_chunk(units, shape), pattern, **extra, **options)
+    return decode_frames(read_chunk(units, shape), pattern, workers=1, **options)
 
 
 def _joined(parts):
