@@ -97,3 +97,30 @@ def test_a_cell2x2_recording_streams_too(tmp_path):
     assert len(origin) == 5 and (result.status == "ok").all()
     for key in ("x_um", "y_um", "theta_deg", "u_x_um"):
         np.testing.assert_allclose(getattr(result, key), getattr(whole, key), rtol=0, atol=1e-9, err_msg=key)
+
+
+def test_hp_code_markers_stream_as_the_whole_stacks(tmp_path):
+    """HP-code recordings stream too: every marker of every frame, numbered by its frame in the
+    whole recording, as the whole stack decoded at once gives them."""
+    import tifffile
+
+    from calflow.instruments.pattern.hpcode import HPCodePattern, decode_markers
+    from calflow.instruments.pattern.hpcode.render import render
+    from calflow.instruments.pattern.stream import markers_stream
+
+    pattern, camera = HPCodePattern(4.0, 17), Camera(width=640, height=560)
+    frames = []
+    for k in range(5):
+        t = 10.0 * k
+        truth = [(7, 60.0 - k, -3.0, t), (300, -55.0, -5.0 + k, t + 2.0)] if k != 2 else [(9, 0.0, 0.0, t)]
+        frames.append(render(camera, pattern, truth, rng=k))
+    frames[3] = np.zeros_like(frames[3])  # no marker: a status, not a row lost
+    frames = np.stack(frames)
+    tifffile.imwrite(tmp_path / "markers.tif", frames, photometric="minisblack")
+    found, origin = markers_stream([tmp_path / "markers.tif"], pattern, 2, 2)
+    whole = decode_markers(frames, pattern)
+    assert len(origin) == 5 and found.n_frames == 5
+    assert found.frame.tolist() == whole.frame.tolist() and found.number.tolist() == whole.number.tolist()
+    assert found.status.tolist() == whole.status.tolist() and (found.status == "ok").sum() == 7
+    for key in whole.columns:
+        np.testing.assert_allclose(found.columns[key], whole.columns[key], rtol=0, atol=1e-9, err_msg=key)

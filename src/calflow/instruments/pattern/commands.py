@@ -157,16 +157,14 @@ def run_decode(args) -> int:
 
 def _decode_markers(args, pattern) -> int:
     """HP-code markers: one CSV row per marker found (:mod:`.hpcode.table`)."""
-    from calflow.instruments.pattern.frames import read_frames
-    from calflow.instruments.pattern.hpcode import decode_markers
     from calflow.instruments.pattern.hpcode.table import markers_csv
+    from calflow.instruments.pattern.stream import markers_stream
 
     if args.fit_region != 1.0:
         raise CalflowError("--fit-region: only for Megarena patterns (a marker is fitted on itself)")
     if args.out and args.out.lower().endswith(".nc"):
         raise CalflowError(f"--out {args.out}: HP-code markers are written one row per marker; write a .csv")
-    frames, origin = read_frames(args.frames)
-    found = decode_markers(frames, pattern, args.pixel_um)
+    found, origin = markers_stream(args.frames, pattern, args.jobs, pixel_um=args.pixel_um)
     text = markers_csv(found, origin, args.convention)
     if args.out:
         from calflow.data.io import write_text

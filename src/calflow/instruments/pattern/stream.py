@@ -6,7 +6,9 @@ one frame per PNG or JPEG), cut into chunks of :data:`CHUNK` frames, and a pool 
 each reads its chunk from the files and decodes it (one core a process, the phase planes'
 plans kept between a process's chunks): the parent holds the poses, never the frames, so the
 memory is the pool's chunks whatever the recording's length. The result is the one
-:func:`~calflow.instruments.pattern.layouts.decode_frames` gives on the whole stack.
+:func:`~calflow.instruments.pattern.layouts.decode_frames` gives on the whole stack, and for
+HP-code markers (:func:`markers_stream`) the table
+:func:`~calflow.instruments.pattern.hpcode.decode_markers` gives.
 """
 
 from __future__ import annotations
@@ -95,22 +97,34 @@ def _checked(frame: np.ndarray, p: Path, page: int, shape) -> np.ndarray:
 def decode_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, **options):
     """Decode every frame of ``paths`` (module docstring) with the pattern's layout, over ``jobs``
     processes (0: every core this process may use). Returns (result, [(file, page)…])."""
+    parts, index = _stream(paths, pattern, jobs, chunk, _decode_chunk, options)
+    return _joined(parts), index
+
+
+def markers_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, pixel_um: float | None = None):
+    """Every HP-code marker of every frame of ``paths``, streamed as :func:`decode_stream`
+    streams poses. Returns (:class:`~calflow.instruments.pattern.hpcode.decode.Markers` of the
+    whole recording, [(file, page)…])."""
+    parts, index = _stream(paths, pattern, jobs, chunk, _markers_chunk, {"pixel_um": pixel_um})
+    return _joined_markers(parts), index
+
+
+def _stream(paths, pattern, jobs: int, chunk: int, work, options):
+    """``work`` over the recording's chunks, in order, on ``jobs`` processes: (results, index)."""
     index = frame_index(paths)
     shape = read_chunk(index[:1]).shape[1:]
     chunks = [index[i : i + chunk] for i in range(0, len(index), chunk)]
     if jobs <= 0:
         jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     jobs = max(1, min(jobs, len(chunks)))
-    work = [(units, shape, pattern, options) for units in chunks]
+    jobs_args = [(units, shape, pattern, options) for units in chunks]
     _imported(pattern)  # before the pool forks: the workers inherit the modules, not import them
     if jobs == 1:
-        parts = [_decode_chunk(w) for w in work]
-    else:
-        methods = multiprocessing.get_all_start_methods()
-        context = multiprocessing.get_context("fork" if "fork" in methods else None)
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-            parts = list(pool.map(_decode_chunk, work))
-    return _joined(parts), index
+        return [work(a) for a in jobs_args], index
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        return list(pool.map(work, jobs_args)), index
 
 
 def _imported(pattern) -> None:
@@ -129,6 +143,29 @@ def _decode_chunk(job):
 
     units, shape, pattern, options = job
     return decode_frames(read_chunk(units, shape), pattern, workers=1, **options)
+
+
+def _markers_chunk(job):
+    from calflow.instruments.pattern.hpcode import decode_markers
+
+    units, shape, pattern, options = job
+    return decode_markers(read_chunk(units, shape), pattern, options["pixel_um"])
+
+
+def _joined_markers(parts):
+    """One table of the chunks' markers: each chunk's frame indices shifted by its start."""
+    from calflow.instruments.pattern.hpcode.decode import Markers
+
+    starts = np.cumsum([0] + [p.n_frames for p in parts[:-1]])
+    return Markers(
+        frame=np.concatenate([p.frame + start for p, start in zip(parts, starts)]),
+        number=np.concatenate([p.number for p in parts]),
+        columns={k: np.concatenate([p.columns[k] for p in parts]) for k in parts[0].columns},
+        status=np.concatenate([p.status for p in parts]),
+        reason=np.concatenate([p.reason for p in parts]),
+        n_frames=int(sum(p.n_frames for p in parts)),
+        shape=parts[0].shape,
+    )
 
 
 def _joined(parts):
