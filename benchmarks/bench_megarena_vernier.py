@@ -22,7 +22,12 @@ Speed: calflow's CPU time per frame in this process (one core) over the frames a
 new pixel size per frame builds a new plan of the phase planes), and over the frames of the
 first one's size repeated to ``--throughput-frames`` one after the other (one camera: one
 plan), against the driver's time per frame on one core (``OMP_NUM_THREADS=1``) on those
-files; then the same frames decoded on every core, wall time.
+files. Then ``calflow decode`` itself, a new process as a user runs it, on a TIFF stack of those
+``--throughput-frames`` frames with ``--jobs 0`` (every core) and ``--jobs 1``: its CPU time
+(the process and its workers, from the OS: trustworthy on a loaded machine) and its wall time,
+frames per second with and without its start-up (the same command on one frame). Frames per
+second are the machine's only when nothing else runs: the 1-minute load before and after is
+printed beside them, and the stderr lines say which figures hold.
 
     .venv/bin/python benchmarks/bench_megarena_vernier.py --period-um 9 --depth 12 \\
         --driver /path/to/driver --fit-region 0.5 --json IMAGE...
@@ -47,7 +52,6 @@ import numpy as np
 
 from calflow.instruments.pattern.frames import read_frames
 from calflow.instruments.pattern.megarena import MegarenaPattern, decode
-from calflow.instruments.pattern.megarena.commands import decode_parallel
 
 
 def library_poses(args, files) -> dict[str, dict]:
@@ -209,9 +213,8 @@ def main(argv=None) -> int:
         for r, f in zip(rows, frames)
         if f.shape == frames[0].shape and "ms" in r["library"]
     ]
-    t0 = time.perf_counter()
-    decode_parallel(many, pattern, 0, fit_region=args.fit_region)
-    wall = time.perf_counter() - t0
+    load_before = os.getloadavg()[0]
+    cli = calflow_decode_cli(many, args)
     lib_ms = [r["library"]["ms"] for r in rows if "ms" in r["library"]]
     summary = {
         "frames": len(rows),
@@ -227,13 +230,14 @@ def main(argv=None) -> int:
         "speed_ratio": (float(np.mean(lib_ms)) / cpu_ms) if lib_ms else None,
         "calflow_cpu_ms_per_frame_one_camera": one_camera_ms,
         "speed_ratio_one_camera": (float(np.mean(same)) / one_camera_ms) if same else None,
-        "calflow_decode_frames_per_s_all_cores": len(many) / wall,
-        "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
-        "load_1min": os.getloadavg()[0],
+        "calflow_decode": cli,
+        "cores": _cores(),
+        "load_1min": [load_before, os.getloadavg()[0]],
         "fit_region": args.fit_region,
         "noise_seed": args.noise,
         "machine": f"{platform.machine()} {platform.processor() or ''} {platform.system()} Python {platform.python_version()}".strip(),
     }
+    _speed_lines(summary)
     for r in rows:
         d = r.get("difference")
         tail = (
@@ -249,6 +253,99 @@ def main(argv=None) -> int:
         else json.dumps(summary, indent=1)
     )
     return 0
+
+
+def calflow_decode_cli(frames: np.ndarray, args) -> dict:
+    """``calflow decode`` itself (a new process, as a user runs it) on a TIFF stack of these
+    frames, on every core (``--jobs 0``) and on one: CPU seconds (the process and its workers,
+    from the OS's accounting: trustworthy on a loaded machine) and wall seconds (frames per
+    second: the machine's rate only when it is otherwise idle). The same command on the stack's
+    first frame alone gives the start-up (interpreter, imports, pattern file), taken off for
+    the rate after start-up."""
+    import resource
+
+    import tifffile
+
+    def run(stack: Path, jobs: int) -> tuple[float, float]:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        cmd = [str(Path(sys.executable).with_name("calflow")), "decode", str(stack), "--pattern"]
+        cmd += [
+            str(pattern_file),
+            "--jobs",
+            str(jobs),
+            "--fit-region",
+            f"{args.fit_region:g}",
+            "--out",
+            str(out),
+        ]
+        subprocess.run(cmd, check=True, capture_output=True)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        return wall, cpu
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        pattern_file, out = folder / "megarena.json", folder / "poses.csv"
+        pattern_file.write_text(
+            json.dumps({"MegarenaPattern": {"period": args.period_um, "codeDepth": args.depth}})
+        )
+        tifffile.imwrite(folder / "one.tif", frames[:1], photometric="minisblack")
+        tifffile.imwrite(folder / "stack.tif", frames, photometric="minisblack")
+        n = len(frames)
+        out_d = {"frames": n, "frame_shape": list(frames.shape[1:])}
+        for jobs in (0, 1):
+            start_wall, start_cpu = min(run(folder / "one.tif", jobs) for _ in range(2))
+            wall, cpu = run(folder / "stack.tif", jobs)
+            key = "all_cores" if jobs == 0 else "one_core"
+            out_d[key] = {
+                "wall_s": wall,
+                "cpu_s": cpu,
+                "cpu_ms_per_frame": 1000 * cpu / n,
+                "frames_per_s": n / wall,
+                "startup_wall_s": start_wall,
+                "startup_cpu_s": start_cpu,
+                "cpu_ms_per_frame_after_startup": 1000 * (cpu - start_cpu) / max(n - 1, 1),
+                "frames_per_s_after_startup": (n - 1) / max(wall - start_wall, 1e-9),
+            }
+    return out_d
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _speed_lines(s: dict) -> None:
+    """The speed figures in words on stderr: CPU time (trustworthy under load) apart from the
+    rates (wall time: the machine's only when nothing else runs)."""
+    c = s["calflow_decode"]
+    load = s["load_1min"]
+    say = lambda text: print(text, file=sys.stderr)  # noqa: E731
+    say(f"CPU per frame, one core (trustworthy under load): calflow {s['calflow_cpu_ms_per_frame']:.1f} ms")
+    if s["library_ms_per_frame"]:
+        say(f"  the library {s['library_ms_per_frame']:.1f} ms: {s['speed_ratio']:.1f}x")
+    if s["speed_ratio_one_camera"]:
+        say(
+            f"  one camera ({c['frames']} frames of one size in a row): calflow "
+            f"{s['calflow_cpu_ms_per_frame_one_camera']:.1f} ms, {s['speed_ratio_one_camera']:.1f}x"
+        )
+    for key, what in (("all_cores", f"--jobs 0 ({s['cores']} cores)"), ("one_core", "--jobs 1")):
+        r = c[key]
+        say(
+            f"calflow decode {what}, {c['frames']} frames: CPU {r['cpu_ms_per_frame']:.1f} ms a frame "
+            f"({r['cpu_ms_per_frame_after_startup']:.1f} after start-up); wall {r['wall_s']:.2f} s, "
+            f"{r['frames_per_s']:.0f} frames/s ({r['frames_per_s_after_startup']:.0f} after a start-up of "
+            f"{r['startup_wall_s']:.2f} s)"
+        )
+    say(
+        f"1-minute load {load[0]:.1f} before, {load[1]:.1f} after on {s['cores']} cores: "
+        + (
+            "rates are the machine's"
+            if max(load) < 0.5
+            else "rates (wall time) are NOT the machine's; CPU times are"
+        )
+    )
 
 
 def _wrap(a: float) -> float:

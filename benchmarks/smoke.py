@@ -38,6 +38,7 @@ SMOKE = {
     "bench_nano.py": ["--smoke"],
     "bench_max_coverage.py": ["--seeds", "4", "--trials", "500", "--json"],
     "bench_megarena_vernier.py": ["--smoke", "--json"],
+    "bench_megarena_witness.py": ["--smoke", "--json"],
     "bench_hpcode_vernier.py": ["--smoke", "--json"],
     "reliability_sigkill.py": ["--smoke", "--json", "--workdir", "{run}/sigkill"],
     "reliability_gcs_campaign.py": ["--smoke", "--json"],

@@ -189,7 +189,81 @@ def test_the_camera_sensor_reads_a_megarena_target(tmp_path, monkeypatch, given)
     sensor.close()
 
 
-def test_hpcode_markers_are_refused_by_the_camera_sensor(tmp_path, monkeypatch):
+HPCODE_CAMERA = {"width": 640, "height": 560}  # 0.375 µm pixels (the default optics)
+#: per frame: the fixed marker 0 and the moving marker 1, (number, x, y, Θ) as the renderer takes them
+HPCODE_TRUTH = [
+    [(0, 60.0, 50.0, 0.0), (1, -55.0, -40.0, 10.0)],
+    [(0, 60.0, 50.0, 0.0), (1, -52.5, -41.0, 10.3)],
+]
+
+
+def hpcode_source():
+    """A frame source serving frames of two HP-code markers (a plug-in of the tests)."""
+    from calflow.instruments.pattern import Camera
+    from calflow.instruments.pattern.hpcode import HPCodePattern
+    from calflow.instruments.pattern.hpcode.render import render
+
+    camera = Camera(**HPCODE_CAMERA)
+    return Frames([render(camera, HPCodePattern(4.0, 17), t, rng=k) for k, t in enumerate(HPCODE_TRUTH)])
+
+
+@pytest.mark.parametrize(
+    "marker, reference", [(1, None), (None, 0)], ids=["the marker named", "against a reference"]
+)
+def test_the_camera_sensor_reads_hp_code_markers(tmp_path, monkeypatch, marker, reference):
+    import json
+
+    from calflow.gcs.camera import camera_sensor
+    from calflow.instruments.pattern.hpcode import HPCodePattern, decode_markers, relative
+    from calflow.instruments.readings import readings_of
+
+    pattern = HPCodePattern(4.0, 17)
+    path = tmp_path / "markers.json"  # the Vernier library's file, as a lab has it
+    path.write_text(json.dumps(pattern.to_library_dict()))
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    sensor = camera_sensor(
+        source={"factory": "test_gcs_camera:hpcode_source"},
+        pattern=str(path),
+        camera=HPCODE_CAMERA,
+        marker=marker,
+        reference_marker=reference,
+    )
+    frames = hpcode_source().frames
+    for k, truth in enumerate(HPCODE_TRUTH):
+        r = sensor.read({}, 0.0)
+        assert r["decode_status"] == 0 and sensor.marker == 1  # named, or the lowest but the reference
+        if reference is None:  # the marker's own pose (Eq. 4.26: the reading's angle is −Θ)
+            _, x, y, theta = truth[1]
+            assert abs(r["meas_x"] - x) < 0.05 and abs(r["meas_y"] - y) < 0.05
+            assert abs(r["meas_theta"] + theta) < 0.01
+        else:  # the relative pose a frames recording's replay gives
+            want = readings_of(relative(decode_markers(frames[k], pattern), 1, 0, pattern.period_um))
+            for key in ("meas_x", "meas_y", "meas_theta"):
+                assert r[key] == pytest.approx(float(want[key][0]), abs=1e-9)
+    sensor.close()
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        ({"marker": 1}, "only for HP-code markers"),
+        ({"reference_marker": 0}, "only for HP-code markers"),
+    ],
+)
+def test_markers_named_for_another_layout_are_one_line(pattern_file, monkeypatch, options, words):
+    from calflow.gcs.camera import camera_sensor
+
+    monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
+    with pytest.raises(RigError) as err:
+        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=pattern_file, **options)
+    assert "\n" not in str(err.value) and words in str(err.value) and pattern_file in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"marker": -1}, {"marker": True}, {"reference_marker": "0"}, {"marker": 2, "reference_marker": 2}],
+)
+def test_bad_marker_numbers_are_one_line(tmp_path, monkeypatch, options):
     import json
 
     from calflow.gcs.camera import camera_sensor
@@ -198,5 +272,5 @@ def test_hpcode_markers_are_refused_by_the_camera_sensor(tmp_path, monkeypatch):
     path.write_text(json.dumps({"HPCodePattern": {"period": 15.5, "size": 17}}))
     monkeypatch.setenv("CALFLOW_RIG_PLUGINS", "test_gcs_camera")
     with pytest.raises(RigError) as err:
-        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=str(path))
-    assert "\n" not in str(err.value) and "HP-code" in str(err.value) and str(path) in str(err.value)
+        camera_sensor(source={"factory": "test_gcs_camera:blank_source"}, pattern=str(path), **options)
+    assert "\n" not in str(err.value) and "sensor.options." in str(err.value) and str(path) in str(err.value)

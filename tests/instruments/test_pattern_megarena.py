@@ -341,3 +341,42 @@ def test_sixteen_bit_frames_decode_like_eight_bit_ones(pattern):
     frame = deep.render(pattern, 333.0, 444.0, -33.0, rng=2)
     assert frame.dtype == np.uint16
     _right(decode(frame, pattern), 0, (333.0, 444.0, -33.0))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    shape=st.tuples(st.integers(1, 30), st.integers(1, 30)),
+    first=st.tuples(st.integers(-50, 50), st.integers(-50, 50)),
+    seed=st.integers(0, 2**32 - 1),
+    misread=st.floats(0.0, 0.6),
+)
+def test_the_arrangements_scores_are_the_sites_own(shape, first, seed, misread):
+    """The 36 arrangements scored from nine class counts: the scores a pass over every site
+    (the holes that must be empty, the always-full classes' sites that must carry dots) gives."""
+    from calflow.instruments.pattern.megarena.reading import classes
+
+    rng = np.random.default_rng(seed)
+    S, T = np.arange(shape[1]) + first[0], np.arange(shape[0]) + first[1]
+    a0, b0 = rng.integers(3, size=2)
+    present = ~(((S % 3)[None, :] == a0) & ((T % 3)[:, None] == b0))  # a grid whose holes are (a0, b0)
+    present ^= rng.random(shape) < misread
+    known = rng.random(shape) < 0.9
+    rs, rt = (S % 3)[None, :], (T % 3)[:, None]
+    scores = []
+    for a in range(3):
+        for b in range(3):
+            hole = known & (rs == a) & (rt == b)
+            for ds in (1, -1):
+                for dt in (1, -1):
+                    a2, b2 = (a + (2 if ds > 0 else 1)) % 3, (b + (2 if dt > 0 else 1)) % 3
+                    full = known & ((rs == a) | (rs == a2)) & ((rt == b) | (rt == b2)) & ~hole
+                    sure = int(hole.sum() + full.sum())
+                    if sure:
+                        bad = int((present & hole).sum() + (~present & full).sum())
+                        scores.append((bad / sure, (a, ds, b, dt)))
+    scores.sort(key=lambda s: s[0])
+    got = classes(present, known, S, T)
+    if not scores or scores[0][0] > 0.2:
+        assert got is None
+    else:
+        assert got == (scores[0][1], scores[1][0] - scores[0][0], scores[0][0])

@@ -15,12 +15,14 @@ import os
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from calflow.errors import DataError
+
+if TYPE_CHECKING:  # imported where a dataset is opened: writing text needs no xarray
+    import xarray as xr
 
 
 def output_folder(path: str | os.PathLike) -> Path:
@@ -178,6 +180,8 @@ def open_dataset(path: str | os.PathLike, kind: str | None = None, group: str | 
     Raises :class:`DataError` with one line naming the file and the problem when the file
     is missing, not netCDF, or of another ``calflow_kind`` than ``kind``.
     """
+    import xarray as xr
+
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: file not found")

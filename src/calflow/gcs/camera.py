@@ -27,7 +27,9 @@ An emulated source that renders a known pattern with a known camera model (its `
 and ``camera`` attributes) needs neither option. For a lab's target (a Megarena pattern) the
 pixel size is the camera's when ``camera`` gives ``sensor_pixel_um`` or ``magnification`` and
 is measured from each frame when it does not, as for a frames recording. HP-code markers
-(several a frame) are not read by this sensor: record frames and replay them.
+(several a frame): ``marker`` names the one measured (default: the lowest number of the first
+frame showing any, kept for the run) and ``reference_marker`` a fixed one it is measured
+against, as a frames recording names them (docs/data.md).
 """
 
 from __future__ import annotations
@@ -60,9 +62,18 @@ class CameraSensor:
     sensors = READINGS
     thermometers: tuple[str, ...] = ()
 
-    def __init__(self, source: FrameSource, pattern, camera, measure_pixel: bool = False) -> None:
+    def __init__(
+        self,
+        source: FrameSource,
+        pattern,
+        camera,
+        measure_pixel: bool = False,
+        marker: int | None = None,
+        reference: int | None = None,
+    ) -> None:
         self.source, self.pattern, self.camera = source, pattern, camera
         self.measure_pixel = measure_pixel  # a lab's target, its pixel size from each frame
+        self.marker, self.reference = marker, reference  # HP-code markers' numbers
         self.frames = 0
 
     def read(self, positions: Mapping[str, float], time_s: float) -> dict[str, float]:
@@ -82,15 +93,32 @@ class CameraSensor:
         if problem:
             raise RigError(f"gcs rig: camera sensor: frame {self.frames}: {problem}")
         try:
+            if getattr(self.pattern, "layout", "cell2x2") == "hpcode":
+                return self._marker_reading(frame)
             return decode_readings(frame[None], self.pattern, None if self.measure_pixel else self.camera)[0]
         except ValueError as exc:  # the camera cannot decode this pattern (field of view)
             raise RigError(f"gcs rig: camera sensor: {exc}") from None
+
+    def _marker_reading(self, frame: np.ndarray) -> dict[str, float]:
+        """The measured HP-code marker's reading, relative to the reference marker when one is
+        named; the marker measured, when not named, is the lowest number (the reference's left
+        out) of the first frame showing any, and stays that one."""
+        from calflow.instruments.pattern.hpcode import decode, decode_markers
+        from calflow.instruments.readings import readings_of
+
+        pixel = None if self.measure_pixel else self.camera.pixel_um
+        if self.marker is None:
+            found = decode_markers(frame[None], self.pattern, pixel)
+            numbers = set(found.number[found.status == "ok"].tolist()) - {self.reference, -1}
+            self.marker = min(numbers) if numbers else None
+        d = decode(frame[None], self.pattern, pixel, marker=self.marker, reference=self.reference)
+        return {k: float(v[0]) for k, v in readings_of(d).items()}
 
     def close(self) -> None:
         self.source.close()
 
 
-def camera_sensor(source=None, pattern=None, camera=None) -> CameraSensor:
+def camera_sensor(source=None, pattern=None, camera=None, marker=None, reference_marker=None) -> CameraSensor:
     """Built-in sensor ``camera`` of the ``gcs`` rig (module docstring)."""
     from calflow.errors import CalflowError
     from calflow.instruments.pattern.layouts import load_pattern
@@ -117,18 +145,31 @@ def camera_sensor(source=None, pattern=None, camera=None) -> CameraSensor:
             text = str(exc)
             raise RigError(text if text.startswith(pattern) else f"{pattern}: pattern file: {text}") from None
     layout = getattr(pat, "layout", "cell2x2")
-    if layout == "hpcode":
+    problem = _markers_problem(layout, marker, reference_marker)
+    if problem:
         grabber.close()
-        raise RigError(
-            f"{pattern}: gcs rig: sensor.options.pattern: HP-code markers are not read by the camera "
-            "sensor; expected a cell2x2 or megarena pattern (record frames and replay them)"
-        )
+        raise RigError(f"{pattern}: gcs rig: {problem}")
     if camera is None and getattr(grabber, "camera", None) is not None:
         model, measure = grabber.camera, False
     else:
         model = camera_of(camera or {}, "sensor.options.camera", RigError)
         measure = layout != "cell2x2" and not {"sensor_pixel_um", "magnification"} & set(camera or {})
-    return CameraSensor(grabber, pat, model, measure)
+    return CameraSensor(grabber, pat, model, measure, marker, reference_marker)
+
+
+def _markers_problem(layout: str, marker, reference) -> str | None:
+    """What is wrong with the HP-code markers named (``sensor.options.marker``,
+    ``reference_marker``) for a pattern of ``layout``, or None."""
+    named = {k: v for k, v in (("marker", marker), ("reference_marker", reference)) if v is not None}
+    if named and layout != "hpcode":
+        key = next(iter(named))
+        return f"sensor.options.{key}: only for HP-code markers (layout hpcode); this pattern's layout is {layout!r}"
+    for key, v in named.items():
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            return f"sensor.options.{key}: expected the number of an HP-code marker (an integer, 0 or more), got {v!r}"
+    if marker is not None and marker == reference:
+        return f"sensor.options.reference_marker: expected another marker than sensor.options.marker, got {reference!r}"
+    return None
 
 
 def load_source(spec: Mapping[str, Any]) -> FrameSource:

@@ -66,7 +66,6 @@ def output_names(args, kinds=("json", "gds", "png")) -> dict:
 
 
 def run_decode(args) -> int:
-    from calflow.instruments.pattern.frames import read_frames
     from calflow.instruments.pattern.layouts import load_pattern
 
     if args.out and Path(args.out).suffix.lower() not in (".csv", ".nc"):
@@ -80,15 +79,12 @@ def run_decode(args) -> int:
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
         raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
-    if megarena:  # read and decoded chunk by chunk on every core: the stack is never held whole
-        from calflow.instruments.pattern.stream import decode_stream
+    # read and decoded chunk by chunk on every core: the stack is never held whole
+    from calflow.instruments.pattern.stream import decode_stream
 
-        result, origin = decode_stream(args.frames, pattern, args.jobs, fit_region=args.fit_region, **kwargs)
-    else:
-        from calflow.instruments.pattern.decode import decode
-
-        frames, origin = read_frames(args.frames)
-        result = decode(frames, pattern, **kwargs)
+    if megarena:
+        kwargs["fit_region"] = args.fit_region
+    result, origin = decode_stream(args.frames, pattern, args.jobs, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
     else:
@@ -107,16 +103,14 @@ def run_decode(args) -> int:
 
 def _decode_markers(args, pattern) -> int:
     """HP-code markers: one CSV row per marker found (:mod:`.hpcode.table`)."""
-    from calflow.instruments.pattern.frames import read_frames
-    from calflow.instruments.pattern.hpcode import decode_markers
     from calflow.instruments.pattern.hpcode.table import markers_csv
+    from calflow.instruments.pattern.stream import markers_stream
 
     if args.fit_region != 1.0:
         raise CalflowError("--fit-region: only for Megarena patterns (a marker is fitted on itself)")
     if args.out and args.out.lower().endswith(".nc"):
         raise CalflowError(f"--out {args.out}: HP-code markers are written one row per marker; write a .csv")
-    frames, origin = read_frames(args.frames)
-    found = decode_markers(frames, pattern, args.pixel_um)
+    found, origin = markers_stream(args.frames, pattern, args.jobs, pixel_um=args.pixel_um)
     text = markers_csv(found, origin, args.convention)
     if args.out:
         from calflow.data.io import write_text

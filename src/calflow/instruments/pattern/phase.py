@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -47,9 +48,47 @@ class Planes:
 
 
 def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
-    from scipy.signal.windows import tukey as _tukey
+    """The Tukey (tapered cosine) window of n samples, float32 (Harris, Proc. IEEE 66, 1978):
+    w(x) = ½·(1 − cos(2π·d/α)) where d = min(x, 1 − x) < α/2, else 1, at x = k/(n − 1).
 
-    return _tukey(n, alpha).astype(np.float32)
+    The same window as ``scipy.signal.windows.tukey(n, alpha)`` (the tests check it), written
+    here because importing scipy.signal costs every decoding process over a second of CPU."""
+    if n == 1:
+        return np.ones(1, np.float32)
+    x = np.arange(n) / (n - 1)
+    d = np.minimum(x, 1.0 - x)
+    if alpha <= 0:
+        return np.ones(n, np.float32)
+    taper = d < alpha / 2
+    w = np.ones(n)
+    w[taper] = 0.5 * (1.0 - np.cos(2 * np.pi * d[taper] / min(alpha, 1.0)))
+    return w.astype(np.float32)
+
+
+@lru_cache(maxsize=4)
+def _window(h: int, w: int) -> np.ndarray:
+    """The frame's Tukey window (h, w), one per frame size (plans of one size share it)."""
+    return tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
+
+
+def _ring(h: int, w: int, f0: float):
+    """The bins (rows, columns, in row order) of a half-plane spectrum of h × w pixels between
+    RING[0]·f0 and RING[1]·f0 cycles per pixel, the half of the j = 0 column with negative row
+    frequencies left out (it mirrors the other half), and each bin's direction (degree).
+
+    Only the rows and columns the ring can reach are looked at, so that a plan for a new
+    frequency costs a fraction of a millisecond rather than a pass over the whole spectrum."""
+    fi_all = np.fft.fftfreq(h)
+    top = int(math.ceil(RING[1] * f0 * h)) + 1  # rows 0..top-1 and h-top..h-1 hold the ring
+    rows = np.arange(h) if 2 * top >= h else np.r_[0:top, h - top : h]
+    cols = np.arange(min(w // 2 + 1, int(math.ceil(RING[1] * f0 * w)) + 1))
+    fi = fi_all[rows][:, None]
+    fj = np.fft.rfftfreq(w)[cols][None, :]
+    rad = np.hypot(fi, fj)
+    ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
+    ri, rj = np.nonzero(ring)
+    angle = np.degrees(np.arctan2(fi[ri, 0], fj[0, rj]))
+    return rows[ri], cols[rj], angle
 
 
 def _fast(n: int) -> int:
@@ -65,13 +104,8 @@ class PhaseFitter:
         h, w = shape
         self.h, self.w, self.f0 = h, w, float(f0)
         self.workers = workers or os.cpu_count() or 1
-        self.window = tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
-        fi = np.fft.fftfreq(h)[:, None]
-        fj = np.fft.rfftfreq(w)[None, :]
-        rad = np.hypot(fi, fj)
-        ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
-        self.ring_i, self.ring_j = np.nonzero(ring)
-        self.ring_angle = np.degrees(np.arctan2(fi[self.ring_i, 0], fj[0, self.ring_j]))
+        self.window = _window(h, w)
+        self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
         self.ni = _fast(2 * self.bi + 1)
@@ -81,14 +115,17 @@ class PhaseFitter:
         self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
         # sample points of the cropped field, pixels from the frame centre
         self.yc, self.xc = (h - 1) / 2.0, (w - 1) / 2.0
-        ym = np.arange(self.ni) * (h / self.ni)
-        xm = np.arange(self.nj) * (w / self.nj)
-        self.ym, self.xm = np.meshgrid(ym, xm, indexing="ij")
+        self.ym1 = np.arange(self.ni) * (h / self.ni)
+        self.xm1 = np.arange(self.nj) * (w / self.nj)
+        self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
+        # the plane's design matrix (1, x − x_c, y − y_c) over the coarse samples
+        xr, yr = self.xm.ravel(), self.ym.ravel()
+        self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
 
     def spectrum(self, frames: np.ndarray) -> np.ndarray:
         """Step 2: the windowed, mean-removed frames' half-plane spectrum (n, h, w//2+1)."""
-        f = frames.astype(np.float32, copy=True)
-        f -= f.mean(axis=(1, 2), keepdims=True)
+        frames = np.asarray(frames, dtype=np.float32)  # no copy of float32 frames
+        f = frames - frames.mean(axis=(1, 2), keepdims=True)
         f *= self.window
         import scipy.fft
 
@@ -125,10 +162,13 @@ class PhaseFitter:
     def noise_power(self, spec: np.ndarray) -> np.ndarray:
         """Mean noise power per bin (n,), from the spectrum's corners beyond 0.4 cycle per pixel,
         where a microscope's optics leave only noise (an undersampled image overstates it)."""
-        hi_i = np.abs(np.fft.fftfreq(self.h)) > 0.4
-        hi_j = np.fft.rfftfreq(self.w) > 0.4
-        corner = spec[:, hi_i][:, :, hi_j]
-        return np.median(np.abs(corner.reshape(len(spec), -1)) ** 2, axis=1) / math.log(2)
+        # the rows beyond 0.4 are one run (the middle of the FFT's order), the columns the last
+        rows = np.flatnonzero(np.abs(np.fft.fftfreq(self.h)) > 0.4)
+        cols = np.flatnonzero(np.fft.rfftfreq(self.w) > 0.4)
+        if len(rows) == 0 or len(cols) == 0:  # a frame too small to have corners
+            return np.full(len(spec), np.nan)
+        corner = np.abs(spec[:, rows[0] : rows[-1] + 1, cols[0] :]) ** 2
+        return np.median(corner.reshape(len(spec), -1), axis=1) / math.log(2)
 
     def fit(self, spec: np.ndarray) -> Planes:
         """Steps 3–6 for every frame: a first pass with a box around each lobe's peak bin, then
@@ -209,14 +249,16 @@ class PhaseFitter:
     def _fit(self, z, wgt, bin_, freq):
         """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6).
         Returns (phase at the frame centre, frequency (x, y) cycles/px, covariance)."""
-        xm, ym = self.xm.ravel(), self.ym.ravel()
-        A = np.stack([np.ones_like(xm), xm - self.xc, ym - self.yc], axis=1)
+        A = self.A
         base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
         gx, gy = freq
         if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > 3):
             return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
         for _ in range(2):  # demodulate by the current frequency, fit, again
-            zz = z * np.exp(2j * np.pi * ((base_x - gx) * xm + (base_y - gy) * ym))
+            # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
+            ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
+            ex = np.exp(2j * np.pi * (base_x - gx) * self.xm1)
+            zz = z * (ey[:, None] * ex[None, :]).ravel()
             ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
             psi = np.angle(zz * np.exp(-1j * ref))
             Aw = A * wgt[:, None]

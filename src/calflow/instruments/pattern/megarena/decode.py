@@ -238,13 +238,17 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     T = np.arange(math.floor(st[:, 1].min()) - 1, math.ceil(st[:, 1].max()) + 2)
 
     def sample(ds, dt, S=S, T=T):
-        SS, TT = np.meshgrid(S + ds - sc, T + dt - tc)
-        xy = np.stack([SS, TT], -1) @ Kinv.T + rc
-        inside = (xy[..., 0] >= 1) & (xy[..., 0] <= w - 2) & (xy[..., 1] >= 1) & (xy[..., 1] <= h - 2)
-        return bilinear(frame, xy[..., 0], xy[..., 1]), inside
+        # the frame at the lattice points (S + ds, T + dt), pixel = K⁻¹·(lattice − phase) + centre
+        s, t = (S + ds - sc)[None, :], (T + dt - tc)[:, None]
+        x = Kinv[0, 0] * s + Kinv[0, 1] * t + rc[0]
+        y = Kinv[1, 0] * s + Kinv[1, 1] * t + rc[1]
+        inside = (x >= 1) & (x <= w - 2) & (y >= 1) & (y <= h - 2)
+        return bilinear(frame, x, y), inside
 
+    S1, T1 = np.append(S, S[-1] + 1), np.append(T, T[-1] + 1)
     v0, inside = sample(0.0, 0.0)
-    v1, in1 = sample(0.5, 0.5)
+    gaps, in_gaps = sample(-0.5, -0.5, S1, T1)
+    v1, in1 = gaps[1:, 1:], in_gaps[1:, 1:]  # the points (S + ½, T + ½)
     if (
         in1.any()
         and inside.any()
@@ -252,7 +256,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     ):  # dark dots: the fundamental's phase is π on them
         sc, tc = (sc + 0.5) % 1.0, (tc + 0.5) % 1.0
         v0, inside = sample(0.0, 0.0)
-    gaps = sample(-0.5, -0.5, np.append(S, S[-1] + 1), np.append(T, T[-1] + 1))[0]
+        gaps = sample(-0.5, -0.5, S1, T1)[0]
     contrast = v0 - 0.25 * (gaps[:-1, :-1] + gaps[:-1, 1:] + gaps[1:, :-1] + gaps[1:, 1:])
     if inside.sum() < 16:
         return _fail("fov_too_small", "fewer than 16 grid nodes in the frame")

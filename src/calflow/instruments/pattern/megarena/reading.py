@@ -28,21 +28,27 @@ def classes(present, known, S, T):
     """Step 3 of :mod:`.decode`: ((a0, ds, b0, dt), margin, contradicted) — the holes' class of each axis and its
     direction (+1: site index grows with S or T), the margin to the next arrangement and the
     fraction of sure sites contradicted — or None when no site is sure."""
-    rs = (S % 3)[None, :]
-    rt = (T % 3)[:, None]
+    # every arrangement's counts are sums over the nine residue classes (S mod 3, T mod 3) of
+    # the sites known to carry a dot and known to be empty
+    rows = (T % 3)[None, :] == np.arange(3)[:, None]  # (3, len(T)): row T is of class t
+    cols = (S % 3)[:, None] == np.arange(3)[None, :]  # (len(S), 3)
+    seen = rows.astype(float) @ known.astype(float) @ cols  # [t class, s class]
+    dot = rows.astype(float) @ (known & present).astype(float) @ cols
+    empty = seen - dot
     scores = []
     for a0 in range(3):
         for b0 in range(3):
-            hole = known & (rs == a0) & (rt == b0)
             for ds in (1, -1):
                 a2 = (a0 + (2 if ds > 0 else 1)) % 3
                 for dt in (1, -1):
                     b2 = (b0 + (2 if dt > 0 else 1)) % 3
-                    full = known & ((rs == a0) | (rs == a2)) & ((rt == b0) | (rt == b2)) & ~hole
-                    sure = int(hole.sum() + full.sum())
+                    # the hole (b0, a0) must be empty; the three other pairs of the two
+                    # always-full classes must carry dots
+                    full = [(t, s) for t in (b0, b2) for s in (a0, a2) if (t, s) != (b0, a0)]
+                    sure = int(seen[b0, a0] + sum(seen[c] for c in full))
                     if sure == 0:
                         continue
-                    bad = int((present & hole).sum() + (~present & full).sum())
+                    bad = int(dot[b0, a0] + sum(empty[c] for c in full))
                     scores.append((bad / sure, (a0, ds, b0, dt)))
     if not scores:
         return None

@@ -1,0 +1,232 @@
+"""A witness of a Megarena frame's angle that owes nothing to either decoder's phase fit: the
+dots' own centroids and a lattice fitted to them by least squares.
+
+Where calflow and the Vernier library disagree on a frame's angle, this says whether the
+frame has one angle at that level. Each dot the lattice predicts (calflow's coarse lattice
+only numbers the dots and seeds the search) is located by a Gaussian-weighted centroid,
+iterated until the window is centred on the dot itself (so the prediction does not pull it),
+over the central half of the frame (the library's fit region); then
+
+    c_k = o + s_k·u + t_k·v                                     (least squares over the dots)
+
+with (s_k, t_k) the dot's lattice indices and u, v the lattice vectors in pixels. The angle of
+the pattern's x axis is the direction of the lattice vector along it, with its standard
+uncertainty from the fit's residuals; the residuals' rms says how well one affine lattice
+fits the frame (a few thousandths of a pixel on a render; more where the optics distort), and
+the same fit on each quarter of the region gives the angle's spread across it.
+
+``--truth CSV`` (``file,alpha``, radians, as the library renders) checks the witness itself on
+frames of known angle; ``--library-csv`` (the driver's CSV, bench_megarena_vernier.py) adds
+the library's angle. The images are the user's (GPL-3.0 data stays outside calflow).
+
+    .venv/bin/python benchmarks/bench_megarena_witness.py --period-um 9 --depth 12 \\
+        --library-csv library.csv --json IMAGE...
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from calflow.instruments.pattern.frames import read_frames
+from calflow.instruments.pattern.megarena import MegarenaPattern, decode
+from calflow.instruments.pattern.megarena.decode import _fitter
+from calflow.instruments.pattern.megarena.period import fundamental
+
+REGION = 0.5  # the central fraction of the width and height (the library's fit region)
+
+
+def _wrap(a):
+    return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
+
+
+def lattice(frame: np.ndarray, depth: int):
+    """calflow's coarse lattice: every node's indices (s, t) and pixel position, and the period
+    in pixels. The dots are at the nodes, or at the cells' centres when they are dark."""
+    h, w = frame.shape
+    spec = _fitter(h, w, -116, 1).spectrum(frame[None].astype(np.float32))
+    f0 = fundamental(spec[0], h, w, depth)
+    planes = _fitter(h, w, round(math.log(f0) / math.log(1.02)), 1).fit(spec)
+    K, c = planes.freq[0], (planes.phase[0] / (2 * np.pi)) % 1.0
+    rc = np.array([(w - 1) / 2, (h - 1) / 2])
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], float) - rc
+    st = corners @ K.T + c
+    S, T = np.meshgrid(
+        np.arange(math.floor(st[:, 0].min()) - 1, math.ceil(st[:, 0].max()) + 2),
+        np.arange(math.floor(st[:, 1].min()) - 1, math.ceil(st[:, 1].max()) + 2),
+    )
+    s, t = S.ravel().astype(float), T.ravel().astype(float)
+    at = lambda off: np.stack([s + off - c[0], t + off - c[1]], 1) @ np.linalg.inv(K).T + rc  # noqa: E731
+    return s, t, at(0.0), at(0.5), float(1 / np.mean(np.hypot(K[:, 0], K[:, 1])))
+
+
+def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50) -> np.ndarray:
+    """Each dot's Gaussian-weighted centroid (σ a fifth of the period) over the background
+    (the window's 20th percentile), re-centred on itself until it moves less than 1e-5 pixel."""
+    h, w = img.shape
+    r = int(math.ceil(0.6 * period))
+    dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
+    sigma = 0.2 * period
+    p = xy.copy()
+    for _ in range(iterations):
+        ix, iy = np.rint(p[:, 0]).astype(int), np.rint(p[:, 1]).astype(int)
+        X, Y = ix[:, None, None] + dx, iy[:, None, None] + dy
+        patch = img[Y.clip(0, h - 1), X.clip(0, w - 1)]
+        background = np.percentile(patch.reshape(len(p), -1), 20, axis=1)[:, None, None]
+        g = np.exp(-((X - p[:, 0, None, None]) ** 2 + (Y - p[:, 1, None, None]) ** 2) / (2 * sigma**2))
+        wt = np.clip(patch - background, 0, None) * g
+        total = wt.sum(axis=(1, 2))
+        new = np.stack([(wt * X).sum(axis=(1, 2)) / total, (wt * Y).sum(axis=(1, 2)) / total], 1)
+        moved, p = np.nanmax(np.abs(new - p)), new
+        if moved < 1e-5:
+            break
+    return p
+
+
+def witness(frame: np.ndarray, depth: int) -> dict:
+    """The dots' lattice over the central half: per lattice vector (u along s, v along t) its
+    direction (rad, atan2 in pixel coordinates) and uncertainty, the fit's rms (pixels), the
+    number of dots, and the directions fitted on each quarter of the region."""
+    frame = frame.astype(float)
+    h, w = frame.shape
+    s, t, nodes, mids, period = lattice(frame, depth)
+    rc = np.array([(w - 1) / 2, (h - 1) / 2])
+
+    def value(xy):
+        return frame[
+            np.clip(np.rint(xy[:, 1]).astype(int), 0, h - 1), np.clip(np.rint(xy[:, 0]).astype(int), 0, w - 1)
+        ]
+
+    inside = np.all((nodes > period) & (nodes < np.array([w, h]) - 1 - period), axis=1)
+    spread = lambda xy: np.ptp(np.percentile(value(xy[inside]), [10, 90]))  # noqa: E731
+    if spread(mids) > spread(nodes):  # dark dots: at the cells' centres
+        nodes = mids
+    img = frame if np.median(value(nodes[inside])) > np.median(frame) else frame.max() - frame
+    v = value(nodes) if img is frame else frame.max() - value(nodes)
+    central = np.all(np.abs(nodes - rc) <= REGION * np.array([w, h]) / 2, axis=1)
+    dots = inside & central & (v > 0.5 * (np.percentile(v[inside], 5) + np.percentile(v[inside], 95)))
+    c = centroids(img, nodes[dots], period)
+    ok = np.isfinite(c).all(axis=1) & (np.hypot(*(c - nodes[dots]).T) < 0.25 * period)
+    s, t, c = s[dots][ok], t[dots][ok], c[ok]
+    A = np.stack([np.ones_like(s), s, t], 1)
+
+    def fit(m):
+        coef, *_ = np.linalg.lstsq(A[m], c[m], rcond=None)
+        return coef
+
+    coef = fit(np.ones(len(c), bool))
+    res = c - A @ coef
+    var = (res**2).sum(axis=0) / max(len(c) - 3, 1)
+    cov = np.linalg.inv(A.T @ A)
+    out = {"dots": int(len(c)), "rms_px": float(np.sqrt(var.mean())), "period_px": period}
+    for k, name in ((1, "u"), (2, "v")):
+        vec = coef[k]
+        a = math.atan2(vec[1], vec[0])
+        normal = np.array([-math.sin(a), math.cos(a)])
+        out[name] = (a, math.sqrt(float((normal**2 * var).sum() * cov[k, k] / (vec @ vec))))
+        quarters = []
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                m = (np.sign(c[:, 0] - rc[0]) == sx) & (np.sign(c[:, 1] - rc[1]) == sy)
+                q = fit(m)[k] if m.sum() > 10 else np.array([np.nan, np.nan])
+                quarters.append(math.atan2(q[1], q[0]))
+        out[name + "_quarters"] = quarters
+    return out
+
+
+def x_axis(w: dict, theta_x: float) -> tuple[float, float, list[float]]:
+    """The witness's direction of the pattern's x axis: the lattice vector (either sign, either
+    handedness of the pixel axes) whose direction is nearest calflow's — calflow only names the
+    axis; the angle is the dots'. Returns (angle, uncertainty, quarters), radians."""
+    best = min(
+        (abs(float(_wrap(sign * w[n][0] + turn - theta_x))), n, sign, turn)
+        for n in ("u", "v")
+        for sign in (1, -1)
+        for turn in (0.0, math.pi)
+    )
+    _, n, sign, turn = best
+    return (
+        float(_wrap(sign * w[n][0] + turn)),
+        w[n][1],
+        [float(_wrap(sign * q + turn)) for q in w[n + "_quarters"]],
+    )
+
+
+def smoke(folder: Path) -> list[str]:
+    """``--smoke``: two frames calflow's camera renders at known angles, and that truth."""
+    import tifffile
+
+    from calflow.instruments.pattern import Camera
+
+    cam = Camera(width=384, height=336, sensor_pixel_um=5.0, magnification=10.0)
+    rows = []
+    for k, (x, y, theta) in enumerate([(300.0, 420.0, 33.0), (250.0, 380.0, -12.0)]):
+        tifffile.imwrite(folder / f"smoke_{k}.tif", cam.render(MegarenaPattern(4.0, 6), x, y, theta, rng=k))
+        rows.append(f"smoke_{k}.tif,{math.radians(theta)!r}")
+    (folder / "truth.csv").write_text("file,alpha\n" + "\n".join(rows) + "\n")
+    files = [str(folder / f"smoke_{k}.tif") for k in range(2)]
+    return [*files, "--period-um", "4", "--depth", "6", "--truth", str(folder / "truth.csv")]
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--smoke" in argv:
+        argv.remove("--smoke")
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(smoke(Path(tmp)) + argv)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("images", nargs="+")
+    p.add_argument("--period-um", type=float, required=True)
+    p.add_argument("--depth", type=int, required=True)
+    p.add_argument("--truth", help="CSV file,alpha (radians): the angles the frames were rendered at")
+    p.add_argument("--library-csv", help="the Vernier driver's CSV (file,found,x,y,alpha,pixelSize,ms)")
+    p.add_argument("--json", action="store_true")
+    args = p.parse_args(argv)
+    pattern = MegarenaPattern(args.period_um, args.depth)
+    read = lambda path: {Path(r["file"]).name: r for r in csv.DictReader(open(path))} if path else {}  # noqa: E731
+    truth, library = read(args.truth), read(args.library_csv)
+    rows = []
+    for path in args.images:
+        frame = read_frames([path])[0][0]
+        r = decode(frame, pattern, fit_region=REGION)
+        name = Path(path).name
+        row = {"file": name, "calflow_status": str(r.status[0])}
+        if r.status[0] == "ok":
+            ours = math.radians(float(r.theta_x_deg[0]))
+            w = witness(frame, pattern.depth)
+            angle, u, quarters = x_axis(w, ours)
+            row |= {
+                "dots": w["dots"],
+                "rms_px": w["rms_px"],
+                "witness_alpha": angle,
+                "u_witness_urad": 1e6 * u,
+            }
+            row["quarters_minus_witness_urad"] = [1e6 * float(_wrap(q - angle)) for q in quarters]
+            row["calflow_minus_witness_urad"] = 1e6 * float(_wrap(ours - angle))
+            lib = library.get(name)
+            if lib and lib["found"].strip() in ("1", "true", "True"):
+                row["library_minus_witness_urad"] = 1e6 * float(_wrap(float(lib["alpha"]) - angle))
+            if name in truth:
+                row["witness_minus_truth_urad"] = 1e6 * float(_wrap(angle - float(truth[name]["alpha"])))
+                row["calflow_minus_truth_urad"] = 1e6 * float(_wrap(ours - float(truth[name]["alpha"])))
+        rows.append(row)
+        print(
+            f"{name}: "
+            + ", ".join(
+                f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items() if k != "file"
+            ),
+            file=sys.stderr,
+        )
+    print(json.dumps({"region": REGION, "frames": rows}, indent=1 if args.json else None))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

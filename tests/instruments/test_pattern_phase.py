@@ -1,0 +1,35 @@
+"""The shared phase part's pieces written for speed are the ones they replace: the Tukey window
+is scipy's, and a plan's ring of bins, found from the rows and columns it can reach, is the one
+a pass over the whole spectrum finds."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calflow.instruments.pattern.phase import RING, _ring, tukey
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 3000), alpha=st.one_of(st.just(0.0), st.floats(1e-3, 1.5)))  # below, scipy rounds
+def test_the_tukey_window_is_scipys(n, alpha):
+    from scipy.signal.windows import tukey as scipy_tukey
+
+    ours = tukey(n, alpha)
+    assert ours.dtype == np.float32 and ours.shape == (n,)
+    np.testing.assert_allclose(ours, scipy_tukey(n, alpha), rtol=0, atol=2e-7)
+
+
+@settings(max_examples=60, deadline=None)
+@given(h=st.integers(32, 1200), w=st.integers(32, 1200), f0=st.floats(0.02, 0.34))
+def test_the_ring_is_the_whole_spectrums(h, w, f0):
+    fi = np.fft.fftfreq(h)[:, None]
+    fj = np.fft.rfftfreq(w)[None, :]
+    rad = np.hypot(fi, fj)
+    ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
+    rows, cols = np.nonzero(ring)
+    angle = np.degrees(np.arctan2(fi[rows, 0], fj[0, cols]))
+    got = _ring(h, w, f0)
+    assert np.array_equal(got[0], rows) and np.array_equal(got[1], cols)
+    assert np.array_equal(got[2], angle)
