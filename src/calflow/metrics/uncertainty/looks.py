@@ -16,7 +16,7 @@ import numpy as np
 
 from calflow.metrics.uncertainty.draws import Draws
 from calflow.metrics.uncertainty.montecarlo import COUNT_TRIALS, candidates, largest_bounds
-from calflow.metrics.uncertainty.tails import Difference, TailSample
+from calflow.metrics.uncertainty.tails import Column, TailSample
 
 STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
 
@@ -244,12 +244,9 @@ class Looks:
         rows_top = [self._column(s, int(j), block_ids, drawn) for j in top]
         rows_bottom = [self._column(s, int(j), block_ids, drawn) for j in bottom]
         nb = bottom.size
-        sorted_top = [np.sort(r) for r in rows_top]
-        sorted_bottom = [np.sort(r) for r in rows_bottom]
 
         def column(q):
             c = rows_top[q // nb] - rows_bottom[q % nb]
-            c = c + add if add is not None else c
-            return Difference(c, e[q], sorted_top[q // nb], sorted_bottom[q % nb], float(extra.max()))
+            return Column(c + add if add is not None else c, e[q])
 
         return (*largest_bounds(e, column, upper, trials, self.level, t_eff), t_eff)

@@ -158,13 +158,14 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
     the lower ones at the Šidák level over ``t_eff`` candidates with the risk
     :func:`lower_risk` leaves them, the upper ones at each cell's own 1 − (1 − level)/2.
 
-    ``column(j)``: cell j's draws (M,), or a :class:`.tails.Column` (its tails, a pair's
-    difference with a cap on its percentiles); ``upper`` (T,): a number no smaller than any of
-    them (their maximum). A percentile of a cell's draws is at most their maximum, so a cell
-    whose ``upper`` lies below both bounds found so far cannot change them and its
-    percentiles are not computed: the result is the same as from every cell, at the cost of
-    the few cells near the top (and the draws of a range's many pairs of cells need never be
-    in memory at once, :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`).
+    ``column(j)``: cell j's draws (M,), or a :class:`.tails.Column` (a cell's tails, a range's
+    pair of cells); ``upper`` (T,): a number no smaller than any of them (their maximum). A
+    percentile of a cell's draws is at most their maximum, so a cell whose ``upper`` lies below
+    both bounds found so far cannot change them and its percentiles are not computed; nor is
+    one that a count of the draws at or below the bound shows cannot exceed it: the result is
+    the same as from every cell, at the cost of the few cells near the top (and the draws of a
+    range's many pairs of cells need never be in memory at once,
+    :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`).
     """
     y = np.atleast_1d(np.asarray(estimates, float))
     upper = np.asarray(upper, float)
@@ -183,13 +184,13 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
         if isinstance(x, np.ndarray):
             x = Column(x, y[j])
         z0 = ndtri(np.clip(x.share_below(), 1.0 / trials, 1.0 - 1.0 / trials))
-        # a percentile is computed only where it can move its bound: not where the cap, or
-        # the count of draws at or below the bound (:meth:`.tails.Column.at_most`), says it
-        # lies below it — the same numbers, a count per cell instead of a partial sort
+        # a percentile is computed only where it can move its bound: not where the count of
+        # draws at or below the bound (:meth:`.tails.Column.at_most`) says it cannot exceed
+        # it — the same numbers, a count per cell instead of a partial sort
         sides = [
             (side, q)
             for side, q, bound in ((0, ndtr(2 * z0 + za), lo), (1, ndtr(2 * z0 - zb), hi))
-            if upper[j] >= bound and x.cap(q) >= bound and not x.at_most(q, bound)
+            if upper[j] >= bound and not x.at_most(q, bound)
         ]
         for (side, _), v in zip(sides, x.quantile([q for _, q in sides]), strict=True):
             if side == 0:

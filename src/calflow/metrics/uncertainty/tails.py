@@ -137,37 +137,11 @@ class Column:
     def quantile(self, qs) -> list[float]:
         return [quantile(self.x, float(q)) for q in qs]
 
-    def cap(self, q: float) -> float:
-        """A number no smaller than the q-percentile (none known here: +∞)."""
-        return math.inf
-
     def at_most(self, q: float, bound: float) -> bool:
         """Whether the q-percentile is provably no larger than ``bound`` — it cannot raise a
         bound found so far — by one count instead of a partial sort: the order statistic
         above it is ≤ ``bound`` when at least rank + 1 draws are."""
         return bool(np.count_nonzero(self.x <= bound) > _upper_rank(self.x.size, q))
-
-
-class Difference(Column):
-    """A range's pair of cells: the column x_top − x_bottom (+ a per-trial addition ≤ ``add_max``)
-    and the two cells' sorted columns, which bound its percentiles without a partial sort.
-
-    Of the n trials, at most n − 1 − (r + k) have x_top above its order statistic X₍ᵣ₊ₖ₎ and
-    at most k have x_bottom below Y₍ₖ₎, so at least r + 1 differences are ≤ X₍ᵣ₊ₖ₎ − Y₍ₖ₎:
-    the r-th smallest difference, and a percentile read at or below it, is no larger (the
-    union bound, whichever k: a few are tried)."""
-
-    def __init__(self, x, estimate, top_sorted, bottom_sorted, add_max: float):
-        super().__init__(x, estimate)
-        self.top, self.bottom, self.add_max = top_sorted, bottom_sorted, add_max
-
-    def cap(self, q: float) -> float:
-        n = self.x.size
-        r = min(math.ceil(_virtual_index(n, q)), n - 1)
-        room = n - 1 - r
-        best = min(self.top[r + k] - self.bottom[k] for k in {0, room // 4, room // 2, 3 * room // 4, room})
-        size = abs(self.top[-1]) + abs(self.bottom[0]) + abs(self.add_max)
-        return float(best + self.add_max + 1e-9 * size)  # far above the rounding of x_top − x_bottom + add
 
 
 class TailSample:
@@ -184,9 +158,6 @@ class TailSample:
     def share_below(self) -> float:
         """The share of the draws below the estimate (``np.mean(x < y)``: the same number)."""
         return self.below / self.n
-
-    def cap(self, q: float) -> float:
-        return math.inf
 
     def at_most(self, q: float, bound: float) -> bool:
         """Whether the q-percentile is provably ≤ ``bound`` (:meth:`Column.at_most`), from
