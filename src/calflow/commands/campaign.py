@@ -34,8 +34,12 @@ def summarise(args) -> None:
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
     summary = family.step("summarise")(campaign, args.with_values(truth=truth))
     from calflow.certificate.annotate import annotate, stage_settings_or_fail
+    from calflow.commands.kept import iso230_2_uncertainty
 
-    summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
+    # a characterisation's ISO 230-2 U is kept between runs: a change of validation alone
+    # does not compute it again
+    settings = stage_settings_or_fail(args.settings)
+    summary = annotate(summary, campaign, args.files, settings, iso230_2=iso230_2_uncertainty)
     write_json(summary, args.out)
 
 
