@@ -171,3 +171,17 @@ def test_numpy_numbers_infinite_dof_and_notes_come_back_the_same(folder, monkeyp
         plain = {"default": lambda o: o.item()}  # the summary's writer: numpy scalars as numbers
         assert json.dumps(back.record(), **plain) == json.dumps(made.record(), **plain)
         assert back.value == made.value and back.samples is None
+
+
+def test_the_code_digest_covers_the_monte_carlo_it_keeps():
+    from calflow.provenance import closure
+
+    reached = set(closure(kept.COMPUTES))
+    assert {
+        "calflow.metrics.uncertainty_iso",
+        "calflow.metrics.uncertainty.stream",
+        "calflow.metrics.uncertainty.draws",
+        "calflow.metrics.uncertainty.montecarlo",
+        "calflow.metrics.uncertainty.budget",
+        "calflow.metrics.iso230_2",
+    } <= reached

@@ -3,9 +3,9 @@
 A characterisation's sweeps do not change when only a campaign's validation does, yet their
 Monte Carlo is most of the summary's CPU. Its result is kept under a hash of everything it
 depends on: the run's arrays (their bytes), its origin, the sensor's declared terms, the
-Monte Carlo's trials and seed, numpy's version (the draws) and the normalised source of every
-calflow module :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty` reaches
-(:mod:`calflow.provenance`). A result kept is therefore the one the same computation gives
+Monte Carlo's trials and seed, numpy's and scipy's versions (the draws, the t and normal
+quantiles) and the normalised source of every calflow module
+:func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty` reaches (:mod:`calflow.provenance`). A result kept is therefore the one the same computation gives
 now; a change of any of these computes it again. What is kept is every field of each
 :class:`~calflow.metrics.uncertainty.Uncertainty` but its samples (which a summary does not
 write), and a result computed now passes through the same JSON as one read back, so the
@@ -40,10 +40,11 @@ def key(
 ) -> str:
     """SHA-256 of everything an ISO 230-2 run's U depends on (module notes)."""
     import numpy as np
+    import scipy
 
     from calflow.provenance import closure, module_digest
 
-    h = hashlib.sha256(f"iso230_2 U v1 numpy {np.__version__}".encode())
+    h = hashlib.sha256(f"iso230_2 U v1 numpy {np.__version__} scipy {scipy.__version__}".encode())
     h.update(module_digest(*closure(COMPUTES)).encode())
     for array in (targets, forward, backward):
         a = np.ascontiguousarray(np.asarray(array, float))
