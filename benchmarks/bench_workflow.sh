@@ -27,8 +27,9 @@ echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(n
 t() { local s; s=$(date +%s.%N); "$@" > /dev/null 2>&1; python3 -c "print(round($(date +%s.%N) - $s, 1))"; }
 best() { sort -n | head -1; }
 load() { cut -d' ' -f1 /proc/loadavg; }
-fresh() {  # a scratch project with no results
-    rm -rf "$work/p"; mkdir "$work/p"
+fresh() {  # a scratch project with no results, and an empty cache (calflow.cache): a cold run keeps nothing
+    rm -rf "$work/p" "$work/cache"; mkdir "$work/p"
+    export CALFLOW_CACHE_DIR="$work/cache"
     cp -r "$root/Snakefile" "$root/workflow" "$root/config" "$work/p/"
     if [ -n "$smoke" ]; then  # 2 training cycles, 2 validation tests of 4 cycles
         sed -i -e 's/cycles: 12,/cycles: 2,/' -e 's/^  tests: 16 .*/  tests: 2/' -e 's/^  cycles: 20$/  cycles: 4/' \

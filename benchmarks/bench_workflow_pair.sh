@@ -37,6 +37,8 @@ for pair in "old:$old" "new:$new"; do
             "$p/config/campaigns/nano2d-thesis.yaml"
     fi
     sm="$tree/.venv/bin/snakemake"
+    # each tree its own empty cache (calflow.cache): a cold run keeps nothing from earlier runs
+    export CALFLOW_CACHE_DIR="$work/$name/cache"
     cd "$p"
     timed "$name cold" "$sm" --cores "$cores" "${sm_args[@]}"
     for i in $(seq "$noops"); do timed "$name no-op $i" "$sm" --cores "$cores" "${sm_args[@]}"; done

@@ -18,6 +18,7 @@ result files only, never the simulated truth.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from calflow.certificate import conformity
@@ -55,15 +56,17 @@ def _dig(summary: dict, path: tuple[str, ...]):
     return node if isinstance(node, dict) else None
 
 
-def uncertainties(m: Measurement) -> dict[str, Uncertainty]:
-    """The U of a measurement's figures (its family's data and terms)."""
+def uncertainties(m: Measurement, iso230_2: Callable | None = None) -> dict[str, Uncertainty]:
+    """The U of a measurement's figures (its family's data and terms); ``iso230_2``: what
+    computes an ISO 230-2 run's (its arguments and results those of
+    :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`, the default)."""
     from calflow.metrics.uncertainty_iso import iso230_2_uncertainty, iso9283_uncertainty
 
     d = m.data
     if m.kind == "iso9283":
         return iso9283_uncertainty(d["command"], d["attained"], m.terms, origin=d.get("origin"))
     if m.kind == "iso230_2":
-        return iso230_2_uncertainty(
+        return (iso230_2 or iso230_2_uncertainty)(
             d["targets"], d["forward"], d["backward"], m.terms, origin=d.get("origin", 0.0)
         )
     return {}
@@ -122,8 +125,16 @@ def _found_uncertainty(parent: dict, found: dict, key: str) -> dict | None:
     return None
 
 
-def annotate(summary: dict, campaign: dict, files: list[str], settings: dict | None = None) -> dict:
-    """``summary`` with the certificate keys (module notes); ``settings``: the stage's.
+def annotate(
+    summary: dict,
+    campaign: dict,
+    files: list[str],
+    settings: dict | None = None,
+    iso230_2: Callable | None = None,
+) -> dict:
+    """``summary`` with the certificate keys (module notes); ``settings``: the stage's;
+    ``iso230_2``: what computes an ISO 230-2 run's U (:func:`uncertainties`; the summary step
+    keeps a characterisation's between runs, :mod:`calflow.commands.kept`).
 
     As found and as left are decided apart (``certificate.decisions``): what the stage
     leaves the lab with, ``certificate.decision``, is the as-left decision when the campaign
@@ -144,7 +155,7 @@ def annotate(summary: dict, campaign: dict, files: list[str], settings: dict | N
         if parent is None:
             continue
         chain += [t for t in m.traceability if t not in chain]
-        results = uncertainties(m)
+        results = uncertainties(m, iso230_2)
         for name, key in m.keys.items():
             if key not in parent:
                 continue

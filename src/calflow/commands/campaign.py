@@ -33,11 +33,15 @@ def summarise(args) -> None:
     if args.budget:  # the error budget's replays on the simulated truth: reports only, like the truth
         truth = {**(truth or {}), "error_budget": json.loads(Path(args.budget).read_text())}
     from calflow.certificate.annotate import annotate, stage_settings_or_fail
+    from calflow.commands.kept import iso230_2_uncertainty
     from calflow.summary_routing import opened_once
 
+    settings = stage_settings_or_fail(args.settings)
     with opened_once():  # the family's summary and the certificate read the same files
         summary = family.step("summarise")(campaign, args.with_values(truth=truth))
-        summary = annotate(summary, campaign, args.files, stage_settings_or_fail(args.settings))
+        # a characterisation's ISO 230-2 U is kept between runs: a change of validation alone
+        # does not compute it again
+        summary = annotate(summary, campaign, args.files, settings, iso230_2=iso230_2_uncertainty)
     write_json(summary, args.out)
 
 

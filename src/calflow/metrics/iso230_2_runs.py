@@ -29,14 +29,20 @@ def tables_of_run(run: xr.Dataset, attained=None, target=None):
         raise DataError(f"{_where(run)}: no target is reached in both directions; ISO 230-2 needs both")
 
     def table(sign: int) -> tuple[np.ndarray, np.ndarray]:
-        d = direction == sign
-        cycles = np.unique(cycle[d])
+        # each sample's cell (target, cycle), the samples of a cell in their order
+        rows = np.flatnonzero(direction == sign)
+        cycles = np.unique(cycle[rows])
         a = np.full((both.size, cycles.size), np.nan)
-        for j, c in enumerate(cycles):
-            for i, t in enumerate(both):
-                sel = d & (cycle == c) & (key == t)
-                if sel.any():
-                    a[i, j] = np.nanmean(x[sel]) if np.isfinite(x[sel]).any() else np.nan
+        i = np.minimum(np.searchsorted(both, key[rows]), both.size - 1)
+        rows, i = rows[both[i] == key[rows]], i[both[i] == key[rows]]
+        cell = i * cycles.size + np.searchsorted(cycles, cycle[rows])
+        order = np.argsort(cell, kind="stable")
+        cells, first, count = np.unique(cell[order], return_index=True, return_counts=True)
+        one = x[rows[order[first]]]
+        a.flat[cells[count == 1]] = np.where(np.isfinite(one), one, np.nan)[count == 1]
+        for c, f, n in zip(cells[count > 1], first[count > 1], count[count > 1], strict=True):
+            v = x[rows[order[f : f + n]]]
+            a.flat[c] = np.nanmean(v) if np.isfinite(v).any() else np.nan
         keep = np.all(np.isfinite(a), axis=0)
         return a[:, keep], cycles[keep]
 

@@ -175,12 +175,10 @@ def iso230_2_uncertainty(
         idx = draws.groups[g]
         G = idx.size // 2
         mu = mean[idx][None] + error[:, :, 0]
-        rev = mu[:, :G] - mu[:, G:]
-        return {
-            "mu": (mu, idx),
-            "mid": ((mu[:, :G] + mu[:, G:]) / 2.0, idx[:G]),
-            "absrev": (np.abs(rev), idx[:G]),
-        }
+        mid = np.add(mu[:, :G], mu[:, G:])
+        mid /= 2.0
+        rev = np.subtract(mu[:, :G], mu[:, G:])
+        return {"mu": (mu, idx), "mid": (mid, idx[:G]), "absrev": (np.abs(rev, out=rev), idx[:G])}
 
     def extras(block, m):
         # the estimator's σ̂ around the pooled s (A's and R's cells carry its spread)

@@ -105,9 +105,7 @@ class Draws:
             return total, parts
         idx = self.groups[group]
         sigma = self.s[None, :] * self.scale(block, m)[:, None]  # (m, d)
-        var = np.broadcast_to(
-            (sigma * sigma)[:, None, :] / n[idx][None, :, None], (m, idx.size, self.d)
-        ).copy()
+        var = (sigma * sigma)[:, None, :] / n[idx][None, :, None]  # (m, G, d), its own
         common = []
         for i, t in enumerate(self.terms):
             u = t.per_axis(self.d)
@@ -117,7 +115,7 @@ class Draws:
             u = u * (1e-6 * positions[idx]) if t.relative else np.broadcast_to(u, (idx.size, self.d))
             var += (u * u)[None]
         total = self.rng(block, _SAMPLE, group).standard_normal((m, idx.size, self.d))
-        total *= np.sqrt(var)
+        total *= np.sqrt(var, out=var)
         for i, t, u in common:
             e = self.rng(block, _TERMS + i).standard_normal((m, 1, self.d)) * u
             total += e * (1e-6 * positions[idx][None]) if t.relative else e

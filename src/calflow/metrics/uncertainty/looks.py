@@ -16,7 +16,7 @@ import numpy as np
 
 from calflow.metrics.uncertainty.draws import Draws
 from calflow.metrics.uncertainty.montecarlo import COUNT_TRIALS, candidates, largest_bounds
-from calflow.metrics.uncertainty.tails import Difference, TailSample
+from calflow.metrics.uncertainty.tails import Column, TailSample
 
 STORE_BYTES = 128e6  #: draws drawn again and kept for the next look at the intervals (bytes)
 
@@ -96,7 +96,7 @@ class Looks:
 
             def sample(j, s=s, add=add, tails=tails):
                 def whole():
-                    c = self._redraw(int(self.where[s][j]), {s: {int(j)}}, block_ids)[s][int(j)]
+                    c = self._redraw(int(self.where[s][j]), {s: {int(j)}}, block_ids, True)[s][int(j)]
                     return c + add if add is not None else c
 
                 return TailSample(tails, int(j), whole)
@@ -121,10 +121,14 @@ class Looks:
             out[name] = self._span(spec, y, add, chosen, block_ids, trials, drawn.get(spec.cells, {}))
         return {name: out[name] for name in specs}
 
-    def _redraw(self, g: int, sets: dict[str, set], block_ids) -> dict[str, dict[int, np.ndarray]]:
+    def _redraw(
+        self, g: int, sets: dict[str, set], block_ids, neighbours: bool = False
+    ) -> dict[str, dict[int, np.ndarray]]:
         """The draws of some cells of group ``g`` over ``block_ids``: those a block kept or an
         earlier look stored as they are, the others drawn again (the group once a block) and
-        stored while :data:`STORE_BYTES` allows."""
+        stored while :data:`STORE_BYTES` allows; with ``neighbours``, the group's other cells
+        of the sets too, while there is room (a maximum's cells whose percentiles the tails do
+        not hold are asked for one after another, often from one group)."""
         for b in block_ids:
             missing = {s: [j for j in cells if (s, j, b) not in self.store and j not in self.blocks[b].kept[s]]
                        for s, cells in sets.items()}  # fmt: skip
@@ -134,10 +138,19 @@ class Looks:
             values = self.cells(total, g)
             for s, cells in sets.items():
                 v, idx = values[s]
-                for q in np.flatnonzero(np.isin(idx, list(cells))):
+                asked = np.isin(idx, list(cells))
+                for q in np.flatnonzero(asked):
                     column = np.ascontiguousarray(v[:, q])
                     self.store[(s, int(idx[q]), b)] = column
                     self.stored += column.nbytes
+                for q in np.flatnonzero(~asked) if neighbours else ():
+                    key = (s, int(idx[q]), b)
+                    if key in self.store or int(idx[q]) in self.blocks[b].kept[s]:
+                        continue
+                    if self.stored + 8 * v.shape[0] > STORE_BYTES:
+                        break
+                    self.store[key] = np.ascontiguousarray(v[:, q])
+                    self.stored += self.store[key].nbytes
             while self.stored > STORE_BYTES and self.store:  # the oldest go first
                 self.stored -= self.store.pop(next(iter(self.store))).nbytes
         out: dict[str, dict[int, np.ndarray]] = {}
@@ -231,12 +244,9 @@ class Looks:
         rows_top = [self._column(s, int(j), block_ids, drawn) for j in top]
         rows_bottom = [self._column(s, int(j), block_ids, drawn) for j in bottom]
         nb = bottom.size
-        sorted_top = [np.sort(r) for r in rows_top]
-        sorted_bottom = [np.sort(r) for r in rows_bottom]
 
         def column(q):
             c = rows_top[q // nb] - rows_bottom[q % nb]
-            c = c + add if add is not None else c
-            return Difference(c, e[q], sorted_top[q // nb], sorted_bottom[q % nb], float(extra.max()))
+            return Column(c + add if add is not None else c, e[q])
 
         return (*largest_bounds(e, column, upper, trials, self.level, t_eff), t_eff)

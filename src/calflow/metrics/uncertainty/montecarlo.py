@@ -78,22 +78,37 @@ def candidates(estimates, column, upper, trials: int, level: float = P95) -> int
     top = int(np.argmax(y))
     x_top = np.asarray(column(top), float)
     floor = float(x_top.min())
-    diffs: dict[int, tuple[float, np.ndarray]] = {}  # j → (z0, sorted differences)
+    diffs: dict[int, tuple[float, np.ndarray, int]] = {}  # j → (z0, differences, how many < 0)
     for j in np.argsort(-y, kind="stable"):
         j = int(j)
         if j == top or upper[j] < floor:
             continue
         x = np.asarray(column(j), float) - x_top
-        share = np.mean(x < y[j] - y[top])
-        diffs[j] = (float(ndtri(np.clip(share, 1.0 / trials, 1.0 - 1.0 / trials))), np.sort(x))
+        share = np.count_nonzero(x < y[j] - y[top]) / x.size  # np.mean's number
+        z0 = float(ndtri(np.clip(share, 1.0 / trials, 1.0 - 1.0 / trials)))
+        diffs[j] = (z0, x, int(np.count_nonzero(x < 0.0)))
     m = y.size
     while m > 1:
         za = float(ndtri(1.0 - (1.0 - (1.0 - level) / 2.0) ** (1.0 / (m - 1))))
-        c = 1 + sum(1 for z0, x in diffs.values() if _sorted_quantile(x, ndtr(2 * z0 - za)) >= 0.0)
+        c = 1 + sum(1 for z0, x, neg in diffs.values() if _reaches_zero(x, neg, ndtr(2 * z0 - za)))
         if c >= m:
             return m
         m = c
     return 1
+
+
+def _reaches_zero(x: np.ndarray, negative: int, q: float) -> bool:
+    """``_sorted_quantile(np.sort(x), q) >= 0`` of the unsorted ``x`` with ``negative`` values
+    below 0, the same answer without the sort: the quantile lies between two neighbouring
+    order statistics (and never outside them), so it is ≥ 0 when the lower one is and < 0
+    when the upper one is; only when they straddle 0 is ``x`` sorted."""
+    n = x.size
+    i = min(max(int(math.floor(q * (n - 1))), 0), n - 1)
+    if i >= negative:  # x₍ᵢ₎ ≥ 0
+        return True
+    if min(i + 1, n - 1) < negative:  # x₍ᵢ₊₁₎ < 0
+        return False
+    return _sorted_quantile(np.sort(x), q) >= 0.0
 
 
 def candidate_count(estimates, draws, level: float = P95) -> int:
@@ -143,13 +158,14 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
     the lower ones at the Šidák level over ``t_eff`` candidates with the risk
     :func:`lower_risk` leaves them, the upper ones at each cell's own 1 − (1 − level)/2.
 
-    ``column(j)``: cell j's draws (M,), or a :class:`.tails.Column` (its tails, a pair's
-    difference with a cap on its percentiles); ``upper`` (T,): a number no smaller than any of
-    them (their maximum). A percentile of a cell's draws is at most their maximum, so a cell
-    whose ``upper`` lies below both bounds found so far cannot change them and its
-    percentiles are not computed: the result is the same as from every cell, at the cost of
-    the few cells near the top (and the draws of a range's many pairs of cells need never be
-    in memory at once, :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`).
+    ``column(j)``: cell j's draws (M,), or a :class:`.tails.Column` (a cell's tails, a range's
+    pair of cells); ``upper`` (T,): a number no smaller than any of them (their maximum). A
+    percentile of a cell's draws is at most their maximum, so a cell whose ``upper`` lies below
+    both bounds found so far cannot change them and its percentiles are not computed; nor is
+    one that a count of the draws at or below the bound shows cannot exceed it: the result is
+    the same as from every cell, at the cost of the few cells near the top (and the draws of a
+    range's many pairs of cells need never be in memory at once,
+    :func:`calflow.metrics.uncertainty_iso.iso230_2_uncertainty`).
     """
     y = np.atleast_1d(np.asarray(estimates, float))
     upper = np.asarray(upper, float)
@@ -168,12 +184,13 @@ def largest_bounds(estimates, column, upper, trials: int, level: float, t_eff: f
         if isinstance(x, np.ndarray):
             x = Column(x, y[j])
         z0 = ndtri(np.clip(x.share_below(), 1.0 / trials, 1.0 - 1.0 / trials))
-        # both percentiles from one partial sort when both can move (the same numbers); one
-        # whose cap lies below the bound found so far cannot move it
+        # a percentile is computed only where it can move its bound: not where the count of
+        # draws at or below the bound (:meth:`.tails.Column.at_most`) says it cannot exceed
+        # it — the same numbers, a count per cell instead of a partial sort
         sides = [
             (side, q)
             for side, q, bound in ((0, ndtr(2 * z0 + za), lo), (1, ndtr(2 * z0 - zb), hi))
-            if upper[j] >= bound and x.cap(q) >= bound
+            if upper[j] >= bound and not x.at_most(q, bound)
         ]
         for (side, _), v in zip(sides, x.quantile([q for _, q in sides]), strict=True):
             if side == 0:

@@ -92,16 +92,19 @@ class _Block:
             self.tmin[s][down], self.amin[s][down] = lo[down], idx[b[down]]
             self.cmax[s][idx] = v.max(axis=0)
             self.cmin[s][idx] = v.min(axis=0)
+            added = {}  # the cells' draws plus each per-trial addition, computed once
             for cells, add in adds:
                 if cells == s:
+                    added[add] = v + self.extras[add][:, None]
                     self.add_cmax.setdefault((s, add), np.full(self.cmax[s].size, -np.inf))
-                    self.add_cmax[(s, add)][idx] = (v + self.extras[add][:, None]).max(axis=0)
+                    self.add_cmax[(s, add)][idx] = added[add].max(axis=0)
             if s in self.first:
                 self.first[s][idx] = v[: self.first[s].shape[1]].T
             for name, spec in self.maxima.items():
                 if spec.cells == s:
-                    mine = v + self.extras[spec.add][:, None] if spec.add else v
+                    mine = added[spec.add] if spec.add else v
                     self.tails[name].take(mine, idx, np.asarray(spec.estimates, float)[idx])
+            del added
             for q in np.flatnonzero(np.isin(idx, self.watch[s])):
                 if self.room < 8 * self.m:
                     break

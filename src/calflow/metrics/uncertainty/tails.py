@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numpy as np
 
 TAIL = 0.03  #: share of a block's draws kept at each end of every cell of a maximum
+SUBSAMPLE = 16  #: every how many draws of a cell the thresholds of its tails are read from
 
 
 def tail_size(m: int) -> int:
@@ -43,12 +44,51 @@ class BlockTails:
     def take(self, values: np.ndarray, idx: np.ndarray, estimates: np.ndarray) -> None:
         """``values`` (m, G): the block's draws of cells ``idx``, compared with their ``estimates``."""
         self.below[idx] = np.count_nonzero(values < estimates[None, :], axis=0)
-        cols = values.T.copy()  # a copy: partitioned in place, and values is the caller's
-        k, m = self.k, self.m
+        self.low[idx], self.high[idx] = extremes(values.T.copy(), self.k)
+
+
+def extremes(cols: np.ndarray, k: int, step: int = SUBSAMPLE) -> tuple[np.ndarray, np.ndarray]:
+    """(G, k) each, sorted ascending: the k smallest and the k largest values of each row of
+    ``cols`` (G, m), which it may reorder.
+
+    A partial sort of every row at k and m − k costs about as much as the rest of a block
+    together. The rows are draws in random order, so every ``step``-th of them is a sample of
+    the row: its order statistic at rank ⌈2.5 k / step⌉ from each end is a threshold that about
+    2.5 k of the row's values lie beyond; those are picked out and partially sorted (a few
+    per cent of the row). Whenever fewer than k lie beyond a threshold (rare: a 4σ event a row)
+    the row is partially sorted whole. The k values at each end are the same whatever picks
+    them, so the result is the whole row's partial sort's, to the byte."""
+    G, m = cols.shape
+    r = math.ceil(2.5 * k / step)
+    if k >= m or 2 * r >= (m - 1) // step:  # a short row: no sample to speak of
         if k < m:
             cols.partition(sorted({k - 1, m - k}), axis=1)
-        self.low[idx] = np.sort(cols[:, :k], axis=1)
-        self.high[idx] = np.sort(cols[:, m - k :], axis=1)
+        return np.sort(cols[:, :k], axis=1), np.sort(cols[:, m - k :], axis=1)
+    sample = cols[:, ::step]
+    n = sample.shape[1]
+    sample = np.partition(sample, [r, n - 1 - r], axis=1)
+    low_side = cols <= sample[:, r : r + 1]
+    high_side = cols >= sample[:, n - 1 - r : n - r]
+    low, n_low = _beyond(cols, low_side, k, np.inf)
+    high, n_high = _beyond(cols, high_side, k, -np.inf)
+    low.partition(k - 1, axis=1)
+    high.partition(high.shape[1] - k, axis=1)
+    low, high = np.sort(low[:, :k], axis=1), np.sort(high[:, high.shape[1] - k :], axis=1)
+    for j in np.flatnonzero((n_low < k) | (n_high < k)):
+        row = np.partition(cols[j], [k - 1, m - k])
+        low[j], high[j] = np.sort(row[:k]), np.sort(row[m - k :])
+    return low, high
+
+
+def _beyond(cols: np.ndarray, mask: np.ndarray, k: int, fill: float) -> tuple[np.ndarray, np.ndarray]:
+    """The values of ``cols`` (G, m) where ``mask``, row by row, padded with ``fill`` to at least
+    k a row: (G, width) and how many each row has."""
+    counts = mask.sum(axis=1)
+    values = cols[mask]  # row after row
+    out = np.full((cols.shape[0], max(int(counts.max(initial=0)), k)), fill)
+    row = np.repeat(np.arange(cols.shape[0]), counts)
+    out[row, np.arange(values.size) - (np.cumsum(counts) - counts)[row]] = values
+    return out, counts
 
 
 def _virtual_index(n: int, q: float) -> float:
@@ -63,6 +103,27 @@ def _lerp(a: float, b: float, t: float) -> float:
     return float(b - d * (1.0 - t)) if t >= 0.5 else float(a + d * t)
 
 
+def _upper_rank(n: int, q: float) -> int:
+    """The rank (0-based) of the larger of the two order statistics quantile q of n values is
+    read between: its value is never below the quantile (:func:`_lerp` stays within its ends)."""
+    v = _virtual_index(n, q)
+    return n - 1 if v >= n - 1 else min(math.floor(v) + 1, n - 1)
+
+
+def quantile(x: np.ndarray, q: float) -> float:
+    """``np.quantile(x, q)`` of a 1-D array without NaN (its default, linear method): the same
+    number, from a partial sort at the two order statistics it reads only. ``np.quantile``
+    also places the smallest and the largest draw (its NaN check), which costs a column's
+    percentile 2–4 times as much where the percentile lies in a tail."""
+    n = x.size
+    v = _virtual_index(n, q)
+    if v >= n - 1 or v < 0:
+        return float(x.max() if v >= 0 else x.min())
+    i = math.floor(v)
+    part = np.partition(x, [i, i + 1])
+    return _lerp(float(part[i]), float(part[i + 1]), v - i)
+
+
 class Column:
     """A cell's whole column of draws (M,) and its estimate, as :func:`.montecarlo.largest_bounds`
     reads a cell: the share below the estimate and percentiles (``np.quantile``'s)."""
@@ -71,36 +132,16 @@ class Column:
         self.x, self.estimate = x, estimate
 
     def share_below(self) -> float:
-        return float(np.mean(self.x < self.estimate))
+        return np.count_nonzero(self.x < self.estimate) / self.x.size  # np.mean's number
 
     def quantile(self, qs) -> list[float]:
-        return np.quantile(self.x, list(qs)).tolist() if len(qs) else []
+        return [quantile(self.x, float(q)) for q in qs]
 
-    def cap(self, q: float) -> float:
-        """A number no smaller than the q-percentile (none known here: +∞)."""
-        return math.inf
-
-
-class Difference(Column):
-    """A range's pair of cells: the column x_top − x_bottom (+ a per-trial addition ≤ ``add_max``)
-    and the two cells' sorted columns, which bound its percentiles without a partial sort.
-
-    Of the n trials, at most n − 1 − (r + k) have x_top above its order statistic X₍ᵣ₊ₖ₎ and
-    at most k have x_bottom below Y₍ₖ₎, so at least r + 1 differences are ≤ X₍ᵣ₊ₖ₎ − Y₍ₖ₎:
-    the r-th smallest difference, and a percentile read at or below it, is no larger (the
-    union bound, whichever k: a few are tried)."""
-
-    def __init__(self, x, estimate, top_sorted, bottom_sorted, add_max: float):
-        super().__init__(x, estimate)
-        self.top, self.bottom, self.add_max = top_sorted, bottom_sorted, add_max
-
-    def cap(self, q: float) -> float:
-        n = self.x.size
-        r = min(math.ceil(_virtual_index(n, q)), n - 1)
-        room = n - 1 - r
-        best = min(self.top[r + k] - self.bottom[k] for k in {0, room // 4, room // 2, 3 * room // 4, room})
-        size = abs(self.top[-1]) + abs(self.bottom[0]) + abs(self.add_max)
-        return float(best + self.add_max + 1e-9 * size)  # far above the rounding of x_top − x_bottom + add
+    def at_most(self, q: float, bound: float) -> bool:
+        """Whether the q-percentile is provably no larger than ``bound`` — it cannot raise a
+        bound found so far — by one count instead of a partial sort: the order statistic
+        above it is ≤ ``bound`` when at least rank + 1 draws are."""
+        return bool(np.count_nonzero(self.x <= bound) > _upper_rank(self.x.size, q))
 
 
 class TailSample:
@@ -118,8 +159,11 @@ class TailSample:
         """The share of the draws below the estimate (``np.mean(x < y)``: the same number)."""
         return self.below / self.n
 
-    def cap(self, q: float) -> float:
-        return math.inf
+    def at_most(self, q: float, bound: float) -> bool:
+        """Whether the q-percentile is provably ≤ ``bound`` (:meth:`Column.at_most`), from
+        the tails (False where they do not tell)."""
+        v = self._order(_upper_rank(self.n, q))
+        return v is not None and v <= bound
 
     def _order(self, r: int) -> float | None:
         """The r-th smallest of all the draws (0-based), if the tails hold it provably."""
@@ -147,7 +191,7 @@ class TailSample:
             if v is None:
                 if self._full is None:
                     self._full = np.asarray(self._column(), float)
-                v = float(np.quantile(self._full, q))
+                v = quantile(self._full, float(q))
             out.append(v)
         return out
 

@@ -11,10 +11,13 @@ draw them in the report's "Measurement system" section. Nothing here reads a rig
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import xarray as xr
 
-from calflow.report.figures import Figure, finish, new_figure
+if TYPE_CHECKING:  # the figures need matplotlib, which the summary's job need not import
+    from calflow.report.figures import Figure
 
 
 def _meanings(run: xr.Dataset) -> list[str]:
@@ -88,6 +91,8 @@ def example_frame(bench: xr.Dataset | None) -> Figure | None:
     and its spectrum."""
     if bench is None or "example_frame" not in bench:
         return None
+    from calflow.report.figures import finish, new_figure
+
     fig, ax = new_figure(2, height=2.9)
     frame = np.asarray(bench["example_frame"].values)
     h, w = frame.shape
@@ -145,6 +150,8 @@ def period_error(bench: xr.Dataset | None, speed: dict | None = None) -> Figure 
     throughput when the bench measured it (``speed``)."""
     if bench is None or "sweep_x" not in bench:
         return None
+    from calflow.report.figures import finish, new_figure
+
     fig, ax = new_figure(2, height=2.5)
     a = ax[0, 0]
     x = np.asarray(bench["sweep_x"].values)
