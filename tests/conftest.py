@@ -23,10 +23,6 @@ WORKFLOW_FIXTURES = {"thesis_run", "reduced_run"}
 WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow")
 
 
-def pytest_configure(config):
-    config.addinivalue_line("markers", "workflow: runs the Snakemake workflow (left out by make test-fast)")
-
-
 _SOURCES: dict = {}
 
 
