@@ -24,6 +24,14 @@ WORKFLOW_FIXTURES = {"thesis_run", "reduced_run"}
 WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow")
 
 
+def pytest_configure(config):
+    # Under --dist loadfile, pytest-xdist sends files in the order collected (not sorted by
+    # their number of tests, its default), so the files that read the default run come last
+    # (pytest_collection_modifyitems below) and no worker idles waiting for that run early.
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
+
+
 _SOURCES: dict = {}
 
 
