@@ -31,8 +31,8 @@ test: $(STAMP) browser  ## run the test suite (calflow's, then the hexapod plug-
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 	cd plugins/calflow-hexapod && $(abspath $(BIN))/python -m pytest -n $(CORES) --dist loadfile
 
-test-fast: $(STAMP)  ## the unit and property tests only (no workflow run): a minute or two
-	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -m "not workflow" -q
+test-fast: $(STAMP)  ## the unit and property tests only (no workflow run, no process killed): about a minute
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -m "not workflow and not process" -q
 
 bench-smoke: $(STAMP)  ## every benchmark of benchmarks/ at its small --smoke size, so none rots unseen
 	$(BIN)/python benchmarks/smoke.py

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import os
 import shutil
 import subprocess
@@ -24,7 +25,11 @@ WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow"
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "workflow: runs the Snakemake workflow (left out by make test-fast)")
+    # Under --dist loadfile, pytest-xdist sends files in the order collected (not sorted by
+    # their number of tests, its default), so the files that read the default run come last
+    # (pytest_collection_modifyitems below) and no worker idles waiting for that run early.
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
 
 
 _SOURCES: dict = {}
@@ -83,6 +88,33 @@ def pytest_collection_modifyitems(config, items):
             verdicts[key] = found
         if found:
             item.add_marker(pytest.mark.workflow)
+    # The files that read the default run go last, so that under xdist every worker runs the
+    # rest while that run (started when collection ends, below) is under way, instead of one
+    # worker waiting for it. Whole files move (--dist loadfile schedules by file).
+    late = {item.path for item in items if _reads_thesis_run(item)}
+    items[:] = [i for i in items if i.path not in late] + [i for i in items if i.path in late]
+
+
+def _reads_thesis_run(item) -> bool:
+    """Whether ``item`` uses the default run: as a fixture (to any depth), or asks for it by
+    name (``request.getfixturevalue("thesis_run")``) in its module."""
+    if "thesis_run" in getattr(item, "fixturenames", ()):
+        return True
+    module = getattr(item, "module", None)
+    if module not in _SOURCES:
+        try:
+            _SOURCES[module] = inspect.getsource(module)
+        except (OSError, TypeError):
+            _SOURCES[module] = None
+    return 'getfixturevalue("thesis_run")' in (_SOURCES[module] or "")
+
+
+def pytest_collection_finish(session):
+    """Start the default run in the background as soon as a selected test will read it."""
+    if session.config.option.collectonly:
+        return
+    if any(_reads_thesis_run(item) for item in session.items):
+        start_thesis_run(_thesis_folder(session.config))
 
 
 def _xy_noise_um() -> float:
@@ -162,15 +194,19 @@ def make_workdir(tmp: Path, campaigns: dict[str, dict], rig_plugins: list[str] |
     return work
 
 
-def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subprocess.CompletedProcess:
-    """Run Snakemake of this environment in ``work``."""
+def _snakemake_env(env_extra: dict | None) -> dict:
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "tests"), env.get("PYTHONPATH")]))
     env.update(env_extra or {})
+    return env
+
+
+def snakemake(work: Path, *args: str, env_extra: dict | None = None) -> subprocess.CompletedProcess:
+    """Run Snakemake of this environment in ``work``."""
     return subprocess.run(
         [str(BIN / "snakemake"), "--cores", "2", *args],
         cwd=work,
-        env=env,
+        env=_snakemake_env(env_extra),
         capture_output=True,
         text=True,
         timeout=1800,  # a hang guard, not a speed check: the default run is ~6 min on a quiet machine
@@ -222,10 +258,12 @@ def cf_problems(files) -> list[str]:
 
 # ---------------------------------------------------------------------------- shared runs
 # Whole-workflow runs are the slow part of the suite: each is made once per session and
-# read by every test that only reads it. All the tests of one run are in one file
-# (test_default_run.py, test_reduced_run.py), so under `pytest -n N --dist loadfile` (the
-# README's test command) one worker makes it. (xdist's `loadgroup` would be the natural
-# tool, but pytest 9 ignores the node ids it rewrites.)
+# read by every test that only reads it. The default run (thesis_run) starts in the
+# background when collection ends and the files that read it are scheduled last, so the
+# workers run the rest of the suite beside it rather than one waiting ~6 min for it. The
+# reduced run's tests are in one file (test_reduced_run.py), so under
+# `pytest -n N --dist loadfile` (the README's test command) one worker makes it. (xdist's
+# `loadgroup` would be the natural tool, but pytest 9 ignores the node ids it rewrites.)
 
 #: SMALL_XYTHETA with Models I and II only, no XY tests and 120 poses: a run of 10 jobs.
 REDUCED_XYTHETA = {
@@ -237,36 +275,70 @@ REDUCED_XYTHETA = {
 SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created` attributes
 
 
-@pytest.fixture(scope="session")
-def thesis_run(tmp_path_factory, worker_id) -> Path:
-    """The default configuration (the default campaigns, no study) run once per test session
-    under SOURCE_DATE_EPOCH (a campaign run again gives the same bytes) and
-    ``--resources mem_mb=3000`` (it completes scheduled by the rules' declared memory; each
-    job's measured peak is held against its declaration by
-    tests/workflow/test_default_run.py): its project folder,
-    with results/ and reports/. Under pytest-xdist the first
-    worker that asks runs it and the others wait for it and share it (the pattern of
-    pytest-xdist's docs: a file lock in the session's common temporary folder)."""
+THESIS_HANG_GUARD_S = 1800  # a hang guard, not a speed check: the default run is ~6 min on a quiet machine
+
+
+def _thesis_folder(config) -> Path:
+    """The session's folder shared by its pytest-xdist workers (the controller's basetemp)."""
+    base = config._tmp_path_factory.getbasetemp()
+    return base.parent if hasattr(config, "workerinput") else base
+
+
+def start_thesis_run(shared: Path) -> None:
+    """Start the default configuration's run (the default campaigns, no study) in the
+    background, once per session whichever worker asks first (a file lock in the folder the
+    workers share, the pattern of pytest-xdist's docs); ``thesis/rc`` appears when it ends.
+
+    It runs under SOURCE_DATE_EPOCH (a campaign run again gives the same bytes) and
+    ``--resources mem_mb=3000`` (scheduled by the rules' declared memory, as a 4 GB lab PC
+    would; each job's measured peak is held against its declaration by
+    tests/workflow/test_default_run.py)."""
     from filelock import FileLock
 
-    base = tmp_path_factory.getbasetemp()
-    shared = base if worker_id == "master" else base.parent
-    work, done = shared / "thesis" / "project", shared / "thesis" / "complete"
+    folder = shared / "thesis"
     with FileLock(shared / "thesis.lock"):
-        if not done.exists():
-            shutil.rmtree(work.parent, ignore_errors=True)
-            work.mkdir(parents=True)
-            shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-            shutil.copytree(ROOT / "workflow", work / "workflow")
-            shutil.copytree(ROOT / "config", work / "config")
-            proc = snakemake(  # scheduled by the rules' declared memory, as a 4 GB lab PC would
-                work,
-                *("--resources", "mem_mb=3000", "--config", "studies=[]"),
-                env_extra={**SOURCE_DATE_EPOCH, **module_log(work)},
-            )
-            assert proc.returncode == 0, proc.stderr[-3000:]
-            done.touch()
-    return work
+        if (folder / "started").exists():
+            return
+        shutil.rmtree(folder, ignore_errors=True)
+        work = folder / "project"
+        work.mkdir(parents=True)
+        shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+        shutil.copytree(ROOT / "workflow", work / "workflow")
+        shutil.copytree(ROOT / "config", work / "config")
+        args = ["--cores", "2", "--resources", "mem_mb=3000", "--config", "studies=[]"]
+        # the exit status is written under a temporary name, then renamed: rc is whole when seen
+        script = '"$0" "$@" >../stdout 2>../stderr; echo $? >../rc.tmp && mv ../rc.tmp ../rc'
+        proc = subprocess.Popen(
+            ["sh", "-c", script, str(BIN / "snakemake"), *args],
+            cwd=work,
+            env=_snakemake_env({**SOURCE_DATE_EPOCH, **module_log(work)}),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        (folder / "pid").write_text(str(proc.pid))
+        (folder / "started").touch()
+
+
+@pytest.fixture(scope="session")
+def thesis_run(request) -> Path:
+    """The default configuration run once per test session (:func:`start_thesis_run`, begun
+    when collection ends): its project folder, with results/ and reports/, once the run has
+    ended. Under pytest-xdist every worker shares the one run."""
+    import signal
+    import time
+
+    shared = _thesis_folder(request.config)
+    start_thesis_run(shared)  # already started, unless collection-finish was skipped
+    folder = shared / "thesis"
+    deadline = time.monotonic() + THESIS_HANG_GUARD_S
+    while not (folder / "rc").exists():
+        if time.monotonic() > deadline:
+            os.kill(int((folder / "pid").read_text()), signal.SIGTERM)
+            pytest.fail(f"the default run did not end within {THESIS_HANG_GUARD_S} s")
+        time.sleep(1.0)
+    assert (folder / "rc").read_text().strip() == "0", (folder / "stderr").read_text()[-3000:]
+    return folder / "project"
 
 
 @pytest.fixture(scope="session")

@@ -153,6 +153,7 @@ def _sigkill_module():
     return module
 
 
+@pytest.mark.process  # SIGKILLs three acquisition processes
 def test_a_chain_of_sigkills_resumes_to_the_uninterrupted_dataset(tmp_path):
     """Small version of the benchmark: 3 kills of one acquisition on the (slowed) simulated
     rig, each resumed (a kill through the GCS emulator: tests/gcs/test_rigs_gcs.py)."""

@@ -184,6 +184,7 @@ def test_move_out_of_limits_stops_all_axes_and_names_axis_command_and_code(emula
     assert len(journal.load()) == 6  # the samples already taken are kept
 
 
+@pytest.mark.process  # the emulated controller moves in real time (4.7 s of travel)
 def test_controller_error_stops_a_moving_axis():
     """#24 halts motion: an axis moving when another controller error occurs stops at once."""
     emu, options = emulated_rig_options(SMALL_XYTHETA, time_scale=1.0, timeout=1.0)
@@ -318,6 +319,7 @@ def _run_cli(campaign: Path, out: Path, kill_after: float | None = None) -> int:
     return proc.returncode
 
 
+@pytest.mark.process  # SIGKILLs a `calflow acquire` process
 def test_killed_acquisition_continues_after_the_last_sample(tmp_path):
     c = yaml.safe_load(yaml.safe_dump(SMALL_XYTHETA))
     emu, options = emulated_rig_options(c, time_scale=20.0, timeout=1.0)

@@ -173,20 +173,19 @@ def test_history_refuses_bad_settings():
 @pytest.mark.parametrize(
     "settings,key", [('{"reliability": 1.0}', "reliability"), ('{"tolerance_um": 0}', "tolerance_um")]
 )
-def test_history_command_refuses_bad_settings_in_one_line(tmp_path, settings, key):
-    import subprocess
-    import sys
+def test_history_command_refuses_bad_settings_in_one_line(tmp_path, monkeypatch, capsys, settings, key):
+    """`calflow history` (:func:`calflow.cli.main`, what ``python -m calflow`` runs, called in
+    this process: a new interpreter would spend seconds importing what the worker has)."""
+    from calflow.cli import main
 
+    monkeypatch.chdir(tmp_path)
     out = tmp_path / "history.json"
-    proc = subprocess.run(
-        [sys.executable, "-m", "calflow", "history", "--stage", "S1", "--campaigns", "a.yaml"]
-        + ["--summaries", "a.json", "--settings", settings, "--out", str(out)],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
+    status = main(
+        ["history", "--stage", "S1", "--campaigns", "a.yaml"]
+        + ["--summaries", "a.json", "--settings", settings, "--out", str(out)]
     )
-    assert proc.returncode != 0 and not out.exists()
-    lines = proc.stderr.strip().splitlines()
+    assert status != 0 and not out.exists()
+    lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and f"--settings: stage settings: key '{key}'" in lines[0]
 
 

@@ -86,10 +86,16 @@ def test_wald_invariant_to_units_and_order(d, scale):
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.floats(0, 1), min_size=1, max_size=6), st.sampled_from([0.01, 0.05, 0.1]))
 def test_holm_matches_statsmodels(p, alpha):
+    from unittest import mock
+
     from statsmodels.stats.multitest import multipletests
 
     got = change.holm({str(i): v for i, v in enumerate(p)}, alpha)
-    want = multipletests(p, alpha=alpha, method="holm")[0]
+    # statsmodels' Holm branch ends in gc.collect(), a full collection of the test worker's
+    # heap: 0.1-0.6 s an example, most of this test's time. It frees memory and changes no
+    # result, so the oracle runs without it.
+    with mock.patch("gc.collect"):
+        want = multipletests(p, alpha=alpha, method="holm")[0]
     assert [got[str(i)] for i in range(len(p))] == [bool(w) for w in want]
 
 

@@ -3,6 +3,8 @@ switching it off in the rig's options removes it."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -41,6 +43,13 @@ def _terms(rig, direction=1):
     return rig.effect_terms(cmds, t, z, steps=steps, since_s=np.full(t.shape, 26.5), memory=_busy_memory(rig))
 
 
+@functools.cache
+def _default_terms(factory):
+    """:func:`_terms` of ``factory``'s default lab5day rig, computed once per factory: the
+    same for every effect below (the tests only read it)."""
+    return _terms(factory(profile="lab5day"))
+
+
 def _size(terms, name):
     return max(float(np.max(np.abs(v))) for v in terms[name])
 
@@ -49,7 +58,7 @@ def _size(terms, name):
 @pytest.mark.parametrize("factory", [nano1d, nano2d])
 @pytest.mark.parametrize("effect", [e for e in DETERMINISTIC if e != "walk"])
 def test_each_effect_is_present_and_switching_it_off_removes_it(factory, effect):
-    on = _terms(factory(profile="lab5day"))
+    on = _default_terms(factory)
     assert _size(on, effect) > 1e-5, effect  # > 0.01 nm somewhere on the grid
     off = _terms(
         factory(

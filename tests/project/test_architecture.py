@@ -9,6 +9,7 @@ core (and the controller layer ``calflow.gcs``) and never another family; the co
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -57,7 +58,11 @@ def _imports(name: str, path: Path) -> set[str]:
     return found
 
 
-GRAPH = {name: _imports(name, path) for name, path in MODULES.items()}
+@functools.cache
+def _graph() -> dict[str, set[str]]:
+    """Each calflow module's calflow imports: parsed once, when the first test asks (not at
+    import, which every pytest-xdist worker's collection would pay for)."""
+    return {name: _imports(name, path) for name, path in MODULES.items()}
 
 
 def _family(module: str) -> str | None:
@@ -74,7 +79,7 @@ def test_the_families_exist():
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_layers(module):
     own = _family(module)
-    for dep in GRAPH[module]:
+    for dep in _graph()[module]:
         other = _family(dep)
         if own is None:
             assert other is None, f"core module {module} imports family module {dep}"
@@ -92,7 +97,7 @@ def test_no_import_cycle():
         counter[0] += 1
         stack.append(v)
         on.add(v)
-        for w in GRAPH[v]:
+        for w in _graph()[v]:
             if w not in index:
                 visit(w)
                 low[v] = min(low[v], low[w])
@@ -109,7 +114,7 @@ def test_no_import_cycle():
             if len(comp) > 1:
                 cycles.append(sorted(comp))
 
-    for v in sorted(GRAPH):
+    for v in sorted(_graph()):
         if v not in index:
             visit(v)
     assert cycles == []
@@ -159,7 +164,7 @@ def test_rooms_stay_small(family):
 @pytest.mark.parametrize("module", sorted(m for m in MODULES if _family(m) and _room(m) in ANALYSIS_ROOMS))
 def test_analysis_never_imports_the_simulated_stage(module):
     stage = f"calflow.{_family(module)}.stage"
-    for dep in GRAPH[module]:
+    for dep in _graph()[module]:
         assert not dep.startswith(stage), f"{module} (analysis) imports the simulated stage {dep}"
 
 

@@ -195,6 +195,7 @@ def _edit(path: Path, old: str, new: str) -> None:
     path.write_text(text.replace(old, new, 1))
 
 
+@pytest.mark.process  # five processes import every step of an edited copy of calflow
 def test_a_code_change_reruns_exactly_the_steps_that_reach_it(source_copy, tmp_path):
     cache = tmp_path / "cache"
     before = _digests(source_copy, cache)

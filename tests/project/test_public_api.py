@@ -96,6 +96,7 @@ def test_an_old_path_gives_the_new_names_with_a_warning(old, new):
         stand_in.no_such_name_anywhere  # noqa: B018
 
 
+@pytest.mark.process  # a user's script in a fresh interpreter
 def test_the_two_documented_paths_users_called_warn_at_their_line():
     """`from calflow.stepwise import stepwisefit` in a user's script: the warning points at the
     script's line (so Python shows it there by default) and the function still works."""

@@ -2,7 +2,10 @@
 
 import subprocess
 
+import pytest
 from conftest import BIN, ROOT
+
+pytestmark = pytest.mark.process  # each test starts snakemake or snakefmt (2-6 s of CPU each)
 
 
 def test_snakemake_lint_is_clean():

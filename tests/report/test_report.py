@@ -183,6 +183,25 @@ def strict():
         yield
 
 
+@pytest.fixture
+def sketched(monkeypatch):
+    """Figures built from the summary but neither laid out nor serialised as SVG (nine tenths
+    of a figure's cost): for the tests that render a campaign again to read its text, notes
+    and captions. Every figure is drawn in full, SVG and PNG, by the module's fixtures."""
+    import matplotlib.figure
+    import matplotlib.pyplot as plt
+    from markupsafe import Markup
+
+    from calflow.report import figures
+
+    def to_svg(fig, key):
+        plt.close(fig)
+        return Markup(f'<svg role="img" aria-labelledby="{key}-caption" class="plot"></svg>')
+
+    monkeypatch.setattr(figures, "to_svg", to_svg)
+    monkeypatch.setattr(matplotlib.figure.Figure, "tight_layout", lambda self, *a, **k: None)
+
+
 @pytest.fixture(scope="module")
 def xytheta(xytheta_pages):
     """summary, files and the HTML report of a small XYΘ campaign."""
@@ -398,7 +417,7 @@ def test_xytheta_escapes_and_records_provenance(xytheta):
     assert "matplotlib" in html and "weasyprint" in html
 
 
-def test_xytheta_without_identification_run_says_so(xytheta):
+def test_xytheta_without_identification_run_says_so(xytheta, sketched):
     summary, files, _ = xytheta
     html = render_campaign(
         summary, {"name": "t"}, CAMPAIGN_CMD, [f for f in files if "identification" not in f]
@@ -736,7 +755,7 @@ def test_index_links_and_headlines(xytheta, stage1d, stage2d):
     assert "95.980" in html and "≈ 1000" in html
 
 
-def test_a_failing_figure_becomes_a_note(xytheta, monkeypatch):
+def test_a_failing_figure_becomes_a_note(xytheta, sketched, monkeypatch):
     summary, files, _ = xytheta
     monkeypatch.delenv("CALFLOW_REPORT_STRICT")
     broken = copy.deepcopy(summary)
@@ -760,7 +779,7 @@ def _thesis_phrases(html: str) -> list[str]:
 
 
 def test_a_campaign_without_reference_has_no_reference_column_and_no_comparing_sentence(
-    xytheta, stage1d, stage2d
+    xytheta, stage1d, stage2d, sketched
 ):
     """A lab's own stage (no ``reference`` key): no grey column, no sentence setting it beside the
     thesis; the thesis is still cited for the method (figure, section and equation numbers)."""
@@ -781,7 +800,7 @@ def test_a_campaign_without_reference_has_no_reference_column_and_no_comparing_s
         )  # the thesis's interferometer figure is no fallback
 
 
-def test_a_reference_is_labelled_with_its_source(stage1d):
+def test_a_reference_is_labelled_with_its_source(stage1d, sketched):
     summary, files, _ = stage1d
     mine = copy.deepcopy(summary)
     mine["reference"] = {"source": "Smith 2024, Table 3", "intrinsic": {"accuracy_nm": 123.0}}

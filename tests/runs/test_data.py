@@ -107,6 +107,7 @@ def test_open_dataset_checks_kind(run, tmp_path):
         open_dataset(path, kind="model")
 
 
+@pytest.mark.process  # three `calflow acquire` processes: the same bytes across processes
 @pytest.mark.parametrize("name,plan", [("xy", "identification"), ("n1", "training")])
 def test_same_seed_gives_identical_bytes(tmp_path, name, plan):
     """Two acquisitions of the same campaign and seed write byte-identical files

@@ -61,6 +61,7 @@ def _acquire(campaign: Path, out: Path, kill_after: float | None = None) -> int:
     return proc.returncode
 
 
+@pytest.mark.process  # SIGKILLs a `calflow acquire` process on a slowed rig
 @pytest.mark.parametrize("factory", ["toyrigs:slow_simulated", "toyrigs:slow_toy"])
 def test_killed_acquisition_resumes_to_the_uninterrupted_dataset(tmp_path, factory):
     campaign = _campaign(tmp_path, factory)
