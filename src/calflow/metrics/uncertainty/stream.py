@@ -61,9 +61,13 @@ class _Block:
         room: float,
         maxima: dict[str, Maximum],
         first: int = 0,
+        records: frozenset[str] = frozenset(),
     ):
         self.m, self.watch, self.room = m, watch, room  # room: bytes the block may keep
         self.maxima = maxima
+        #: the sets of a range, whose cells that become the largest or smallest so far in some
+        #: trial keep their draws (:meth:`settle` drops those another cell overtook later)
+        self.records = records
         #: per set of a maximum, its cells' first ``first`` draws (cells, first): what the count
         #: of candidates reads (:func:`.montecarlo.candidates`), kept by the first block
         self.first = (
@@ -90,6 +94,8 @@ class _Block:
             up, down = hi > self.tmax[s], lo < self.tmin[s]
             self.tmax[s][up], self.amax[s][up] = hi[up], idx[a[up]]
             self.tmin[s][down], self.amin[s][down] = lo[down], idx[b[down]]
+            if s in self.records:  # a range's cells are the largest or smallest in some trial
+                self._keep(s, v, idx, np.union1d(a[up], b[down]))
             self.cmax[s][idx] = v.max(axis=0)
             self.cmin[s][idx] = v.min(axis=0)
             added = {}  # the cells' draws plus each per-trial addition, computed once
@@ -105,11 +111,29 @@ class _Block:
                     mine = added[spec.add] if spec.add else v
                     self.tails[name].take(mine, idx, np.asarray(spec.estimates, float)[idx])
             del added
-            for q in np.flatnonzero(np.isin(idx, self.watch[s])):
-                if self.room < 8 * self.m:
-                    break
-                self.kept[s][int(idx[q])] = np.ascontiguousarray(v[:, q])
-                self.room -= 8 * self.m
+            self._keep(s, v, idx, np.flatnonzero(np.isin(idx, self.watch[s])))
+
+    def _keep(self, s: str, v: np.ndarray, idx: np.ndarray, columns: np.ndarray) -> None:
+        """Keep the draws of the group's ``columns`` of ``v`` (not kept yet) while there is room."""
+        for q in columns:
+            if int(idx[q]) in self.kept[s]:
+                continue
+            if self.room < 8 * self.m:
+                break
+            self.kept[s][int(idx[q])] = np.ascontiguousarray(v[:, q])
+            self.room -= 8 * self.m
+
+    def extreme_cells(self, s: str) -> np.ndarray:
+        """The cells of set ``s`` that are the largest or the smallest in some trial of the block."""
+        return np.union1d(self.amax[s], self.amin[s])
+
+    def settle(self) -> None:
+        """Drop the draws of a range's cells that were the largest or smallest so far in some
+        trial but not at the end of it (a later group overtook them): no look asks for them."""
+        for s in self.records:
+            wanted = set(self.extreme_cells(s).tolist()) | set(self.watch[s].tolist())
+            for j in [j for j in self.kept[s] if j not in wanted]:
+                self.room += self.kept[s].pop(j).nbytes
 
     def take_part(self, name: str, values: dict) -> None:
         for s, (v, _) in values.items():
@@ -162,6 +186,7 @@ def simulate(
     adds = {(sp.cells, sp.add) for sp in intervals.values() if isinstance(sp, Maximum) and sp.add}
     fixed = block_sizes(trials, block) if trials is not None else None
     maxima = {name: sp for name, sp in intervals.items() if isinstance(sp, Maximum)}
+    spans = frozenset(sp.cells for sp in intervals.values() if isinstance(sp, Span))
     run = Looks(
         draws,
         positions,
@@ -181,7 +206,7 @@ def simulate(
         first = (
             COUNT_TRIALS if b == 0 and 8 * COUNT_TRIALS * sum(sizes[c] for c in first) <= FIRST_BYTES else 0
         )
-        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept, maxima, first)
+        blk = _Block(m, sizes, inputs, run.watch, KEPT_BYTES - kept, maxima, first, spans)
         blk.extras = extras(b, m) if extras else {}
         for g in range(len(draws.groups)):
             total, pieces = draws.error(b, m, g, positions, n)
@@ -194,7 +219,10 @@ def simulate(
             shape = (m, draws.groups[g].size, draws.d)
             for name, piece in pieces.items() if b == 0 else ():  # the budget: the first block's
                 blk.take_part(name, cells(np.broadcast_to(piece, shape), g))  # a common term: every cell's
+        blk.settle()
         run.blocks.append(blk)
+        for s in spans:  # the next blocks keep these too: a look over every block reads them
+            run.watch[s] = np.union1d(run.watch[s], blk.extreme_cells(s))
         if fixed is not None:
             continue
         for name, found_b in run.intervals(intervals, [b]).items():
