@@ -174,7 +174,8 @@ def iso230_2_uncertainty(
     def cells(error, g):
         idx = draws.groups[g]
         G = idx.size // 2
-        mu = mean[idx][None] + error[:, :, 0]
+        e = error[:, :, 0]  # the means in the error's own memory when it may be written (simulate's)
+        mu = np.add(e, mean[idx][None], out=e if e.flags.writeable else None)
         mid = np.add(mu[:, :G], mu[:, G:])
         mid /= 2.0
         rev = np.subtract(mu[:, :G], mu[:, G:])

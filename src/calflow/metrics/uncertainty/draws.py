@@ -51,6 +51,7 @@ class Draws:
         if groups is None:
             groups = [np.arange(i, min(i + GROUP, cells)) for i in range(0, cells, GROUP)]
         self.groups = [np.asarray(g, int) for g in groups]
+        self._scale: tuple = (None, None)  # (block, m) and its scale, the last asked for
         self.group_of = np.empty(self.cells, int)
         for i, g in enumerate(self.groups):
             self.group_of[g] = i
@@ -61,8 +62,14 @@ class Draws:
         return np.random.Generator(np.random.PCG64(seq))
 
     def scale(self, block: int, m: int) -> np.ndarray:
-        """(m,): σ_trial / s, the scatter's scale in each trial of the block."""
-        return np.sqrt(self.dof / self.rng(block, _SCALE).chisquare(self.dof, size=m))
+        """(m,): σ_trial / s, the scatter's scale in each trial of the block (the last block's
+        kept: every group of a block asks for it)."""
+        if self._scale[0] != (block, m):
+            self._scale = (
+                (block, m),
+                np.sqrt(self.dof / self.rng(block, _SCALE).chisquare(self.dof, size=m)),
+            )
+        return self._scale[1]
 
     def chisquare(self, block: int, m: int, dof: float, which: int = 0) -> np.ndarray:
         """(m,): χ²_dof draws of the block for a metric's own use (``which`` tells them apart)."""
@@ -105,14 +112,16 @@ class Draws:
             return total, parts
         idx = self.groups[group]
         sigma = self.s[None, :] * self.scale(block, m)[:, None]  # (m, d)
-        var = (sigma * sigma)[:, None, :] / n[idx][None, :, None]  # (m, G, d), its own
-        common = []
-        for i, t in enumerate(self.terms):
-            u = t.per_axis(self.d)
-            if t.scope == "common":
-                common.append((i, t, u))
-                continue
-            u = u * (1e-6 * positions[idx]) if t.relative else np.broadcast_to(u, (idx.size, self.d))
+        counts = n[idx]
+        terms = [(i, t, t.per_axis(self.d)) for i, t in enumerate(self.terms)]
+        common = [(i, t, u) for i, t, u in terms if t.scope == "common"]
+        own = [(t, u) for _, t, u in terms if t.scope != "common"]
+        # every cell of the group alike (the same readings, no relative term of its own): the
+        # variance of one cell is every cell's, the same numbers without a (m, G, d) array of them
+        alike = counts.size > 0 and bool(np.all(counts == counts[0])) and not any(t.relative for t, _ in own)
+        var = (sigma * sigma)[:, None, :] / (counts[:1] if alike else counts)[None, :, None]  # (m, 1 or G, d)
+        for t, u in own:
+            u = u * (1e-6 * positions[idx]) if t.relative else np.broadcast_to(u, (var.shape[1], self.d))
             var += (u * u)[None]
         total = self.rng(block, _SAMPLE, group).standard_normal((m, idx.size, self.d))
         total *= np.sqrt(var, out=var)

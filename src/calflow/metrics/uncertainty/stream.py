@@ -174,7 +174,8 @@ def simulate(
 
     ``positions`` (cells, d), ``n`` (cells,): where relative terms scale from, readings per
     cell (:meth:`.draws.Draws.pieces`); ``cells(error, group)``: ``{set: (values (m, k),
-    cell indices (k,))}`` of a group's error (m, G, d); ``sizes``: each set's number of
+    cell indices (k,))}`` of a group's error (m, G, d), which it may overwrite when it is
+    writeable (nothing reads it after; a single input's is not); ``sizes``: each set's number of
     cells; ``statistic(name, tmax, tmin, extras)``: the per-trial statistic of interval
     ``name`` from each set's per-trial extremes; ``extras(block, m)``: per-trial additions
     (``{name: (m,)}``). ``trials``: a fixed M; None: adaptive (JCGM 101 §7.9), stopping when

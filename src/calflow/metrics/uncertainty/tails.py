@@ -83,8 +83,8 @@ def extremes(cols: np.ndarray, k: int, step: int = SUBSAMPLE) -> tuple[np.ndarra
 def _beyond(cols: np.ndarray, mask: np.ndarray, k: int, fill: float) -> tuple[np.ndarray, np.ndarray]:
     """The values of ``cols`` (G, m) where ``mask``, row by row, padded with ``fill`` to at least
     k a row: (G, width) and how many each row has."""
-    counts = mask.sum(axis=1)
-    values = cols[mask]  # row after row
+    counts = np.count_nonzero(mask, axis=1)
+    values = np.compress(mask.ravel(), cols.ravel())  # row after row (cols[mask]'s, a third faster)
     out = np.full((cols.shape[0], max(int(counts.max(initial=0)), k)), fill)
     row = np.repeat(np.arange(cols.shape[0]), counts)
     out[row, np.arange(values.size) - (np.cumsum(counts) - counts)[row]] = values
