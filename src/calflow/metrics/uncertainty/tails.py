@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-TAIL = 0.03  #: share of a block's draws kept at each end of every cell of a maximum
+TAIL = 0.035  #: share of a block's draws kept at each end of every cell of a maximum (the upper bound of a cell whose bias correction is slightly negative, z₀ ≥ −0.07, lies in them)
 SUBSAMPLE = 16  #: every how many draws of a cell the thresholds of its tails are read from
 
 
