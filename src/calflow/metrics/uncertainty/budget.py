@@ -95,11 +95,13 @@ def welch_satterthwaite(u: Sequence[float], dof: Sequence[float]) -> float:
 
 
 def coverage_factor(dof: float, p: float = P95) -> float:
-    """k = t_{(1+p)/2}(ν) (JCGM 100 G.3.4); the normal quantile for ν = ∞."""
-    from scipy import stats
+    """k = t_{(1+p)/2}(ν) (JCGM 100 G.3.4); the normal quantile for ν = ∞. By the functions
+    ``scipy.stats.norm.ppf`` and ``t.ppf`` call (the same numbers; importing scipy.stats
+    costs a summary job about half a second of CPU)."""
+    from scipy.special import ndtri, stdtrit
 
     q = (1.0 + p) / 2.0
-    return float(stats.norm.ppf(q) if not math.isfinite(dof) else stats.t.ppf(q, dof))
+    return float(ndtri(q) if not math.isfinite(dof) else stdtrit(dof, q))
 
 
 def gum_linear(
@@ -162,8 +164,13 @@ def reading_budget(terms: Sequence[Term]) -> dict:
 
 
 def sigma_interval(s: float, dof: int, level: float = P95) -> tuple[float, float]:
-    """Exact interval of a normal σ from its estimate s with ν dof (χ² quantiles)."""
-    from scipy import stats
+    """Exact interval of a normal σ from its estimate s with ν dof (χ² quantiles: ``scipy.stats.chi2.ppf``'s
+    function, 2 P⁻¹(ν/2, q) by the inverse regularised incomplete gamma function)."""
+    from scipy.special import gammaincinv
 
     a = (1.0 - level) / 2.0
-    return s * math.sqrt(dof / stats.chi2.ppf(1 - a, dof)), s * math.sqrt(dof / stats.chi2.ppf(a, dof))
+
+    def chi2_ppf(q: float) -> float:
+        return float(2 * gammaincinv(dof / 2, q))
+
+    return s * math.sqrt(dof / chi2_ppf(1 - a)), s * math.sqrt(dof / chi2_ppf(a))

@@ -250,9 +250,9 @@ def robust_sd(x) -> float:
     """Half the central 68.27 % range of ``x``: the standard deviation of a normal, and finite
     for the heavy tails of a scatter known from few readings (a variance with ν ≤ 4 dof has
     no finite variance of its own)."""
-    from scipy import stats
+    from scipy.special import ndtr  # stats.norm.cdf's own function, without importing scipy.stats
 
-    lo, hi = np.quantile(np.asarray(x, float), [stats.norm.cdf(-1.0), stats.norm.cdf(1.0)])
+    lo, hi = np.quantile(np.asarray(x, float), [float(ndtr(-1.0)), float(ndtr(1.0))])
     return float(hi - lo) / 2.0
 
 

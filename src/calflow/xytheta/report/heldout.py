@@ -39,11 +39,11 @@ def adequacy(sigma_fit, n_poses, n_free: int, floor: dict, alpha: float = 0.01) 
             "adequate": None,
             "statement": "No repeatability floor was measured: calflow cannot tell whether the model fits.",
         }
-    from scipy.stats import f as fisher
+    from scipy.special import fdtrc  # scipy.stats.f.sf's function, without importing scipy.stats
 
     ratio = float(sigma_fit) ** 2 / floor["floor_um"] ** 2
     df1 = max(1, 2 * (int(n_poses) - 1) - n_free)
-    p = float(fisher.sf(ratio, df1, floor["dof"]))
+    p = float(fdtrc(df1, floor["dof"], ratio))
     ok = p >= alpha
     statement = (
         "The residuals are at the repeatability floor: the model fits, and its parameter σ can be trusted."
