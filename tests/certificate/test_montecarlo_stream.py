@@ -322,3 +322,72 @@ def test_streamed_maximum_with_a_per_trial_addition_is_the_whole_arrays(cells, g
     r = np.abs(dev[None] + _whole(draws, positions, n, sizes)[:, :, 0])
     add = np.concatenate([extras(b, m)["add"] for b, m in enumerate(sizes)])
     assert out.intervals["R"] == maximum_interval(y, r + add[:, None])
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    cells=st.integers(1, 6),
+    d=st.integers(1, 2),
+    readings=st.integers(2, 6),
+    m=st.integers(1, 40),
+    block=st.integers(1, 5),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_cells_alike_draw_the_error_of_each_cells_own_variance(cells, d, readings, m, block, seed):
+    """Cells with the same readings and no relative term of their own share one variance per
+    trial: the error is to the byte the one from each cell's own variance (every input in the
+    draws' order: the sample term and per-cell terms as one normal, then the common terms)."""
+    from calflow.metrics.uncertainty.draws import _SAMPLE, _TERMS
+
+    terms = [Term("res", 0.01, scope="reading"), *TERMS, Term("drift2", [0.04, 0.01][:d], scope="target")]
+    s_ = np.array([0.2, 0.1])[:d]
+    draws = Draws(s_, 6.5, cells, d, terms, seed)
+    pos = np.random.default_rng(seed).uniform(1, 900, (cells, d))
+    n = np.full(cells, float(readings))
+    got = draws.error(block, m, 0, pos, n)[0]
+    sigma = s_[None, :] * draws.scale(block, m)[:, None]
+    var = (sigma * sigma)[:, None, :] / n[None, :, None]
+    for t in draws.terms:
+        if t.scope != "common":
+            var += (np.broadcast_to(t.per_axis(d), (cells, d)) ** 2)[None]
+    want = draws.rng(block, _SAMPLE, 0).standard_normal((m, cells, d)) * np.sqrt(var)
+    for i, t in enumerate(draws.terms):
+        if t.scope == "common":
+            e = draws.rng(block, _TERMS + i).standard_normal((m, 1, d)) * t.per_axis(d)
+            want += e * (1e-6 * pos[None]) if t.relative else e
+    assert np.array_equal(got, want)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    targets=st.integers(3, 12), group=st.integers(1, 3), m=st.integers(20, 60), seed=st.integers(0, 2**32 - 1)
+)
+def test_a_ranges_cells_are_kept_as_the_block_is_drawn(targets, group, m, seed):
+    """A range's look over one block reads the cells that are its largest or smallest in some
+    trial from what the block kept while it was drawn: no group is drawn again (no cell is
+    watched here, so nothing else could have kept them)."""
+    rng = np.random.default_rng(seed)
+    P = targets
+    mean = rng.normal(0, 0.05, 2 * P)
+    runs = [np.arange(a, min(a + group, P)) for a in range(0, P, group)]
+    draws = Draws([0.1], 5, 2 * P, 1, TERMS[1:2], seed, groups=[np.concatenate([r, P + r]) for r in runs])
+    calls = []
+    error = draws.error
+    draws.error = lambda *a, **k: calls.append(a[:3]) or error(*a, **k)
+
+    def cells_of(e, g):
+        idx = draws.groups[g]
+        return {"mu": (mean[idx][None] + e[:, :, 0], idx)}
+
+    old = stream_module.WATCH
+    stream_module.WATCH = 0
+    try:
+        out = simulate(
+            draws, np.ones((2 * P, 1)), np.full(2 * P, 3.0), cells_of, {"mu": 2 * P}, {"E": Span("mu", mean)},
+            lambda name, tmax, tmin, ext: tmax["mu"] - tmin["mu"], trials=m, block=m,
+        )  # fmt: skip
+    finally:
+        stream_module.WATCH = old
+    assert sorted(calls) == sorted((0, m, g) for g in range(len(runs)))
+    mu = mean[None] + _whole(draws, np.ones((2 * P, 1)), np.full(2 * P, 3.0), [m])[:, :, 0]
+    assert out.stats["E"] == pytest.approx(mu.max(axis=1) - mu.min(axis=1), rel=0, abs=0)

@@ -36,6 +36,36 @@ def test_coverage_factor_is_students_t():
     assert coverage_factor(4) == pytest.approx(2.776445, abs=1e-6)
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    dof=st.one_of(st.floats(0.5, 1e7), st.integers(1, 10_000).map(float), st.just(math.inf)),
+    level=st.floats(0.5, 0.999),
+    s=st.floats(1e-6, 1e3),
+)
+def test_quantiles_by_scipy_special_are_scipy_stats_to_the_byte(dof, level, s):
+    """The summary takes its t, normal, χ² and F quantiles from the scipy.special functions
+    scipy.stats calls, so as not to import scipy.stats: the same numbers, not merely close."""
+    from calflow.metrics.uncertainty import robust_sd, sigma_interval
+    from calflow.xytheta.report.heldout import adequacy
+
+    q = (1.0 + level) / 2.0
+    want = float(stats.norm.ppf(q) if math.isinf(dof) else stats.t.ppf(q, dof))
+    assert coverage_factor(dof, level) == want
+    if math.isfinite(dof):
+        a = (1.0 - level) / 2.0
+        assert sigma_interval(s, dof, level) == (
+            s * math.sqrt(dof / stats.chi2.ppf(1 - a, dof)),
+            s * math.sqrt(dof / stats.chi2.ppf(a, dof)),
+        )
+        floor = {"floor_um": s, "dof": dof}
+        fit = s * level * 2
+        got = adequacy(fit, 40, 4, floor)
+        assert got["p_value"] == float(stats.f.sf(fit**2 / s**2, 2 * 39 - 4, dof))
+    x = np.random.default_rng(int(dof) % 997 if math.isfinite(dof) else 1).standard_normal(501) * s
+    lo, hi = np.quantile(x, [stats.norm.cdf(-1.0), stats.norm.cdf(1.0)])
+    assert robust_sd(x) == float(hi - lo) / 2.0
+
+
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_rp_factor_matches_simulation(d):
     z = np.random.default_rng(d).standard_normal((400_000, d))
