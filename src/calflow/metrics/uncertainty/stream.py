@@ -10,9 +10,11 @@ metric's statistics, each term's alone), and of every cell its extremes and how 
 the largest or smallest. A maximum's rule (:func:`.montecarlo.largest_bounds` with the count
 of :func:`.montecarlo.candidates`) reads each cell's tails, kept by every block
 (:mod:`.tails`), and the first block's first draws of its cells; a range's needs the draws of
-the few cells that are its largest or smallest in some trial, kept or drawn again, a few at a
-time, from their blocks' seeds. The numbers are those of the whole (M, cells) array; memory
-grows with the cells through the per-cell counters and tails (0.5 kB a cell a block) and the
+the few cells that are its largest or smallest in some trial: kept by the block as it is drawn
+(a cell that becomes the largest or smallest so far in a trial keeps its draws until a later
+group overtakes it in every such trial; later blocks keep the cells earlier ones found), else
+drawn again, a few at a time, from their blocks' seeds. The numbers are those of the whole (M, cells) array; memory
+grows with the cells through the per-cell counters and tails (5.6 kB a cell a block of 10⁴) and the
 count's first draws (40 kB a cell, once).
 """
 
@@ -98,19 +100,22 @@ class _Block:
                 self._keep(s, v, idx, np.union1d(a[up], b[down]))
             self.cmax[s][idx] = v.max(axis=0)
             self.cmin[s][idx] = v.min(axis=0)
-            added = {}  # the cells' draws plus each per-trial addition, computed once
+            mine = [(name, spec) for name, spec in self.maxima.items() if spec.cells == s]
+            # each cell's draws in a row (the tails' layout), transposed once for every maximum
+            # of the set; a per-trial addition is added to the rows, computed once
+            by_cell = v.T.copy() if mine else None
+            added = {}
             for cells, add in adds:
                 if cells == s:
-                    added[add] = v + self.extras[add][:, None]
+                    added[add] = by_cell + self.extras[add][None, :]
                     self.add_cmax.setdefault((s, add), np.full(self.cmax[s].size, -np.inf))
-                    self.add_cmax[(s, add)][idx] = added[add].max(axis=0)
+                    self.add_cmax[(s, add)][idx] = added[add].max(axis=1)
             if s in self.first:
                 self.first[s][idx] = v[: self.first[s].shape[1]].T
-            for name, spec in self.maxima.items():
-                if spec.cells == s:
-                    mine = added[spec.add] if spec.add else v
-                    self.tails[name].take(mine, idx, np.asarray(spec.estimates, float)[idx])
-            del added
+            for name, spec in mine:  # the tails may reorder a row: its values stay the same
+                cols = added[spec.add] if spec.add else by_cell
+                self.tails[name].take_rows(cols, idx, np.asarray(spec.estimates, float)[idx])
+            del added, by_cell
             self._keep(s, v, idx, np.flatnonzero(np.isin(idx, self.watch[s])))
 
     def _keep(self, s: str, v: np.ndarray, idx: np.ndarray, columns: np.ndarray) -> None:

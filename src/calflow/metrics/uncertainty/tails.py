@@ -43,8 +43,12 @@ class BlockTails:
 
     def take(self, values: np.ndarray, idx: np.ndarray, estimates: np.ndarray) -> None:
         """``values`` (m, G): the block's draws of cells ``idx``, compared with their ``estimates``."""
-        self.below[idx] = np.count_nonzero(values < estimates[None, :], axis=0)
-        self.low[idx], self.high[idx] = extremes(values.T.copy(), self.k)
+        self.take_rows(values.T.copy(), idx, estimates)
+
+    def take_rows(self, cols: np.ndarray, idx: np.ndarray, estimates: np.ndarray) -> None:
+        """:meth:`take` of the draws laid out a cell a row, ``cols`` (G, m), which it may reorder."""
+        self.below[idx] = np.count_nonzero(cols < estimates[:, None], axis=1)
+        self.low[idx], self.high[idx] = extremes(cols, self.k)
 
 
 def extremes(cols: np.ndarray, k: int, step: int = SUBSAMPLE) -> tuple[np.ndarray, np.ndarray]:
