@@ -224,7 +224,10 @@ def simulate(
             del total, values
             shape = (m, draws.groups[g].size, draws.d)
             for name, piece in pieces.items() if b == 0 else ():  # the budget: the first block's
-                blk.take_part(name, cells(np.broadcast_to(piece, shape), g))  # a common term: every cell's
+                # a common term's is every cell's; a whole piece is summed already and cells
+                # may form its values in its memory
+                whole = piece.shape == shape and piece.flags.writeable
+                blk.take_part(name, cells(piece if whole else np.broadcast_to(piece, shape), g))
         blk.settle()
         run.blocks.append(blk)
         for s in spans:  # the next blocks keep these too: a look over every block reads them
