@@ -124,42 +124,13 @@ def smoke_folder(folder: Path) -> list[str]:
     return [str(folder), "--period-um", "4", "--size", "17"]
 
 
-def main(argv=None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if "--smoke" in argv:
-        argv.remove("--smoke")
-        with tempfile.TemporaryDirectory() as tmp:
-            return main(smoke_folder(Path(tmp)) + argv)
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("folder", help="frames Image<N>.png and the library's results.csv")
-    p.add_argument("--period-um", type=float, required=True, help="the markers' period (µm)")
-    p.add_argument(
-        "--size", type=int, required=True, help="dots a side (the library's half periods + 1, halved)"
-    )
-    p.add_argument("--fixed", type=int, default=0, help="the fixed marker's number")
-    p.add_argument("--moving", type=int, default=1, help="the moving marker's number")
-    p.add_argument("--json", action="store_true", help="print one JSON object last")
-    args = p.parse_args(argv)
-    folder = Path(args.folder)
-    pattern = HPCodePattern(args.period_um, args.size)
-    files = sorted(
-        (f for f in folder.iterdir() if re.fullmatch(r"[A-Za-z_]*\d+\.(png|jpe?g|tiff?)", f.name, re.I)),
-        key=lambda f: int(re.search(r"\d+", f.name).group()),
-    )
-    if not files:
-        print(f"{folder}: no frames Image<N>.png", file=sys.stderr)
-        return 1
-    lib = library_rows(folder / "results.csv")
-    numbers = [int(re.search(r"\d+", f.name).group()) for f in files]
-    fixed, rels, found, witness, cpu = [], [], [], [], 0.0
-    for f in files:
-        frame = read_frames([f])[0]
-        start = time.process_time()
-        m = decode_markers(frame, pattern)
-        cpu += time.process_time() - start
-        found.append(sorted(int(n) for n, s in zip(m.number, m.status) if s == "ok"))
+def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
+    """The comparison's figures over the listed frames, the relative poses at ``pixel_um`` (one
+    pixel size for the sequence) or, when None, at each frame's own lattices."""
+    fixed, rels, witness = [], [], []
+    for m in decoded:
         fixed.append(m.of(args.fixed))
-        rels.append(relative(m, args.moving, args.fixed, args.period_um))
+        rels.append(relative(m, args.moving, args.fixed, args.period_um, pixel_um))
         by_number = {int(n): k for k, n in enumerate(m.number)}
         i, j = by_number.get(args.moving), by_number.get(args.fixed)
         if i is None or j is None:
@@ -170,7 +141,7 @@ def main(argv=None) -> int:
                 m.centre_fiducials_x_px[i] - m.centre_fiducials_x_px[j],
                 m.centre_fiducials_y_px[i] - m.centre_fiducials_y_px[j],
             ]
-            scale = 0.5 * (m.pixel_um[i] + m.pixel_um[j])
+            scale = pixel_um or 0.5 * (m.pixel_um[i] + m.pixel_um[j])
             turn = math.radians(m.theta_fiducials_deg[i] - m.theta_fiducials_deg[j])
             witness.append((turn, _rot(-t) @ np.array(off) * scale))
 
@@ -181,7 +152,6 @@ def main(argv=None) -> int:
         return Decoded(**{k: np.concatenate([getattr(d, k) for d in parts]) for k in keys})
 
     fx, rel = stack(fixed), stack(rels)
-    listed = [i for i, n in enumerate(numbers) if n in lib]
     ok = [i for i in listed if rel.status[i] == "ok"]
     pos, turn = calflow_relative(rel)
     lpos, lturn = library_relative(lib, [numbers[i] for i in ok], args.fixed, args.moving)
@@ -198,15 +168,21 @@ def main(argv=None) -> int:
         p, f = p - p.mean(axis=0), fid_pos - fid_pos.mean(axis=0)
         return float(np.sum(p * f) / np.sum(p * p))
 
+    def along(p):  # the residual's least-squares factor on the library's travel, and what is
+        # left once it is taken out (rms, µm): a scale difference, or noise
+        t = lpos - lpos[0]
+        k = float(np.sum(p * t) / np.sum(t * t))
+        return k, float(np.sqrt(np.mean(np.sum((p - k * t) ** 2, axis=1))))
+
     lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
-    summary = {
-        "frames": len(files),
-        "frames_listed": len(listed),
+    factor, rest = along(d)
+    return {
         "frames_compared": len(ok),
-        "markers_per_frame": sorted({len(f) for f in found}),
-        "numbers_read": sorted({n for f in found for n in f}),
+        "frames_not_decoded": [numbers[i] for i in listed if rel.status[i] != "ok"],
         "displacement_diff_rms_um": float(np.sqrt(np.mean(dist**2))),
         "displacement_diff_max_um": float(dist.max()),
+        "displacement_diff_over_travel": factor,
+        "displacement_diff_rms_um_without_scale": rest,
         "turn_diff_rms_mrad": float(1e3 * np.sqrt(np.mean(dturn**2))),
         "turn_diff_max_mrad": float(1e3 * np.abs(dturn).max()),
         # the largest change of the turn from one listed frame to the next, and where: a decoder
@@ -219,7 +195,7 @@ def main(argv=None) -> int:
         # library − it, rms about their means, and the library's drift from it
         "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
         "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
-        # the fiducials' travel (centres alone, the markers' mean pixel size) over each decoder's
+        # the fiducials' travel (centres alone, at the same scale) over each decoder's
         "fiducials_travel_over": {"calflow": scale(pos[ok]), "library": scale(lpos)},
         "fiducials_travel_um": [float(v) for v in fid_pos[-1]],
         "turn_total_mrad": {
@@ -232,18 +208,87 @@ def main(argv=None) -> int:
         "fixed_scatter_um_library": [float(v) for v in np.std(lib_fixed, axis=0, ddof=1)],
         "fixed_u_um_calflow": [float(np.median(fx.u_x_um[ok])), float(np.median(fx.u_y_um[ok]))],
         "moving_travel_um": [float(v) for v in pos[ok][-1] - pos[ok][0]],
-        "cpu_s_per_frame": cpu / len(files),
-        "load_1min": os.getloadavg()[0],
-        "machine": f"{platform.machine()} {platform.system()} Python {platform.python_version()}",
     }
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--smoke" in argv:
+        argv.remove("--smoke")
+        with tempfile.TemporaryDirectory() as tmp:
+            return main(smoke_folder(Path(tmp)) + argv)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("folder", help="frames Image<N>.png and the library's results.csv")
+    p.add_argument("--period-um", type=float, required=True, help="the markers' period (µm)")
+    p.add_argument(
+        "--size", type=int, required=True, help="dots a side (the library's half periods + 1, halved)"
+    )
+    p.add_argument("--fixed", type=int, default=0, help="the fixed marker's number")
+    p.add_argument("--moving", type=int, default=1, help="the moving marker's number")
+    p.add_argument(
+        "--pixel-um",
+        type=float,
+        help="the optics' pixel size (µm), the relative poses' scale; default: the median over "
+        "the listed frames of each frame's own estimate",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object last")
+    args = p.parse_args(argv)
+    folder = Path(args.folder)
+    pattern = HPCodePattern(args.period_um, args.size)
+    files = sorted(
+        (f for f in folder.iterdir() if re.fullmatch(r"[A-Za-z_]*\d+\.(png|jpe?g|tiff?)", f.name, re.I)),
+        key=lambda f: int(re.search(r"\d+", f.name).group()),
+    )
+    if not files:
+        print(f"{folder}: no frames Image<N>.png", file=sys.stderr)
+        return 1
+    lib = library_rows(folder / "results.csv")
+    numbers = [int(re.search(r"\d+", f.name).group()) for f in files]
+    decoded, cpu = [], 0.0
+    for f in files:
+        frame = read_frames([f])[0]
+        start = time.process_time()
+        decoded.append(decode_markers(frame, pattern))
+        cpu += time.process_time() - start
+    listed = [i for i, n in enumerate(numbers) if n in lib]
+    # one pixel size for the whole sequence (the optics'): given, or the median over the listed
+    # frames of the two markers' mean, each frame's own estimate
+    pairs = np.array(
+        [
+            (m.pixel_um[m.number == args.fixed][0], m.pixel_um[m.number == args.moving][0])
+            for m in (decoded[i] for i in listed)
+            if {args.fixed, args.moving} <= set(m.number[m.status == "ok"].tolist())
+        ]
+    )
+    per_frame = pairs.mean(axis=1)
+    sequence_pixel = args.pixel_um or float(np.median(per_frame))
+    summary = {
+        "frames": len(files),
+        "frames_listed": len(listed),
+        "markers_per_frame": sorted({int((m.status == "ok").sum()) for m in decoded}),
+        "numbers_read": sorted({int(n) for m in decoded for n in m.number[m.status == "ok"]}),
+        "sequence_pixel_um": sequence_pixel,
+        "sequence_pixel_given": args.pixel_um is not None,
+        # each frame's own pixel size: its scatter over the sequence (relative), each marker's,
+        # and how the two markers' estimates go together (one optics: a change of magnification
+        # would move both alike)
+        "frame_pixel_um_scatter_rel": [float(v) for v in np.std(pairs, axis=0, ddof=1) / pairs.mean(axis=0)],
+        "frame_pixel_um_markers": [float(v) for v in pairs.mean(axis=0)],
+        "frame_pixel_correlation": float(np.corrcoef(pairs.T)[0, 1]),
+    }
+    # headline: the relative poses at one pixel size for the sequence; then at each frame's own
+    summary.update(figures(decoded, numbers, listed, lib, args, sequence_pixel))
+    summary["frame_scale"] = figures(decoded, numbers, listed, lib, args, None)
+    summary["cpu_s_per_frame"] = cpu / len(files)
+    summary["load_1min"] = os.getloadavg()[0]
+    summary["machine"] = f"{platform.machine()} {platform.system()} Python {platform.python_version()}"
     for k, v in summary.items():
         print(f"{k}: {v}")
-    failed = [numbers[i] for i in listed if rel.status[i] != "ok"]
-    if failed:
-        print(f"frames listed but not decoded by calflow: {failed}")
+    if summary["frames_compared"] < summary["frames_listed"]:
+        print(f"frames listed but not decoded by calflow: {summary['frames_not_decoded']}")
     if args.json:
         print(json.dumps(summary, indent=1))
-    return 0 if len(ok) >= 2 else 1
+    return 0 if summary["frames_compared"] >= 2 else 1
 
 
 if __name__ == "__main__":

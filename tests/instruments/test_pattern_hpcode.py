@@ -187,6 +187,27 @@ def test_relative_pose_is_the_reference_seen_from_the_marker(turn, base, step):
     assert np.allclose([hook.x_um[0], hook.y_um[0]], [rel.x_um[0], rel.y_um[0]], atol=1e-9)
 
 
+def test_a_given_pixel_size_is_the_relative_pose_scale():
+    ref_c, mov_c = np.array([-60.0, 0.0]), np.array([55.0, 5.0])
+    truth = [placed(0, *ref_c, 10.0), placed(1, *mov_c, 12.0)]
+    frame = render(WIDE, PATTERN, truth, rng=5)
+    found = decode_markers(frame, PATTERN)
+    t = math.radians(12.0)
+    want = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]]) @ (ref_c - mov_c)
+    given = relative(found, 1, 0, PATTERN.period_um, pixel_um=WIDE.pixel_um)
+    assert np.hypot(given.x_um[0] - want[0], given.y_um[0] - want[1]) < POSE_UM
+    # the offset follows the scale given, not the markers' own: 0.5 % more, 0.5 % farther
+    off = relative(found, 1, 0, PATTERN.period_um, pixel_um=1.005 * WIDE.pixel_um)
+    ratio = np.hypot(off.x_um[0], off.y_um[0]) / np.hypot(given.x_um[0], given.y_um[0])
+    assert abs(ratio - 1.005) < 1e-9
+    assert off.theta_deg[0] == given.theta_deg[0]
+    # the layout's hook passes the pixel size on to the relative pose
+    hook = decode(frame[None], PATTERN, pixel_um=1.005 * WIDE.pixel_um, marker=1, reference=0)
+    assert np.allclose([hook.x_um[0], hook.y_um[0]], [off.x_um[0], off.y_um[0]], atol=1e-9)
+    with pytest.raises(ValueError, match="pixel_um"):
+        relative(found, 1, 0, PATTERN.period_um, pixel_um=-1.0)
+
+
 def test_a_missing_reference_is_a_status_not_a_pose():
     frames = np.stack(
         [render(WIDE, PATTERN, [placed(1, 50.0, 0.0, 5.0), placed(0, -60.0, 10.0, 5.0)], rng=1),
