@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from calflow.errors import CalflowError
 from calflow.instruments.pattern import Camera
 from calflow.instruments.pattern.decode import STATUSES
-from calflow.instruments.pattern.hpcode import HPCodePattern, decode, decode_markers, relative
+from calflow.instruments.pattern.hpcode import HPCodePattern, decode, decode_markers, pose, relative
 from calflow.instruments.pattern.hpcode.render import expectation, render
 from calflow.instruments.pattern.layouts import load_pattern, read_pattern
 
@@ -138,6 +138,33 @@ def test_every_marker_has_its_number_and_pose(numbers, thetas, shift, dark, seed
     assert sorted(found.number.tolist()) == sorted(numbers)
     for t in truth:
         check_pose(found, int(np.nonzero(found.number == t[0])[0][0]), t, camera)
+
+
+@settings(
+    max_examples=5,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    phases=[Phase.explicit, Phase.reuse, Phase.generate],
+)
+@given(
+    number=st.integers(0, 511),
+    theta=st.floats(-180, 180),
+    shift=st.tuples(st.floats(-4, 4), st.floats(-4, 4)),
+)
+def test_the_grid_edge_bends_the_pixel_size_and_no_more(number, theta, shift):
+    # noise-free: what is left is the fit's bias, from the band-pass's Gaussian reaching the
+    # grid's edge (pose.py). Samples one period in (the default): the pixel size 1-3e-4 small,
+    # never large; two periods in, under 1e-4 and 25 µrad — the bias is the edge's
+    frame = expectation(CAMERA, PATTERN, [(number, *shift, theta)])
+    found = decode_markers(frame, PATTERN)
+    assert found.status.tolist() == ["ok"], found.reason[0]
+    assert -4e-4 < found.pixel_um[0] / CAMERA.pixel_um - 1 < 0
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pose, "EDGE", 2.0)
+        inner = decode_markers(frame, PATTERN)
+    assert abs(inner.pixel_um[0] / CAMERA.pixel_um - 1) < 1e-4
+    assert abs(math.radians((inner.theta_deg[0] - theta + 180.0) % 360.0 - 180.0)) < 25e-6
+    assert abs(inner.x_um[0] - shift[0]) < 1e-3 and abs(inner.y_um[0] - shift[1]) < 1e-3
 
 
 def test_a_given_pixel_size_must_match_the_markers():
