@@ -124,6 +124,25 @@ def smoke_folder(folder: Path) -> list[str]:
     return [str(folder), "--period-um", "4", "--size", "17"]
 
 
+def bin_pull(m, number: int, period_um: float, snapshot: int) -> tuple[float, tuple]:
+    """Where the marker's two lobes fall in the spectrum of a ``snapshot``-pixel square (the
+    library's snapshot): the mean over the lobes of the angle from each lobe's frequency to the
+    nearest integer bin's (radian), and those bins — a band-pass centred on the bin, not on the
+    lobe, pulls the angle towards the bin's and jumps when the lobe crosses into the next."""
+    k = int(np.nonzero(m.number == number)[0][0])
+    pull, bins = [], []
+    for axis in ("x", "y"):
+        t = math.radians(m.columns[f"theta_{axis}_deg"][k])
+        f = snapshot * m.columns[f"pixel_{axis}_um"][k] / period_um  # bins from the centre
+        u, v = f * math.cos(t), f * math.sin(t)
+        if v < 0 or (v == 0 and u < 0):  # the half plane the spectrum keeps
+            u, v = -u, -v
+        bu, bv = round(u), round(v)
+        pull.append((math.atan2(bv, bu) - math.atan2(v, u) + math.pi) % (2 * math.pi) - math.pi)
+        bins.append((bu, bv))
+    return float(np.mean(pull)), tuple(bins)
+
+
 def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
     """The comparison's figures over the listed frames, the relative poses at ``pixel_um`` (one
     pixel size for the sequence) or, when None, at each frame's own lattices."""
@@ -175,6 +194,15 @@ def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
         return k, float(np.sqrt(np.mean(np.sum((p - k * t) ** 2, axis=1))))
 
     lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
+    # the library's turn against where the markers' lobes fall in its snapshot's spectrum
+    pulls = [
+        [bin_pull(decoded[i], n, args.period_um, args.library_snapshot) for n in (args.moving, args.fixed)]
+        for i in ok
+    ]
+    pull = np.array([m[0] - f[0] for m, f in pulls])
+    moved = [numbers[ok[k + 1]] for k in range(len(ok) - 1) if pulls[k + 1][0][1] != pulls[k][0][1]]
+    excess = (lturn - lturn[0]) - (turn[ok] - turn[ok][0])
+    fit = np.polyfit(pull, excess, 1)
     factor, rest = along(d)
     return {
         "frames_compared": len(ok),
@@ -195,6 +223,13 @@ def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
         # library − it, rms about their means, and the library's drift from it
         "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
         "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
+        # calflow's lattice predicts the library's turn: the frames where the moving marker's
+        # lobes enter another bin of the library's snapshot spectrum, the library − calflow
+        # turn's factor on the bins' pull (moving − fixed), and what is left of it once the
+        # pull is taken out (rms, mrad)
+        "library_bin_changes_at": moved,
+        "library_turn_excess_on_bin_pull": float(fit[0]),
+        "library_turn_excess_rms_mrad_without_pull": float(1e3 * np.std(excess - np.polyval(fit, pull))),
         # the fiducials' travel (centres alone, at the same scale) over each decoder's
         "fiducials_travel_over": {"calflow": scale(pos[ok]), "library": scale(lpos)},
         "fiducials_travel_um": [float(v) for v in fid_pos[-1]],
@@ -230,6 +265,12 @@ def main(argv=None) -> int:
         type=float,
         help="the optics' pixel size (µm), the relative poses' scale; default: the median over "
         "the listed frames of each frame's own estimate",
+    )
+    p.add_argument(
+        "--library-snapshot",
+        type=int,
+        default=512,
+        help="the library's snapshot size (pixels) its results were made with (512 for Image140)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object last")
     args = p.parse_args(argv)
