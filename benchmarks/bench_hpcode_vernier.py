@@ -11,7 +11,15 @@ repository; give its path). ``--fixed`` names the marker that does not move (the
 Figures, over the frames results.csv lists:
 
 * the moving marker's displacement in the fixed marker's frame, from the first listed frame,
-  calflow − library: rms and largest (µm), and the same for its turn (mrad);
+  calflow − library: rms and largest (µm), its least-squares share of the travel and what is
+  left without it, and the same for its turn (mrad) — calflow's relative poses at one pixel
+  size for the sequence (``--pixel-um``, or the median over the frames of each frame's own),
+  and under ``frame_scale`` at each frame's own; each frame's pixel size's scatter and how the
+  two markers' go together;
+* the frames where the moving marker's lobes enter another bin of the spectrum of the
+  library's snapshot (``--library-snapshot``, 512 pixels for Image140), from calflow's
+  lattice, and the library − calflow turn's factor on the angle from each lobe to its bin
+  (the library's band-pass is centred on the bin);
 * the turn and the travel as the fiducials' centres alone show them (no phase fit: a coarse
   witness that owes nothing to either decoder's fine part), against each decoder's — the
   travel as the least-squares factor from the decoder's to the fiducials' — and each
