@@ -202,6 +202,19 @@ def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
         return k, float(np.sqrt(np.mean(np.sum((p - k * t) ** 2, axis=1))))
 
     lib_fixed = np.array([lib[numbers[i]][args.fixed][:2] for i in ok])
+    # each marker's centre dot in the frame, pixels from (w/2, h/2): calflow's, and the library's
+    # pose turned back into the frame at its own pixel size, R(alpha)·(x, y) / pixelSize
+    h, w = decoded[ok[0]].shape
+    centre_gap = 0.0
+    for i in ok:
+        m = decoded[i]
+        for n in (args.fixed, args.moving):
+            k = int(np.nonzero(m.number == n)[0][0])
+            x, y, alpha, size = lib[numbers[i]][n]
+            there = _rot(alpha) @ np.array([x, y]) / size
+            here = np.array([m.centre_x_px[k] - w / 2, m.centre_y_px[k] - h / 2])
+            centre_gap = max(centre_gap, float(np.hypot(*(here - there))))
+    lib_pixel = np.array([[lib[numbers[i]][n][3] for n in (args.fixed, args.moving)] for i in ok])
     # the library's turn against where the markers' lobes fall in its snapshot's spectrum
     pulls = [
         [bin_pull(decoded[i], n, args.period_um, args.library_snapshot) for n in (args.moving, args.fixed)]
@@ -249,6 +262,11 @@ def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
         "relative_offset_mean_um": [float(v) for v in (pos[ok] - lpos).mean(axis=0)],
         "fixed_scatter_um_calflow": [float(np.std(fx.x_um[ok], ddof=1)), float(np.std(fx.y_um[ok], ddof=1))],
         "fixed_scatter_um_library": [float(v) for v in np.std(lib_fixed, axis=0, ddof=1)],
+        "centres_px_calflow_vs_library_max": centre_gap,
+        "library_pixel_um_markers": [float(v) for v in lib_pixel.mean(axis=0)],
+        "library_pixel_um_scatter_rel": [
+            float(v) for v in np.std(lib_pixel, axis=0, ddof=1) / lib_pixel.mean(axis=0)
+        ],
         "fixed_u_um_calflow": [float(np.median(fx.u_x_um[ok])), float(np.median(fx.u_y_um[ok]))],
         "moving_travel_um": [float(v) for v in pos[ok][-1] - pos[ok][0]],
     }
