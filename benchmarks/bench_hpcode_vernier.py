@@ -244,6 +244,20 @@ def figures(decoded, numbers, listed, lib, args, pixel_um) -> dict:
         # library − it, rms about their means, and the library's drift from it
         "turn_vs_fiducials_rms_mrad_calflow": float(1e3 * np.std((turn[ok] - turn[ok][0]) - fid)),
         "turn_vs_fiducials_rms_mrad_library": float(1e3 * np.std((lturn - lturn[0]) - fid)),
+        # each of calflow's two lobes alone against its turn (rms from frame to frame, mrad)
+        "turn_lobes_vs_turn_rms_mrad_calflow": [
+            float(1e3 * np.sqrt(np.mean(((lobe - lobe[0]) - (turn[ok] - turn[ok][0])) ** 2)))
+            for lobe in (
+                np.radians(
+                    [
+                        decoded[i].columns[f"theta_{a}_deg"][decoded[i].number == args.moving][0]
+                        - decoded[i].columns[f"theta_{a}_deg"][decoded[i].number == args.fixed][0]
+                        for i in ok
+                    ]
+                )
+                for a in ("x", "y")
+            )
+        ],
         # calflow's lattice predicts the library's turn: the frames where the moving marker's
         # lobes enter another bin of the library's snapshot spectrum, the library − calflow
         # turn's factor on the bins' pull (moving − fixed), and what is left of it once the
@@ -342,6 +356,10 @@ def main(argv=None) -> int:
         "frame_pixel_um_scatter_rel": [float(v) for v in np.std(pairs, axis=0, ddof=1) / pairs.mean(axis=0)],
         "frame_pixel_um_markers": [float(v) for v in pairs.mean(axis=0)],
         "frame_pixel_correlation": float(np.corrcoef(pairs.T)[0, 1]),
+        "frame_pixel_u_rel": [
+            float(np.median([m.u_pixel_um[m.number == n][0] / m.pixel_um[m.number == n][0] for m in decoded]))
+            for n in (args.fixed, args.moving)
+        ],
     }
     # headline: the relative poses at one pixel size for the sequence; then at each frame's own
     summary.update(figures(decoded, numbers, listed, lib, args, sequence_pixel))
