@@ -163,7 +163,12 @@ def decode_markers(frames, pattern: HPCodePattern, pixel_um: float | None = None
 
 
 def relative(
-    found: Markers, marker: int, reference: int, period_um: float, pixel_um: float | None = None
+    found: Markers,
+    marker: int,
+    reference: int,
+    period_um: float,
+    pixel_um: float | None = None,
+    u_pixel_um: float = 0.0,
 ) -> Decoded:
     """Per frame, the pose of the marker numbered ``marker`` relative to the one numbered
     ``reference`` (module docstring): the reference's centre in the marker's frame and the
@@ -183,8 +188,9 @@ def relative(
     directions and shape, its size set to it, K ← K · (pixel_um / p) / √|det K|. The markers'
     separation multiplies the scale (a relative error of 10⁻⁴ is 0.07 µm at 700 µm), and a
     frame's own estimate of it scatters more than its fit says (docs/instruments.md), so a
-    pixel size known for the optics — or measured over a sequence — steadies the offset; its
-    own uncertainty is not known here and is left out of ``u_x_um``, ``u_y_um``."""
+    pixel size known for the optics — or pooled over a sequence (:mod:`.scale`) — steadies the
+    offset. Its standard uncertainty ``u_pixel_um`` (0: not known, left out) is common to the
+    frames and goes into ``u_x_um``, ``u_y_um`` as |o| · u_pixel_um / pixel_um."""
     _check_pixel(pixel_um)
     rm, sm, why_m = found.rows(marker)
     rr, sr, why_r = found.rows(reference)
@@ -214,7 +220,7 @@ def relative(
         xy = -(rot.T @ o)
         dist = math.hypot(*o)
         u_scale = (
-            0.0
+            dist * u_pixel_um / pixel_um
             if pixel_um is not None
             else dist
             * 0.5
