@@ -93,10 +93,26 @@ def test_a_drifting_magnification_is_said_in_words(n, change, sign):
     rng = np.random.default_rng(n)
     ramp = sign * change * np.linspace(0, 1, n)[:, None]
     pool = pool_pixel(table(0.5 * (1 + ramp + 1e-4 * rng.standard_normal((n, 2)))))
-    assert pool.drifts and "drifts" in pool.statement
+    assert pool.drifts and pool.magnification_drifts and "The magnification drifts" in pool.statement
     assert np.sign(pool.drift_um) == sign
     assert abs(pool.drift_um - 0.5 * sign * change) < 5 * pool.u_drift_um + 0.5 * 1e-4
     assert pool.attrs()["pixel_size_drifts"] == "yes"
+
+
+def test_one_marker_trending_is_not_called_the_magnification():
+    # the moving marker's pixel size follows its travel, the fixed one's does not (Image140)
+    rng = np.random.default_rng(11)
+    pixels = 0.5 * (1 + 1e-4 * rng.standard_normal((40, 2)))
+    pixels[:, 1] *= 1 + 5e-4 * np.linspace(0, 1, 40)
+    pool = pool_pixel(table(pixels), [0, 1])
+    assert pool.drifts and not pool.magnification_drifts and pool.trending == (1,)
+    assert "Not a change of the magnification" in pool.statement and "marker 0's not" in pool.statement
+    assert pool.attrs()["pixel_size_trend_markers"] == "1"
+    # both markers alike: the magnification
+    pixels[:, 0] *= 1 + 5e-4 * np.linspace(0, 1, 40)
+    both = pool_pixel(table(pixels), [0, 1])
+    assert both.magnification_drifts and both.trending == (0, 1)
+    assert "The magnification drifts" in both.statement
 
 
 def test_the_pool_only_takes_the_markers_named_and_needs_frames():

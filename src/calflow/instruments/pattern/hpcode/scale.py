@@ -14,7 +14,9 @@ the mean of the frames' estimates is the better scale.
    and its reference in a replay; every marker decoded when None) that are "ok" — they see
    the same optics and their errors are uncorrelated;
 2. frames farther than :data:`REJECT` robust standard deviations (1.4826 · MAD) from the
-   median are left out (a marker misfitted in one frame must not move the sequence's scale);
+   median are left out (a marker misfitted in one frame must not move the sequence's scale),
+   then those within :data:`REJECT` standard deviations of the kept frames' mean are taken
+   back (a MAD from a few tens of frames can fall well short of their scatter);
 3. the pooled pixel size is the mean of the frames kept, its standard uncertainty their
    standard deviation over √n_eff, with n_eff = n (1 − r₁)/(1 + r₁) when the frames'
    lag-one autocorrelation r₁ is positive (a slow wander is not n independent draws);
@@ -22,6 +24,11 @@ the mean of the frames' estimates is the better scale.
    order) tests for a drifting magnification: a slope whose two-sided p-value is below
    :data:`DRIFT_P` is a drift, stated in plain words (:attr:`SequenceScale.statement`) —
    the sequence is still pooled, but the record says the pool's scale is not each frame's.
+   Each marker's own pixel size is tested the same way: a change of magnification changes
+   every marker's alike, so when one marker's trends and another's does not, the record says
+   it is not the magnification but what differs between them (their places in the field of
+   view, a tilt, the fit) — on Image140 the moving marker's pixel size follows its travel
+   (2.6·10⁻⁴ over 13 pixels) while the fixed marker's does not move.
 
 The mean of the kept frames, not their median: with the outliers gone the scatter is
 Gaussian-like and the mean's variance is 0.64 of the median's. The uncertainty comes from
@@ -58,11 +65,26 @@ class SequenceScale:
     u_drift_um: float  # its standard uncertainty
     drift_p: float  # two-sided p-value of the slope
     numbers: tuple[int, ...]  # the markers pooled (empty: every marker decoded)
+    # each marker's own trend: (number, change over the sequence µm, its uncertainty, p-value)
+    marker_trends: tuple[tuple[int, float, float, float], ...] = ()
+
+    @property
+    def trending(self) -> tuple[int, ...]:
+        """The markers whose own pixel size has a trend against time beyond its scatter."""
+        return tuple(k for k, _, _, p in self.marker_trends if p < DRIFT_P)
 
     @property
     def drifts(self) -> bool:
-        """A trend of the frames' pixel sizes against time beyond their scatter."""
-        return self.drift_p < DRIFT_P
+        """A trend of the frames' pixel sizes against time beyond their scatter: the pool's or
+        one marker's."""
+        return self.drift_p < DRIFT_P or bool(self.trending)
+
+    @property
+    def magnification_drifts(self) -> bool:
+        """The pool's trend, and no marker steady while another trends: what a change of the
+        optics' magnification does (it changes every marker's pixel size alike)."""
+        steady = [k for k, *_ in self.marker_trends if k not in self.trending]
+        return self.drift_p < DRIFT_P and not (self.trending and steady)
 
     @property
     def statement(self) -> str:
@@ -74,12 +96,29 @@ class SequenceScale:
             f"{self.n_frames} frames ({which}; {len(self.rejected)} frame(s) left out as outliers); "
             f"a frame's own scatters by {self.scatter_um:.2g} µm, its fit states {self.u_fit_um:.2g} µm"
         )
-        if self.drifts:
+        if self.magnification_drifts:
             return (
                 f"{pooled}. The magnification drifts: the frames' pixel size changes by "
                 f"{self.drift_um:+.2g} ± {self.u_drift_um:.2g} µm over the sequence (p = {self.drift_p:.1g}), "
                 "beyond their scatter; the pooled scale is not each frame's — use each frame's own pixel "
                 "size, or steady the optics"
+            )
+        if self.drifts:  # one marker's pixel size trends and another's does not, or the other way
+            words = [
+                f"marker {k}'s by {d:+.2g} ± {u:.2g} µm (p = {p:.1g})"
+                for k, d, u, p in self.marker_trends
+                if k in self.trending
+            ]
+            words += [
+                f"marker {k}'s not (p = {p:.2g})"
+                for k, _, _, p in self.marker_trends
+                if k not in self.trending
+            ]
+            return (
+                f"{pooled}. The pixel size changes over the sequence: {'; '.join(words)}. Not a change of "
+                "the magnification, which would change every marker's alike, but of what differs between "
+                "the markers — their places in the field of view (distortion), a tilt, or the fit: calflow "
+                "cannot tell which, and the pooled scale averages it"
             )
         return (
             f"{pooled}; no drift of the magnification found (change over the sequence "
@@ -96,6 +135,7 @@ class SequenceScale:
             "pixel_size_drift_um": self.drift_um,
             "pixel_size_drift_p": self.drift_p,
             "pixel_size_drifts": "yes" if self.drifts else "no",
+            "pixel_size_trend_markers": ",".join(map(str, self.trending)),
             "pixel_size_statement": self.statement,
         }
 
@@ -105,8 +145,6 @@ def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
     markers numbered ``numbers`` (None: every marker decoded); ``time_s`` the frames' times
     (s; None: their order). Raises ValueError when fewer than :data:`MIN_FRAMES` frames
     hold a pixel size."""
-    from scipy import stats
-
     numbers = tuple(int(k) for k in numbers if k is not None) if numbers is not None else ()
     ok = found.status == "ok"
     if numbers:
@@ -123,6 +161,9 @@ def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
     med = float(np.median(value))
     mad = 1.4826 * float(np.median(np.abs(value - med)))
     keep = np.abs(value - med) <= REJECT * mad if mad > 0 else value == med
+    if keep.sum() > 2:  # a MAD from few frames can fall short: the frames kept say again who stays
+        kept = value[keep]
+        keep = np.abs(value - kept.mean()) <= REJECT * max(kept.std(ddof=1), mad)
     v, t = value[keep], t_all[frames[keep]]
     n = len(v)
     mean = float(v.mean())
@@ -131,12 +172,12 @@ def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
     r1 = float(r[:-1] @ r[1:] / (r @ r)) if n > 2 and r @ r > 0 else 0.0
     n_eff = n * (1 - r1) / (1 + r1) if r1 > 0 else float(n)
     n_eff = max(n_eff, 2.0)
-    if n >= 3 and np.ptp(t) > 0 and sd > 0:
-        fit = stats.linregress(t, v)
-        span = float(np.ptp(t))
-        drift, u_drift, p = fit.slope * span, fit.stderr * span, float(fit.pvalue)
-    else:
-        drift, u_drift, p = 0.0, 0.0, 1.0
+    drift, u_drift, p = _trend(t, v)
+    trends = []
+    for number in numbers or sorted(set(found.number[ok].tolist()) - {-1}):
+        mine = ok & (found.number == number) & np.isin(found.frame, frames[keep])
+        if mine.sum() >= MIN_FRAMES:
+            trends.append((int(number), *_trend(t_all[found.frame[mine]], found.pixel_um[mine])))
     return SequenceScale(
         pixel_um=mean,
         u_pixel_um=sd / math.sqrt(n_eff),
@@ -149,7 +190,20 @@ def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
         u_drift_um=float(u_drift),
         drift_p=p,
         numbers=numbers,
+        marker_trends=tuple(trends),
     )
+
+
+def _trend(t: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
+    """A straight line of ``v`` against ``t``: its change over the span of ``t``, that change's
+    standard uncertainty and the slope's two-sided p-value (no line: 0, 0, 1)."""
+    from scipy import stats
+
+    if len(v) < 3 or np.ptp(t) == 0 or np.ptp(v) == 0:
+        return 0.0, 0.0, 1.0
+    fit = stats.linregress(t, v)
+    span = float(np.ptp(t))
+    return float(fit.slope * span), float(fit.stderr * span), float(fit.pvalue)
 
 
 def at_scale(found: Markers, pixel_um: float, u_pixel_um: float = 0.0) -> Markers:
