@@ -13,7 +13,8 @@ Figures, over the frames results.csv lists:
 * the moving marker's displacement in the fixed marker's frame, from the first listed frame,
   calflow − library: rms and largest (µm), its least-squares share of the travel and what is
   left without it, and the same for its turn (mrad) — calflow's relative poses at one pixel
-  size for the sequence (``--pixel-um``, or the median over the frames of each frame's own),
+  size for the sequence (``--pixel-um``, or the one calflow pools over the frames:
+  :func:`~calflow.instruments.pattern.hpcode.pool_pixel`, with its uncertainty and drift test),
   and under ``frame_scale`` at each frame's own; each frame's pixel size's scatter and how the
   two markers' go together;
 * the frames where the moving marker's lobes enter another bin of the spectrum of the
@@ -54,7 +55,8 @@ from pathlib import Path
 import numpy as np
 
 from calflow.instruments.pattern.frames import read_frames
-from calflow.instruments.pattern.hpcode import HPCodePattern, decode_markers, relative
+from calflow.instruments.pattern.hpcode import HPCodePattern, decode_markers, pool_pixel, relative
+from calflow.instruments.pattern.stream import joined_markers
 
 
 def library_rows(path: Path) -> dict[int, dict[int, np.ndarray]]:
@@ -303,8 +305,8 @@ def main(argv=None) -> int:
     p.add_argument(
         "--pixel-um",
         type=float,
-        help="the optics' pixel size (µm), the relative poses' scale; default: the median over "
-        "the listed frames of each frame's own estimate",
+        help="the optics' pixel size (µm), the relative poses' scale; default: the one calflow pools "
+        "over the frames (pool_pixel, as calflow decode --pixel-size sequence)",
     )
     p.add_argument(
         "--library-snapshot",
@@ -332,8 +334,9 @@ def main(argv=None) -> int:
         decoded.append(decode_markers(frame, pattern))
         cpu += time.process_time() - start
     listed = [i for i, n in enumerate(numbers) if n in lib]
-    # one pixel size for the whole sequence (the optics'): given, or the median over the listed
-    # frames of the two markers' mean, each frame's own estimate
+    # one pixel size for the whole sequence: given (the optics'), or pooled by calflow's own
+    # path over every frame of the folder from the two markers (calflow decode --pixel-size
+    # sequence, a frames recording's pixel_size: sequence)
     pairs = np.array(
         [
             (m.pixel_um[m.number == args.fixed][0], m.pixel_um[m.number == args.moving][0])
@@ -341,8 +344,8 @@ def main(argv=None) -> int:
             if {args.fixed, args.moving} <= set(m.number[m.status == "ok"].tolist())
         ]
     )
-    per_frame = pairs.mean(axis=1)
-    sequence_pixel = args.pixel_um or float(np.median(per_frame))
+    pool = pool_pixel(joined_markers(decoded), [args.fixed, args.moving])
+    sequence_pixel = args.pixel_um or pool.pixel_um
     summary = {
         "frames": len(files),
         "frames_listed": len(listed),
@@ -350,6 +353,15 @@ def main(argv=None) -> int:
         "numbers_read": sorted({int(n) for m in decoded for n in m.number[m.status == "ok"]}),
         "sequence_pixel_um": sequence_pixel,
         "sequence_pixel_given": args.pixel_um is not None,
+        "pooled_pixel_um": pool.pixel_um,
+        "pooled_u_pixel_um": pool.u_pixel_um,
+        "pooled_frames": pool.n_frames,
+        "pooled_rejected": list(pool.rejected),
+        "pooled_n_eff": pool.n_eff,
+        "pooled_drift_um": pool.drift_um,
+        "pooled_u_drift_um": pool.u_drift_um,
+        "pooled_drift_p": pool.drift_p,
+        "pooled_statement": pool.statement,
         # each frame's own pixel size: its scatter over the sequence (relative), each marker's,
         # and how the two markers' estimates go together (one optics: a change of magnification
         # would move both alike)
