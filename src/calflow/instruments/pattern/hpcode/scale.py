@@ -15,8 +15,9 @@ the mean of the frames' estimates is the better scale.
    the same optics and their errors are uncorrelated;
 2. frames farther than :data:`REJECT` robust standard deviations (1.4826 · MAD) from the
    median are left out (a marker misfitted in one frame must not move the sequence's scale),
-   then those within :data:`REJECT` standard deviations of the kept frames' mean are taken
-   back (a MAD from a few tens of frames can fall well short of their scatter);
+   then, until no frame changes side, those within :data:`REJECT` standard deviations of
+   the kept frames' mean are taken back (a MAD from a few tens of frames can fall well short
+   of their scatter);
 3. the pooled pixel size is the mean of the frames kept, its standard uncertainty their
    standard deviation over √n_eff, with n_eff = n (1 − r₁)/(1 + r₁) when the frames'
    lag-one autocorrelation r₁ is positive (a slow wander is not n independent draws);
@@ -161,9 +162,14 @@ def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
     med = float(np.median(value))
     mad = 1.4826 * float(np.median(np.abs(value - med)))
     keep = np.abs(value - med) <= REJECT * mad if mad > 0 else value == med
-    if keep.sum() > 2:  # a MAD from few frames can fall short: the frames kept say again who stays
+    for _ in range(len(value)):  # a MAD from few frames can fall short: the kept frames say again
+        if keep.sum() <= 2:
+            break
         kept = value[keep]
-        keep = np.abs(value - kept.mean()) <= REJECT * max(kept.std(ddof=1), mad)
+        again = np.abs(value - kept.mean()) <= REJECT * max(kept.std(ddof=1), mad)
+        if (again == keep).all():
+            break
+        keep = again
     v, t = value[keep], t_all[frames[keep]]
     n = len(v)
     mean = float(v.mean())
