@@ -16,6 +16,8 @@ frames")::
             marker: 1                       # HP-code markers: the one measured (default: the
             reference_marker: 0             #   lowest number seen) and the fixed one it is
                                             #   measured against (optional)
+            pixel_size: sequence            # HP-code markers, no pixel size given: one pooled
+                                            #   over the frames (default: frame, each its own)
 
 The workflow's ``decode_frames`` rule runs this command into
 ``results/<campaign>/decoded/<run>.nc``, a run dataset: ``meas_*`` the decoded pose in the
