@@ -129,7 +129,7 @@ def _decode_markers(args, pattern) -> int:
         except ValueError as exc:
             raise CalflowError(f"--pixel-size sequence: {exc}") from None
         found = at_scale(found, scale.pixel_um, scale.u_pixel_um)
-        print(scale.statement, file=sys.stderr)
+        print(f"{scale.statement} (trend against the frames' order as given)", file=sys.stderr)
     text = markers_csv(found, origin, args.convention)
     if args.out:
         from calflow.data.io import write_text
