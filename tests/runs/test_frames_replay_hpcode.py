@@ -159,6 +159,16 @@ def test_a_pooled_pixel_size_is_the_recordings_scale_and_its_record(tmp_path):
         ds["u_meas_x"].values ** 2 + ds["u_meas_y"].values ** 2
         >= (sep * a["u_pixel_size_um"] / a["pixel_size_um"]) ** 2
     )
+    # the replay rig serves the run with the pool's record, and the report's summary says it
+    from calflow.xytheta.report.instrument import decode_counts
+
+    run = tmp_path / "runs" / "identification.nc"
+    argv = ["acquire", "--campaign", str(campaign), "--plan", "identification", "--decoded", str(out)]
+    assert main([*argv, "--out", str(run)]) == 0
+    served = open_dataset(run, kind="run")
+    assert served.attrs["pixel_size_statement"] == a["pixel_size_statement"]
+    (said,) = decode_counts([served]).values()
+    assert said["pixel_size"]["um"] == a["pixel_size_um"] and said["pixel_size"]["drifts"] is False
 
 
 def test_a_drifting_magnification_is_said_in_the_record(tmp_path):
