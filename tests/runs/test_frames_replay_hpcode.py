@@ -171,6 +171,23 @@ def test_a_pooled_pixel_size_is_the_recordings_scale_and_its_record(tmp_path):
     assert said["pixel_size"]["um"] == a["pixel_size_um"] and said["pixel_size"]["drifts"] is False
 
 
+def test_a_pooled_pixel_size_scales_one_marker_alone(tmp_path):
+    campaign = _campaign(
+        tmp_path, {"marker": 5, "pixel_size": "sequence"}, magnifications=[Camera(**CAMERA).magnification] * 5
+    )
+    code, out = _decode(tmp_path, campaign)
+    assert code == 0
+    ds = open_dataset(out, kind="run")
+    a = ds.attrs
+    assert a["pixel_size"] == "sequence" and a["pixel_size_frames"] == 5
+    # the frame centre in the moving marker's frame, as drawn
+    moves = [(MOVES[k % 4], DRIFT[k % 4]) for k in range(5)]
+    want = np.array([_placed(5, m[0] + d[0], m[1] + d[1], REFERENCE[2] + m[2])[1:3] for m, d in moves])
+    assert np.max(np.hypot(ds["meas_x"].values - want[:, 0], ds["meas_y"].values - want[:, 1])) < 0.05
+    rel = a["u_pixel_size_um"] / a["pixel_size_um"]
+    assert np.all(ds["u_meas_x"].values >= np.abs(ds["meas_x"].values) * rel * (1 - 1e-9))
+
+
 def test_a_drifting_magnification_is_said_in_the_record(tmp_path):
     base = Camera(**CAMERA).magnification
     campaign = _campaign(

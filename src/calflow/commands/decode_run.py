@@ -236,6 +236,7 @@ def _pooled_decode(frames, pattern, options: dict, time_s, where: str):
 
 
 def _lowest(found, reference) -> int | None:
+    """The lowest marker number decoded in ``found``, the reference's left out; None if none."""
     numbers = set(found.number[found.status == "ok"].tolist()) - {reference, -1}
     return min(numbers) if numbers else None
 
@@ -245,6 +246,4 @@ def _first_marker(block, pattern, options: dict) -> int | None:
     chunk of the recording measures the same marker; None while none is seen."""
     from calflow.instruments.pattern.hpcode import decode_markers
 
-    found = decode_markers(block, pattern, options.get("pixel_um"))
-    numbers = set(found.number[found.status == "ok"].tolist()) - {options.get("reference"), -1}
-    return min(numbers) if numbers else None
+    return _lowest(decode_markers(block, pattern, options.get("pixel_um")), options.get("reference"))
