@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from calflow.errors import CalflowError
 from calflow.instruments.pattern import Camera
 from calflow.instruments.pattern.decode import STATUSES
-from calflow.instruments.pattern.hpcode import HPCodePattern, decode, decode_markers, relative
+from calflow.instruments.pattern.hpcode import HPCodePattern, decode, decode_markers, pose, relative
 from calflow.instruments.pattern.hpcode.render import expectation, render
 from calflow.instruments.pattern.layouts import load_pattern, read_pattern
 
@@ -140,6 +140,33 @@ def test_every_marker_has_its_number_and_pose(numbers, thetas, shift, dark, seed
         check_pose(found, int(np.nonzero(found.number == t[0])[0][0]), t, camera)
 
 
+@settings(
+    max_examples=5,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    phases=[Phase.explicit, Phase.reuse, Phase.generate],
+)
+@given(
+    number=st.integers(0, 511),
+    theta=st.floats(-180, 180),
+    shift=st.tuples(st.floats(-4, 4), st.floats(-4, 4)),
+)
+def test_the_grid_edge_bends_the_pixel_size_and_no_more(number, theta, shift):
+    # noise-free: what is left is the fit's bias, from the band-pass's Gaussian reaching the
+    # grid's edge (pose.py). Samples one period in (the default): the pixel size 1-3e-4 small,
+    # never large; two periods in, under 1e-4 and 25 µrad — the bias is the edge's
+    frame = expectation(CAMERA, PATTERN, [(number, *shift, theta)])
+    found = decode_markers(frame, PATTERN)
+    assert found.status.tolist() == ["ok"], found.reason[0]
+    assert -4e-4 < found.pixel_um[0] / CAMERA.pixel_um - 1 < 0
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pose, "EDGE", 2.0)
+        inner = decode_markers(frame, PATTERN)
+    assert abs(inner.pixel_um[0] / CAMERA.pixel_um - 1) < 1e-4
+    assert abs(math.radians((inner.theta_deg[0] - theta + 180.0) % 360.0 - 180.0)) < 25e-6
+    assert abs(inner.x_um[0] - shift[0]) < 1e-3 and abs(inner.y_um[0] - shift[1]) < 1e-3
+
+
 def test_a_given_pixel_size_must_match_the_markers():
     frame = render(CAMERA, PATTERN, [placed(5, 0.0, 0.0, 20.0)], rng=1)
     assert decode_markers(frame, PATTERN, pixel_um=CAMERA.pixel_um).status.tolist() == ["ok"]
@@ -185,6 +212,27 @@ def test_relative_pose_is_the_reference_seen_from_the_marker(turn, base, step):
     assert (rel.u_x_um > 0).all() and (rel.u_theta_deg > 0).all()
     hook = decode(render(WIDE, PATTERN, truth, rng=3)[None], PATTERN, marker=1, reference=0)
     assert np.allclose([hook.x_um[0], hook.y_um[0]], [rel.x_um[0], rel.y_um[0]], atol=1e-9)
+
+
+def test_a_given_pixel_size_is_the_relative_pose_scale():
+    ref_c, mov_c = np.array([-60.0, 0.0]), np.array([55.0, 5.0])
+    truth = [placed(0, *ref_c, 10.0), placed(1, *mov_c, 12.0)]
+    frame = render(WIDE, PATTERN, truth, rng=5)
+    found = decode_markers(frame, PATTERN)
+    t = math.radians(12.0)
+    want = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]]) @ (ref_c - mov_c)
+    given = relative(found, 1, 0, PATTERN.period_um, pixel_um=WIDE.pixel_um)
+    assert np.hypot(given.x_um[0] - want[0], given.y_um[0] - want[1]) < POSE_UM
+    # the offset follows the scale given, not the markers' own: 0.5 % more, 0.5 % farther
+    off = relative(found, 1, 0, PATTERN.period_um, pixel_um=1.005 * WIDE.pixel_um)
+    ratio = np.hypot(off.x_um[0], off.y_um[0]) / np.hypot(given.x_um[0], given.y_um[0])
+    assert abs(ratio - 1.005) < 1e-9
+    assert off.theta_deg[0] == given.theta_deg[0]
+    # the layout's hook passes the pixel size on to the relative pose
+    hook = decode(frame[None], PATTERN, pixel_um=1.005 * WIDE.pixel_um, marker=1, reference=0)
+    assert np.allclose([hook.x_um[0], hook.y_um[0]], [off.x_um[0], off.y_um[0]], atol=1e-9)
+    with pytest.raises(ValueError, match="pixel_um"):
+        relative(found, 1, 0, PATTERN.period_um, pixel_um=-1.0)
 
 
 def test_a_missing_reference_is_a_status_not_a_pose():

@@ -16,6 +16,8 @@ frames")::
             marker: 1                       # HP-code markers: the one measured (default: the
             reference_marker: 0             #   lowest number seen) and the fixed one it is
                                             #   measured against (optional)
+            pixel_size: sequence            # HP-code markers, no pixel size given: one pooled
+                                            #   over the frames (default: frame, each its own)
 
 The workflow's ``decode_frames`` rule runs this command into
 ``results/<campaign>/decoded/<run>.nc``, a run dataset: ``meas_*`` the decoded pose in the
@@ -73,24 +75,33 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
     else:  # a lab's target: the pixel size measured from each frame unless the camera says it
         options = {"pixel_um": camera.pixel_um} if given else {}
     options.update(_markers(e, pattern, run_id))
-    readings, shas = [], []
-    for rows, block, digests in frames.chunks(CHUNK):
-        try:
-            if pattern.layout == "hpcode" and options.get("marker") is None:
-                options["marker"] = _first_marker(block, pattern, options)
-            d = decode_frames(block, pattern, **options)
-        except ValueError as exc:  # the camera cannot decode this pattern (field of view)
-            raise DataError(f"{e['file']}: rig.options.recordings.{run_id}: {exc}") from None
-        r = readings_of(d)
-        for k in range(len(block)):
-            i = rows.start + k
+    pooled = _pooled_scale_wanted(e, pattern, given, run_id)
+    where = f"rig.options.recordings.{run_id}"
+    readings, shas, scale = [], [], None
+
+    def add(r, start: int, count: int) -> None:
+        for k in range(count):
+            i = start + k
             reading = {"time": float(table.time_s[i])}
             reading.update({f"meas_{a}": float(r[f"meas_{a}"][k]) for a in axes})
             reading.update({f"u_meas_{a}": float(r[f"u_meas_{a}"][k]) for a in axes})
             reading["decode_status"] = float(r["decode_status"][k])
             reading.update({name: float(v[i]) for name, v in table.temperatures.items()})
             readings.append(reading)
-        shas += digests
+
+    if pooled:  # every frame's markers first, then the poses at the sequence's pixel size
+        d, shas, scale = _pooled_decode(frames, pattern, options, table.time_s, f"{e['file']}: {where}")
+        add(readings_of(d), 0, len(table))
+    else:
+        for rows, block, digests in frames.chunks(CHUNK):
+            try:
+                if pattern.layout == "hpcode" and options.get("marker") is None:
+                    options["marker"] = _first_marker(block, pattern, options)
+                d = decode_frames(block, pattern, **options)
+            except ValueError as exc:  # the camera cannot decode this pattern (field of view)
+                raise DataError(f"{e['file']}: {where}: {exc}") from None
+            add(readings_of(d), rows.start, len(block))
+            shas += digests
     n = len(table)
     plan = Plan(
         name=run_id,
@@ -119,6 +130,7 @@ def decode_recording(entry: dict, run_id: str, campaign: dict) -> xr.Dataset:
                 for k in ("marker", "reference")
                 if options.get(k) is not None and pattern.layout == "hpcode"
             },
+            **(scale.attrs() if scale is not None else {}),
         },
     )
     sensors = [f"meas_{a}" for a in axes] + [f"u_meas_{a}" for a in axes] + ["decode_status"]
@@ -174,11 +186,64 @@ def _markers(e: dict, pattern, run_id: str) -> dict:
     return {"marker": e.get("marker"), "reference": e.get("reference_marker")}
 
 
+def _pooled_scale_wanted(e: dict, pattern, given: set, run_id: str) -> bool:
+    """Whether the recording asks for one pixel size pooled over its frames (``pixel_size:
+    sequence``), refused in one line where it cannot apply."""
+    if e.get("pixel_size", "frame") in (None, "frame"):
+        return False
+    key = f"rig.options.recordings.{run_id}.pixel_size"
+    if pattern.layout != "hpcode":
+        raise DataError(
+            f"{e['pattern']}: {key}: 'sequence' pools HP-code markers' pixel sizes; this pattern's "
+            f"layout is {pattern.layout!r} (expected layout hpcode, or no pixel_size)"
+        )
+    if given:
+        raise DataError(
+            f"{e['pattern']}: {key}: 'sequence' pools the frames' own pixel sizes, but the camera "
+            f"gives one ({', '.join(sorted(given))}); expected one or the other"
+        )
+    return True
+
+
+def _pooled_decode(frames, pattern, options: dict, time_s, where: str):
+    """The recording's HP-code markers decoded chunk by chunk (only their poses are kept), one
+    pixel size pooled over them (:func:`~calflow.instruments.pattern.hpcode.pool_pixel`, from
+    the marker and its reference), and each frame's pose at that scale, its uncertainty in
+    ``u_meas_x``/``u_meas_y``: (Decoded, frame digests, SequenceScale). The frames are
+    decoded once; the pool rescales their lattices."""
+    from calflow.instruments.pattern.hpcode import at_scale, decode_markers, pool_pixel, relative
+    from calflow.instruments.pattern.stream import joined_markers
+
+    marker, reference = options.get("marker"), options.get("reference")
+    parts, shas = [], []
+    for _, block, digests in frames.chunks(CHUNK):
+        found = decode_markers(block, pattern)
+        if marker is None:  # the rule of the frame-by-frame replay: the first chunk showing one
+            marker = _lowest(found, reference)
+        parts.append(found)
+        shas += digests
+    found = joined_markers(parts)
+    options["marker"] = marker
+    try:
+        scale = pool_pixel(found, [marker, reference], time_s)
+    except ValueError as exc:
+        raise DataError(f"{where}.{exc}") from None
+    if reference is None:
+        d = at_scale(found, scale.pixel_um, scale.u_pixel_um).of(marker)
+    else:
+        d = relative(found, marker, reference, pattern.period_um, scale.pixel_um, scale.u_pixel_um)
+    return d, shas, scale
+
+
+def _lowest(found, reference) -> int | None:
+    """The lowest marker number decoded in ``found``, the reference's left out; None if none."""
+    numbers = set(found.number[found.status == "ok"].tolist()) - {reference, -1}
+    return min(numbers) if numbers else None
+
+
 def _first_marker(block, pattern, options: dict) -> int | None:
     """The lowest marker number decoded in the frames (the reference's left out), so that every
     chunk of the recording measures the same marker; None while none is seen."""
     from calflow.instruments.pattern.hpcode import decode_markers
 
-    found = decode_markers(block, pattern, options.get("pixel_um"))
-    numbers = set(found.number[found.status == "ok"].tolist()) - {options.get("reference"), -1}
-    return min(numbers) if numbers else None
+    return _lowest(decode_markers(block, pattern, options.get("pixel_um")), options.get("reference"))

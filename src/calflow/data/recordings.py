@@ -35,7 +35,10 @@ from calflow.plan import Plan
 
 # format -> the joints an instrument's file of that format records (None: the file says)
 FORMATS = {"nc": None, "ecmc_iso230": ("x",), "laser_tracker": ("x", "y"), "csv": None, "frames": None}
-KEYS = {"frames": ("file", "format", "table", "pattern", "camera", "marker", "reference_marker")}
+KEYS = {
+    "frames": ("file", "format", "table", "pattern", "camera", "marker", "reference_marker", "pixel_size")
+}
+PIXEL_SIZES = ("frame", "sequence")  # HP-code frames: each frame's own pixel size, or one pooled
 RECORDING_START = "2000-01-01T00:00:00+00:00"  # times of a file without clock: a fixed, documented origin
 
 
@@ -85,6 +88,12 @@ def entry(spec: Any) -> dict:
             v = spec.get(key)
             if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
                 raise BadEntry(f".{key}", "the number of an HP-code marker (an integer, 0 or more)", v)
+        if spec.get("pixel_size") is not None and spec["pixel_size"] not in PIXEL_SIZES:
+            raise BadEntry(
+                ".pixel_size",
+                "'frame' (each frame's own) or 'sequence' (one pooled over the frames; HP-code markers)",
+                spec["pixel_size"],
+            )
         if spec.get("reference_marker") is not None and spec.get("marker") == spec["reference_marker"]:
             raise BadEntry(".reference_marker", "another marker than .marker", spec["reference_marker"])
         return {**{k: spec.get(k) for k in keys}, "camera": dict(spec.get("camera") or {}), "mapping": None}

@@ -182,6 +182,12 @@ STEPS: tuple[Step, ...] = (
                 "float", units="um",
             ),
             Option(
+                "--pixel-size",
+                "hpcode without --pixel-um: each frame's own pixel size (frame, default) or one pooled "
+                "over the frames, with its uncertainty from their scatter and a test for drift (sequence)",
+                choices=("frame", "sequence"), default="frame",
+            ),
+            Option(
                 "--fit-region",
                 "megarena: central fraction of the frame the phase planes are fitted on (1: whole frame; "
                 "0.5 as the Vernier library)",

@@ -74,6 +74,10 @@ def run_decode(args) -> int:
     megarena = pattern.layout == "megarena"
     if pattern.layout == "hpcode":
         return _decode_markers(args, pattern)
+    if getattr(args, "pixel_size", "frame") != "frame":
+        raise CalflowError(
+            f"--pixel-size {args.pixel_size}: only for HP-code markers (this pattern's layout is {pattern.layout!r})"
+        )
     if not megarena and (args.fit_region != 1.0 or args.convention != "calflow"):
         raise CalflowError("--fit-region and --convention vernier: only for Megarena patterns")
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
@@ -110,7 +114,22 @@ def _decode_markers(args, pattern) -> int:
         raise CalflowError("--fit-region: only for Megarena patterns (a marker is fitted on itself)")
     if args.out and args.out.lower().endswith(".nc"):
         raise CalflowError(f"--out {args.out}: HP-code markers are written one row per marker; write a .csv")
+    pooled = getattr(args, "pixel_size", "frame") == "sequence"
+    if pooled and args.pixel_um is not None:
+        raise CalflowError(
+            f"--pixel-size sequence: pools the frames' own pixel sizes, but --pixel-um {args.pixel_um:g} gives "
+            "one; expected one or the other"
+        )
     found, origin = markers_stream(args.frames, pattern, args.jobs, pixel_um=args.pixel_um)
+    if pooled:  # the frames' lattices rescaled to the sequence's pixel size, not decoded again
+        from calflow.instruments.pattern.hpcode import at_scale, pool_pixel
+
+        try:
+            scale = pool_pixel(found)
+        except ValueError as exc:
+            raise CalflowError(f"--pixel-size sequence: {exc}") from None
+        found = at_scale(found, scale.pixel_um, scale.u_pixel_um)
+        print(f"{scale.statement} (trend against the frames' order as given)", file=sys.stderr)
     text = markers_csv(found, origin, args.convention)
     if args.out:
         from calflow.data.io import write_text

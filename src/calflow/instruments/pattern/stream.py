@@ -106,7 +106,7 @@ def markers_stream(paths, pattern, jobs: int = 0, chunk: int = CHUNK, pixel_um: 
     streams poses. Returns (:class:`~calflow.instruments.pattern.hpcode.decode.Markers` of the
     whole recording, [(file, page)…])."""
     parts, index = _stream(paths, pattern, jobs, chunk, _markers_chunk, {"pixel_um": pixel_um})
-    return _joined_markers(parts), index
+    return joined_markers(parts), index
 
 
 def _stream(paths, pattern, jobs: int, chunk: int, work, options):
@@ -152,7 +152,7 @@ def _markers_chunk(job):
     return decode_markers(read_chunk(units, shape), pattern, options["pixel_um"])
 
 
-def _joined_markers(parts):
+def joined_markers(parts):
     """One table of the chunks' markers: each chunk's frame indices shifted by its start."""
     from calflow.instruments.pattern.hpcode.decode import Markers
 

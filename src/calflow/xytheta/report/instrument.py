@@ -25,7 +25,8 @@ def _meanings(run: xr.Dataset) -> list[str]:
 
 
 def decode_counts(runs: list[xr.Dataset]) -> dict:
-    """Per run (its plan, or plan and model): frames, decoded, failures by reason."""
+    """Per run (its plan, or plan and model): frames, decoded, failures by reason, and the pixel
+    size pooled over a decoded frame recording with its trend test's words, when it was."""
     out = {}
     for run in runs:
         if "decode_status" not in run:
@@ -38,6 +39,13 @@ def decode_counts(runs: list[xr.Dataset]) -> dict:
             reasons[name] = int(np.sum(status == code))
         key = str(run.attrs.get("plan", "run")) + (f"_{run.attrs['model']}" if run.attrs.get("model") else "")
         out[key] = {"frames": int(status.size), "decoded": int(np.sum(status == 0)), "failures": reasons}
+        if run.attrs.get("pixel_size") == "sequence":  # a recording's pooled pixel size, in words
+            out[key]["pixel_size"] = {
+                "um": float(run.attrs["pixel_size_um"]),
+                "u_um": float(run.attrs["u_pixel_size_um"]),
+                "drifts": run.attrs.get("pixel_size_drifts") == "yes",
+                "statement": str(run.attrs.get("pixel_size_statement", "")),
+            }
     return out
 
 

@@ -7,9 +7,18 @@ the shared phase part (:class:`~calflow.instruments.pattern.phase.PhaseFitter`, 
 Sec. 3.5.1 steps 2–6) run on a square of the frame around the marker, faded out beyond a
 period from its outer dots, its planes refitted on the samples inside the marker's grid only
 (one period in from its edge, the corners' fiducials left out), so that what lies beside the
-marker does not pull them. With ``K`` the 2 × 2 matrix of the two lobes' spatial
-frequencies (cycles per pixel; rows along the marker's x and y axes) and ``φ`` their phases
-(radian) at the crop centre ``r₀``, the lattice coordinates of a pixel r are
+marker does not pull them. That edge costs a bias: the band-pass's Gaussian (phase.py: σ =
+GAUSS / (2π·CROP)) is about 1.1 periods wide in the frame, so within two periods of the
+grid's edge the lobe's field sees the edge and its phase bends. On calflow's own noise-free
+renders the samples one period in read the pixel size 1.3–2.6·10⁻⁴ small and Θ up to 65 µrad
+off; two periods in (``EDGE = 2``), under 10⁻⁴ and 16 µrad. On a lab's real frames (the
+Vernier library's Image140) the samples near the edge carry more than they bias: two periods
+in, a fixed marker's pixel size scatters 1.2·10⁻⁴ from frame to frame instead of 0.8·10⁻⁴,
+and its pose 0.152 µm instead of 0.135 µm (y) — so the samples start one period in.
+
+With ``K`` the 2 × 2 matrix of the two lobes' spatial frequencies (cycles per pixel; rows
+along the marker's x and y axes) and ``φ`` their phases (radian) at the crop centre ``r₀``,
+the lattice coordinates of a pixel r are
 
     ℓ(r) = φ / 2π + K (r − r₀)                                          (cycles),
 
@@ -41,6 +50,7 @@ MIN_PEAK_RATIO = 30.0  # a lobe's power over the ring's median around a marker
 MAX_CENTRE_OFFSET = 0.25  # periods between the fiducials' centre and the nearest dot
 MAX_PERIOD_MISMATCH = 0.05  # a given pixel size and the period the fiducials show
 CORNER = 4.0  # periods: the corners' fiducials are left out of the fit, as far in
+EDGE = 1.0  # periods: the refit's samples lie this far in from the outer dots (module docstring)
 BIT_UNSURE = (0.3, 0.7)  # a number dot's contrast over the full dots' that reads as neither
 
 
@@ -86,7 +96,7 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
         return _fail("no_lobes", f"no dot grid between the marker's fiducials (lobe/ring {ratio.min():.0f})")
     r0 = np.array([x0 + fitter.xc, y0 + fitter.yc])
     pts = fitter.coarse_points() + [x0, y0] - c
-    lim = (size - 1) / 2 - 1.0
+    lim = (size - 1) / 2 - EDGE
     ax, ay = np.abs(pts @ ex) / per_px, np.abs(pts @ ey) / per_px
     keep = (ax <= lim) & (ay <= lim) & ~((ax > lim - CORNER) & (ay > lim - CORNER))
     if keep.sum() < 16:
