@@ -163,8 +163,10 @@ def decode(
 @lru_cache(maxsize=8)
 def _fitter(h: int, w: int, key: int, workers: int | None) -> PhaseFitter:
     """The phase planes' plan for frames of h × w pixels and a fundamental of 1.02^key cycles
-    per pixel, kept between calls (a recording is decoded in chunks)."""
-    return PhaseFitter((h, w), 1.02**key, workers)
+    per pixel, kept between calls (a recording is decoded in chunks). The code's rows and
+    columns left out bias a plain plane fit: the planes are fitted with the envelope's
+    regressors (:mod:`calflow.instruments.pattern.phase`)."""
+    return PhaseFitter((h, w), 1.02**key, workers, envelope=True)
 
 
 def _frames(frames) -> np.ndarray:
