@@ -321,20 +321,28 @@ class PhaseFitter:
         the rows of ``extra`` (m, samples) as nuisance regressors when given. Returns (phase at
         the frame centre, frequency (x, y) cycles/px, covariance of (phase, slopes), and the
         factor by which the regressors raise the intercept's variance)."""
-        A = self.A if extra is None else np.column_stack([self.A, extra.T])
+        A = self.A
+        if extra is not None:  # the samples that count only, and the regressors' columns
+            used = np.flatnonzero(wgt)
+            A = np.empty((len(used), 3 + len(extra)))
+            A[:, :3] = self.A[used]
+            A[:, 3:] = extra[:, used].T
+            z, wgt = z[used], wgt[used]
         base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
         gx, gy = freq
         if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > A.shape[1]):
             return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan), math.nan
+        Aw = A * wgt[:, None]
+        N = A.T @ Aw
+        seen = wgt > 0
         for _ in range(2):  # demodulate by the current frequency, fit, again
             # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
             ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
             ex = np.exp(2j * np.pi * (base_x - gx) * self.xm1)
-            zz = z * (ey[:, None] * ex[None, :]).ravel()
-            ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
+            ex_all = (ey[:, None] * ex[None, :]).ravel()
+            zz = z * (ex_all if extra is None else ex_all[used])
+            ref = np.angle(np.sum(zz * np.abs(zz) * seen))
             psi = np.angle(zz * np.exp(-1j * ref))
-            Aw = A * wgt[:, None]
-            N = A.T @ Aw
             try:
                 coef = np.linalg.solve(N, Aw.T @ psi)
             except np.linalg.LinAlgError:
@@ -342,7 +350,7 @@ class PhaseFitter:
             used_x, used_y = gx, gy
             gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
         res = psi - A @ coef
-        s2 = float(np.sum(wgt * res**2) / max(int((wgt > 0).sum()) - A.shape[1], 1))
+        s2 = float(np.sum(wgt * res**2) / max(int(seen.sum()) - A.shape[1], 1))
         phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
         inv = np.linalg.inv(N)
         infl = 1.0 if extra is None else float(inv[0, 0] / np.linalg.inv(N[:3, :3])[0, 0])
