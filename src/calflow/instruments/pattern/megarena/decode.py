@@ -97,9 +97,9 @@ def decode(
     ``pixel_um`` (µm per pixel in the object plane), when given, tells where the grid's lobes
     are and a frame of another period is refused; when not, it is measured from each frame
     (``pixel_um`` and ``u_pixel_um`` of the result either way). ``fit_region``: the central
-    fraction of the frame's width and height the phase planes are fitted on (1: the whole frame;
-    0.5: the central half, as the Vernier library fits them — where the optics distort the
-    frame, the two differ).
+    fraction of the frame's width and height the phase planes are fitted on (1: the whole frame
+    but the window's tapered margin, a tenth of each side; 0.5: the central half, as the Vernier
+    library fits them — where the optics distort the frame, the two differ).
     """
     if not (isinstance(fit_region, (int, float)) and 0.1 <= fit_region <= 1.0):
         raise ValueError(f"fit_region: expected a fraction from 0.1 to 1, got {fit_region!r}")
