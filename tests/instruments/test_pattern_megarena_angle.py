@@ -94,3 +94,21 @@ def test_the_flat_part_is_where_the_window_is_one(n):
     flat = _flat(np.arange(n), n)
     assert (w[flat] == 1).all()  # no sample of the taper is taken for the flat part
     assert flat.sum() >= (1 - TUKEY) * n - 2  # and the flat part is all of the rest
+
+
+def test_a_frame_of_a_slow_fft_length_is_padded_and_decodes_to_its_pose():
+    """334 = 2 × 167 rows: the plan zero-pads the transform to 336 rows; the pose is unchanged."""
+    from calflow.instruments.pattern.phase import PhaseFitter
+
+    pattern = MegarenaPattern(4.0, 6)
+    cam = Camera(width=384, height=334, sensor_pixel_um=5.0, magnification=10.0)
+    plan = PhaseFitter((334, 384), 0.5 / 4.0, 1, envelope=True, pad=True)
+    assert (plan.h, plan.w) == (336, 384) and plan.frame_shape == (334, 384)
+    assert plan.spectrum(np.zeros((1, 334, 384))).shape == (1, 336, 193)
+    x, y, theta = 400.0, 380.0, -33.0
+    for region in (0.5, 1.0):
+        r = decode(cam.render(pattern, x, y, theta), pattern, fit_region=region, workers=1)
+        assert r.status[0] == "ok", r.reason[0]
+        ex, ey, d = _errors(r, theta, x, y)
+        assert abs(ex) < 50 and abs(ey) < 50 and d < 5.0  # a 167 × 192 µm view: µrad and nm
+        assert abs(r.pixel_um[0] / cam.pixel_um - 1) < 1e-4

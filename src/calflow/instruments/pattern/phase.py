@@ -114,6 +114,7 @@ def _ring(h: int, w: int, f0: float):
 
 
 def _fast(n: int) -> int:
+    """The next length at or above n whose factors are 2, 3, 5, 7 and 11 (fast in pocketfft)."""
     import scipy.fft  # here, not at import: the camera model's users need no scipy
 
     return scipy.fft.next_fast_len(int(n), real=False)
@@ -123,14 +124,27 @@ class PhaseFitter:
     """Steps 2–6 for frames of one shape and one expected lobe frequency (cycles per pixel).
 
     ``envelope``: fit the planes with the code's envelope regressors, on the window's flat
-    part (module docstring); off, the planes are those of a plain weighted fit."""
+    part (module docstring); off, the planes are those of a plain weighted fit. ``pad``: zero-pad
+    the windowed frame to the next length the FFT does fast (a side of 856 = 8 × 107 pixels
+    costs twice one of 864); ``h`` and ``w`` are then the transform's size, ``frame_shape`` the
+    frame's."""
 
-    def __init__(self, shape: tuple[int, int], f0: float, workers: int | None = None, envelope: bool = False):
-        h, w = shape
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        f0: float,
+        workers: int | None = None,
+        envelope: bool = False,
+        pad: bool = False,
+    ):
+        fh, fw = shape
+        h, w = (_fast(fh), _fast(fw)) if pad else (fh, fw)
         self.h, self.w, self.f0 = h, w, float(f0)
+        self.frame_shape = (fh, fw)
+        self.padding = (h * w) / (fh * fw)  # transform bins per frame pixel: 1 unpadded
         self.envelope = bool(envelope)
         self.workers = workers or os.cpu_count() or 1
-        self.window = _window(h, w)
+        self.window = _window(fh, fw)
         self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
@@ -140,7 +154,7 @@ class PhaseFitter:
         dj = np.arange(-self.bj, self.bj + 1)
         self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
         # sample points of the cropped field, pixels from the frame centre
-        self.yc, self.xc = (h - 1) / 2.0, (w - 1) / 2.0
+        self.yc, self.xc = (fh - 1) / 2.0, (fw - 1) / 2.0
         self.ym1 = np.arange(self.ni) * (h / self.ni)
         self.xm1 = np.arange(self.nj) * (w / self.nj)
         self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
@@ -148,7 +162,7 @@ class PhaseFitter:
         xr, yr = self.xm.ravel(), self.ym.ravel()
         self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
         # the coarse samples on the window's flat part, and the box's derivative factors (rad/px)
-        self.flat = (_flat(self.ym, h) & _flat(self.xm, w)).ravel().astype(float)
+        self.flat = (_flat(self.ym, fh) & _flat(self.xm, fw)).ravel().astype(float)
         self.ddx = (2j * np.pi / w) * self.dj
         self.ddy = (2j * np.pi / h) * self.di
 
@@ -159,6 +173,8 @@ class PhaseFitter:
         f *= self.window
         import scipy.fft
 
+        if (self.h, self.w) != self.frame_shape:  # zero-padded at the far edges: the window is 0 there
+            return scipy.fft.rfft2(f, s=(self.h, self.w), workers=self.workers)
         return scipy.fft.rfft2(f, workers=self.workers)
 
     def lobes(self, spec: np.ndarray):
@@ -227,12 +243,15 @@ class PhaseFitter:
         pw = np.abs(crops) ** 2
         num = np.sum(H**4 * pw, axis=(2, 3))
         den = np.sum(H**2 * pw, axis=(2, 3)) ** 2
-        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300)
+        # padded bins sample the same spectrum more finely (correlated): the sums grow by it
+        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300) * self.padding
         if self.envelope:  # fewer samples and two nuisance regressors: a larger variance
             cov = cov * (var0 * share / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
         else:
             cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
-        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3))) / (self.h * self.w)
+        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3)) / self.padding) / (
+            self.frame_shape[0] * self.frame_shape[1]
+        )
         return Planes(
             phase=phase,
             freq=freq,

@@ -126,7 +126,7 @@ def decode(
             window = _fitter(h, w, -116, workers)  # its spectrum only, which no frequency changes
         spec = window.spectrum(frame[None])
         if pixel_um is None:
-            f0 = fundamental(spec[0], h, w, pattern.depth)
+            f0 = fundamental(spec[0], window.h, window.w, pattern.depth)  # the transform's size
             if f0 is None:
                 status[f], reason[f] = "no_lobes", "no periodic grid in the frame (no peak in the spectrum)"
                 continue
@@ -165,8 +165,9 @@ def _fitter(h: int, w: int, key: int, workers: int | None) -> PhaseFitter:
     """The phase planes' plan for frames of h × w pixels and a fundamental of 1.02^key cycles
     per pixel, kept between calls (a recording is decoded in chunks). The code's rows and
     columns left out bias a plain plane fit: the planes are fitted with the envelope's
-    regressors (:mod:`calflow.instruments.pattern.phase`)."""
-    return PhaseFitter((h, w), 1.02**key, workers, envelope=True)
+    regressors (:mod:`calflow.instruments.pattern.phase`); a side of a slow FFT length is
+    zero-padded to a fast one."""
+    return PhaseFitter((h, w), 1.02**key, workers, envelope=True, pad=True)
 
 
 def _frames(frames) -> np.ndarray:
