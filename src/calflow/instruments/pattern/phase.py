@@ -312,9 +312,11 @@ class PhaseFitter:
         flat = every[:n]
         grads = share = None
         if envelope:
-            z0 = flat.astype(np.complex128)
-            safe = np.where(z0 == 0, 1.0, z0)
-            grads = np.stack([(every[n : 2 * n] / safe).real, (every[2 * n :] / safe).real], axis=2)
+            # Re(∇z/z) = Re(∇z·z̄)/|z|², without a complex division
+            zc = np.conj(flat)
+            power = flat.real**2 + flat.imag**2
+            inv = np.divide(1.0, power, out=np.zeros_like(power), where=power > 0)
+            grads = np.stack([(every[n : 2 * n] * zc).real * inv, (every[2 * n :] * zc).real * inv], axis=2)
             share = np.empty((n, 2))
         phase = np.empty((n, 2))
         out_f = np.empty((n, 2, 2))
@@ -343,6 +345,7 @@ class PhaseFitter:
         A = self.A
         if extra is not None:  # the samples that count only, and the regressors' columns
             used = np.flatnonzero(wgt)
+            rows, cols = np.divmod(used, self.nj)
             A = np.empty((len(used), 3 + len(extra)))
             A[:, :3] = self.A[used]
             A[:, 3:] = extra[:, used].T
@@ -358,8 +361,10 @@ class PhaseFitter:
             # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
             ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
             ex = np.exp(2j * np.pi * (base_x - gx) * self.xm1)
-            ex_all = (ey[:, None] * ex[None, :]).ravel()
-            zz = z * (ex_all if extra is None else ex_all[used])
+            if extra is None:
+                zz = z * (ey[:, None] * ex[None, :]).ravel()
+            else:  # at the samples that count only
+                zz = z * (ey[rows] * ex[cols])
             ref = np.angle(np.sum(zz * np.abs(zz) * seen))
             psi = np.angle(zz * np.exp(-1j * ref))
             try:
