@@ -51,8 +51,9 @@ def lattice(frame: np.ndarray, depth: int):
     """calflow's coarse lattice: every node's indices (s, t) and pixel position, and the period
     in pixels. The dots are at the nodes, or at the cells' centres when they are dark."""
     h, w = frame.shape
-    spec = _fitter(h, w, -116, 1).spectrum(frame[None].astype(np.float32))
-    f0 = fundamental(spec[0], h, w, depth)
+    plan = _fitter(h, w, -116, 1)
+    spec = plan.spectrum(frame[None].astype(np.float32))
+    f0 = fundamental(spec[0], plan.h, plan.w, depth)  # the transform's size (padded)
     planes = _fitter(h, w, round(math.log(f0) / math.log(1.02)), 1).fit(spec)
     K, c = planes.freq[0], (planes.phase[0] / (2 * np.pi)) % 1.0
     rc = np.array([(w - 1) / 2, (h - 1) / 2])

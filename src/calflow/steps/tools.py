@@ -189,8 +189,8 @@ STEPS: tuple[Step, ...] = (
             ),
             Option(
                 "--fit-region",
-                "megarena: central fraction of the frame the phase planes are fitted on (1: whole frame; "
-                "0.5 as the Vernier library)",
+                "megarena: central fraction of the frame the phase planes are fitted on (1: whole frame "
+                "but the window's tapered tenth of each side; 0.5 as the Vernier library)",
                 "float", default=1.0,
             ),
             Option(

@@ -11,6 +11,26 @@ fitted to it by weighted least squares (step 6), the weights the field's squared
 The plane gives, per lobe, the lattice coordinate of the frame centre (its intercept over 2π)
 and the lattice's spatial frequency (its slope), each with the covariance of the fit.
 
+The code's envelope (``envelope=True``, for layouts whose code leaves dots out). A frame of
+dots a_n ∈ {0, 1} at the lattice nodes r_n is I = Σ a_n D(r − r_n); near the lobe k₀ its
+spectrum is D̂(k₀ + δ)·Â(δ), Â the spectrum of the dots kept. Were D̂ even about k₀, the
+band-passed field would be the carrier times a real envelope and its phase exact. It is not:
+a dot's transfer function falls with |k| (for a disc of half the period's diameter by about a
+quarter between k₀ ± k₀/3, where the code's rows and columns put their sidebands). With
+D̂(k₀ + δ) ≈ D̂(k₀)·exp(γ·δ) the envelope is shifted by the imaginary vector −iγ/2π, and to
+first order the field's phase is off by
+
+    Δψ(r) = c · ∇ln|z(r)|,        c = −γ/2π (pixels),
+
+the gradient of the field's log-amplitude (Re(∇z/z), computed exactly from the band-passed
+box times 2πi·δ). Where rows or columns of dots are missing, that gradient is large and the
+plane tilts: tens of µrad of angle over half a frame. The plane is fitted with these two
+gradients as nuisance regressors, c one vector per lobe and frame, so the bias is removed
+whatever the dots' shape, blur or focus, and the covariance of (phase, slopes) is their
+marginal one. The samples of the window's taper are left out of that fit: there the field's
+amplitude falls by the window (which multiplies the frame after the dots are drawn, so it
+biases nothing) and the circular transform mixes the opposite edges.
+
 Cramér–Rao bound of the intercept. Near a lobe the frame is I(r) = B(r) + A(r) cos Φ(r) + n(r),
 Φ(r) = φ₀ + 2π k·(r − r_c), with white noise of variance σ²(r). With centred coordinates the
 intercept decouples from the slopes, and the Fisher information of φ₀ is
@@ -45,6 +65,8 @@ class Planes:
     amplitude: np.ndarray  # (n, 2) mean |field| of the lobe (DN)
     fields: np.ndarray  # (n, 2, ni·nj) the band-passed lobes on the coarse grid (complex)
     bins: np.ndarray  # (n, 2, 2) each lobe's integer bin (row signed, column)
+    gradients: np.ndarray | None = None  # (n, 2, 2, ni·nj) ∇ln|field| (1/px, x then y), envelope fits
+    var_all: np.ndarray | None = None  # (n, 2) the intercept's variance of a plain fit over every sample
 
 
 def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
@@ -92,19 +114,37 @@ def _ring(h: int, w: int, f0: float):
 
 
 def _fast(n: int) -> int:
+    """The next length at or above n whose factors are 2, 3, 5, 7 and 11 (fast in pocketfft)."""
     import scipy.fft  # here, not at import: the camera model's users need no scipy
 
     return scipy.fft.next_fast_len(int(n), real=False)
 
 
 class PhaseFitter:
-    """Steps 2–6 for frames of one shape and one expected lobe frequency (cycles per pixel)."""
+    """Steps 2–6 for frames of one shape and one expected lobe frequency (cycles per pixel).
 
-    def __init__(self, shape: tuple[int, int], f0: float, workers: int | None = None):
-        h, w = shape
+    ``envelope``: fit the planes with the code's envelope regressors, on the window's flat
+    part (module docstring); off, the planes are those of a plain weighted fit. ``pad``: zero-pad
+    the windowed frame to the next length the FFT does fast (a side of 856 = 8 × 107 pixels
+    costs twice one of 864); ``h`` and ``w`` are then the transform's size, ``frame_shape`` the
+    frame's."""
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        f0: float,
+        workers: int | None = None,
+        envelope: bool = False,
+        pad: bool = False,
+    ):
+        fh, fw = shape
+        h, w = (_fast(fh), _fast(fw)) if pad else (fh, fw)
         self.h, self.w, self.f0 = h, w, float(f0)
+        self.frame_shape = (fh, fw)
+        self.padding = (h * w) / (fh * fw)  # transform bins per frame pixel: 1 unpadded
+        self.envelope = bool(envelope)
         self.workers = workers or os.cpu_count() or 1
-        self.window = _window(h, w)
+        self.window = _window(fh, fw)
         self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
@@ -114,13 +154,17 @@ class PhaseFitter:
         dj = np.arange(-self.bj, self.bj + 1)
         self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
         # sample points of the cropped field, pixels from the frame centre
-        self.yc, self.xc = (h - 1) / 2.0, (w - 1) / 2.0
+        self.yc, self.xc = (fh - 1) / 2.0, (fw - 1) / 2.0
         self.ym1 = np.arange(self.ni) * (h / self.ni)
         self.xm1 = np.arange(self.nj) * (w / self.nj)
         self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
         # the plane's design matrix (1, x − x_c, y − y_c) over the coarse samples
         xr, yr = self.xm.ravel(), self.ym.ravel()
         self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
+        # the coarse samples on the window's flat part, and the box's derivative factors (rad/px)
+        self.flat = (_flat(self.ym, fh) & _flat(self.xm, fw)).ravel().astype(float)
+        self.ddx = (2j * np.pi / w) * self.dj
+        self.ddy = (2j * np.pi / h) * self.di
 
     def spectrum(self, frames: np.ndarray) -> np.ndarray:
         """Step 2: the windowed, mean-removed frames' half-plane spectrum (n, h, w//2+1)."""
@@ -129,6 +173,8 @@ class PhaseFitter:
         f *= self.window
         import scipy.fft
 
+        if (self.h, self.w) != self.frame_shape:  # zero-padded at the far edges: the window is 0 there
+            return scipy.fft.rfft2(f, s=(self.h, self.w), workers=self.workers)
         return scipy.fft.rfft2(f, workers=self.workers)
 
     def lobes(self, spec: np.ndarray):
@@ -185,23 +231,37 @@ class PhaseFitter:
         freq = np.stack(
             [(bins[..., 1] + sub[..., 1]) / self.w, (bins[..., 0] + sub[..., 0]) / self.h], axis=-1
         )
-        first = self._planes(crops, bins, freq, None)
+        first = self._planes(crops, bins, freq)
         sigma = CROP * self.f0 / GAUSS  # cycles per pixel
         # offsets of each crop bin from the fitted frequency, in cycles per pixel
         oy = (bins[..., 0, None, None] + self.di) / self.h - first[1][..., 1, None, None]
         ox = (bins[..., 1, None, None] + self.dj) / self.w - first[1][..., 0, None, None]
         H = np.exp(-(ox**2 + oy**2) / (2 * sigma**2))
-        phase, freq, cov, fields = self._planes(crops * H, bins, first[1], None)
+        phase, freq, cov, fields, grads, share = self._planes(crops * H, bins, first[1], final=True)
         # the intercept's variance from the noise the spectrum shows (module docstring)
         n0 = self.noise_power(spec)
         pw = np.abs(crops) ** 2
         num = np.sum(H**4 * pw, axis=(2, 3))
         den = np.sum(H**2 * pw, axis=(2, 3)) ** 2
-        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300)
-        cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
-        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3))) / (self.h * self.w)
+        # padded bins sample the same spectrum more finely (correlated): the sums grow by it
+        var0 = 0.5 * n0[:, None] * num / np.maximum(den, 1e-300) * self.padding
+        if self.envelope:  # fewer samples and two nuisance regressors: a larger variance
+            cov = cov * (var0 * share / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
+        else:
+            cov = cov * (var0 / np.maximum(cov[..., 0, 0], 1e-300))[..., None, None]
+        amp = np.sqrt(np.sum(H**2 * pw, axis=(2, 3)) / self.padding) / (
+            self.frame_shape[0] * self.frame_shape[1]
+        )
         return Planes(
-            phase=phase, freq=freq, cov=cov, peak_ratio=ratio, amplitude=amp, fields=fields, bins=bins
+            phase=phase,
+            freq=freq,
+            cov=cov,
+            peak_ratio=ratio,
+            amplitude=amp,
+            fields=fields,
+            bins=bins,
+            gradients=grads,
+            var_all=var0,
         )
 
     def coarse_points(self) -> np.ndarray:
@@ -214,65 +274,118 @@ class PhaseFitter:
         phase = np.empty(2)
         freq = np.empty((2, 2))
         cov = np.empty((2, 3, 3))
+        envelope = self.envelope and planes.gradients is not None
         for lobe in (0, 1):
             z = planes.fields[k, lobe].astype(np.complex128)
             wgt = np.abs(z) ** 2
-            kept = wgt * keep
-            phase[lobe], freq[lobe], c = self._fit(z, kept, planes.bins[k, lobe], planes.freq[k, lobe])
-            # the noise's share grows as samples are left out (the same noise per sample)
-            scale = planes.cov[k, lobe, 0, 0] * wgt.sum() / max(kept.sum(), 1e-300)
+            if envelope:
+                kept = wgt * keep * self.flat
+                extra = planes.gradients[k, lobe]
+                phase[lobe], freq[lobe], c, infl = self._fit(
+                    z, kept, planes.bins[k, lobe], planes.freq[k, lobe], extra
+                )
+                scale = planes.var_all[k, lobe] * infl * wgt.sum() / max(kept.sum(), 1e-300)
+            else:
+                kept = wgt * keep
+                phase[lobe], freq[lobe], c, _ = self._fit(z, kept, planes.bins[k, lobe], planes.freq[k, lobe])
+                # the noise's share grows as samples are left out (the same noise per sample)
+                scale = planes.cov[k, lobe, 0, 0] * wgt.sum() / max(kept.sum(), 1e-300)
             cov[lobe] = c * (scale / max(c[0, 0], 1e-300))
         return phase, freq, cov
 
-    def _planes(self, crops, bins, freq, _):
+    def _planes(self, crops, bins, freq, final: bool = False):
         """Inverse transforms of the crops (step 4), then per lobe the demodulated phase
         unwrapped (step 5) and its weighted least-squares plane (step 6), from ``freq``
-        (n, 2, (x, y)) cycles per pixel. Returns (phase at the centre, frequency, covariance)."""
+        (n, 2, (x, y)) cycles per pixel. Returns (phase at the centre, frequency, covariance,
+        the fields, and — for the ``final`` pass of an envelope fit — the fields' log-amplitude
+        gradients and each fit's variance factor over a plain fit on every sample)."""
         n = len(crops)
-        boxes = np.zeros((n, 2, self.ni, self.nj), dtype=np.complex64)
-        boxes[:, :, self.di % self.ni, self.dj % self.nj] = crops
+        envelope = self.envelope and final
+        boxes = np.zeros(((3 if envelope else 1) * n, 2, self.ni, self.nj), dtype=np.complex64)
+        boxes[:n, :, self.di % self.ni, self.dj % self.nj] = crops
+        if envelope:  # the fields' derivatives along x and y, exactly, from the same boxes
+            boxes[n : 2 * n, :, self.di % self.ni, self.dj % self.nj] = crops * self.ddx
+            boxes[2 * n :, :, self.di % self.ni, self.dj % self.nj] = crops * self.ddy
         import scipy.fft
 
-        fields = scipy.fft.ifft2(boxes, workers=self.workers)
+        every = scipy.fft.ifft2(boxes, workers=self.workers).reshape(len(boxes), 2, -1)
+        flat = every[:n]
+        grads = share = None
+        if envelope:
+            # Re(∇z/z) = Re(∇z·z̄)/|z|², without a complex division
+            zc = np.conj(flat)
+            power = flat.real**2 + flat.imag**2
+            inv = np.divide(1.0, power, out=np.zeros_like(power), where=power > 0)
+            grads = np.stack([(every[n : 2 * n] * zc).real * inv, (every[2 * n :] * zc).real * inv], axis=2)
+            share = np.empty((n, 2))
         phase = np.empty((n, 2))
         out_f = np.empty((n, 2, 2))
         cov = np.empty((n, 2, 3, 3))
-        flat = fields.reshape(n, 2, -1)
         for k in range(n):
             for lobe in (0, 1):
                 z = flat[k, lobe].astype(np.complex128)
-                phase[k, lobe], out_f[k, lobe], cov[k, lobe] = self._fit(
-                    z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe]
-                )
-        return phase, out_f, cov, flat
+                if envelope:
+                    wgt = np.abs(z) ** 2
+                    used = wgt * self.flat
+                    phase[k, lobe], out_f[k, lobe], cov[k, lobe], infl = self._fit(
+                        z, used, bins[k, lobe], freq[k, lobe], grads[k, lobe]
+                    )
+                    share[k, lobe] = infl * wgt.sum() / max(used.sum(), 1e-300)
+                else:
+                    phase[k, lobe], out_f[k, lobe], cov[k, lobe], _ = self._fit(
+                        z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe]
+                    )
+        return phase, out_f, cov, flat, grads, share
 
-    def _fit(self, z, wgt, bin_, freq):
-        """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6).
-        Returns (phase at the frame centre, frequency (x, y) cycles/px, covariance)."""
+    def _fit(self, z, wgt, bin_, freq, extra=None):
+        """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6), with
+        the rows of ``extra`` (m, samples) as nuisance regressors when given. Returns (phase at
+        the frame centre, frequency (x, y) cycles/px, covariance of (phase, slopes), and the
+        factor by which the regressors raise the intercept's variance)."""
         A = self.A
+        if extra is not None:  # the samples that count only, and the regressors' columns
+            used = np.flatnonzero(wgt)
+            rows, cols = np.divmod(used, self.nj)
+            A = np.empty((len(used), 3 + len(extra)))
+            A[:, :3] = self.A[used]
+            A[:, 3:] = extra[:, used].T
+            z, wgt = z[used], wgt[used]
         base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
         gx, gy = freq
-        if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > 3):
-            return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+        if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > A.shape[1]):
+            return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan), math.nan
+        Aw = A * wgt[:, None]
+        N = A.T @ Aw
+        seen = wgt > 0
         for _ in range(2):  # demodulate by the current frequency, fit, again
             # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
             ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
             ex = np.exp(2j * np.pi * (base_x - gx) * self.xm1)
-            zz = z * (ey[:, None] * ex[None, :]).ravel()
-            ref = np.angle(np.sum(zz * np.abs(zz) * (wgt > 0)))
+            if extra is None:
+                zz = z * (ey[:, None] * ex[None, :]).ravel()
+            else:  # at the samples that count only
+                zz = z * (ey[rows] * ex[cols])
+            ref = np.angle(np.sum(zz * np.abs(zz) * seen))
             psi = np.angle(zz * np.exp(-1j * ref))
-            Aw = A * wgt[:, None]
-            N = A.T @ Aw
             try:
                 coef = np.linalg.solve(N, Aw.T @ psi)
             except np.linalg.LinAlgError:
-                return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan)
+                return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan), math.nan
             used_x, used_y = gx, gy
             gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
         res = psi - A @ coef
-        s2 = float(np.sum(wgt * res**2) / max(int((wgt > 0).sum()) - 3, 1))
+        s2 = float(np.sum(wgt * res**2) / max(int(seen.sum()) - A.shape[1], 1))
         phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
-        return phase, (gx, gy), np.linalg.inv(N) * s2
+        inv = np.linalg.inv(N)
+        infl = 1.0 if extra is None else float(inv[0, 0] / np.linalg.inv(N[:3, :3])[0, 0])
+        return phase, (gx, gy), inv[:3, :3] * s2, infl
+
+
+def _flat(x: np.ndarray, n: int, alpha: float = TUKEY) -> np.ndarray:
+    """Whether pixel positions ``x`` (continuous) of a side of n pixels lie on the flat part
+    of :func:`tukey`'s window, w = 1, rather than on its taper."""
+    t = np.asarray(x, float) / max(n - 1, 1)
+    return np.minimum(t, 1.0 - t) >= alpha / 2
 
 
 def _subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:

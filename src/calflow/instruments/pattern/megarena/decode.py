@@ -97,9 +97,9 @@ def decode(
     ``pixel_um`` (µm per pixel in the object plane), when given, tells where the grid's lobes
     are and a frame of another period is refused; when not, it is measured from each frame
     (``pixel_um`` and ``u_pixel_um`` of the result either way). ``fit_region``: the central
-    fraction of the frame's width and height the phase planes are fitted on (1: the whole frame;
-    0.5: the central half, as the Vernier library fits them — where the optics distort the
-    frame, the two differ).
+    fraction of the frame's width and height the phase planes are fitted on (1: the whole frame
+    but the window's tapered margin, a tenth of each side; 0.5: the central half, as the Vernier
+    library fits them — where the optics distort the frame, the two differ).
     """
     if not (isinstance(fit_region, (int, float)) and 0.1 <= fit_region <= 1.0):
         raise ValueError(f"fit_region: expected a fraction from 0.1 to 1, got {fit_region!r}")
@@ -126,7 +126,7 @@ def decode(
             window = _fitter(h, w, -116, workers)  # its spectrum only, which no frequency changes
         spec = window.spectrum(frame[None])
         if pixel_um is None:
-            f0 = fundamental(spec[0], h, w, pattern.depth)
+            f0 = fundamental(spec[0], window.h, window.w, pattern.depth)  # the transform's size
             if f0 is None:
                 status[f], reason[f] = "no_lobes", "no periodic grid in the frame (no peak in the spectrum)"
                 continue
@@ -163,8 +163,11 @@ def decode(
 @lru_cache(maxsize=8)
 def _fitter(h: int, w: int, key: int, workers: int | None) -> PhaseFitter:
     """The phase planes' plan for frames of h × w pixels and a fundamental of 1.02^key cycles
-    per pixel, kept between calls (a recording is decoded in chunks)."""
-    return PhaseFitter((h, w), 1.02**key, workers)
+    per pixel, kept between calls (a recording is decoded in chunks). The code's rows and
+    columns left out bias a plain plane fit: the planes are fitted with the envelope's
+    regressors (:mod:`calflow.instruments.pattern.phase`); a side of a slow FFT length is
+    zero-padded to a fast one."""
+    return PhaseFitter((h, w), 1.02**key, workers, envelope=True, pad=True)
 
 
 def _frames(frames) -> np.ndarray:

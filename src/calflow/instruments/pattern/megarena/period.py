@@ -8,30 +8,59 @@ from functools import lru_cache
 import numpy as np
 
 MIN_PERIOD_PX = 3.0  # the shortest period (pixels) looked for
+SUBHARMONIC_SHARE = 0.02  # a peak below the strongest is the fundamental from this share of its power
+SUBHARMONIC_ABOVE = 100.0  # and this many times the band's median power (noise alone: a few)
+SUBHARMONIC_TOL = 0.02  # relative: how near f/√2 its radius must be
 
 
 def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
     """The grid's fundamental (cycles per pixel) from the strongest peak of a frame's half-plane
     spectrum between periods of :data:`MIN_PERIOD_PX` and the one that still shows
-    3·(depth + 1) periods across the frame."""
-    rows, cols, rad = _band(h, w, 3.0 * (depth + 1) / min(h, w))
+    3·(depth + 1) periods across the frame.
+
+    The strongest peak may be a harmonic: the diagonal one (1, 1) at √2·f₀, 45° from the
+    fundamental (and from (2, 0) at 2·f₀, the diagonal's own diagonal) — when the fundamental's
+    peak falls between bins and the code's rows and columns spread its power. So while a peak
+    of at least :data:`SUBHARMONIC_SHARE` of the found one's power, and
+    :data:`SUBHARMONIC_ABOVE` times the band's median, lies at f/√2 and ±45°, within
+    :data:`SUBHARMONIC_TOL` of the radius and 5° of the direction, that peak is taken instead.
+    Below a true fundamental nothing is there: the code's rows and columns put their spectrum
+    on lines through the lattice's peaks along its axes (f_x or f_y a multiple of f₀), and the
+    holes on multiples of f₀/3 — none at (f₀/2, f₀/2). (Along an axis, at f₀/2, the code's
+    spectrum is: a peak there says nothing.)"""
+    rows, cols, rad, ang = _band(h, w, 3.0 * (depth + 1) / min(h, w))
     if len(rad) == 0:
         return None
     vals = spec[rows, cols]
     power = vals.real**2 + vals.imag**2
     k = int(np.argmax(power))
-    return float(rad[k]) if power[k] > 0 else None
+    if not power[k] > 0:
+        return None
+    f, a, p = float(rad[k]), float(ang[k]), float(power[k])
+    floor = SUBHARMONIC_ABOVE * float(np.median(power))
+    for _ in range(2):  # (2, 0) → (1, 1) → (1, 0) at most
+        near = np.abs(rad - f / math.sqrt(2.0)) < SUBHARMONIC_TOL * f / math.sqrt(2.0) + 1.0 / min(h, w)
+        near &= np.abs((ang - a) % 90.0 - 45.0) < 5.0
+        if not near.any():
+            break
+        j = int(np.argmax(np.where(near, power, -1.0)))
+        if power[j] < max(SUBHARMONIC_SHARE * p, floor):
+            break
+        f, a, p = float(rad[j]), float(ang[j]), float(power[j])
+    return f
 
 
 @lru_cache(maxsize=8)
 def _band(h: int, w: int, lo: float):
     """Bins (rows, columns) of a half-plane spectrum between ``lo`` and 1/MIN_PERIOD_PX cycles
-    per pixel, and their radial frequency."""
-    fi = np.abs(np.fft.fftfreq(h))[:, None]
+    per pixel, their radial frequency and their direction (degree, −90 to 90)."""
+    fi_signed = np.fft.fftfreq(h)[:, None]
+    fi = np.abs(fi_signed)
     fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
     rows, cols = np.nonzero((rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX))
-    return rows, cols, rad[rows, cols]
+    ang = np.degrees(np.arctan2(fi_signed[rows, 0], fj[0, cols]))
+    return rows, cols, rad[rows, cols], ang
 
 
 def pixel_size(p: float, K: np.ndarray, cov: np.ndarray, lobes) -> tuple[float, float]:
