@@ -27,8 +27,8 @@ from calflow.instruments.pattern.hpcode.decode import EXTRA, FIELDS, Markers
 from calflow.instruments.pattern.hpcode.render import render
 
 PATTERN = HPCodePattern(4.0, 17)
-# the renderer's frames read the pixel size 1-3e-4 small (the fit's edge bias, pose.py)
-RENDER_BIAS = 4e-4
+# the fit's own bias of the pixel size on the renderer's noise-free frames (pose.py: < 2e-5)
+RENDER_BIAS = 5e-5
 
 
 def table(pixels: np.ndarray, u_fit: float = 1e-6) -> Markers:

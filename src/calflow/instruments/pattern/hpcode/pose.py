@@ -5,16 +5,20 @@ From the three fiducials (:mod:`.fiducials`) come the marker's centre, the direc
 x and y axes and its period in pixels — coarse, to a fraction of a period. The fine pose is
 the shared phase part (:class:`~calflow.instruments.pattern.phase.PhaseFitter`, thesis
 Sec. 3.5.1 steps 2–6) run on a square of the frame around the marker, faded out beyond a
-period from its outer dots, its planes refitted on the samples inside the marker's grid only
-(one period in from its edge, the corners' fiducials left out), so that what lies beside the
-marker does not pull them. That edge costs a bias: the band-pass's Gaussian (phase.py: σ =
-GAUSS / (2π·CROP)) is about 1.1 periods wide in the frame, so within two periods of the
-grid's edge the lobe's field sees the edge and its phase bends. On calflow's own noise-free
-renders the samples one period in read the pixel size 1.3–2.6·10⁻⁴ small and Θ up to 65 µrad
-off; two periods in (``EDGE = 2``), under 10⁻⁴ and 16 µrad. On a lab's real frames (the
-Vernier library's Image140) the samples near the edge carry more than they bias: two periods
-in, a fixed marker's pixel size scatters 1.2·10⁻⁴ from frame to frame instead of 0.8·10⁻⁴,
-and its pose 0.152 µm instead of 0.135 µm (y) — so the samples start one period in.
+period from its outer dots, its planes refitted on the samples of the marker's own square only
+(to half a period beyond its outer dots, the corners' fiducials left out), so that what lies
+beside the marker does not pull them. Near the grid's edge the lobe's field falls, and its phase bends
+there: the band-pass's Gaussian (phase.py: σ = GAUSS / (2π·CROP)) is about 1.1 periods wide in
+the frame, and the dots' transfer function is not even about the lobe, so the falling
+envelope shifts the phase by c·∇ln|z| (phase.py, "The code's envelope") — a plain plane fit on
+samples one period in read a rendered marker's pixel size 1.3–3·10⁻⁴ small and Θ up to 77 µrad
+off. The planes are therefore fitted with the code's envelope regressors (``ENVELOPE``), which
+model that bend, on every sample of the marker's own square (``EDGE = −0.5``: half a period
+beyond the outer dots, the square the grid tiles): on calflow's noise-free renders the pixel
+size within 2·10⁻⁵, Θ within 6 µrad, x and y within 0.1 nm. Without the regressors those outer
+samples would bias the pixel size by 6·10⁻⁴; with them, on a lab's real sequence (the Vernier
+library's Image140) a fixed marker's pixel size scatters 0.44·10⁻⁴ from frame to frame instead
+of 0.83·10⁻⁴ one period in (docs/benchmarks.md, "The code's envelope in a marker's refit").
 
 With ``K`` the 2 × 2 matrix of the two lobes' spatial frequencies (cycles per pixel; rows
 along the marker's x and y axes) and ``φ`` their phases (radian) at the crop centre ``r₀``,
@@ -50,7 +54,8 @@ MIN_PEAK_RATIO = 30.0  # a lobe's power over the ring's median around a marker
 MAX_CENTRE_OFFSET = 0.25  # periods between the fiducials' centre and the nearest dot
 MAX_PERIOD_MISMATCH = 0.05  # a given pixel size and the period the fiducials show
 CORNER = 4.0  # periods: the corners' fiducials are left out of the fit, as far in
-EDGE = 1.0  # periods: the refit's samples lie this far in from the outer dots (module docstring)
+EDGE = -0.5  # periods: the refit's samples lie this far in from the outer dots (< 0: beyond them)
+ENVELOPE = True  # the planes fitted with the envelope's regressors (module docstring)
 BIT_UNSURE = (0.3, 0.7)  # a number dot's contrast over the full dots' that reads as neither
 
 
@@ -89,7 +94,7 @@ def marker_pose(frame: np.ndarray, triple: Triple, pattern: HPCodePattern, given
     crop = frame[y0:y1, x0:x1]
     level = float(np.sum(crop * fade) / max(float(fade.sum()), 1.0))
     crop = level + (crop - level) * fade
-    fitter = _fitter(y1 - y0, x1 - x0, round(math.log(1.0 / per_px) / math.log(1.02)))
+    fitter = _fitter(y1 - y0, x1 - x0, round(math.log(1.0 / per_px) / math.log(1.02)), ENVELOPE)
     planes = fitter.fit(fitter.spectrum(crop[None]))
     ratio = planes.peak_ratio[0]
     if not ratio.min() >= MIN_PEAK_RATIO:
@@ -189,10 +194,10 @@ def _number(frame, node_px, K, pattern: HPCodePattern, bright: bool):
 
 
 @lru_cache(maxsize=8)
-def _fitter(h: int, w: int, key: int) -> PhaseFitter:
+def _fitter(h: int, w: int, key: int, envelope: bool) -> PhaseFitter:
     """The phase planes' plan for crops of h × w pixels and a fundamental of 1.02^key cycles per
-    pixel, kept between markers and frames."""
-    return PhaseFitter((h, w), 1.02**key, 1)
+    pixel, with or without the envelope's regressors, kept between markers and frames."""
+    return PhaseFitter((h, w), 1.02**key, 1, envelope=envelope)
 
 
 def _fail(status: str, reason: str) -> dict:
