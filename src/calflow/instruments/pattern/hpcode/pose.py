@@ -5,20 +5,23 @@ From the three fiducials (:mod:`.fiducials`) come the marker's centre, the direc
 x and y axes and its period in pixels — coarse, to a fraction of a period. The fine pose is
 the shared phase part (:class:`~calflow.instruments.pattern.phase.PhaseFitter`, thesis
 Sec. 3.5.1 steps 2–6) run on a square of the frame around the marker, faded out beyond a
-period from its outer dots, its planes refitted on the samples of the marker's own square only
-(to half a period beyond its outer dots, the corners' fiducials left out), so that what lies
-beside the marker does not pull them. Near the grid's edge the lobe's field falls, and its phase bends
-there: the band-pass's Gaussian (phase.py: σ = GAUSS / (2π·CROP)) is about 1.1 periods wide in
-the frame, and the dots' transfer function is not even about the lobe, so the falling
-envelope shifts the phase by c·∇ln|z| (phase.py, "The code's envelope") — a plain plane fit on
-samples one period in read a rendered marker's pixel size 1.3–3·10⁻⁴ small and Θ up to 77 µrad
-off. The planes are therefore fitted with the code's envelope regressors (``ENVELOPE``), which
-model that bend, on every sample of the marker's own square (``EDGE = −0.5``: half a period
-beyond the outer dots, the square the grid tiles): on calflow's noise-free renders the pixel
-size within 2·10⁻⁵, Θ within 6 µrad, x and y within 0.1 nm. Without the regressors those outer
-samples would bias the pixel size by 6·10⁻⁴; with them, on a lab's real sequence (the Vernier
-library's Image140) a fixed marker's pixel size scatters 0.44·10⁻⁴ from frame to frame instead
-of 0.83·10⁻⁴ one period in (docs/benchmarks.md, "The code's envelope in a marker's refit").
+period from its outer dots, its planes refitted on the samples inside the marker's grid only
+(half a period in from its outer dots, the corners' fiducials left out), so that what lies
+beside the marker does not pull them. Near the grid's edge the lobe's field falls, and its
+phase bends there: the band-pass's Gaussian (phase.py: σ = GAUSS / (2π·CROP)) is about 1.1
+periods wide in the frame, and the dots' transfer function is not even about the lobe, so
+the falling envelope shifts the phase by c·∇ln|z| (phase.py, "The code's envelope"): a plain
+plane fit on samples one period in read a rendered marker's pixel size 1.3–3·10⁻⁴ small and
+Θ up to 77 µrad off. The planes are therefore fitted with the code's envelope regressors
+(``ENVELOPE``), which model that bend — on calflow's noise-free renders the pixel size within
+2·10⁻⁵, Θ within 4 µrad, x and y within 0.2 nm, at any edge distance from two periods in to
+half a period out — and so the refit can come nearer the edge. How near is set by what lies
+beside a marker: with another marker's dots one period beyond its own, samples on or beyond
+the outer dots are pulled (150 µrad, 17 nm), half a period in they are not pulled more than a
+plain fit one period in (34 against 87 µrad). Half a period in (``EDGE = 0.5``), on a lab's
+real sequence (the Vernier library's Image140) a fixed marker's pixel size scatters
+0.62·10⁻⁴ from frame to frame instead of 0.83·10⁻⁴ and its pose 0.130 µm instead of
+0.135 µm in y (docs/benchmarks.md, "The code's envelope in a marker's refit").
 
 With ``K`` the 2 × 2 matrix of the two lobes' spatial frequencies (cycles per pixel; rows
 along the marker's x and y axes) and ``φ`` their phases (radian) at the crop centre ``r₀``,
@@ -54,7 +57,7 @@ MIN_PEAK_RATIO = 30.0  # a lobe's power over the ring's median around a marker
 MAX_CENTRE_OFFSET = 0.25  # periods between the fiducials' centre and the nearest dot
 MAX_PERIOD_MISMATCH = 0.05  # a given pixel size and the period the fiducials show
 CORNER = 4.0  # periods: the corners' fiducials are left out of the fit, as far in
-EDGE = -0.5  # periods: the refit's samples lie this far in from the outer dots (< 0: beyond them)
+EDGE = 0.5  # periods: the refit's samples lie this far in from the outer dots (module docstring)
 ENVELOPE = True  # the planes fitted with the envelope's regressors (module docstring)
 BIT_UNSURE = (0.3, 0.7)  # a number dot's contrast over the full dots' that reads as neither
 
