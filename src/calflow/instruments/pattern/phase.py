@@ -11,7 +11,8 @@ fitted to it by weighted least squares (step 6), the weights the field's squared
 The plane gives, per lobe, the lattice coordinate of the frame centre (its intercept over 2π)
 and the lattice's spatial frequency (its slope), each with the covariance of the fit.
 
-The code's envelope (``envelope=True``, for layouts whose code leaves dots out). A frame of
+The code's envelope (``envelope=True``, for layouts whose code leaves dots out, or whose grid
+ends inside the fitted region: an HP-code marker's edge bends the phase the same way). A frame of
 dots a_n ∈ {0, 1} at the lattice nodes r_n is I = Σ a_n D(r − r_n); near the lobe k₀ its
 spectrum is D̂(k₀ + δ)·Â(δ), Â the spectrum of the dots kept. Were D̂ even about k₀, the
 band-passed field would be the carrier times a real envelope and its phase exact. It is not:

@@ -3,7 +3,7 @@ an uncertainty from their scatter, and a test that the magnification did not dri
 
 A frame's own pixel size (each marker's, from its grid's lattice: :mod:`.pose`) scatters
 from frame to frame more than its fit says — on the Vernier library's Image140 sequence by
-σ ≈ 0.8·10⁻⁴ (relative), six times the fit's stated uncertainty, the fixed and the moving
+σ ≈ 0.6·10⁻⁴ (relative), five times the fit's stated uncertainty, the fixed and the moving
 marker's estimates uncorrelated — and a relative pose multiplies the scale by the markers'
 separation (716 µm there: 0.07 µm). When the optics are the same for the whole sequence,
 the mean of the frames' estimates is the better scale.
