@@ -20,7 +20,7 @@ import hypothesis_profiles  # noqa: E402, F401  (registers and loads the profile
 # ---------------------------------------------------------------------------- tiers
 # `make test-fast` runs what is not marked `workflow`: the unit and property tests. A test
 # is a workflow test when it uses a whole-run fixture or runs Snakemake itself.
-WORKFLOW_FIXTURES = {"thesis_run", "reduced_run", "recorded_run"}
+WORKFLOW_FIXTURES = {"thesis_run", "reduced_run", "shipped_recordings_run"}
 WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow")
 
 
@@ -374,7 +374,7 @@ RECORDED = ("recorded-iso230", "recorded-tracker")
 
 
 @pytest.fixture(scope="session")
-def recorded_run(request) -> Path:
+def shipped_recordings_run(request) -> Path:
     """A project holding the shipped recorded campaigns (and recorded-csv's file, planned but
     not run), made once per session and shared by the pytest-xdist workers (a file lock):
     ``recorded-iso230`` run alone, then ``recorded-tracker`` alone, as a lab runs one campaign

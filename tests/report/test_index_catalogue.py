@@ -219,9 +219,11 @@ def test_a_broken_summary_shows_as_failed(tmp_path, monkeypatch, bad):
     assert rows(html) == [("c", "failed")] and "summary.json" in html
 
 
-def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(recorded_run, tmp_path):
+def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(
+    shipped_recordings_run, tmp_path
+):
     """The workflow end to end on two recorded campaigns run one after the other (conftest
-    ``recorded_run``): the second run's index lists the first run's campaign too, a dry run
+    ``shipped_recordings_run``): the second run's index lists the first run's campaign too, a dry run
     after it has nothing to do, and a campaign whose results are deleted leaves the index
     rebuilt by hand (in a copy of the project)."""
     import shutil
@@ -230,7 +232,7 @@ def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(
     from conftest import BIN, RECORDED, snakemake
 
     names = RECORDED
-    work = recorded_run
+    work = shipped_recordings_run
     html = (work / "reports" / "index.html").read_text()
     assert sorted(c for c, _ in rows(html)) == sorted(names) and all(s == "done" for _, s in rows(html))
     assert "Tan," not in html and 'class="ref"' not in html  # a lab's own axes: no thesis beside them

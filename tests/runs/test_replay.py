@@ -270,10 +270,10 @@ def test_the_config_check_names_a_bad_recording_entry(tmp_path):
         assert key in str(err.value) and "rec.yaml" in str(err.value)
 
 
-def test_both_recorded_campaigns_run_end_to_end(recorded_run):
-    """The shipped recorded campaigns through the workflow (conftest ``recorded_run``):
+def test_both_recorded_campaigns_run_end_to_end(shipped_recordings_run):
+    """The shipped recorded campaigns through the workflow (conftest ``shipped_recordings_run``):
     reports, and what the data do not support."""
-    work = recorded_run
+    work = shipped_recordings_run
     # the CSV campaign (training with temperatures + ISO 230-2 metrology): planned, not run (its models cost time)
     dry = snakemake(work, "-n", "--config", 'campaigns=["recorded-csv"]')
     assert dry.returncode == 0, dry.stderr[-2000:]
