@@ -20,7 +20,7 @@ import hypothesis_profiles  # noqa: E402, F401  (registers and loads the profile
 # ---------------------------------------------------------------------------- tiers
 # `make test-fast` runs what is not marked `workflow`: the unit and property tests. A test
 # is a workflow test when it uses a whole-run fixture or runs Snakemake itself.
-WORKFLOW_FIXTURES = {"thesis_run", "reduced_run"}
+WORKFLOW_FIXTURES = {"thesis_run", "reduced_run", "shipped_recordings_run"}
 WORKFLOW_CALLS = ("snakemake(", "make_workdir(", "run_cluster", "bench_workflow")
 
 
@@ -116,7 +116,7 @@ def pytest_collection_finish(session):
     # A module that asks for the run by name may also hold tests that do not (the browser
     # checks' own test): only a selected workflow test starts it, so `make test-fast` never does.
     if any(item.get_closest_marker("workflow") and _reads_thesis_run(item) for item in session.items):
-        start_thesis_run(_thesis_folder(session.config))
+        start_thesis_run(_shared_folder(session.config))
 
 
 def _xy_noise_um() -> float:
@@ -263,9 +263,9 @@ def cf_problems(files) -> list[str]:
 # read by every test that only reads it. The default run (thesis_run) starts in the
 # background when collection ends and the files that read it are scheduled last, so the
 # workers run the rest of the suite beside it rather than one waiting ~6 min for it. The
-# reduced run's tests are in one file (test_reduced_run.py), so under
-# `pytest -n N --dist loadfile` (the README's test command) one worker makes it. (xdist's
-# `loadgroup` would be the natural tool, but pytest 9 ignores the node ids it rewrites.)
+# reduced run is made once too, by whichever worker asks first (a file lock), and read by the
+# other. (xdist's `loadgroup` would be the natural tool, but pytest 9 ignores the node ids it
+# rewrites.)
 
 #: SMALL_XYTHETA with Models I and II only, no XY tests and 120 poses: a run of 10 jobs.
 REDUCED_XYTHETA = {
@@ -280,7 +280,7 @@ SOURCE_DATE_EPOCH = {"SOURCE_DATE_EPOCH": "1767225600"}  # reproducible `created
 THESIS_HANG_GUARD_S = 1800  # a hang guard, not a speed check: the default run is ~6 min on a quiet machine
 
 
-def _thesis_folder(config) -> Path:
+def _shared_folder(config) -> Path:
     """The session's folder shared by its pytest-xdist workers (the controller's basetemp)."""
     base = config._tmp_path_factory.getbasetemp()
     return base.parent if hasattr(config, "workerinput") else base
@@ -330,7 +330,7 @@ def thesis_run(request) -> Path:
     import signal
     import time
 
-    shared = _thesis_folder(request.config)
+    shared = _shared_folder(request.config)
     start_thesis_run(shared)  # already started, unless collection-finish was skipped
     folder = shared / "thesis"
     deadline = time.monotonic() + THESIS_HANG_GUARD_S
@@ -344,11 +344,61 @@ def thesis_run(request) -> Path:
 
 
 @pytest.fixture(scope="session")
-def reduced_run(tmp_path_factory) -> Path:
-    """REDUCED_XYTHETA (campaign ``c``) run once locally under SOURCE_DATE_EPOCH."""
-    work = make_workdir(
-        tmp_path_factory.mktemp("reduced"), {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))}
-    )
-    proc = snakemake(work, env_extra={**SOURCE_DATE_EPOCH, **module_log(work)})
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return work
+def reduced_run(request) -> Path:
+    """REDUCED_XYTHETA (campaign ``c``) run once per session locally under SOURCE_DATE_EPOCH,
+    shared by the pytest-xdist workers (a file lock in the folder they share: the worker that
+    asks first makes it, another waits for it), so the files that read it (test_reduced_run.py,
+    test_provenance.py) may land on either worker. Its readers leave it as it is: a test that
+    runs another campaign does so in a project of its own."""
+    from filelock import FileLock
+
+    shared = _shared_folder(request.config)
+    folder = shared / "reduced"
+    with FileLock(shared / "reduced.lock"):
+        if (folder / "rc").exists():
+            assert (folder / "rc").read_text().strip() == "0", (
+                "the reduced run failed (an earlier test's report)"
+            )
+            return folder / "project"
+        shutil.rmtree(folder, ignore_errors=True)
+        folder.mkdir()
+        work = make_workdir(folder, {"c": yaml.safe_load(yaml.safe_dump(REDUCED_XYTHETA))})
+        proc = snakemake(work, env_extra={**SOURCE_DATE_EPOCH, **module_log(work)})
+        (folder / "rc").write_text(str(proc.returncode))
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return work
+
+
+#: The shipped recorded campaigns (config/campaigns/recorded-*.yaml) a session runs.
+RECORDED = ("recorded-iso230", "recorded-tracker")
+
+
+@pytest.fixture(scope="session")
+def shipped_recordings_run(request) -> Path:
+    """A project holding the shipped recorded campaigns (and recorded-csv's file, planned but
+    not run), made once per session and shared by the pytest-xdist workers (a file lock):
+    ``recorded-iso230`` run alone, then ``recorded-tracker`` alone, as a lab runs one campaign
+    after another (the second run's index must list the first's campaign). Its readers leave
+    it as it is (a test that deletes results does so in a copy)."""
+    from filelock import FileLock
+
+    shared = _shared_folder(request.config)
+    folder = shared / "recorded"
+    with FileLock(shared / "recorded.lock"):
+        if (folder / "rc").exists():
+            assert (folder / "rc").read_text().strip() == "0", "the recorded campaigns' runs failed"
+            return folder / "project"
+        shutil.rmtree(folder, ignore_errors=True)
+        folder.mkdir()
+        names = (*RECORDED, "recorded-csv")
+        work = make_workdir(
+            folder, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names}
+        )
+        shutil.copytree(ROOT / "tests" / "data" / "recordings", work / "tests" / "data" / "recordings")
+        for name in RECORDED:
+            proc = snakemake(work, "--config", f'campaigns=["{name}"]')
+            if proc.returncode:
+                break
+        (folder / "rc").write_text(str(proc.returncode))
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return work

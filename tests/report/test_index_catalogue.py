@@ -219,23 +219,20 @@ def test_a_broken_summary_shows_as_failed(tmp_path, monkeypatch, bad):
     assert rows(html) == [("c", "failed")] and "summary.json" in html
 
 
-def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(tmp_path):
-    """The workflow end to end on two recorded campaigns (seconds each): the second run's index
-    lists the first run's campaign too, a dry run after it has nothing to do, and a campaign
-    whose results are deleted leaves the index rebuilt by hand."""
+def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(
+    shipped_recordings_run, tmp_path
+):
+    """The workflow end to end on two recorded campaigns run one after the other (conftest
+    ``shipped_recordings_run``): the second run's index lists the first run's campaign too, a dry run
+    after it has nothing to do, and a campaign whose results are deleted leaves the index
+    rebuilt by hand (in a copy of the project)."""
     import shutil
     import subprocess
 
-    from conftest import BIN, ROOT, make_workdir, snakemake
+    from conftest import BIN, RECORDED, snakemake
 
-    names = ("recorded-iso230", "recorded-tracker")
-    work = make_workdir(
-        tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names}
-    )
-    shutil.copytree(ROOT / "tests" / "data" / "recordings", work / "tests" / "data" / "recordings")
-    for name in names:
-        proc = snakemake(work, "--config", f'campaigns=["{name}"]')
-        assert proc.returncode == 0, proc.stderr[-2000:]
+    names = RECORDED
+    work = shipped_recordings_run
     html = (work / "reports" / "index.html").read_text()
     assert sorted(c for c, _ in rows(html)) == sorted(names) and all(s == "done" for _, s in rows(html))
     assert "Tan," not in html and 'class="ref"' not in html  # a lab's own axes: no thesis beside them
@@ -244,9 +241,11 @@ def test_a_second_run_of_another_campaign_joins_the_index_and_a_no_op_stays_one(
         assert 'class="num ref"' not in report and "Fig. 5.18, Table 5.2" not in report
     dry = snakemake(work, "--config", f'campaigns=["{names[1]}"]', "-n")
     assert "Nothing to be done" in dry.stdout + dry.stderr
-    shutil.rmtree(work / "results" / names[0])
-    subprocess.run([str(BIN / "calflow"), "index"], cwd=work, check=True, capture_output=True)
-    assert [c for c, _ in rows((work / "reports" / "index.html").read_text())] == [names[1]]
+    copy = tmp_path / "project"
+    shutil.copytree(work, copy, ignore=shutil.ignore_patterns(".snakemake"))
+    shutil.rmtree(copy / "results" / names[0])
+    subprocess.run([str(BIN / "calflow"), "index"], cwd=copy, check=True, capture_output=True)
+    assert [c for c, _ in rows((copy / "reports" / "index.html").read_text())] == [names[1]]
 
 
 def test_a_stage_reads_in_the_order_of_its_campaigns_starts(tmp_path, monkeypatch):

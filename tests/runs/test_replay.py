@@ -1,7 +1,6 @@
 """Replay of recorded runs: a replayed campaign reproduces its run datasets exactly."""
 
 import json
-import shutil
 
 import numpy as np
 import pytest
@@ -191,7 +190,7 @@ def test_replay_through_load_rig(recorded):
 # ------------------------------------------------- instruments' recordings (ISO 230-2 .dat, tracker CSV)
 
 import yaml  # noqa: E402
-from conftest import ROOT, make_workdir, snakemake  # noqa: E402
+from conftest import ROOT, snakemake  # noqa: E402
 
 from calflow.cli import main  # noqa: E402
 from calflow.data import ecmc_iso230  # noqa: E402
@@ -271,20 +270,15 @@ def test_the_config_check_names_a_bad_recording_entry(tmp_path):
         assert key in str(err.value) and "rec.yaml" in str(err.value)
 
 
-def test_both_recorded_campaigns_run_end_to_end(tmp_path):
-    """The shipped recorded campaigns, one Snakemake run: reports, and what the data do not support."""
-    names = ("recorded-iso230", "recorded-tracker", "recorded-csv")
-    work = make_workdir(
-        tmp_path, {n: (ROOT / "config" / "campaigns" / f"{n}.yaml").read_text() for n in names}
-    )
-    shutil.copytree(RECORDINGS, work / "tests" / "data" / "recordings")
+def test_both_recorded_campaigns_run_end_to_end(shipped_recordings_run):
+    """The shipped recorded campaigns through the workflow (conftest ``shipped_recordings_run``):
+    reports, and what the data do not support."""
+    work = shipped_recordings_run
     # the CSV campaign (training with temperatures + ISO 230-2 metrology): planned, not run (its models cost time)
     dry = snakemake(work, "-n", "--config", 'campaigns=["recorded-csv"]')
     assert dry.returncode == 0, dry.stderr[-2000:]
     jobs = dry.stdout + dry.stderr
     assert "rule identify:" in jobs and "rule acquire:" in jobs and "acquire_validation" not in jobs
-    proc = snakemake(work, "--config", 'campaigns=["recorded-iso230", "recorded-tracker"]')
-    assert proc.returncode == 0, proc.stderr[-3000:]
     iso = json.loads((work / "results" / "recorded-iso230" / "summary.json").read_text())
     rec = ecmc_iso230.read(RECORDINGS / "axis1_ISO230.dat")
     from calflow.metrics import iso230_2

@@ -1,6 +1,6 @@
 """The same analysis through other paths: a cluster executor, a replay of the recordings and
 the GCS controller emulator all give the session's reduced local run's results
-(``reduced_run`` in conftest). One file, so `pytest --dist loadfile` makes that run once."""
+(``reduced_run`` in conftest, made once per session and only read here)."""
 
 import json
 import shutil
@@ -28,39 +28,29 @@ def test_cluster_generic_run_gives_the_local_summary(reduced_run, tmp_path):
     ).read_bytes()
 
 
-def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run):
-    """A campaign replaying another's recordings gets the same models and metrics."""
-    import shutil
-
-    import yaml
-    from conftest import REDUCED_XYTHETA
-
+def test_replay_campaign_reproduces_the_recorded_analysis(reduced_run, tmp_path):
+    """A campaign replaying another's recordings gets the same models and metrics (run in a
+    project of its own, so the session's reduced run stays as it was made)."""
     recorded = reduced_run / "results/c/runs"
     campaign = json.loads(json.dumps(REDUCED_XYTHETA))
     campaign["rig"] = {"factory": "replay", "options": {"recordings": str(recorded)}}
-    path = reduced_run / "config/campaigns/again.yaml"
-    path.write_text(yaml.safe_dump(campaign))
-    try:
-        proc = snakemake(reduced_run, "--config", 'campaigns=["again"]')
-        assert proc.returncode == 0, proc.stderr[-3000:]
-        a = json.loads((reduced_run / "results/c/summary.json").read_text())
-        b = json.loads((reduced_run / "results/again/summary.json").read_text())
-        assert list(a["models"]) == ["I", "II"]
-        # the design's bound needs the rig's noise model, which a replay rig does not declare:
-        # the replayed summary gives none rather than inventing one; everything else is equal
-        bound = ("crlb_sigma", "rig_time_h", "rig_time_h_achieved")
-        for name in ("I", "II"):
-            assert a["models"][name]["identification"]["crlb_sigma"]
-            assert all(b["models"][name]["identification"].get(k) is None for k in bound)
-            for s in (a, b):
-                for k in bound:
-                    s["models"][name]["identification"].pop(k, None)
-        assert a["models"] == b["models"]
-        assert a["truth"] == b["truth"]
-    finally:
-        path.unlink()
-        shutil.rmtree(reduced_run / "results/again", ignore_errors=True)
-        shutil.rmtree(reduced_run / "reports/again", ignore_errors=True)
+    work = make_workdir(tmp_path, {"again": campaign})
+    proc = snakemake(work)  # all of it: its report and certificate too
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    a = json.loads((reduced_run / "results/c/summary.json").read_text())
+    b = json.loads((work / "results/again/summary.json").read_text())
+    assert list(a["models"]) == ["I", "II"]
+    # the design's bound needs the rig's noise model, which a replay rig does not declare:
+    # the replayed summary gives none rather than inventing one; everything else is equal
+    bound = ("crlb_sigma", "rig_time_h", "rig_time_h_achieved")
+    for name in ("I", "II"):
+        assert a["models"][name]["identification"]["crlb_sigma"]
+        assert all(b["models"][name]["identification"].get(k) is None for k in bound)
+        for s in (a, b):
+            for k in bound:
+                s["models"][name]["identification"].pop(k, None)
+    assert a["models"] == b["models"]
+    assert a["truth"] == b["truth"]
 
 
 def test_campaign_through_the_emulator_matches_the_simulated_rig(reduced_run, tmp_path):
