@@ -14,14 +14,15 @@ LOCK_FLAGS ?=
 
 .PHONY: run test test-fast bench-smoke cluster-test cluster-study dry-run lint lock browser clean
 
-# --no-compile: byte-compiling every module of the lock (~9500) took ~30 s of the install's
-# ~47 s of CPU; Python compiles the ones it imports on first use instead. calflow and the
+# The lock is byte-compiled at install (pip's default), not skipped with --no-compile: where
+# PYTHONDONTWRITEBYTECODE is set (this machine's shells, many CI images) every process of the
+# suite would compile xarray, scipy and pandas again, doubling its CPU. calflow and the
 # hexapod family's own distribution go in one pip run.
 $(STAMP): pyproject.toml plugins/calflow-hexapod/pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -r $(LOCK)
-	$(BIN)/python -m pip install --quiet --no-compile --no-deps -e . -e plugins/calflow-hexapod
+	$(BIN)/python -m pip install --quiet -r $(LOCK)
+	$(BIN)/python -m pip install --quiet --no-deps -e . -e plugins/calflow-hexapod
 	@$(BIN)/python -m pip check >/dev/null || { $(BIN)/python -m pip check; \
 	  echo "$(LOCK) does not hold what pyproject.toml asks for: run 'make lock'"; exit 1; }
 	touch $(STAMP)
