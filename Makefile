@@ -27,14 +27,22 @@ $(STAMP): pyproject.toml plugins/calflow-hexapod/pyproject.toml $(LOCK)
 	  echo "$(LOCK) does not hold what pyproject.toml asks for: run 'make lock'"; exit 1; }
 	touch $(STAMP)
 
+# calflow's own modules byte-compiled before a run: where PYTHONDONTWRITEBYTECODE is set no
+# process writes a .pyc, and each of the workflow's jobs would compile calflow's modules again
+# (~0.6 s of CPU for all of them; a changed file is compiled again, the rest are kept).
+COMPILE := $(BIN)/python -m compileall -q src $(wildcard plugins/*/src)
+
 run: $(STAMP)  ## run the default campaigns and write reports/
+	@$(COMPILE)
 	$(BIN)/snakemake --cores $(CORES)
 
 test: $(STAMP) browser  ## run the test suite (calflow's, then the hexapod plug-in's own)
+	@$(COMPILE)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 	cd plugins/calflow-hexapod && $(abspath $(BIN))/python -m pytest -n $(CORES) --dist loadfile
 
 test-fast: $(STAMP)  ## the unit and property tests only (no workflow run, no process killed): about a minute
+	@$(COMPILE)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -m "not workflow and not process" -q
 
 bench-smoke: $(STAMP)  ## every benchmark of benchmarks/ at its small --smoke size, so none rots unseen
