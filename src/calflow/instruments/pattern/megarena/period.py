@@ -28,7 +28,7 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
     on lines through the lattice's peaks along its axes (f_x or f_y a multiple of f₀), and the
     holes on multiples of f₀/3 — none at (f₀/2, f₀/2). (Along an axis, at f₀/2, the code's
     spectrum is: a peak there says nothing.)"""
-    rows, cols, rad, ang = _band(h, w, 3.0 * (depth + 1) / min(h, w))
+    rows, cols, rad, ang, order = _band(h, w, 3.0 * (depth + 1) / min(h, w))
     if len(rad) == 0:
         return None
     vals = spec[rows, cols]
@@ -37,13 +37,20 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
     if not power[k] > 0:
         return None
     f, a, p = float(rad[k]), float(ang[k]), float(power[k])
-    floor = SUBHARMONIC_ABOVE * float(np.median(power))
+    floor = None
     for _ in range(2):  # (2, 0) → (1, 1) → (1, 0) at most
-        near = np.abs(rad - f / math.sqrt(2.0)) < SUBHARMONIC_TOL * f / math.sqrt(2.0) + 1.0 / min(h, w)
-        near &= np.abs((ang - a) % 90.0 - 45.0) < 5.0
-        if not near.any():
+        # the bins within the radius's tolerance, from the band's radii in order (a few hundred
+        # of its bins, not all), kept in the band's own order so that ties resolve as before
+        reach = SUBHARMONIC_TOL * f / math.sqrt(2.0) + 1.0 / min(h, w)
+        lo, hi = np.searchsorted(rad[order], [f / math.sqrt(2.0) - reach, f / math.sqrt(2.0) + reach])
+        cand = np.sort(order[lo:hi])
+        cand = cand[np.abs(rad[cand] - f / math.sqrt(2.0)) < reach]
+        cand = cand[np.abs((ang[cand] - a) % 90.0 - 45.0) < 5.0]
+        if len(cand) == 0:
             break
-        j = int(np.argmax(np.where(near, power, -1.0)))
+        j = int(cand[np.argmax(power[cand])])
+        if floor is None:  # the band's median power, only once a candidate is there
+            floor = SUBHARMONIC_ABOVE * float(np.median(power))
         if power[j] < max(SUBHARMONIC_SHARE * p, floor):
             break
         f, a, p = float(rad[j]), float(ang[j]), float(power[j])
@@ -53,14 +60,16 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
 @lru_cache(maxsize=8)
 def _band(h: int, w: int, lo: float):
     """Bins (rows, columns) of a half-plane spectrum between ``lo`` and 1/MIN_PERIOD_PX cycles
-    per pixel, their radial frequency and their direction (degree, −90 to 90)."""
+    per pixel, their radial frequency, their direction (degree, −90 to 90) and the order of
+    their radii."""
     fi_signed = np.fft.fftfreq(h)[:, None]
     fi = np.abs(fi_signed)
     fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
     rows, cols = np.nonzero((rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX))
     ang = np.degrees(np.arctan2(fi_signed[rows, 0], fj[0, cols]))
-    return rows, cols, rad[rows, cols], ang
+    rad = rad[rows, cols]
+    return rows, cols, rad, ang, np.argsort(rad, kind="stable")
 
 
 def pixel_size(p: float, K: np.ndarray, cov: np.ndarray, lobes) -> tuple[float, float]:
