@@ -13,21 +13,10 @@ from calflow.errors import RigError
 from calflow.family import family_of
 from calflow.rigs.campaign_rig import open_rig
 
-POOLED_PIXEL_ATTRS = (
-    "pixel_size",
-    "pixel_size_um",
-    "u_pixel_size_um",
-    "pixel_size_frames",
-    "pixel_size_drift_um",
-    "pixel_size_drift_p",
-    "pixel_size_drifts",
-    "pixel_size_trend_markers",
-    "pixel_size_statement",
-)
-
 
 def _recorded(job, rig, c: dict):
     """The acquisition of a replayed instrument recording: its own plan, no controller."""
+    from calflow.instruments.pattern.hpcode.scale import RECORD_KEYS
     from calflow.plan import Acquisition
 
     robot = rig.attrs.get("robot")
@@ -48,7 +37,7 @@ def _recorded(job, rig, c: dict):
             **job.attrs,
             "imported_from": rig.attrs.get("imported_from", rig.path.name),
             # a decoded frame recording's pooled pixel size and its trend test, when it has one
-            **{k: v for k, v in rig.attrs.items() if k in POOLED_PIXEL_ATTRS},
+            **{k: v for k, v in rig.attrs.items() if k in RECORD_KEYS},
         },
     )
 

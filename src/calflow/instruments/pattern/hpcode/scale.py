@@ -49,6 +49,17 @@ from calflow.instruments.pattern.hpcode.decode import Markers
 REJECT = 5.0  # robust standard deviations from the median beyond which a frame is left out
 DRIFT_P = 0.01  # two-sided p-value of the pixel size's slope against time below which it drifts
 MIN_FRAMES = 5  # frames with a pixel size needed to pool and to test a trend
+RECORD_KEYS = (  # what a run dataset keeps of a pool (SequenceScale.attrs), in its attributes
+    "pixel_size",
+    "pixel_size_um",
+    "u_pixel_size_um",
+    "pixel_size_frames",
+    "pixel_size_drift_um",
+    "pixel_size_drift_p",
+    "pixel_size_drifts",
+    "pixel_size_trend_markers",
+    "pixel_size_statement",
+)
 
 
 @dataclass(frozen=True)
@@ -127,18 +138,19 @@ class SequenceScale:
         )
 
     def attrs(self) -> dict:
-        """The record a run dataset keeps (strings and numbers)."""
-        return {
-            "pixel_size": "sequence",
-            "pixel_size_um": self.pixel_um,
-            "u_pixel_size_um": self.u_pixel_um,
-            "pixel_size_frames": self.n_frames,
-            "pixel_size_drift_um": self.drift_um,
-            "pixel_size_drift_p": self.drift_p,
-            "pixel_size_drifts": "yes" if self.drifts else "no",
-            "pixel_size_trend_markers": ",".join(map(str, self.trending)),
-            "pixel_size_statement": self.statement,
-        }
+        """The record a run dataset keeps (strings and numbers), under :data:`RECORD_KEYS`."""
+        values = (
+            "sequence",
+            self.pixel_um,
+            self.u_pixel_um,
+            self.n_frames,
+            self.drift_um,
+            self.drift_p,
+            "yes" if self.drifts else "no",
+            ",".join(map(str, self.trending)),
+            self.statement,
+        )
+        return dict(zip(RECORD_KEYS, values, strict=True))
 
 
 def pool_pixel(found: Markers, numbers=None, time_s=None) -> SequenceScale:
