@@ -99,19 +99,30 @@ def _ring(h: int, w: int, f0: float):
     RING[0]·f0 and RING[1]·f0 cycles per pixel, the half of the j = 0 column with negative row
     frequencies left out (it mirrors the other half), and each bin's direction (degree).
 
-    Only the rows and columns the ring can reach are looked at, so that a plan for a new
-    frequency costs a fraction of a millisecond rather than a pass over the whole spectrum."""
-    fi_all = np.fft.fftfreq(h)
-    top = int(math.ceil(RING[1] * f0 * h)) + 1  # rows 0..top-1 and h-top..h-1 hold the ring
-    rows = np.arange(h) if 2 * top >= h else np.r_[0:top, h - top : h]
-    cols = np.arange(min(w // 2 + 1, int(math.ceil(RING[1] * f0 * w)) + 1))
-    fi = fi_all[rows][:, None]
-    fj = np.fft.rfftfreq(w)[cols][None, :]
+    The bins come from the spectrum's radii sorted once per frame size (:func:`_radii`): a plan
+    for a new frequency — a new pixel size — costs a search and the ring's own bins."""
+    flat, rad = _radii(h, w)
+    lo = np.searchsorted(rad, RING[0] * f0, side="right")  # strictly inside the ring
+    hi = np.searchsorted(rad, RING[1] * f0, side="left")
+    mask = np.zeros(h * (w // 2 + 1), bool)  # back to row order: a scatter, not a sort
+    mask[flat[lo:hi]] = True
+    ri, rj = np.divmod(np.flatnonzero(mask), w // 2 + 1)
+    fi, fj = np.fft.fftfreq(h)[ri], np.fft.rfftfreq(w)[rj]
+    return ri, rj, np.degrees(np.arctan2(fi, fj))
+
+
+@lru_cache(maxsize=4)
+def _radii(h: int, w: int):
+    """Every bin of a half-plane spectrum of h × w pixels but the mirrored half of the j = 0
+    column (negative row frequencies): the flat indices (row order within equal radii) sorted
+    by radius (cycles per pixel), and the radii."""
+    fi = np.fft.fftfreq(h)[:, None]
+    fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
-    ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
-    ri, rj = np.nonzero(ring)
-    angle = np.degrees(np.arctan2(fi[ri, 0], fj[0, rj]))
-    return rows[ri], cols[rj], angle
+    keep = np.flatnonzero(~((fj == 0) & (fi < 0)))
+    r = rad.ravel()[keep]
+    order = np.argsort(r, kind="stable")
+    return keep[order], r[order]
 
 
 def _fast(n: int) -> int:
