@@ -125,6 +125,17 @@ def _radii(h: int, w: int):
     return keep[order], r[order]
 
 
+def _corner(h: int, w: int):
+    """The spectrum's corners beyond 0.4 cycle per pixel along both axes, as (rows, columns)
+    slices of a half-plane spectrum of h × w pixels — the rows are one run (the middle of the
+    FFT's order), the columns the last — or None when the frame is too small to have them."""
+    rows = np.flatnonzero(np.abs(np.fft.fftfreq(h)) > 0.4)
+    cols = np.flatnonzero(np.fft.rfftfreq(w) > 0.4)
+    if len(rows) == 0 or len(cols) == 0:
+        return None
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), None)
+
+
 def _fast(n: int) -> int:
     """The next length at or above n whose factors are 2, 3, 5, 7 and 11 (fast in pocketfft)."""
     import scipy.fft  # here, not at import: the camera model's users need no scipy
@@ -158,6 +169,8 @@ class PhaseFitter:
         self.workers = workers or os.cpu_count() or 1
         self.window = _window(fh, fw)
         self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
+        self.ring_flat = self.ring_i * (w // 2 + 1) + self.ring_j  # one gather per frame
+        self.corner = _corner(h, w)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
         self.ni = _fast(2 * self.bi + 1)
@@ -191,8 +204,8 @@ class PhaseFitter:
 
     def lobes(self, spec: np.ndarray):
         """The two lobes' integer bins (n, 2, 2: row index signed, column index) and peak ratios."""
-        power = np.abs(spec[:, self.ring_i, self.ring_j]) ** 2
         n = len(spec)
+        power = np.abs(spec.reshape(n, -1).take(self.ring_flat, axis=1)) ** 2
         first = np.argmax(power, axis=1)
         a1 = self.ring_angle[first]
         diff = (self.ring_angle[None, :] - a1[:, None] - 90.0 + 90.0) % 180.0 - 90.0
@@ -220,12 +233,9 @@ class PhaseFitter:
     def noise_power(self, spec: np.ndarray) -> np.ndarray:
         """Mean noise power per bin (n,), from the spectrum's corners beyond 0.4 cycle per pixel,
         where a microscope's optics leave only noise (an undersampled image overstates it)."""
-        # the rows beyond 0.4 are one run (the middle of the FFT's order), the columns the last
-        rows = np.flatnonzero(np.abs(np.fft.fftfreq(self.h)) > 0.4)
-        cols = np.flatnonzero(np.fft.rfftfreq(self.w) > 0.4)
-        if len(rows) == 0 or len(cols) == 0:  # a frame too small to have corners
+        if self.corner is None:  # a frame too small to have corners
             return np.full(len(spec), np.nan)
-        corner = np.abs(spec[:, rows[0] : rows[-1] + 1, cols[0] :]) ** 2
+        corner = np.abs(spec[:, self.corner[0], self.corner[1]]) ** 2
         return np.median(corner.reshape(len(spec), -1), axis=1) / math.log(2)
 
     def fit(self, spec: np.ndarray) -> Planes:
