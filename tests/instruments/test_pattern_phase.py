@@ -33,3 +33,29 @@ def test_the_ring_is_the_whole_spectrums(h, w, f0):
     got = _ring(h, w, f0)
     assert np.array_equal(got[0], rows) and np.array_equal(got[1], cols)
     assert np.array_equal(got[2], angle)
+
+
+def test_scratch_arrays_are_reused_per_name_shape_and_thread():
+    import threading
+
+    from calflow.instruments.pattern.phase import scratch
+
+    a = scratch((4, 5), "t")
+    assert scratch((4, 5), "t") is a and a.dtype == np.float32
+    assert scratch((4, 5), "u") is not a and scratch((5, 4), "t") is not a
+    other = []
+    t = threading.Thread(target=lambda: other.append(scratch((5, 4), "t")))
+    t.start()
+    t.join()
+    assert other[0] is not scratch((5, 4), "t")
+
+
+def test_a_frame_windowed_in_scratch_gives_the_stacks_spectrum():
+    from calflow.instruments.pattern.phase import PhaseFitter
+
+    rng = np.random.default_rng(3)
+    frames = rng.random((3, 48, 64)).astype(np.float32)
+    plan = PhaseFitter((48, 64), 0.1, 1)
+    whole = plan.spectrum(frames)  # a stack: a new array
+    for k in range(3):  # one frame at a time: the reused array, the same spectrum
+        assert np.array_equal(plan.spectrum(frames[k][None])[0], whole[k])

@@ -38,7 +38,7 @@ from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
 from calflow.instruments.pattern.megarena.reading import classes, strong_reading
-from calflow.instruments.pattern.phase import PhaseFitter
+from calflow.instruments.pattern.phase import PhaseFitter, scratch
 
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
 MAX_WRONG_BITS = 1  # per axis
@@ -117,7 +117,8 @@ def decode(
     info = [None] * n if details else None
     window = None
     for f in range(n):
-        frame = stack[f].astype(np.float32)
+        frame = scratch((h, w), "frame")  # not a new array per frame (module phase)
+        np.copyto(frame, stack[f])
         problem = _bad_frame(stack[f])
         if problem:
             status[f], reason[f] = "bad_frame", problem
