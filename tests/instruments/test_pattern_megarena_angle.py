@@ -132,7 +132,7 @@ def test_the_fundamental_is_found_below_a_stronger_diagonal_harmonic(pixel_um, t
     pattern, frame = _frame(pixel_um, theta, x, y)
     plan = module._fitter(768, 1024, -116, 1)
     spec = plan.spectrum(frame[None])[0]
-    flat, rad, _, _ = _band(plan.h, plan.w, 3.0 * 13 / 768)  # the band looked over
+    flat, rad, *_ = _band(plan.h, plan.w, 3.0 * 13 / 768)  # the band looked over
     strongest = rad[np.argmax(np.abs(spec.ravel()[flat]))]  # not the fundamental here
     assert abs(strongest / (pixel_um / 9.0) - math.sqrt(2)) < 0.05
     assert abs(fundamental(spec, plan.h, plan.w, 12) / (pixel_um / 9.0) - 1) < 0.03

@@ -30,7 +30,7 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
     spectrum is: a peak there says nothing.)"""
     if spec.shape != (h, w // 2 + 1):
         raise ValueError(f"spec: expected a half-plane spectrum of shape {(h, w // 2 + 1)}, got {spec.shape}")
-    flat, rad, ang, order = _band(h, w, 3.0 * (depth + 1) / min(h, w))
+    flat, rad, ang, order, rad_sorted = _band(h, w, 3.0 * (depth + 1) / min(h, w))
     if len(rad) == 0:
         return None
     vals = np.ravel(spec).take(flat)  # one gather by flat index: a third of spec[rows, cols]'s time
@@ -44,7 +44,7 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
         # the bins within the radius's tolerance, from the band's radii in order (a few hundred
         # of its bins, not all), kept in the band's own order so that ties resolve as before
         reach = SUBHARMONIC_TOL * f / math.sqrt(2.0) + 1.0 / min(h, w)
-        lo, hi = np.searchsorted(rad[order], [f / math.sqrt(2.0) - reach, f / math.sqrt(2.0) + reach])
+        lo, hi = np.searchsorted(rad_sorted, [f / math.sqrt(2.0) - reach, f / math.sqrt(2.0) + reach])
         cand = np.sort(order[lo:hi])
         cand = cand[np.abs(rad[cand] - f / math.sqrt(2.0)) < reach]
         cand = cand[np.abs((ang[cand] - a) % 90.0 - 45.0) < 5.0]
@@ -65,7 +65,7 @@ def fundamental(spec: np.ndarray, h: int, w: int, depth: int) -> float | None:
 def _band(h: int, w: int, lo: float):
     """Bins of a half-plane spectrum (h, w//2 + 1) between ``lo`` and 1/MIN_PERIOD_PX cycles per
     pixel — their flat indices in row order, radial frequency, direction (degree, −90 to 90) —
-    and the order of their radii."""
+    the order of their radii and the radii in that order."""
     fi_signed = np.fft.fftfreq(h)[:, None]
     fi = np.abs(fi_signed)
     fj = np.fft.rfftfreq(w)[None, :]
@@ -73,7 +73,8 @@ def _band(h: int, w: int, lo: float):
     rows, cols = np.nonzero((rad >= lo) & (rad <= 1.0 / MIN_PERIOD_PX))
     ang = np.degrees(np.arctan2(fi_signed[rows, 0], fj[0, cols]))
     rad = rad[rows, cols]
-    return rows * fj.shape[1] + cols, rad, ang, np.argsort(rad, kind="stable")
+    order = np.argsort(rad, kind="stable")
+    return rows * fj.shape[1] + cols, rad, ang, order, rad[order]
 
 
 def pixel_size(p: float, K: np.ndarray, cov: np.ndarray, lobes) -> tuple[float, float]:
