@@ -241,17 +241,33 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     S = np.arange(math.floor(st[:, 0].min()) - 1, math.ceil(st[:, 0].max()) + 2)
     T = np.arange(math.floor(st[:, 1].min()) - 1, math.ceil(st[:, 1].max()) + 2)
 
-    def sample(ds, dt, S=S, T=T):
-        # the frame at the lattice points (S + ds, T + dt), pixel = K⁻¹·(lattice − phase) + centre
+    def lattice(ds, dt, S=S, T=T):
+        # the lattice points (S + ds, T + dt) in the frame, pixel = K⁻¹·(lattice − phase) + centre
         s, t = (S + ds - sc)[None, :], (T + dt - tc)[:, None]
         x = Kinv[0, 0] * s + Kinv[0, 1] * t + rc[0]
         y = Kinv[1, 0] * s + Kinv[1, 1] * t + rc[1]
-        inside = (x >= 1) & (x <= w - 2) & (y >= 1) & (y <= h - 2)
-        return bilinear(frame, x, y), inside
+        return x, y, (x >= 1) & (x <= w - 2) & (y >= 1) & (y <= h - 2)
+
+    def sample():
+        # the frame at the nodes in it, and at the gaps (S + ½, T + ½ and one more row and column
+        # before) in it or at a corner of a node in it: nothing else is read (0 there)
+        x, y, inside = lattice(0.0, 0.0)
+        xg, yg, in_gaps = lattice(-0.5, -0.5, S1, T1)
+        need = in_gaps.copy()
+        for rows, cols in (
+            (np.s_[:-1], np.s_[:-1]),
+            (np.s_[:-1], np.s_[1:]),
+            (np.s_[1:], np.s_[:-1]),
+            (np.s_[1:], np.s_[1:]),
+        ):
+            need[rows, cols] |= inside
+        v0, gaps = np.zeros(x.shape, np.float32), np.zeros(xg.shape, np.float32)
+        v0[inside] = bilinear(frame, x[inside], y[inside])
+        gaps[need] = bilinear(frame, xg[need], yg[need])
+        return v0, inside, gaps, in_gaps
 
     S1, T1 = np.append(S, S[-1] + 1), np.append(T, T[-1] + 1)
-    v0, inside = sample(0.0, 0.0)
-    gaps, in_gaps = sample(-0.5, -0.5, S1, T1)
+    v0, inside, gaps, in_gaps = sample()
     v1, in1 = gaps[1:, 1:], in_gaps[1:, 1:]  # the points (S + ½, T + ½)
     if (
         in1.any()
@@ -259,8 +275,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         and np.ptp(np.percentile(v1[in1], [10, 90])) > np.ptp(np.percentile(v0[inside], [10, 90]))
     ):  # dark dots: the fundamental's phase is π on them
         sc, tc = (sc + 0.5) % 1.0, (tc + 0.5) % 1.0
-        v0, inside = sample(0.0, 0.0)
-        gaps = sample(-0.5, -0.5, S1, T1)[0]
+        v0, inside, gaps, _ = sample()
     contrast = v0 - 0.25 * (gaps[:-1, :-1] + gaps[:-1, 1:] + gaps[1:, :-1] + gaps[1:, 1:])
     if inside.sum() < 16:
         return _fail("fov_too_small", "fewer than 16 grid nodes in the frame")
