@@ -23,6 +23,29 @@ def bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return top * (1 - fy) + bottom * fy
 
 
+def dilate3(mask: np.ndarray) -> np.ndarray:
+    """A 2-D boolean mask grown by one element in the eight directions (a 3 × 3 block, nothing
+    beyond the edge): ``scipy.ndimage.binary_dilation(mask, np.ones((3, 3)))``, in a few slices."""
+    return _block3(mask, False, np.logical_or)
+
+
+def erode3(mask: np.ndarray) -> np.ndarray:
+    """A 2-D boolean mask shrunk by one element in the eight directions (a 3 × 3 block, the
+    outside counted as set): ``scipy.ndimage.binary_erosion(mask, np.ones((3, 3)), border_value=1)``."""
+    return _block3(mask, True, np.logical_and)
+
+
+def _block3(mask, outside: bool, op) -> np.ndarray:
+    padded = np.pad(np.asarray(mask, bool), 1, constant_values=outside)
+    h, w = padded.shape[0] - 2, padded.shape[1] - 2
+    out = padded[1 : h + 1, 1 : w + 1].copy()
+    for di in range(3):
+        for dj in range(3):
+            if di != 1 or dj != 1:
+                op(out, padded[di : di + h, dj : dj + w], out=out)
+    return out
+
+
 def normalised(contrast: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Contrast over the local mean contrast of the nodes in ``mask`` (7 × 7 nodes around), the
     local mean kept above a third of the frame's median (so that where the dots fade out —

@@ -33,7 +33,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from calflow.instruments.pattern.bits import bilinear, match, normalised, votes
+from calflow.instruments.pattern.bits import bilinear, dilate3, erode3, match, normalised, votes
 from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
@@ -288,12 +288,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     present = z > 0.5
     # inside the target every site has a dot within one node (a code row or column left out
     # is one in three): nodes farther from any dot are beyond the target's edge, not code
-    from scipy import ndimage  # here, not at import: the camera model's users need no scipy
-
-    block = np.ones((3, 3), bool)
-    on_target = ndimage.binary_erosion(
-        ndimage.binary_dilation(present & inside, block), block, border_value=1
-    )
+    on_target = erode3(dilate3(present & inside))
     known = inside & np.isfinite(z) & on_target
     arrangement = classes(present, known, S, T)
     if arrangement is None:
