@@ -35,25 +35,35 @@ def classes(present, known, S, T):
     seen = rows.astype(float) @ known.astype(float) @ cols  # [t class, s class]
     dot = rows.astype(float) @ (known & present).astype(float) @ cols
     empty = seen - dot
-    scores = []
+    hole, full = _ARRANGEMENTS[1], _ARRANGEMENTS[2]  # (36, 2) and (36, 3, 2) [t class, s class]
+    # counts of whole sites (exact in floating point): the hole's and the three full pairs'
+    sure = seen[hole[:, 0], hole[:, 1]] + seen[full[..., 0], full[..., 1]].sum(axis=1)
+    bad = dot[hole[:, 0], hole[:, 1]] + empty[full[..., 0], full[..., 1]].sum(axis=1)
+    keep = np.flatnonzero(sure > 0)
+    if len(keep) == 0:
+        return None
+    score = bad[keep].astype(np.int64) / sure[keep].astype(np.int64)
+    order = np.argsort(score, kind="stable")  # ties: the arrangements' order below
+    best, second = score[order[:2]]
+    if best > 0.2:
+        return None
+    return tuple(int(v) for v in _ARRANGEMENTS[0][keep[order[0]]]), float(second - best), float(best)
+
+
+def _arrangements():
+    """The 36 arrangements (a0, ds, b0, dt) in the order they are scored, the hole's class pair
+    (b0, a0) of each and the three pairs of the two always-full classes that must carry dots."""
+    which, hole, full = [], [], []
     for a0 in range(3):
         for b0 in range(3):
             for ds in (1, -1):
                 a2 = (a0 + (2 if ds > 0 else 1)) % 3
                 for dt in (1, -1):
                     b2 = (b0 + (2 if dt > 0 else 1)) % 3
-                    # the hole (b0, a0) must be empty; the three other pairs of the two
-                    # always-full classes must carry dots
-                    full = [(t, s) for t in (b0, b2) for s in (a0, a2) if (t, s) != (b0, a0)]
-                    sure = int(seen[b0, a0] + sum(seen[c] for c in full))
-                    if sure == 0:
-                        continue
-                    bad = int(dot[b0, a0] + sum(empty[c] for c in full))
-                    scores.append((bad / sure, (a0, ds, b0, dt)))
-    if not scores:
-        return None
-    scores.sort(key=lambda s: s[0])
-    best = scores[0]
-    if best[0] > 0.2:
-        return None
-    return best[1], scores[1][0] - best[0], best[0]
+                    which.append((a0, ds, b0, dt))
+                    hole.append((b0, a0))
+                    full.append([(t, s) for t in (b0, b2) for s in (a0, a2) if (t, s) != (b0, a0)])
+    return np.array(which), np.array(hole), np.array(full)
+
+
+_ARRANGEMENTS = _arrangements()
