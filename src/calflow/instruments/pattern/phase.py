@@ -197,6 +197,9 @@ class PhaseFitter:
         self.ym1 = np.arange(self.ni) * (h / self.ni)
         self.xm1 = np.arange(self.nj) * (w / self.nj)
         self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
+        self.sample_row = np.repeat(np.arange(self.ni), self.nj)  # each coarse sample's row, column
+        self.sample_col = np.tile(np.arange(self.nj), self.ni)
+        self.box_at = (self.di % self.ni, self.dj % self.nj)  # the crop's bins in the box
         # the plane's design matrix (1, x − x_c, y − y_c) over the coarse samples
         xr, yr = self.xm.ravel(), self.ym.ravel()
         self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
@@ -339,10 +342,11 @@ class PhaseFitter:
         n = len(crops)
         envelope = self.envelope and final
         boxes = np.zeros(((3 if envelope else 1) * n, 2, self.ni, self.nj), dtype=np.complex64)
-        boxes[:n, :, self.di % self.ni, self.dj % self.nj] = crops
+        bi, bj = self.box_at
+        boxes[:n, :, bi, bj] = crops
         if envelope:  # the fields' derivatives along x and y, exactly, from the same boxes
-            boxes[n : 2 * n, :, self.di % self.ni, self.dj % self.nj] = crops * self.ddx
-            boxes[2 * n :, :, self.di % self.ni, self.dj % self.nj] = crops * self.ddy
+            boxes[n : 2 * n, :, bi, bj] = crops * self.ddx
+            boxes[2 * n :, :, bi, bj] = crops * self.ddy
         import scipy.fft
 
         every = scipy.fft.ifft2(boxes, workers=self.workers).reshape(len(boxes), 2, -1)
@@ -382,7 +386,7 @@ class PhaseFitter:
         A = self.A
         if extra is not None:  # the samples that count only, and the regressors' columns
             used = np.flatnonzero(wgt)
-            rows, cols = np.divmod(used, self.nj)
+            rows, cols = self.sample_row[used], self.sample_col[used]
             A = np.empty((len(used), 3 + len(extra)))
             A[:, :3] = self.A[used]
             A[:, 3:] = extra[:, used].T
@@ -394,6 +398,7 @@ class PhaseFitter:
         Aw = A * wgt[:, None]
         N = A.T @ Aw
         seen = wgt > 0
+        every = extra is not None or bool(seen.all())  # no sample to leave out of the reference
         for _ in range(2):  # demodulate by the current frequency, fit, again
             # exp(2πi(a·x + b·y)) over the coarse grid, as the product of its row and column parts
             ey = np.exp(2j * np.pi * (base_y - gy) * self.ym1)
@@ -402,7 +407,7 @@ class PhaseFitter:
                 zz = z * (ey[:, None] * ex[None, :]).ravel()
             else:  # at the samples that count only
                 zz = z * (ey[rows] * ex[cols])
-            ref = np.angle(np.sum(zz * np.abs(zz) * seen))
+            ref = np.angle(np.sum(zz * np.abs(zz) if every else zz * np.abs(zz) * seen))
             psi = np.angle(zz * np.exp(-1j * ref))
             try:
                 coef = np.linalg.solve(N, Aw.T @ psi)
