@@ -115,28 +115,30 @@ def _ring(h: int, w: int, f0: float):
 
     The bins come from the spectrum's radii sorted once per frame size (:func:`_radii`): a plan
     for a new frequency — a new pixel size — costs a search and the ring's own bins."""
-    flat, rad = _radii(h, w)
+    flat, rad, angle = _radii(h, w)
     lo = np.searchsorted(rad, RING[0] * f0, side="right")  # strictly inside the ring
     hi = np.searchsorted(rad, RING[1] * f0, side="left")
     mask = np.zeros(h * (w // 2 + 1), bool)  # back to row order: a scatter, not a sort
     mask[flat[lo:hi]] = True
-    ri, rj = np.divmod(np.flatnonzero(mask), w // 2 + 1)
-    fi, fj = np.fft.fftfreq(h)[ri], np.fft.rfftfreq(w)[rj]
-    return ri, rj, np.degrees(np.arctan2(fi, fj))
+    ring = np.flatnonzero(mask)
+    ri, rj = np.divmod(ring, w // 2 + 1)
+    return ri, rj, angle[ring]
 
 
 @lru_cache(maxsize=4)
 def _radii(h: int, w: int):
     """Every bin of a half-plane spectrum of h × w pixels but the mirrored half of the j = 0
     column (negative row frequencies): the flat indices (row order within equal radii) sorted
-    by radius (cycles per pixel), and the radii."""
+    by radius (cycles per pixel), and the radii; and every bin's direction (degree), by flat
+    index."""
     fi = np.fft.fftfreq(h)[:, None]
     fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
     keep = np.flatnonzero(~((fj == 0) & (fi < 0)))
     r = rad.ravel()[keep]
     order = np.argsort(r, kind="stable")
-    return keep[order], r[order]
+    angle = np.degrees(np.arctan2(fi, fj)).ravel()
+    return keep[order], r[order], angle
 
 
 def _corner(h: int, w: int):
