@@ -374,17 +374,18 @@ class PhaseFitter:
                         z, used, bins[k, lobe], freq[k, lobe], grads[k, lobe]
                     )
                     share[k, lobe] = infl * wgt.sum() / max(used.sum(), 1e-300)
-                else:
+                else:  # the first pass gives the frequency only: no covariance
                     phase[k, lobe], out_f[k, lobe], cov[k, lobe], _ = self._fit(
-                        z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe]
+                        z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe], covariance=final
                     )
         return phase, out_f, cov, flat, grads, share
 
-    def _fit(self, z, wgt, bin_, freq, extra=None):
+    def _fit(self, z, wgt, bin_, freq, extra=None, covariance=True):
         """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6), with
         the rows of ``extra`` (m, samples) as nuisance regressors when given. Returns (phase at
         the frame centre, frequency (x, y) cycles/px, covariance of (phase, slopes), and the
-        factor by which the regressors raise the intercept's variance)."""
+        factor by which the regressors raise the intercept's variance; NaN for the last two
+        without ``covariance``)."""
         A = self.A
         if extra is not None:  # the samples that count only, and the regressors' columns
             used = np.flatnonzero(wgt)
@@ -417,9 +418,11 @@ class PhaseFitter:
                 return math.nan, (math.nan, math.nan), np.full((3, 3), math.nan), math.nan
             used_x, used_y = gx, gy
             gx, gy = gx + coef[1] / (2 * np.pi), gy + coef[2] / (2 * np.pi)
+        phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
+        if not covariance:
+            return phase, (gx, gy), np.full((3, 3), math.nan), math.nan
         res = psi - A @ coef
         s2 = float(np.sum(wgt * res**2) / max(int(seen.sum()) - A.shape[1], 1))
-        phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
         inv = np.linalg.inv(N)
         infl = 1.0 if extra is None else float(inv[0, 0] / np.linalg.inv(N[:3, :3])[0, 0])
         return phase, (gx, gy), inv[:3, :3] * s2, infl
