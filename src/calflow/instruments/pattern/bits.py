@@ -23,6 +23,35 @@ def bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return top * (1 - fy) + bottom * fy
 
 
+def percentile(a: np.ndarray, q):
+    """``np.percentile(a, q)`` of a 1-D array without NaN — its default (linear) method, value
+    and type alike (the tests check it bit for bit) — from one partition at the two order
+    statistics each percentile lies between: numpy's also places the smallest and largest
+    element, which on a frame's nodes costs twice the time. ``a`` is reordered in place."""
+    a = np.asarray(a)
+    n = a.size
+    if n == 0 or a.ndim != 1 or a.dtype.kind != "f" or np.isnan(a).any():
+        return np.percentile(a, q)
+    weak = type(q) in (int, float)
+    v = (n - 1) * np.true_divide(q, 100, out=...)  # the rank, as numpy's "linear" method
+    below = np.floor(v, out=...)
+    below[v >= n - 1] = n - 1  # at or past the last: the largest (numpy: index −1)
+    below[v < 0] = 0
+    lo = below.astype(np.intp)
+    hi = np.minimum(lo + 1, n - 1)
+    a.partition(np.unique(np.concatenate((lo.ravel(), hi.ravel()))))
+    gamma = np.asanyarray(v - np.where(v >= n - 1, -1, lo), dtype=v.dtype)
+    if weak:
+        gamma = float(gamma)
+    left, right = a[lo], a[hi]
+    diff = right - left  # numpy's interpolation (its _lerp), from whichever end is nearer
+    out = np.add(left, diff * gamma, out=...)
+    np.subtract(
+        right, diff * (1 - gamma), out=out, where=gamma >= 0.5, casting="unsafe", dtype=type(out.dtype)
+    )
+    return out[()] if out.ndim == 0 else out
+
+
 def dilate3(mask: np.ndarray) -> np.ndarray:
     """A 2-D boolean mask grown by one element in the eight directions (a 3 × 3 block, nothing
     beyond the edge): ``scipy.ndimage.binary_dilation(mask, np.ones((3, 3)))``, in a few slices."""

@@ -33,7 +33,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from calflow.instruments.pattern.bits import bilinear, dilate3, erode3, match, normalised, votes
+from calflow.instruments.pattern.bits import bilinear, dilate3, erode3, match, normalised, percentile, votes
 from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
@@ -272,7 +272,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     if (
         in1.any()
         and inside.any()
-        and np.ptp(np.percentile(v1[in1], [10, 90])) > np.ptp(np.percentile(v0[inside], [10, 90]))
+        and np.ptp(percentile(v1[in1], [10, 90])) > np.ptp(percentile(v0[inside], [10, 90]))
     ):  # dark dots: the fundamental's phase is π on them
         sc, tc = (sc + 0.5) % 1.0, (tc + 0.5) % 1.0
         v0, inside, gaps, _ = sample()
@@ -280,10 +280,10 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
     if inside.sum() < 16:
         return _fail("fov_too_small", "fewer than 16 grid nodes in the frame")
     c_in = contrast[inside]
-    strong = np.abs(c_in) > 0.5 * np.percentile(np.abs(c_in), 95)
+    strong = np.abs(c_in) > 0.5 * percentile(np.abs(c_in), 95)
     if np.mean(c_in[strong]) < 0:
         contrast = -contrast
-    dots = inside & (contrast > 0.5 * np.percentile(contrast[inside], 95))
+    dots = inside & (contrast > 0.5 * percentile(contrast[inside], 95))
     z = normalised(contrast, dots)
     present = z > 0.5
     # inside the target every site has a dot within one node (a code row or column left out
