@@ -59,3 +59,18 @@ def test_a_frame_windowed_in_scratch_gives_the_stacks_spectrum():
     whole = plan.spectrum(frames)  # a stack: a new array
     for k in range(3):  # one frame at a time: the reused array, the same spectrum
         assert np.array_equal(plan.spectrum(frames[k][None])[0], whole[k])
+
+
+@settings(max_examples=40, deadline=None)
+@given(h=st.integers(2, 90), w=st.integers(2, 90), seed=st.integers(0, 2**31))
+def test_the_spectrum_is_the_whole_window_times_the_frame(h, w, seed):
+    """The window multiplies only its tapered bands: the transform of the frame times all of it."""
+    import scipy.fft
+
+    from calflow.instruments.pattern.phase import PhaseFitter, _window
+
+    frames = np.random.default_rng(seed).random((2, h, w)).astype(np.float32) * 1000
+    plan = PhaseFitter((h, w), 0.1, 1)
+    whole = (frames - frames.mean(axis=(1, 2), keepdims=True)) * _window(h, w)
+    assert np.array_equal(plan.spectrum(frames), scipy.fft.rfft2(whole, workers=1))
+    assert np.array_equal(plan.spectrum(frames[:1]), scipy.fft.rfft2(whole[:1], workers=1))

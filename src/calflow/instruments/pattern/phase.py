@@ -108,6 +108,23 @@ def _window(h: int, w: int) -> np.ndarray:
     return tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
 
 
+@lru_cache(maxsize=4)
+def _tapered(h: int, w: int) -> tuple[tuple[slice, slice], ...]:
+    """The parts of an h × w frame where :func:`_window` is not exactly 1, as (rows, columns)
+    slices: the top and bottom bands, and the left and right ones between them (multiplying
+    the rest by 1 changes nothing)."""
+    flat_rows = np.flatnonzero(tukey(h, TUKEY) == 1)
+    flat_cols = np.flatnonzero(tukey(w, TUKEY) == 1)
+    if len(flat_rows) == 0 or len(flat_cols) == 0:
+        return ((slice(None), slice(None)),)
+    r0, r1 = int(flat_rows[0]), int(flat_rows[-1]) + 1
+    c0, c1 = int(flat_cols[0]), int(flat_cols[-1]) + 1
+    if len(flat_rows) != r1 - r0 or len(flat_cols) != c1 - c0:  # not one run: the whole frame
+        return ((slice(None), slice(None)),)
+    mid = slice(r0, r1)
+    return (slice(0, r0), slice(None)), (slice(r1, h), slice(None)), (mid, slice(0, c0)), (mid, slice(c1, w))
+
+
 def _ring(h: int, w: int, f0: float):
     """The bins (rows, columns, in row order) of a half-plane spectrum of h × w pixels between
     RING[0]·f0 and RING[1]·f0 cycles per pixel, the half of the j = 0 column with negative row
@@ -215,7 +232,9 @@ class PhaseFitter:
         frames = np.asarray(frames, dtype=np.float32)  # no copy of float32 frames
         out = scratch(frames.shape, "windowed") if len(frames) == 1 else None
         f = np.subtract(frames, frames.mean(axis=(1, 2), keepdims=True), out=out)
-        f *= self.window
+        # times the window where it is not 1 (its tapered bands: a third of the frame)
+        for rows, cols in _tapered(*self.frame_shape):
+            f[:, rows, cols] *= self.window[rows, cols]
         import scipy.fft
 
         if (self.h, self.w) != self.frame_shape:  # zero-padded at the far edges: the window is 0 there
