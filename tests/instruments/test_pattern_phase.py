@@ -74,3 +74,18 @@ def test_the_spectrum_is_the_whole_window_times_the_frame(h, w, seed):
     whole = (frames - frames.mean(axis=(1, 2), keepdims=True)) * _window(h, w)
     assert np.array_equal(plan.spectrum(frames), scipy.fft.rfft2(whole, workers=1))
     assert np.array_equal(plan.spectrum(frames[:1]), scipy.fft.rfft2(whole[:1], workers=1))
+
+
+@settings(max_examples=40, deadline=None)
+@given(f0=st.floats(0.02, 0.3), shape=st.tuples(st.integers(40, 300), st.integers(40, 300)))
+def test_the_crops_go_into_their_boxes_at_their_offsets(f0, shape):
+    from calflow.instruments.pattern.phase import PhaseFitter
+
+    plan = PhaseFitter(shape, f0, 1)
+    rng = np.random.default_rng(0)
+    crops = (rng.random((2, 2) + plan.di.shape) + 1j).astype(np.complex64)
+    want = np.zeros((2, 2, plan.ni, plan.nj), np.complex64)
+    want[:, :, plan.di % plan.ni, plan.dj % plan.nj] = crops
+    got = np.zeros_like(want)
+    plan._into_boxes(got, crops)
+    assert np.array_equal(got, want)

@@ -218,7 +218,6 @@ class PhaseFitter:
         self.ym, self.xm = np.meshgrid(self.ym1, self.xm1, indexing="ij")
         self.sample_row = np.repeat(np.arange(self.ni), self.nj)  # each coarse sample's row, column
         self.sample_col = np.tile(np.arange(self.nj), self.ni)
-        self.box_at = (self.di % self.ni, self.dj % self.nj)  # the crop's bins in the box
         # the plane's design matrix (1, x − x_c, y − y_c) over the coarse samples
         xr, yr = self.xm.ravel(), self.ym.ravel()
         self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
@@ -363,11 +362,10 @@ class PhaseFitter:
         n = len(crops)
         envelope = self.envelope and final
         boxes = np.zeros(((3 if envelope else 1) * n, 2, self.ni, self.nj), dtype=np.complex64)
-        bi, bj = self.box_at
-        boxes[:n, :, bi, bj] = crops
+        self._into_boxes(boxes[:n], crops)
         if envelope:  # the fields' derivatives along x and y, exactly, from the same boxes
-            boxes[n : 2 * n, :, bi, bj] = crops * self.ddx
-            boxes[2 * n :, :, bi, bj] = crops * self.ddy
+            self._into_boxes(boxes[n : 2 * n], crops * self.ddx)
+            self._into_boxes(boxes[2 * n :], crops * self.ddy)
         import scipy.fft
 
         every = scipy.fft.ifft2(boxes, workers=self.workers).reshape(len(boxes), 2, -1)
@@ -398,6 +396,16 @@ class PhaseFitter:
                         z, np.abs(z) ** 2, bins[k, lobe], freq[k, lobe], covariance=final
                     )
         return phase, out_f, cov, flat, grads, share
+
+    def _into_boxes(self, boxes, crops):
+        """Each crop (offsets −b…b from its lobe) into its box at those offsets modulo the box:
+        four blocks, the offsets ≥ 0 at the start of each axis and the negative ones at its end
+        (``boxes[..., di % ni, dj % nj] = crops``, by slices)."""
+        bi, bj, ni, nj = self.bi, self.bj, self.ni, self.nj
+        boxes[..., : bi + 1, : bj + 1] = crops[..., bi:, bj:]
+        boxes[..., : bi + 1, nj - bj :] = crops[..., bi:, :bj]
+        boxes[..., ni - bi :, : bj + 1] = crops[..., :bi, bj:]
+        boxes[..., ni - bi :, nj - bj :] = crops[..., :bi, :bj]
 
     def _fit(self, z, wgt, bin_, freq, extra=None, covariance=True):
         """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6), with
