@@ -89,3 +89,20 @@ def test_the_crops_go_into_their_boxes_at_their_offsets(f0, shape):
     got = np.zeros_like(want)
     plan._into_boxes(got, crops)
     assert np.array_equal(got, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(f0=st.floats(0.03, 0.2), i0=st.integers(-60, 60), j0=st.integers(0, 40))
+def test_a_crop_is_its_bins_mirrored_where_the_column_is_negative(f0, i0, j0):
+    from calflow.instruments.pattern.phase import PhaseFitter
+
+    plan = PhaseFitter((96, 128), f0, 1)
+    rng = np.random.default_rng(1)
+    spec = (rng.standard_normal((1, 96, 65)) + 1j * rng.standard_normal((1, 96, 65))).astype(np.complex64)
+    if j0 + plan.bj >= 65:
+        return
+    want = np.empty(plan.di.shape, np.complex64)
+    for (a, b), di in np.ndenumerate(plan.di):
+        i, j = i0 + di, j0 + plan.dj[a, b]
+        want[a, b] = np.conj(spec[0, -i % 96, -j]) if j < 0 else spec[0, i % 96, j]
+    assert np.array_equal(plan.crop(spec, 0, i0, j0), want)

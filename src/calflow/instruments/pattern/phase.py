@@ -260,6 +260,8 @@ class PhaseFitter:
 
     def crop(self, spec: np.ndarray, k: int, i0: int, j0: int) -> np.ndarray:
         """Step 3: the box of frame k's spectrum around bin (i0, j0), conjugate-mirrored where j < 0."""
+        if 0 <= j0 - self.bj and j0 + self.bj < spec.shape[2]:  # no column mirrored: a slice of them
+            return spec[k, (i0 + self.di[:, 0]) % self.h, j0 - self.bj : j0 + self.bj + 1]
         ii = i0 + self.di
         jj = j0 + self.dj
         neg = jj < 0
