@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from calflow.instruments.pattern import Camera
 from calflow.instruments.pattern.megarena import MegarenaPattern, decode
-from calflow.instruments.pattern.phase import TUKEY, _flat, tukey
+from calflow.instruments.pattern.phase import _flat
+from calflow.instruments.pattern.spectrum import TUKEY, tukey
 
 ANGLE_URAD = {0.5: 5.0, 1.0: 15.0}  # largest error of each axis's direction, by fit region
 POSITION_NM = {0.5: 0.5, 1.0: 2.0}

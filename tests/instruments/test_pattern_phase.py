@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calflow.instruments.pattern.phase import RING, _ring, tukey
+from calflow.instruments.pattern.spectrum import RING, ring, tukey
 
 
 @settings(max_examples=60, deadline=None)
@@ -27,10 +27,10 @@ def test_the_ring_is_the_whole_spectrums(h, w, f0):
     fi = np.fft.fftfreq(h)[:, None]
     fj = np.fft.rfftfreq(w)[None, :]
     rad = np.hypot(fi, fj)
-    ring = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
-    rows, cols = np.nonzero(ring)
+    inside = (rad > RING[0] * f0) & (rad < RING[1] * f0) & ~((fj == 0) & (fi < 0))
+    rows, cols = np.nonzero(inside)
     angle = np.degrees(np.arctan2(fi[rows, 0], fj[0, cols]))
-    got = _ring(h, w, f0)
+    got = ring(h, w, f0)
     assert np.array_equal(got[0], rows) and np.array_equal(got[1], cols)
     assert np.array_equal(got[2], angle)
 
@@ -38,7 +38,7 @@ def test_the_ring_is_the_whole_spectrums(h, w, f0):
 def test_scratch_arrays_are_reused_per_name_shape_and_thread():
     import threading
 
-    from calflow.instruments.pattern.phase import scratch
+    from calflow.instruments.pattern.spectrum import scratch
 
     a = scratch((4, 5), "t")
     assert scratch((4, 5), "t") is a and a.dtype == np.float32
@@ -67,11 +67,12 @@ def test_the_spectrum_is_the_whole_window_times_the_frame(h, w, seed):
     """The window multiplies only its tapered bands: the transform of the frame times all of it."""
     import scipy.fft
 
-    from calflow.instruments.pattern.phase import PhaseFitter, _window
+    from calflow.instruments.pattern.phase import PhaseFitter
+    from calflow.instruments.pattern.spectrum import window
 
     frames = np.random.default_rng(seed).random((2, h, w)).astype(np.float32) * 1000
     plan = PhaseFitter((h, w), 0.1, 1)
-    whole = (frames - frames.mean(axis=(1, 2), keepdims=True)) * _window(h, w)
+    whole = (frames - frames.mean(axis=(1, 2), keepdims=True)) * window(h, w)
     assert np.array_equal(plan.spectrum(frames), scipy.fft.rfft2(whole, workers=1))
     assert np.array_equal(plan.spectrum(frames[:1]), scipy.fft.rfft2(whole[:1], workers=1))
 

@@ -44,18 +44,22 @@ from __future__ import annotations
 
 import math
 import os
-import threading
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
-RING = (0.8, 1.2)  # the lobe is searched between these fractions of the expected frequency
-CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
-TUKEY = 0.2  # fraction of each side tapered by the window
-GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
+from calflow.instruments.pattern.spectrum import (
+    TUKEY,
+    corners,
+    fast_length,
+    ring,
+    scratch,
+    tapered,
+    window,
+)
 
-_scratch = threading.local()  # :func:`scratch`'s arrays, one set per thread
+CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
+GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
 
 
 @dataclass
@@ -71,109 +75,6 @@ class Planes:
     bins: np.ndarray  # (n, 2, 2) each lobe's integer bin (row signed, column)
     gradients: np.ndarray | None = None  # (n, 2, 2, ni·nj) ∇ln|field| (1/px, x then y), envelope fits
     var_all: np.ndarray | None = None  # (n, 2) the intercept's variance of a plain fit over every sample
-
-
-def scratch(shape: tuple[int, ...], name: str) -> np.ndarray:
-    """A float32 array of ``shape`` kept for reuse in this thread under ``name`` (its values
-    are whatever its last user left). A frame's worth of new memory on every frame costs its
-    pages' faults (a few tenths of a millisecond per 3 MB): a decoder of single frames reuses one array."""
-    kept = _scratch.__dict__
-    a = kept.get(name)
-    if a is None or a.shape != tuple(shape):
-        a = kept[name] = np.empty(shape, np.float32)
-    return a
-
-
-def tukey(n: int, alpha: float = TUKEY) -> np.ndarray:
-    """The Tukey (tapered cosine) window of n samples, float32 (Harris, Proc. IEEE 66, 1978):
-    w(x) = ½·(1 − cos(2π·d/α)) where d = min(x, 1 − x) < α/2, else 1, at x = k/(n − 1).
-
-    The same window as ``scipy.signal.windows.tukey(n, alpha)`` (the tests check it), written
-    here because importing scipy.signal costs every decoding process over a second of CPU."""
-    if n == 1:
-        return np.ones(1, np.float32)
-    x = np.arange(n) / (n - 1)
-    d = np.minimum(x, 1.0 - x)
-    if alpha <= 0:
-        return np.ones(n, np.float32)
-    taper = d < alpha / 2
-    w = np.ones(n)
-    w[taper] = 0.5 * (1.0 - np.cos(2 * np.pi * d[taper] / min(alpha, 1.0)))
-    return w.astype(np.float32)
-
-
-@lru_cache(maxsize=4)
-def _window(h: int, w: int) -> np.ndarray:
-    """The frame's Tukey window (h, w), one per frame size (plans of one size share it)."""
-    return tukey(h, TUKEY)[:, None] * tukey(w, TUKEY)[None, :]
-
-
-@lru_cache(maxsize=4)
-def _tapered(h: int, w: int) -> tuple[tuple[slice, slice], ...]:
-    """The parts of an h × w frame where :func:`_window` is not exactly 1, as (rows, columns)
-    slices: the top and bottom bands, and the left and right ones between them (multiplying
-    the rest by 1 changes nothing)."""
-    flat_rows = np.flatnonzero(tukey(h, TUKEY) == 1)
-    flat_cols = np.flatnonzero(tukey(w, TUKEY) == 1)
-    if len(flat_rows) == 0 or len(flat_cols) == 0:
-        return ((slice(None), slice(None)),)
-    r0, r1 = int(flat_rows[0]), int(flat_rows[-1]) + 1
-    c0, c1 = int(flat_cols[0]), int(flat_cols[-1]) + 1
-    if len(flat_rows) != r1 - r0 or len(flat_cols) != c1 - c0:  # not one run: the whole frame
-        return ((slice(None), slice(None)),)
-    mid = slice(r0, r1)
-    return (slice(0, r0), slice(None)), (slice(r1, h), slice(None)), (mid, slice(0, c0)), (mid, slice(c1, w))
-
-
-def _ring(h: int, w: int, f0: float):
-    """The bins (rows, columns, in row order) of a half-plane spectrum of h × w pixels between
-    RING[0]·f0 and RING[1]·f0 cycles per pixel, the half of the j = 0 column with negative row
-    frequencies left out (it mirrors the other half), and each bin's direction (degree).
-
-    The bins come from the spectrum's radii sorted once per frame size (:func:`_radii`): a plan
-    for a new frequency — a new pixel size — costs a search and the ring's own bins."""
-    flat, rad, angle = _radii(h, w)
-    lo = np.searchsorted(rad, RING[0] * f0, side="right")  # strictly inside the ring
-    hi = np.searchsorted(rad, RING[1] * f0, side="left")
-    mask = np.zeros(h * (w // 2 + 1), bool)  # back to row order: a scatter, not a sort
-    mask[flat[lo:hi]] = True
-    ring = np.flatnonzero(mask)
-    ri, rj = np.divmod(ring, w // 2 + 1)
-    return ri, rj, angle[ring]
-
-
-@lru_cache(maxsize=4)
-def _radii(h: int, w: int):
-    """Every bin of a half-plane spectrum of h × w pixels but the mirrored half of the j = 0
-    column (negative row frequencies): the flat indices (row order within equal radii) sorted
-    by radius (cycles per pixel), and the radii; and every bin's direction (degree), by flat
-    index."""
-    fi = np.fft.fftfreq(h)[:, None]
-    fj = np.fft.rfftfreq(w)[None, :]
-    rad = np.hypot(fi, fj)
-    keep = np.flatnonzero(~((fj == 0) & (fi < 0)))
-    r = rad.ravel()[keep]
-    order = np.argsort(r, kind="stable")
-    angle = np.degrees(np.arctan2(fi, fj)).ravel()
-    return keep[order], r[order], angle
-
-
-def _corner(h: int, w: int):
-    """The spectrum's corners beyond 0.4 cycle per pixel along both axes, as (rows, columns)
-    slices of a half-plane spectrum of h × w pixels — the rows are one run (the middle of the
-    FFT's order), the columns the last — or None when the frame is too small to have them."""
-    rows = np.flatnonzero(np.abs(np.fft.fftfreq(h)) > 0.4)
-    cols = np.flatnonzero(np.fft.rfftfreq(w) > 0.4)
-    if len(rows) == 0 or len(cols) == 0:
-        return None
-    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), None)
-
-
-def _fast(n: int) -> int:
-    """The next length at or above n whose factors are 2, 3, 5, 7 and 11 (fast in pocketfft)."""
-    import scipy.fft  # here, not at import: the camera model's users need no scipy
-
-    return scipy.fft.next_fast_len(int(n), real=False)
 
 
 class PhaseFitter:
@@ -194,20 +95,20 @@ class PhaseFitter:
         pad: bool = False,
     ):
         fh, fw = shape
-        h, w = (_fast(fh), _fast(fw)) if pad else (fh, fw)
+        h, w = (fast_length(fh), fast_length(fw)) if pad else (fh, fw)
         self.h, self.w, self.f0 = h, w, float(f0)
         self.frame_shape = (fh, fw)
         self.padding = (h * w) / (fh * fw)  # transform bins per frame pixel: 1 unpadded
         self.envelope = bool(envelope)
         self.workers = workers or os.cpu_count() or 1
-        self.window = _window(fh, fw)
-        self.ring_i, self.ring_j, self.ring_angle = _ring(h, w, self.f0)
+        self.window = window(fh, fw)
+        self.ring_i, self.ring_j, self.ring_angle = ring(h, w, self.f0)
         self.ring_flat = self.ring_i * (w // 2 + 1) + self.ring_j  # one gather per frame
-        self.corner = _corner(h, w)
+        self.corner = corners(h, w)
         self.bi = max(2, int(math.ceil(CROP * f0 * h)))
         self.bj = max(2, int(math.ceil(CROP * f0 * w)))
-        self.ni = _fast(2 * self.bi + 1)
-        self.nj = _fast(2 * self.bj + 1)
+        self.ni = fast_length(2 * self.bi + 1)
+        self.nj = fast_length(2 * self.bj + 1)
         di = np.arange(-self.bi, self.bi + 1)
         dj = np.arange(-self.bj, self.bj + 1)
         self.di, self.dj = np.meshgrid(di, dj, indexing="ij")
@@ -232,7 +133,7 @@ class PhaseFitter:
         out = scratch(frames.shape, "windowed") if len(frames) == 1 else None
         f = np.subtract(frames, frames.mean(axis=(1, 2), keepdims=True), out=out)
         # times the window where it is not 1 (its tapered bands: a third of the frame)
-        for rows, cols in _tapered(*self.frame_shape):
+        for rows, cols in tapered(*self.frame_shape):
             f[:, rows, cols] *= self.window[rows, cols]
         import scipy.fft
 
@@ -459,7 +360,7 @@ class PhaseFitter:
 
 def _flat(x: np.ndarray, n: int, alpha: float = TUKEY) -> np.ndarray:
     """Whether pixel positions ``x`` (continuous) of a side of n pixels lie on the flat part
-    of :func:`tukey`'s window, w = 1, rather than on its taper."""
+    of :func:`~calflow.instruments.pattern.spectrum.tukey`'s window, w = 1, rather than on its taper."""
     t = np.asarray(x, float) / max(n - 1, 1)
     return np.minimum(t, 1.0 - t) >= alpha / 2
 

@@ -38,7 +38,8 @@ from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
 from calflow.instruments.pattern.megarena.reading import classes, strong_reading
-from calflow.instruments.pattern.phase import PhaseFitter, scratch
+from calflow.instruments.pattern.phase import PhaseFitter
+from calflow.instruments.pattern.spectrum import scratch
 
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
 MAX_WRONG_BITS = 1  # per axis
@@ -117,7 +118,7 @@ def decode(
     info = [None] * n if details else None
     window = None
     for f in range(n):
-        frame = scratch((h, w), "frame")  # not a new array per frame (module phase)
+        frame = scratch((h, w), "frame")  # not a new array per frame (module spectrum)
         np.copyto(frame, stack[f])
         problem = _bad_frame(stack[f])
         if problem:
