@@ -1,26 +1,32 @@
-"""A witness of a Megarena frame's angle that owes nothing to either decoder's phase fit: the
-dots' own centroids and a lattice fitted to them by least squares.
+"""A witness of a Megarena frame's pose that owes nothing to either decoder's phase fit: the
+dots' own centroids, and the lattice they trace.
 
-Where calflow and the Vernier library disagree on a frame's angle, this says whether the
-frame has one angle at that level. Each dot the lattice predicts (calflow's coarse lattice
-only numbers the dots and seeds the search) is located by a Gaussian-weighted centroid,
-iterated until the window is centred on the dot itself (so the prediction does not pull it),
-over the central half of the frame (the library's fit region); then
+Each dot the lattice predicts (calflow's coarse lattice only numbers the dots and seeds the
+search) is located by a Gaussian-weighted centroid, iterated until the window is centred on the
+dot itself (so the prediction does not pull it). Two witnesses follow.
 
-    c_k = o + s_k·u + t_k·v                                     (least squares over the dots)
+One affine lattice over the central half (``witness``): c_k = o + s_k·u + t_k·v by least
+squares, (s_k, t_k) the dot's lattice indices; the residuals' rms says how well one lattice
+fits the frame (a few thousandths of a pixel on a render), the same fit on each quarter how
+much the lattice's direction varies across it.
 
-with (s_k, t_k) the dot's lattice indices and u, v the lattice vectors in pixels. The angle of
-the pattern's x axis is the direction of the lattice vector along it, with its standard
-uncertainty from the fit's residuals; the residuals' rms says how well one affine lattice
-fits the frame (a few thousandths of a pixel on a render; more where the optics distort), and
-the same fit on each quarter of the region gives the angle's spread across it.
+The decoders' estimand (``estimand_pose``, megarena_estimand): on a distorted frame the pose
+both decoders give is a mean lattice over the library's central half, Eq. (1) there; the dots
+estimate it through a polynomial map of the lattice (degree by cross-validation) and its
+uniform plane over that region, with a bootstrap uncertainty; beside it the same plane through
+the library's band-pass, through calflow's, with calflow's lobe-power weights, and shifted by
+the dots' asymmetry (where the lobes' phase puts a dot against its centroid): what each
+decoder's own choices make of the same frame. ``--calflow-weights`` adds calflow's own pose
+with other weights over the central half (megarena_reweight).
 
-``--truth CSV`` (``file,alpha``, radians, as the library renders) checks the witness itself on
-frames of known angle; ``--library-csv`` (the driver's CSV, bench_megarena_vernier.py) adds
-the library's angle. The images are the user's (GPL-3.0 data stays outside calflow).
+``--truth CSV`` checks the witness on frames of known pose: ``file,alpha`` (radians) for the
+affine witness; ``file,x,y,alpha,pixelSize`` in the library's convention for the estimand (the
+library's renders, or make_distorted_megarena.py's frames through a known distortion, whose
+truth is Eq. (1) itself). ``--library-csv`` (the driver's CSV, bench_megarena_vernier.py) adds
+the library's pose. The images are the user's (GPL-3.0 data stays outside calflow).
 
     .venv/bin/python benchmarks/bench_megarena_witness.py --period-um 9 --depth 12 \\
-        --library-csv library.csv --json IMAGE...
+        --library-csv library.csv --calflow-weights uniform --json IMAGE...
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ from calflow.instruments.pattern.phase import CROP, GAUSS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import megarena_estimand as me  # noqa: E402
+from megarena_reweight import calflow_weights  # noqa: E402
 
 REGION = 0.5  # the central fraction of the width and height (the library's fit region)
 
@@ -273,6 +280,12 @@ def main(argv=None) -> int:
     p.add_argument("--depth", type=int, required=True)
     p.add_argument("--truth", help="CSV file,alpha (radians): the angles the frames were rendered at")
     p.add_argument("--library-csv", help="the Vernier driver's CSV (file,found,x,y,alpha,pixelSize,ms)")
+    p.add_argument(
+        "--calflow-weights",
+        action="append",
+        default=[],
+        help="also calflow's pose with these weights over the central half: uniform, smoothed:N (megarena_reweight)",
+    )
     p.add_argument("--boot", type=int, default=200, help="bootstrap replicates of the dots' estimand")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
@@ -332,6 +345,13 @@ def main(argv=None) -> int:
                     )
                 },
             }
+            reweighted = {}
+            for mode in args.calflow_weights:
+                with calflow_weights(mode):
+                    q = decode(frame, pattern, fit_region=REGION)
+                if q.status[0] == "ok":
+                    reweighted[mode] = {k: float(v[0]) for k, v in q.library_pose().items()}
+                    row["estimand"][f"calflow_{mode}_minus"] = differences(reweighted[mode], E)
             if name in truth and "x" in truth[name]:
                 T = {k: float(truth[name][k]) for k in ("x", "y", "alpha", "pixelSize")}
                 T["x"], T["y"] = (
@@ -343,7 +363,8 @@ def main(argv=None) -> int:
                     k: abs(row["estimand"]["minus_truth"][k]) / max(row["estimand"]["u"][k], 1e-300)
                     for k in ("x_nm", "y_nm", "alpha_urad")
                 }
-                for who, q in (("calflow", ours_lib), ("library", lib_pose)):
+                others = [(f"calflow_{mode}", q) for mode, q in reweighted.items()]
+                for who, q in (("calflow", ours_lib), ("library", lib_pose), *others):
                     if q:
                         Tq = dict(
                             T,
