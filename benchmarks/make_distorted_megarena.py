@@ -61,6 +61,13 @@ def main(argv=None) -> int:
     p.add_argument("--period-um", type=float, default=9.0)
     p.add_argument("--depth", type=int, default=12)
     p.add_argument("--seed", type=int, default=5)
+    p.add_argument("--size", default="1024x768", help="frame width x height, pixels")
+    p.add_argument("--pixel-um", type=float, default=0.625, help="pixel size in the object plane")
+    p.add_argument(
+        "--pose",
+        help="x,y,theta (µm, µm, degree; calflow's convention) for every frame, e.g. a real frame's "
+        "decoded pose: noise draws of that view, the code in view as in the real frame",
+    )
     p.add_argument(
         "--translations",
         action="store_true",
@@ -73,13 +80,18 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     pattern = MegarenaPattern(args.period_um, args.depth)
     rng = np.random.default_rng(args.seed)
-    cam = Camera(width=1024, height=768, sensor_pixel_um=3.75, magnification=6.0, bit_depth=12)
+    width, height = (int(v) for v in args.size.lower().split("x"))
+    cam = Camera(
+        width=width, height=height, sensor_pixel_um=3.75, magnification=3.75 / args.pixel_um, bit_depth=12
+    )
     side = pattern.size_um[0]
     rows = ["file,x,y,alpha,pixelSize,k,cx,cy"]
     theta, centre = rng.uniform(-180, 180), (rng.uniform(0, cam.width - 1), rng.uniform(0, cam.height - 1))
     for n in range(args.frames):
         pose = (rng.uniform(0.2, 0.8) * side, rng.uniform(0.2, 0.8) * side, theta)
-        if not args.translations:
+        if args.pose:
+            pose = tuple(float(v) for v in args.pose.split(","))
+        elif not args.translations:
             pose = (*pose[:2], rng.uniform(-180, 180))
             centre = (rng.uniform(0, cam.width - 1), rng.uniform(0, cam.height - 1))
         frame, t = distorted_frame(cam, pattern, pose, centre, args.k, rng)
