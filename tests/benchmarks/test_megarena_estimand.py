@@ -164,3 +164,23 @@ def test_other_weights_change_only_the_noise_on_an_undistorted_frame():
     with pytest.raises(ValueError, match="calflow weights"), calflow_weights("median"):
         pose()
     assert PhaseFitter.refit is refit
+
+
+def test_the_distorted_frames_are_written_whole_with_their_truth(tmp_path):
+    """make_distorted_megarena's command: every frame and the truth, renamed into place; with
+    ``--pose`` every frame is a noise draw of one view, its truth the same each time."""
+    import csv
+
+    import make_distorted_megarena as mk
+    import tifffile
+
+    out = tmp_path / "frames"
+    args = ["--frames", "3", "--size", "160x128", "--pixel-um", "0.5", "--period-um", "4", "--depth", "6"]
+    assert mk.main([str(out), *args, "--k", "0", "--pose", "300,400,12"]) == 0
+    rows = list(csv.DictReader(open(out / "truth.csv")))
+    assert [r["file"] for r in rows] == ["d00.tiff", "d01.tiff", "d02.tiff"]
+    assert not list(out.glob("*.part"))
+    assert len({(r["x"], r["y"], r["alpha"]) for r in rows}) == 1
+    assert float(rows[0]["alpha"]) == pytest.approx(math.radians(12), abs=1e-9)  # no distortion
+    frames = [tifffile.imread(out / r["file"]) for r in rows]
+    assert frames[0].shape == (128, 160) and not np.array_equal(frames[0], frames[1])  # noise draws
