@@ -1,26 +1,32 @@
-"""A witness of a Megarena frame's angle that owes nothing to either decoder's phase fit: the
-dots' own centroids and a lattice fitted to them by least squares.
+"""A witness of a Megarena frame's pose that owes nothing to either decoder's phase fit: the
+dots' own centroids, and the lattice they trace.
 
-Where calflow and the Vernier library disagree on a frame's angle, this says whether the
-frame has one angle at that level. Each dot the lattice predicts (calflow's coarse lattice
-only numbers the dots and seeds the search) is located by a Gaussian-weighted centroid,
-iterated until the window is centred on the dot itself (so the prediction does not pull it),
-over the central half of the frame (the library's fit region); then
+Each dot the lattice predicts (calflow's coarse lattice only numbers the dots and seeds the
+search) is located by a Gaussian-weighted centroid, iterated until the window is centred on the
+dot itself (so the prediction does not pull it). Two witnesses follow.
 
-    c_k = o + s_k·u + t_k·v                                     (least squares over the dots)
+One affine lattice over the central half (``witness``): c_k = o + s_k·u + t_k·v by least
+squares, (s_k, t_k) the dot's lattice indices; the residuals' rms says how well one lattice
+fits the frame (a few thousandths of a pixel on a render), the same fit on each quarter how
+much the lattice's direction varies across it.
 
-with (s_k, t_k) the dot's lattice indices and u, v the lattice vectors in pixels. The angle of
-the pattern's x axis is the direction of the lattice vector along it, with its standard
-uncertainty from the fit's residuals; the residuals' rms says how well one affine lattice
-fits the frame (a few thousandths of a pixel on a render; more where the optics distort), and
-the same fit on each quarter of the region gives the angle's spread across it.
+The decoders' estimand (``estimand_pose``, megarena_estimand): on a distorted frame the pose
+both decoders give is a mean lattice over the library's central half, Eq. (1) there; the dots
+estimate it through a polynomial map of the lattice (degree by cross-validation) and its
+uniform plane over that region, with a bootstrap uncertainty; beside it the same plane through
+the library's band-pass, through calflow's, with calflow's lobe-power weights, and shifted by
+the dots' asymmetry (where the lobes' phase puts a dot against its centroid): what each
+decoder's own choices make of the same frame. ``--calflow-weights`` adds calflow's own pose
+with other weights over the central half (megarena_reweight).
 
-``--truth CSV`` (``file,alpha``, radians, as the library renders) checks the witness itself on
-frames of known angle; ``--library-csv`` (the driver's CSV, bench_megarena_vernier.py) adds
-the library's angle. The images are the user's (GPL-3.0 data stays outside calflow).
+``--truth CSV`` checks the witness on frames of known pose: ``file,alpha`` (radians) for the
+affine witness; ``file,x,y,alpha,pixelSize`` in the library's convention for the estimand (the
+library's renders, or make_distorted_megarena.py's frames through a known distortion, whose
+truth is Eq. (1) itself). ``--library-csv`` (the driver's CSV, bench_megarena_vernier.py) adds
+the library's pose. The images are the user's (GPL-3.0 data stays outside calflow).
 
     .venv/bin/python benchmarks/bench_megarena_witness.py --period-um 9 --depth 12 \\
-        --library-csv library.csv --json IMAGE...
+        --library-csv library.csv --calflow-weights uniform --json IMAGE...
 """
 
 from __future__ import annotations
@@ -39,6 +45,11 @@ from calflow.instruments.pattern.frames import read_frames
 from calflow.instruments.pattern.megarena import MegarenaPattern, decode
 from calflow.instruments.pattern.megarena.decode import _fitter
 from calflow.instruments.pattern.megarena.period import fundamental
+from calflow.instruments.pattern.phase import CROP, GAUSS
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import megarena_estimand as me  # noqa: E402
+from megarena_reweight import calflow_weights  # noqa: E402
 
 REGION = 0.5  # the central fraction of the width and height (the library's fit region)
 
@@ -47,9 +58,11 @@ def _wrap(a):
     return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
 
 
-def lattice(frame: np.ndarray, depth: int):
+def lattice(frame: np.ndarray, depth: int, fields: bool = False):
     """calflow's coarse lattice: every node's indices (s, t) and pixel position, and the period
-    in pixels. The dots are at the nodes, or at the cells' centres when they are dark."""
+    in pixels. The dots are at the nodes, or at the cells' centres when they are dark. With
+    ``fields``, also calflow's coarse sample points (n, 2) and each lobe's power |z|² there
+    (2, n): lobe 0 is the lattice coordinate s, lobe 1 t."""
     h, w = frame.shape
     plan = _fitter(h, w, -116, 1)
     spec = plan.spectrum(frame[None].astype(np.float32))
@@ -65,7 +78,13 @@ def lattice(frame: np.ndarray, depth: int):
     )
     s, t = S.ravel().astype(float), T.ravel().astype(float)
     at = lambda off: np.stack([s + off - c[0], t + off - c[1]], 1) @ np.linalg.inv(K).T + rc  # noqa: E731
-    return s, t, at(0.0), at(0.5), float(1 / np.mean(np.hypot(K[:, 0], K[:, 1])))
+    out = s, t, at(0.0), at(0.5), float(1 / np.mean(np.hypot(K[:, 0], K[:, 1])))
+    if fields:
+        z = planes.fields[0].astype(complex)
+        pts = _fitter(h, w, round(math.log(f0) / math.log(1.02)), 1).coarse_points()
+        inside = (pts[:, 0] < w) & (pts[:, 1] < h)  # a padded transform samples beyond the frame
+        return (*out, pts[inside], (np.abs(z) ** 2)[:, inside])
+    return out
 
 
 def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50) -> np.ndarray:
@@ -91,10 +110,10 @@ def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 
     return p
 
 
-def witness(frame: np.ndarray, depth: int) -> dict:
-    """The dots' lattice over the central half: per lattice vector (u along s, v along t) its
-    direction (rad, atan2 in pixel coordinates) and uncertainty, the fit's rms (pixels), the
-    number of dots, and the directions fitted on each quarter of the region."""
+def dots(frame: np.ndarray, depth: int, region: float = REGION):
+    """The dots within the central ``region`` of the frame's width and height (measured at the
+    nodes calflow's coarse lattice predicts): their lattice indices s, t, centroids (n, 2), the
+    period in pixels, and whether the dots are bright."""
     frame = frame.astype(float)
     h, w = frame.shape
     s, t, nodes, mids, period = lattice(frame, depth)
@@ -109,13 +128,23 @@ def witness(frame: np.ndarray, depth: int) -> dict:
     spread = lambda xy: np.ptp(np.percentile(value(xy[inside]), [10, 90]))  # noqa: E731
     if spread(mids) > spread(nodes):  # dark dots: at the cells' centres
         nodes = mids
-    img = frame if np.median(value(nodes[inside])) > np.median(frame) else frame.max() - frame
-    v = value(nodes) if img is frame else frame.max() - value(nodes)
-    central = np.all(np.abs(nodes - rc) <= REGION * np.array([w, h]) / 2, axis=1)
-    dots = inside & central & (v > 0.5 * (np.percentile(v[inside], 5) + np.percentile(v[inside], 95)))
-    c = centroids(img, nodes[dots], period)
-    ok = np.isfinite(c).all(axis=1) & (np.hypot(*(c - nodes[dots]).T) < 0.25 * period)
-    s, t, c = s[dots][ok], t[dots][ok], c[ok]
+    bright = bool(np.median(value(nodes[inside])) > np.median(frame))
+    img = frame if bright else frame.max() - frame
+    v = value(nodes) if bright else frame.max() - value(nodes)
+    central = np.all(np.abs(nodes - rc) <= region * np.array([w, h]) / 2, axis=1)
+    kept = inside & central & (v > 0.5 * (np.percentile(v[inside], 5) + np.percentile(v[inside], 95)))
+    c = centroids(img, nodes[kept], period)
+    ok = np.isfinite(c).all(axis=1) & (np.hypot(*(c - nodes[kept]).T) < 0.25 * period)
+    return s[kept][ok], t[kept][ok], c[ok], period, bright
+
+
+def witness(frame: np.ndarray, depth: int) -> dict:
+    """The dots' lattice over the central half: per lattice vector (u along s, v along t) its
+    direction (rad, atan2 in pixel coordinates) and uncertainty, the fit's rms (pixels), the
+    number of dots, and the directions fitted on each quarter of the region."""
+    h, w = frame.shape
+    rc = np.array([(w - 1) / 2, (h - 1) / 2])
+    s, t, c, period, _ = dots(frame, depth)
     A = np.stack([np.ones_like(s), s, t], 1)
 
     def fit(m):
@@ -160,6 +189,69 @@ def x_axis(w: dict, theta_x: float) -> tuple[float, float, list[float]]:
     )
 
 
+MARGIN = 0.1  # dots this fraction of the frame beyond the library's region anchor the map at its edge
+
+
+def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: dict, boot: int = 200) -> dict:
+    """Eq. (1)–(2) of megarena_estimand from the dots: the pose in the library's convention
+    (positions moved by whole periods to lie nearest ``reference``, a decoder's library-convention
+    pose, whose ``alpha`` also names the x axis), with the bootstrap's standard deviations, the
+    same with the next degree of map, and — to say where a decoder's own weighting takes it — the
+    plane through the library's band-pass (Gaussian of 3 bins), through calflow's (its ``GAUSS``
+    and ``CROP``) and with calflow's lobe-power weights over its coarse samples."""
+    s, t, c, period_px, bright = dots(frame, depth, region=me.CROP + MARGIN)
+    st = np.stack([s, t], 1)
+    degree, errors = me.cv_degree(c, st, frame.shape)
+    e = me.estimand(c, st, frame.shape, degree, boot=boot)
+    axes = me.match_axes(e["plane"], reference["alpha"])
+    offset = 0.0 if bright else 0.5
+
+    def pose(plane):
+        q = me.library_pose(plane, period_um, axes, offset)
+        q["x"], q["y"] = (
+            me.near(q["x"], reference["x"], period_um),
+            me.near(q["y"], reference["y"], period_um),
+        )
+        return q
+
+    best = pose(e["plane"])
+    reps = [pose(b) for b in e["boot"]]
+    h, w = frame.shape
+    lib_sigma = (w / (2 * math.pi * 3), h / (2 * math.pi * 3))
+    cal_sigma = (GAUSS / (2 * math.pi * CROP / period_px),) * 2
+    *_, pts, power = lattice(frame.astype(float), depth, fields=True)
+    m = e["map"]
+    img = frame.astype(float) if bright else frame.max() - frame.astype(float)
+    delta = me.dot_phase_offset(img, m, c, st, period_px)
+    shifted = e["plane"].copy()
+    shifted[:, 0] -= delta  # the lobes' phase lattice: the centroids' less the dots' asymmetry
+    return {
+        "dots": int(len(c)),
+        "bright": bright,
+        "degree": degree,
+        "cv_rms_px": {d: v * period_px for d, v in errors.items()},
+        "rms_px": e["rms"] * period_px,
+        "pose": best,
+        "u": {k: float(np.std([r[k] for r in reps], ddof=1)) for k in best},
+        "next_degree": pose(me.estimand(c, st, frame.shape, degree + 1, boot=0)["plane"]),
+        "library_bandpass": pose(me.smoothed_plane(m, frame.shape, lib_sigma)),
+        "calflow_bandpass": pose(me.smoothed_plane(m, frame.shape, cal_sigma)),
+        "calflow_weights": pose(me.weighted_plane(m, pts, power, frame.shape)),
+        "dot_offset_periods": [float(d) for d in delta],
+        "dot_asymmetry": pose(shifted),
+    }
+
+
+def differences(pose: dict, ref: dict) -> dict:
+    """pose − ref in nm, µrad and %."""
+    return {
+        "x_nm": 1000 * (pose["x"] - ref["x"]),
+        "y_nm": 1000 * (pose["y"] - ref["y"]),
+        "alpha_urad": 1e6 * float(_wrap(pose["alpha"] - ref["alpha"])),
+        "pixel_percent": 100 * (pose["pixelSize"] / ref["pixelSize"] - 1),
+    }
+
+
 def smoke(folder: Path) -> list[str]:
     """``--smoke``: two frames calflow's camera renders at known angles, and that truth."""
     import tifffile
@@ -188,6 +280,13 @@ def main(argv=None) -> int:
     p.add_argument("--depth", type=int, required=True)
     p.add_argument("--truth", help="CSV file,alpha (radians): the angles the frames were rendered at")
     p.add_argument("--library-csv", help="the Vernier driver's CSV (file,found,x,y,alpha,pixelSize,ms)")
+    p.add_argument(
+        "--calflow-weights",
+        action="append",
+        default=[],
+        help="also calflow's pose with these weights over the central half: uniform, smoothed:N (megarena_reweight)",
+    )
+    p.add_argument("--boot", type=int, default=200, help="bootstrap replicates of the dots' estimand")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     pattern = MegarenaPattern(args.period_um, args.depth)
@@ -214,17 +313,78 @@ def main(argv=None) -> int:
             lib = library.get(name)
             if lib and lib["found"].strip() in ("1", "true", "True"):
                 row["library_minus_witness_urad"] = 1e6 * float(_wrap(float(lib["alpha"]) - angle))
+            ours_lib = {k: float(v[0]) for k, v in r.library_pose().items()}
+            ref = ours_lib
+            lib_pose = None
+            if lib and lib["found"].strip() in ("1", "true", "True"):
+                lib_pose = {k: float(lib[k]) for k in ("x", "y", "alpha", "pixelSize")}
+                ref = lib_pose
+            est = estimand_pose(frame, args.period_um, pattern.depth, ref, boot=args.boot)
+            E = est["pose"]
+            row["estimand"] = {
+                **{
+                    k: est[k]
+                    for k in ("dots", "bright", "degree", "cv_rms_px", "rms_px", "dot_offset_periods")
+                },
+                "u": {
+                    "x_nm": 1000 * est["u"]["x"],
+                    "y_nm": 1000 * est["u"]["y"],
+                    "alpha_urad": 1e6 * est["u"]["alpha"],
+                    "pixel_percent": 100 * est["u"]["pixelSize"] / E["pixelSize"],
+                },
+                "calflow_minus": differences(ours_lib, E),
+                **({"library_minus": differences(lib_pose, E)} if lib_pose else {}),
+                **{
+                    k + "_minus": differences(est[k], E)
+                    for k in (
+                        "next_degree",
+                        "library_bandpass",
+                        "calflow_bandpass",
+                        "calflow_weights",
+                        "dot_asymmetry",
+                    )
+                },
+            }
+            reweighted = {}
+            for mode in args.calflow_weights:
+                with calflow_weights(mode):
+                    q = decode(frame, pattern, fit_region=REGION)
+                if q.status[0] == "ok":
+                    reweighted[mode] = {k: float(v[0]) for k, v in q.library_pose().items()}
+                    row["estimand"][f"calflow_{mode}_minus"] = differences(reweighted[mode], E)
+            if name in truth and "x" in truth[name]:
+                T = {k: float(truth[name][k]) for k in ("x", "y", "alpha", "pixelSize")}
+                T["x"], T["y"] = (
+                    me.near(T["x"], E["x"], args.period_um),
+                    me.near(T["y"], E["y"], args.period_um),
+                )
+                row["estimand"]["minus_truth"] = differences(E, T)
+                row["estimand"]["u_over_error"] = {
+                    k: abs(row["estimand"]["minus_truth"][k]) / max(row["estimand"]["u"][k], 1e-300)
+                    for k in ("x_nm", "y_nm", "alpha_urad")
+                }
+                others = [(f"calflow_{mode}", q) for mode, q in reweighted.items()]
+                for who, q in (("calflow", ours_lib), ("library", lib_pose), *others):
+                    if q:
+                        Tq = dict(
+                            T,
+                            x=me.near(T["x"], q["x"], args.period_um),
+                            y=me.near(T["y"], q["y"], args.period_um),
+                        )
+                        row["estimand"][f"{who}_minus_truth"] = differences(q, Tq)
             if name in truth:
                 row["witness_minus_truth_urad"] = 1e6 * float(_wrap(angle - float(truth[name]["alpha"])))
                 row["calflow_minus_truth_urad"] = 1e6 * float(_wrap(ours - float(truth[name]["alpha"])))
         rows.append(row)
+        brief = {k: v for k, v in row.items() if k not in ("file", "estimand", "quarters_minus_witness_urad")}
         print(
             f"{name}: "
-            + ", ".join(
-                f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items() if k != "file"
-            ),
+            + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in brief.items()),
             file=sys.stderr,
         )
+        for key, d in row.get("estimand", {}).items():
+            if isinstance(d, dict) and "x_nm" in d:
+                print(f"  {key}: " + ", ".join(f"{k} {v:+.4g}" for k, v in d.items()), file=sys.stderr)
     print(json.dumps({"region": REGION, "frames": rows}, indent=1 if args.json else None))
     return 0
 

@@ -1,0 +1,112 @@
+"""Megarena frames through a known lens distortion, and the quantity a decoder estimates on them.
+
+calflow's camera renders the frame (noise-free), which is then resampled through a decentred
+radial distortion (megarena_estimand.radial_map, its centre drawn anywhere in the frame, so that
+the distortion tilts the central half's mean lattice as a real lens's does) and exposed (shot and
+read noise, the camera's bit depth). The truth written beside the frames is Eq. (1)–(2) of
+megarena_estimand — the uniform least-squares plane of the lattice's own coordinates over the
+library's central half — computed from the render's pose and the map, pixel by pixel, in the
+Vernier library's convention (``file,x,y,alpha,pixelSize``): what calflow, the library and the
+dots' witness are each checked against.
+
+    .venv/bin/python benchmarks/make_distorted_megarena.py OUT_FOLDER --frames 12 --k 0.002
+    DRIVER decode 9 12 1 OUT_FOLDER/d*.tiff > library.csv
+    .venv/bin/python benchmarks/bench_megarena_witness.py --period-um 9 --depth 12 \\
+        --truth OUT_FOLDER/truth.csv --library-csv library.csv --json OUT_FOLDER/d*.tiff
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import megarena_estimand as me  # noqa: E402
+
+from calflow.instruments.pattern import Camera  # noqa: E402
+from calflow.instruments.pattern.megarena import MegarenaPattern  # noqa: E402
+
+
+def lattice_affine(cam: Camera, pattern: MegarenaPattern, x: float, y: float, theta: float) -> np.ndarray:
+    """The undistorted render's lattice coordinates (u, v) as affine functions of the pixel
+    (x, y): (2, 3) rows [value at pixel (0, 0), slope along x, slope along y], from the
+    camera's own object points (exact: the undistorted map is affine)."""
+    U, V = cam.object_points(x + pattern.origin_um[0], y + pattern.origin_um[1], theta)
+    U, V = np.broadcast_arrays(U, V)
+    h, w = U.shape
+    py, px = np.mgrid[0:h:7, 0:w:7]
+    A = np.stack([np.ones(px.size), px.ravel(), py.ravel()], 1)
+    L = np.stack([U[py, px].ravel(), V[py, px].ravel()], 1) / pattern.period_um
+    return np.linalg.lstsq(A, L, rcond=None)[0].T
+
+
+def distorted_frame(cam: Camera, pattern: MegarenaPattern, pose, centre, k: float, rng):
+    """One frame through the map (k, centre) and its truth in the library's convention."""
+    x, y, theta = pose
+    qmap = me.radial_map((cam.height, cam.width), centre, k)
+    frame = cam.expose(me.distort(cam.expectation(pattern, x, y, theta), qmap), rng)
+    plane = me.true_plane(lattice_affine(cam, pattern, x, y, theta), qmap, frame.shape)
+    truth = me.library_pose(plane, pattern.period_um, ((0, 1), (1, 1)), 0.0)
+    return frame, truth
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("out", help="folder for the frames (d00.tiff, …) and truth.csv")
+    p.add_argument("--frames", type=int, default=12)
+    p.add_argument("--k", type=float, default=0.002, help="radial distortion at the half diagonal (relative)")
+    p.add_argument("--period-um", type=float, default=9.0)
+    p.add_argument("--depth", type=int, default=12)
+    p.add_argument("--seed", type=int, default=5)
+    p.add_argument("--size", default="1024x768", help="frame width x height, pixels")
+    p.add_argument("--pixel-um", type=float, default=0.625, help="pixel size in the object plane")
+    p.add_argument(
+        "--pose",
+        help="x,y,theta (µm, µm, degree; calflow's convention) for every frame, e.g. a real frame's "
+        "decoded pose: noise draws of that view, the code in view as in the real frame",
+    )
+    p.add_argument(
+        "--translations",
+        action="store_true",
+        help="one lens and one angle for every frame (the first frame's), the pattern only translated: a stage moving under a fixed camera",
+    )
+    args = p.parse_args(argv)
+    import tifffile
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    pattern = MegarenaPattern(args.period_um, args.depth)
+    rng = np.random.default_rng(args.seed)
+    width, height = (int(v) for v in args.size.lower().split("x"))
+    cam = Camera(
+        width=width, height=height, sensor_pixel_um=3.75, magnification=3.75 / args.pixel_um, bit_depth=12
+    )
+    side = pattern.size_um[0]
+    rows = ["file,x,y,alpha,pixelSize,k,cx,cy"]
+    theta, centre = rng.uniform(-180, 180), (rng.uniform(0, cam.width - 1), rng.uniform(0, cam.height - 1))
+    for n in range(args.frames):
+        pose = (rng.uniform(0.2, 0.8) * side, rng.uniform(0.2, 0.8) * side, theta)
+        if args.pose:
+            pose = tuple(float(v) for v in args.pose.split(","))
+        elif not args.translations:
+            pose = (*pose[:2], rng.uniform(-180, 180))
+            centre = (rng.uniform(0, cam.width - 1), rng.uniform(0, cam.height - 1))
+        frame, t = distorted_frame(cam, pattern, pose, centre, args.k, rng)
+        name = f"d{n:02d}.tiff"
+        tmp = out / (name + ".part")
+        tifffile.imwrite(tmp, frame)
+        tmp.replace(out / name)
+        rows.append(
+            f"{name},{float(t['x'])!r},{float(t['y'])!r},{float(t['alpha'])!r},{float(t['pixelSize'])!r},{args.k!r},{centre[0]!r},{centre[1]!r}"
+        )
+    (out / "truth.csv.part").write_text("\n".join(rows) + "\n")
+    (out / "truth.csv.part").replace(out / "truth.csv")
+    print(f"{args.frames} frames and truth.csv in {out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
