@@ -190,13 +190,22 @@ STEPS: tuple[Step, ...] = (
             Option(
                 "--fit-region",
                 "megarena: central fraction of the frame the phase planes are fitted on (1: whole frame "
-                "but the window's tapered tenth of each side; 0.5 as the Vernier library)",
-                "float", default=1.0,
+                "but the window's tapered tenth of each side; 0.5 as the Vernier library; default: the "
+                "convention's, 1 for calflow, 0.5 for vernier)",
+                "float",
+            ),
+            Option(
+                "--plane-weights",
+                "megarena: the phase planes' weights, the lobe's power (power: the least noise) or equal "
+                "(uniform: the library's mean lattice); default: the convention's, power for calflow, "
+                "uniform for vernier",
+                choices=("power", "uniform"),
             ),
             Option(
                 "--convention",
                 "megarena, hpcode: poses in calflow's convention or as the Vernier library prints them "
-                "(x, y, alpha, pixelSize; docs/instruments.md)",
+                "(x, y, alpha, pixelSize; docs/instruments.md); megarena's vernier is also the library's "
+                "estimand (--fit-region 0.5 --plane-weights uniform unless given)",
                 choices=("calflow", "vernier"), default="calflow",
             ),
             Option("--jobs", "processes decoding frames (default: every core)", "int", default=0),

@@ -78,16 +78,23 @@ def run_decode(args) -> int:
         raise CalflowError(
             f"--pixel-size {args.pixel_size}: only for HP-code markers (this pattern's layout is {pattern.layout!r})"
         )
-    if not megarena and (args.fit_region != 1.0 or args.convention != "calflow"):
-        raise CalflowError("--fit-region and --convention vernier: only for Megarena patterns")
+    plane = {"fit_region": args.fit_region, "plane_weights": getattr(args, "plane_weights", None)}
+    if not megarena and (any(v is not None for v in plane.values()) or args.convention != "calflow"):
+        raise CalflowError(
+            "--fit-region, --plane-weights and --convention vernier: only for Megarena patterns"
+        )
     if args.convention == "vernier" and args.out and args.out.lower().endswith(".nc"):
         raise CalflowError("--convention vernier: the .nc output keeps calflow's convention; write a .csv")
     kwargs = {"pixel_um": args.pixel_um} if args.pixel_um is not None else {}
     # read and decoded chunk by chunk on every core: the stack is never held whole
     from calflow.instruments.pattern.stream import decode_stream
 
-    if megarena:
-        kwargs["fit_region"] = args.fit_region
+    if megarena:  # the convention's estimand, unless given: the library's region and weights
+        library = args.convention == "vernier"
+        kwargs["fit_region"] = (
+            plane["fit_region"] if plane["fit_region"] is not None else (0.5 if library else 1.0)
+        )
+        kwargs["plane_weights"] = plane["plane_weights"] or ("uniform" if library else "power")
     result, origin = decode_stream(args.frames, pattern, args.jobs, **kwargs)
     if args.out and args.out.lower().endswith(".nc"):
         _write_nc(result, origin, args)
@@ -110,8 +117,10 @@ def _decode_markers(args, pattern) -> int:
     from calflow.instruments.pattern.hpcode.table import markers_csv
     from calflow.instruments.pattern.stream import markers_stream
 
-    if args.fit_region != 1.0:
-        raise CalflowError("--fit-region: only for Megarena patterns (a marker is fitted on itself)")
+    if args.fit_region is not None or getattr(args, "plane_weights", None) is not None:
+        raise CalflowError(
+            "--fit-region, --plane-weights: only for Megarena patterns (a marker is fitted on itself)"
+        )
     if args.out and args.out.lower().endswith(".nc"):
         raise CalflowError(f"--out {args.out}: HP-code markers are written one row per marker; write a .csv")
     pooled = getattr(args, "pixel_size", "frame") == "sequence"

@@ -60,6 +60,8 @@ from calflow.instruments.pattern.spectrum import (
 
 CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
 GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
+PLANE_WEIGHTS = ("power", "uniform")  # the phase planes' weights (PhaseFitter.refit)
+NO_LOBE = 0.1  # uniform weights: a sample whose lobe amplitude is below this of the median has none
 
 
 @dataclass
@@ -231,9 +233,20 @@ class PhaseFitter:
         """Pixel positions (x, y) of the coarse grid the lobes' fields are sampled on, (ni·nj, 2)."""
         return np.stack([self.xm.ravel(), self.ym.ravel()], axis=1)
 
-    def refit(self, planes: Planes, k: int, keep: np.ndarray):
+    def refit(self, planes: Planes, k: int, keep: np.ndarray, weights: str = "power"):
         """Frame k's two planes again, from the coarse samples in ``keep`` only (where the
-        pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov)."""
+        pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov).
+
+        ``weights`` (:data:`PLANE_WEIGHTS`): ``"power"``, each sample weighted by the lobe's
+        power |z|² — the inverse of its phase's noise variance (σ²/2|z|² for additive noise of
+        variance σ²), so the least-variance plane; ``"uniform"``, every sample kept weighted
+        equally — the mean lattice over the region pixel by pixel, the Vernier library's plane,
+        the power used only to leave out samples with no lobe (amplitude below
+        :data:`NO_LOBE` of the median kept). The uniform plane's covariance is the sandwich
+        N⁻¹·Aᵀ·diag(1/|z|²)·A·N⁻¹ (N = AᵀA over the samples kept), scaled by the same noise as
+        the power-weighted one."""
+        if weights not in PLANE_WEIGHTS:
+            raise ValueError(f"weights: expected one of {', '.join(PLANE_WEIGHTS)}, got {weights!r}")
         phase = np.empty(2)
         freq = np.empty((2, 2))
         cov = np.empty((2, 3, 3))
@@ -241,9 +254,22 @@ class PhaseFitter:
         for lobe in (0, 1):
             z = planes.fields[k, lobe].astype(np.complex128)
             wgt = np.abs(z) ** 2
+            extra = planes.gradients[k, lobe] if envelope else None
+            if weights == "uniform":
+                region = keep * self.flat if envelope else keep
+                seen = wgt[region > 0]
+                floor = NO_LOBE**2 * float(np.median(seen)) if seen.size else math.inf
+                kept = (region * (wgt > floor)).astype(float)
+                noise = np.divide(1.0, wgt, out=np.zeros_like(wgt), where=wgt > 0)
+                phase[lobe], freq[lobe], c, _ = self._fit(
+                    z, kept, planes.bins[k, lobe], planes.freq[k, lobe], extra, noise=noise
+                )
+                # the noise constant: the power-weighted plane over every sample has var_all
+                n_all = np.linalg.inv(self.A.T @ (self.A * wgt[:, None]))[0, 0]
+                cov[lobe] = c * (planes.var_all[k, lobe] / max(n_all, 1e-300))
+                continue
             if envelope:
                 kept = wgt * keep * self.flat
-                extra = planes.gradients[k, lobe]
                 phase[lobe], freq[lobe], c, infl = self._fit(
                     z, kept, planes.bins[k, lobe], planes.freq[k, lobe], extra
                 )
@@ -310,12 +336,14 @@ class PhaseFitter:
         boxes[..., ni - bi :, : bj + 1] = crops[..., :bi, bj:]
         boxes[..., ni - bi :, nj - bj :] = crops[..., :bi, :bj]
 
-    def _fit(self, z, wgt, bin_, freq, extra=None, covariance=True):
+    def _fit(self, z, wgt, bin_, freq, extra=None, covariance=True, noise=None):
         """One lobe: demodulate by ``freq``, unwrap, weighted LS plane, twice (steps 5–6), with
         the rows of ``extra`` (m, samples) as nuisance regressors when given. Returns (phase at
         the frame centre, frequency (x, y) cycles/px, covariance of (phase, slopes), and the
         factor by which the regressors raise the intercept's variance; NaN for the last two
-        without ``covariance``)."""
+        without ``covariance``). With ``noise`` (each sample's phase variance, up to one
+        constant) the covariance is the sandwich N⁻¹·Aᵀ·diag(wgt²·noise)·A·N⁻¹ in that
+        constant's units, for weights that are not the noise's inverse."""
         A = self.A
         if extra is not None:  # the samples that count only, and the regressors' columns
             used = np.flatnonzero(wgt)
@@ -324,6 +352,8 @@ class PhaseFitter:
             A[:, :3] = self.A[used]
             A[:, 3:] = extra[:, used].T
             z, wgt = z[used], wgt[used]
+            if noise is not None:
+                noise = noise[used]
         base_x, base_y = bin_[1] / self.w, bin_[0] / self.h
         gx, gy = freq
         if not (np.isfinite(wgt).all() and np.count_nonzero(wgt) > A.shape[1]):
@@ -351,6 +381,9 @@ class PhaseFitter:
         phase = ref + coef[0] + 2 * np.pi * (used_x * self.xc + used_y * self.yc)
         if not covariance:
             return phase, (gx, gy), np.full((3, 3), math.nan), math.nan
+        if noise is not None:
+            inv = np.linalg.inv(N)
+            return phase, (gx, gy), (inv @ (A.T @ (A * (wgt**2 * noise)[:, None])) @ inv)[:3, :3], math.nan
         res = psi - A @ coef
         s2 = float(np.sum(wgt * res**2) / max(int(seen.sum()) - A.shape[1], 1))
         inv = np.linalg.inv(N)

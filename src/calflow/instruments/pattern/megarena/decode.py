@@ -38,7 +38,7 @@ from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
 from calflow.instruments.pattern.megarena.reading import classes, strong_reading
-from calflow.instruments.pattern.phase import PhaseFitter
+from calflow.instruments.pattern.phase import PLANE_WEIGHTS, PhaseFitter
 from calflow.instruments.pattern.spectrum import scratch
 
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
@@ -92,6 +92,7 @@ def decode(
     workers: int | None = None,
     details: bool = False,
     fit_region: float = 1.0,
+    plane_weights: str = "power",
 ):
     """Decode one frame (h, w) or a stack (n, h, w) of a Megarena target.
 
@@ -100,10 +101,15 @@ def decode(
     (``pixel_um`` and ``u_pixel_um`` of the result either way). ``fit_region``: the central
     fraction of the frame's width and height the phase planes are fitted on (1: the whole frame
     but the window's tapered margin, a tenth of each side; 0.5: the central half, as the Vernier
-    library fits them — where the optics distort the frame, the two differ).
+    library fits them — where the optics distort the frame, the two differ). ``plane_weights``:
+    ``"power"`` (calflow's, the least noise) or ``"uniform"`` (the library's mean lattice over
+    the region; :meth:`PhaseFitter.refit <calflow.instruments.pattern.phase.PhaseFitter.refit>`).
+    ``fit_region=0.5, plane_weights="uniform"`` is the library's estimand (docs/instruments.md).
     """
     if not (isinstance(fit_region, (int, float)) and 0.1 <= fit_region <= 1.0):
         raise ValueError(f"fit_region: expected a fraction from 0.1 to 1, got {fit_region!r}")
+    if plane_weights not in PLANE_WEIGHTS:
+        raise ValueError(f"plane_weights: expected one of {', '.join(PLANE_WEIGHTS)}, got {plane_weights!r}")
     stack = _frames(frames)
     n, h, w = stack.shape
     if pixel_um is not None and not (
@@ -139,7 +145,7 @@ def decode(
         # gives each the same result)
         fitter = _fitter(h, w, round(math.log(f0) / math.log(1.02)), workers)
         planes = fitter.fit(spec)
-        result = _read(frame, planes, pattern, fitter, pixel_um, fit_region)
+        result = _read(frame, planes, pattern, fitter, pixel_um, (fit_region, plane_weights))
         status[f], reason[f] = result["status"], result["reason"]
         if result["status"] == "ok":
             for k in keys:
@@ -200,7 +206,9 @@ def _bad_frame(frame: np.ndarray) -> str | None:
     return None
 
 
-def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pixel, fit_region=1.0) -> dict:
+def _read(
+    frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pixel, plane=(1.0, "power")
+) -> dict:
     p = pattern.period_um
     ratio = planes.peak_ratio[0]
     if not ratio.min() >= MIN_PEAK_RATIO:
@@ -339,7 +347,8 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
         unique = all(m[0] == 0 and m[2] >= 1 and m[3] >= pattern.depth for m in strict)
         if not (unique and [m[1] for m in strict] == [m[1] for m in found]):
             return _fail("ambiguous", f"two places of the code fit the bits read within {gap} bits")
-    if fit_region < 1.0:  # the fine pose from the central part only; the numbering stays as read
+    fit_region, weights = plane
+    if fit_region < 1.0 or weights != "power":  # the fine pose again; the numbering stays as read
         pts = fitter.coarse_points()
         keep = (np.abs(pts[:, 0] - rc[0]) <= fit_region * w / 2) & (
             np.abs(pts[:, 1] - rc[1]) <= fit_region * h / 2
@@ -348,7 +357,7 @@ def _read(frame, planes, pattern: MegarenaPattern, fitter: PhaseFitter, given_pi
             return _fail(
                 "fov_too_small", f"fewer than 16 phase samples in the central {fit_region:g} of the frame"
             )
-        new_phase, new_freq, cov = fitter.refit(planes, 0, keep)
+        new_phase, new_freq, cov = fitter.refit(planes, 0, keep, weights)
         sc += ((sgn_s * (new_phase[si] - phase[si]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
         tc += ((sgn_t * (new_phase[ti] - phase[ti]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
         ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
