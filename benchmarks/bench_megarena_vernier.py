@@ -33,6 +33,9 @@ printed beside them, and the stderr lines say which figures hold.
 
     .venv/bin/python benchmarks/bench_megarena_vernier.py --period-um 9 --depth 12 \\
         --driver /path/to/driver --fit-region 0.5 --json IMAGE...
+
+``--plane-weights uniform`` (with ``--fit-region 0.5``) gives calflow the library's estimand,
+``calflow decode --convention vernier``'s; the default, calflow's lobe-power weights.
 """
 
 from __future__ import annotations
@@ -135,6 +138,12 @@ def main(argv=None) -> int:
     p.add_argument("--library-csv", help="the driver's CSV, written before (instead of --driver)")
     p.add_argument("--truth", help="CSV file,x,y,alpha,pixelSize of the poses the frames were rendered at")
     p.add_argument("--fit-region", type=float, default=0.5, help="calflow's fit region (0.5: as the library)")
+    p.add_argument(
+        "--plane-weights",
+        choices=("power", "uniform"),
+        default="power",
+        help="calflow's phase-plane weights (uniform with --fit-region 0.5: the library's estimand)",
+    )
     p.add_argument("--noise", type=int, help="seed: blur and add noise to the frames first")
     p.add_argument("--blur-px", type=float, default=1.0)
     p.add_argument("--electrons", type=float, default=20000.0)
@@ -163,7 +172,10 @@ def main(argv=None) -> int:
             megarena_decode._fitter.cache_clear()
             t0 = time.process_time()
             parts = {
-                ks: decode(st, pattern, workers=1, fit_region=args.fit_region) for ks, st in stacks.items()
+                ks: decode(
+                    st, pattern, workers=1, fit_region=args.fit_region, plane_weights=args.plane_weights
+                )
+                for ks, st in stacks.items()
             }
             passes.append(1000 * (time.process_time() - t0) / len(frames))
         cpu_ms = float(np.median(passes))
@@ -214,7 +226,7 @@ def main(argv=None) -> int:
     # the same frames one after the other on one core, as a lab's camera gives them (one pixel
     # size: the phase planes' plan is built once), against the library's time on those files
     t0 = time.process_time()
-    decode(many, pattern, workers=1, fit_region=args.fit_region)
+    decode(many, pattern, workers=1, fit_region=args.fit_region, plane_weights=args.plane_weights)
     one_camera_ms = 1000 * (time.process_time() - t0) / len(many)
     same = [
         r["library"]["ms"]
@@ -243,6 +255,7 @@ def main(argv=None) -> int:
         "cores": _cores(),
         "load_1min": [load_before, os.getloadavg()[0]],
         "fit_region": args.fit_region,
+        "plane_weights": args.plane_weights,
         "noise_seed": args.noise,
         "machine": f"{platform.machine()} {platform.processor() or ''} {platform.system()} Python {platform.python_version()}".strip(),
     }
@@ -285,6 +298,8 @@ def calflow_decode_cli(frames: np.ndarray, args) -> dict:
             str(jobs),
             "--fit-region",
             f"{args.fit_region:g}",
+            "--plane-weights",
+            args.plane_weights,
             "--out",
             str(out),
         ]

@@ -16,8 +16,9 @@ estimate it through a polynomial map of the lattice (degree by cross-validation)
 uniform plane over that region, with a bootstrap uncertainty; beside it the same plane through
 the library's band-pass, through calflow's, with calflow's lobe-power weights, and shifted by
 the dots' asymmetry (where the lobes' phase puts a dot against its centroid): what each
-decoder's own choices make of the same frame. ``--calflow-weights`` adds calflow's own pose
-with other weights over the central half (megarena_reweight).
+decoder's own choices make of the same frame. ``--calflow-weights uniform`` adds calflow's own
+pose with equal weights over the central half (``decode(…, plane_weights="uniform")``, the
+library's estimand).
 
 ``--truth CSV`` checks the witness on frames of known pose: ``file,alpha`` (radians) for the
 affine witness; ``file,x,y,alpha,pixelSize`` in the library's convention for the estimand (the
@@ -49,7 +50,6 @@ from calflow.instruments.pattern.phase import CROP, GAUSS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import megarena_estimand as me  # noqa: E402
-from megarena_reweight import calflow_weights  # noqa: E402
 
 REGION = 0.5  # the central fraction of the width and height (the library's fit region)
 
@@ -284,7 +284,8 @@ def main(argv=None) -> int:
         "--calflow-weights",
         action="append",
         default=[],
-        help="also calflow's pose with these weights over the central half: uniform, smoothed:N (megarena_reweight)",
+        choices=("uniform",),
+        help="also calflow's pose with these plane weights over the central half (uniform: the library's estimand)",
     )
     p.add_argument("--boot", type=int, default=200, help="bootstrap replicates of the dots' estimand")
     p.add_argument("--json", action="store_true")
@@ -347,8 +348,7 @@ def main(argv=None) -> int:
             }
             reweighted = {}
             for mode in args.calflow_weights:
-                with calflow_weights(mode):
-                    q = decode(frame, pattern, fit_region=REGION)
+                q = decode(frame, pattern, fit_region=REGION, plane_weights=mode)
                 if q.status[0] == "ok":
                     reweighted[mode] = {k: float(v[0]) for k, v in q.library_pose().items()}
                     row["estimand"][f"calflow_{mode}_minus"] = differences(reweighted[mode], E)

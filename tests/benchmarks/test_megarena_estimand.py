@@ -131,41 +131,6 @@ def test_the_estimand_is_named_in_the_librarys_convention():
     assert pose["pixelSize"] == pytest.approx(0.9)
 
 
-def test_other_weights_change_only_the_noise_on_an_undistorted_frame():
-    """megarena_reweight: calflow's central-half planes with equal or smoothed weights give the
-    pose of the lobe-power weights on a frame with no distortion (within its noise), and the
-    decoder is itself again after the block."""
-    import make_distorted_megarena as mk
-    from megarena_reweight import calflow_weights
-
-    from calflow.instruments.pattern.megarena import decode
-    from calflow.instruments.pattern.phase import PhaseFitter
-
-    cam = Camera(width=384, height=320, sensor_pixel_um=5.0, magnification=10.0, bit_depth=12)
-    pattern = MegarenaPattern(4.0, 6)
-    frame, truth = mk.distorted_frame(
-        cam, pattern, (250.0, 300.0, -40.0), (0.0, 0.0), 0.0, np.random.default_rng(1)
-    )
-    refit = PhaseFitter.refit
-
-    def pose():
-        r = decode(frame, pattern, fit_region=0.5)
-        return {k: float(v[0]) for k, v in r.library_pose().items()}
-
-    power = pose()
-    for mode in ("uniform", "smoothed:3"):
-        with calflow_weights(mode):
-            assert PhaseFitter.refit is not refit
-            other = pose()
-        assert PhaseFitter.refit is refit
-        assert abs(me._wrap(other["alpha"] - power["alpha"])) < 15e-6
-        assert abs(other["x"] - power["x"]) < 1e-3 and abs(other["y"] - power["y"]) < 1e-3
-    assert pose() == power
-    with pytest.raises(ValueError, match="calflow weights"), calflow_weights("median"):
-        pose()
-    assert PhaseFitter.refit is refit
-
-
 def test_the_distorted_frames_are_written_whole_with_their_truth(tmp_path):
     """make_distorted_megarena's command: every frame and the truth, renamed into place; with
     ``--pose`` every frame is a noise draw of one view, its truth the same each time."""
