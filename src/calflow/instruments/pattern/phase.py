@@ -233,6 +233,23 @@ class PhaseFitter:
         """Pixel positions (x, y) of the coarse grid the lobes' fields are sampled on, (ni·nj, 2)."""
         return np.stack([self.xm.ravel(), self.ym.ravel()], axis=1)
 
+    def region_share(self, fraction: float) -> np.ndarray:
+        """Each coarse sample's share of its cell (the coarse step about it) that lies in the
+        frame's central ``fraction``: the pixels from ⌊n·(1 − fraction)/2⌋ on each side of a side
+        of n, as the Vernier library crops (pixel centres at integer coordinates). Weights that
+        make a plane over the samples that of every pixel of the region alike, (ni·nj,)."""
+        share = []
+        for pos, step, n in (
+            (self.xm1, self.w / self.nj, self.frame_shape[1]),
+            (self.ym1, self.h / self.ni, self.frame_shape[0]),
+        ):
+            lo = int(n * (1.0 - fraction) / 2) - 0.5
+            hi = n - int(n * (1.0 - fraction) / 2) - 0.5
+            share.append(
+                np.clip(np.minimum(pos + step / 2, hi) - np.maximum(pos - step / 2, lo), 0.0, None) / step
+            )
+        return (share[1][:, None] * share[0][None, :]).ravel()
+
     def refit(self, planes: Planes, k: int, keep: np.ndarray, weights: str = "power"):
         """Frame k's two planes again, from the coarse samples in ``keep`` only (where the
         pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov).
@@ -240,7 +257,8 @@ class PhaseFitter:
         ``weights`` (:data:`PLANE_WEIGHTS`): ``"power"``, each sample weighted by the lobe's
         power |z|² — the inverse of its phase's noise variance (σ²/2|z|² for additive noise of
         variance σ²), so the least-variance plane; ``"uniform"``, every sample kept weighted
-        equally — the mean lattice over the region pixel by pixel, the Vernier library's plane,
+        by ``keep`` alone (:meth:`region_share`: each pixel of the region alike) — the mean
+        lattice over the region, the Vernier library's plane,
         the power used only to leave out samples with no lobe (amplitude below
         :data:`NO_LOBE` of the median kept). The uniform plane's covariance is the sandwich
         N⁻¹·Aᵀ·diag(1/|z|²)·A·N⁻¹ (N = AᵀA over the samples kept), scaled by the same noise as

@@ -353,7 +353,9 @@ def _read(
         keep = (np.abs(pts[:, 0] - rc[0]) <= fit_region * w / 2) & (
             np.abs(pts[:, 1] - rc[1]) <= fit_region * h / 2
         )
-        if keep.sum() < 16:
+        if weights == "uniform":  # every pixel of the region alike: each sample its cell's share
+            keep = fitter.region_share(fit_region)
+        if np.count_nonzero(keep) < 16:
             return _fail(
                 "fov_too_small", f"fewer than 16 phase samples in the central {fit_region:g} of the frame"
             )
