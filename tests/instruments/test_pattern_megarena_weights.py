@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from calflow.cli import main
 from calflow.instruments.pattern import Camera
@@ -135,3 +137,25 @@ def test_the_vernier_convention_is_the_librarys_estimand_unless_told_otherwise(t
         assert row[-2] == "ok"
         for col, key in zip(row[2:6], ("x", "y", "alpha", "pixelSize")):
             assert float(col) == pytest.approx(float(pose[key][0]), rel=1e-6), key  # the CSV keeps 7 digits
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    h=st.integers(64, 400),
+    w=st.integers(64, 400),
+    period=st.floats(5.0, 20.0),
+    fraction=st.floats(0.3, 0.9),
+)
+def test_the_region_shares_count_the_regions_pixels(h, w, period, fraction):
+    """Σ share·(coarse step)² is the region's pixel count: each pixel of the region alike."""
+    from calflow.instruments.pattern.phase import PhaseFitter
+
+    f = PhaseFitter((h, w), 1.0 / period, workers=1, pad=True)
+    # the samples' cells end half a coarse step before the far edges: regions within them
+    assume(int(h * (1 - fraction) / 2) >= f.h / f.ni / 2 and int(w * (1 - fraction) / 2) >= f.w / f.nj / 2)
+    share = f.region_share(fraction)
+    assert share.min() >= 0.0 and share.max() <= 1.0 + 1e-12
+    rows = h - 2 * int(h * (1 - fraction) / 2)
+    cols = w - 2 * int(w * (1 - fraction) / 2)
+    area = share.sum() * (f.h / f.ni) * (f.w / f.nj)
+    assert area == pytest.approx(rows * cols, rel=1e-9)

@@ -237,7 +237,9 @@ class PhaseFitter:
         """Each coarse sample's share of its cell (the coarse step about it) that lies in the
         frame's central ``fraction``: the pixels from ⌊n·(1 − fraction)/2⌋ on each side of a side
         of n, as the Vernier library crops (pixel centres at integer coordinates). Weights that
-        make a plane over the samples that of every pixel of the region alike, (ni·nj,)."""
+        make a plane over the samples that of every pixel of the region alike, (ni·nj,). The
+        samples' cells end half a coarse step before the far edges: a region reaching into that
+        margin (a fraction near 1) is counted short there."""
         share = []
         for pos, step, n in (
             (self.xm1, self.w / self.nj, self.frame_shape[1]),
