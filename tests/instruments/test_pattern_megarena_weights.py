@@ -159,3 +159,18 @@ def test_the_region_shares_count_the_regions_pixels(h, w, period, fraction):
     cols = w - 2 * int(w * (1 - fraction) / 2)
     area = share.sum() * (f.h / f.ni) * (f.w / f.nj)
     assert area == pytest.approx(rows * cols, rel=1e-9)
+
+
+def test_plane_weights_on_another_layout_are_refused_in_one_line(tmp_path, capsys):
+    import tifffile
+
+    from calflow.instruments.pattern import Pattern
+
+    spec = Pattern.make(range_um=(500.0, 400.0)).save(tmp_path / "c.json")
+    tifffile.imwrite(tmp_path / "f.tif", np.zeros((64, 64), np.uint16))
+    capsys.readouterr()
+    assert (
+        main(["decode", str(tmp_path / "f.tif"), "--pattern", str(spec), "--plane-weights", "uniform"]) != 0
+    )
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--plane-weights" in err and "Megarena" in err
