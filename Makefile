@@ -14,35 +14,31 @@ LOCK_FLAGS ?=
 
 .PHONY: run test test-fast bench-smoke cluster-test cluster-study dry-run lint lock browser clean
 
-# The lock is byte-compiled at install (pip's default), not skipped with --no-compile: where
-# PYTHONDONTWRITEBYTECODE is set (this machine's shells, many CI images) every process of the
-# suite would compile xarray, scipy and pandas again, doubling its CPU. calflow and the
-# hexapod family's own distribution go in one pip run.
+# Python writes each module's bytecode (.pyc) the first time a process imports it, in the
+# recipes below even where the caller's shell sets PYTHONDONTWRITEBYTECODE (this machine's
+# shells, many CI images): otherwise no process ever writes one, and every process of the
+# suite — each workflow job among them — compiles xarray, scipy and pandas again. So the lock is
+# installed without pip's byte-compiling (~9500 modules, ~25 s of a fresh install): what the
+# runs import is compiled once, when first imported (docs/development.md, "The lock").
+unexport PYTHONDONTWRITEBYTECODE
+
 $(STAMP): pyproject.toml plugins/calflow-hexapod/pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -r $(LOCK)
+	$(BIN)/python -m pip install --quiet --no-compile -r $(LOCK)
 	$(BIN)/python -m pip install --quiet --no-deps -e . -e plugins/calflow-hexapod
 	@$(BIN)/python -m pip check >/dev/null || { $(BIN)/python -m pip check; \
 	  echo "$(LOCK) does not hold what pyproject.toml asks for: run 'make lock'"; exit 1; }
 	touch $(STAMP)
 
-# calflow's own modules byte-compiled before a run: where PYTHONDONTWRITEBYTECODE is set no
-# process writes a .pyc, and each of the workflow's jobs would compile calflow's modules again
-# (~0.6 s of CPU for all of them; a changed file is compiled again, the rest are kept).
-COMPILE := $(BIN)/python -m compileall -q src $(wildcard plugins/*/src)
-
 run: $(STAMP)  ## run the default campaigns and write reports/
-	@$(COMPILE)
 	$(BIN)/snakemake --cores $(CORES)
 
 test: $(STAMP) browser  ## run the test suite (calflow's, then the hexapod plug-in's own)
-	@$(COMPILE)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 	cd plugins/calflow-hexapod && $(abspath $(BIN))/python -m pytest -n $(CORES) --dist loadfile
 
 test-fast: $(STAMP)  ## the unit and property tests only (no workflow run, no process killed): about a minute
-	@$(COMPILE)
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -m "not workflow and not process" -q
 
 bench-smoke: $(STAMP)  ## every benchmark of benchmarks/ at its small --smoke size, so none rots unseen

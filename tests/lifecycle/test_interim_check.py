@@ -31,6 +31,7 @@ def reference(**extra) -> dict:
         "heldout": {"targets": 6, "cycles": 2, "error_budget": False},
     }
     c["xy_tests"]["compensation"] = []
+    c["observability"] = {**c["observability"], "study": False}  # a check reads no observability
     c["identification"] = {**c["identification"], "poses": 400}  # a calibration's share of rig time
     c.update({"stage": "SN-9", "start": "2026-01-05T08:00:00+00:00", **extra})
     c["rig"]["options"] = {"aging": False}

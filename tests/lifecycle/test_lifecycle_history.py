@@ -137,6 +137,8 @@ def test_workflow_builds_a_history_from_three_campaigns(tmp_path):
         "cycles": 2,
         "heldout": {"targets": 6, "cycles": 2, "error_budget": False},
     }
+    base["validation"]["targets"] = []  # the held-out validation alone: as found and as left are held out
+    base["observability"] = {**base["observability"], "study": False}  # a history reads no observability
     base["xy_tests"]["compensation"] = []
     base["stage"] = "SN-7"
     base["tolerance_um"] = 50.0
