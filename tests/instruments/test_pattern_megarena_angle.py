@@ -19,8 +19,7 @@ from hypothesis import strategies as st
 
 from calflow.instruments.pattern import Camera
 from calflow.instruments.pattern.megarena import MegarenaPattern, decode
-from calflow.instruments.pattern.phase import _flat
-from calflow.instruments.pattern.spectrum import TUKEY, tukey
+from calflow.instruments.pattern.spectrum import TUKEY, on_flat, tukey
 
 ANGLE_URAD = {0.5: 5.0, 1.0: 15.0}  # largest error of each axis's direction, by fit region
 POSITION_NM = {0.5: 0.5, 1.0: 2.0}
@@ -92,7 +91,7 @@ def test_the_angle_holds_whatever_the_dots_size_and_focus(pixel_um, theta, x, y,
 @given(n=st.integers(8, 3000))
 def test_the_flat_part_is_where_the_window_is_one(n):
     w = tukey(n, TUKEY).astype(float)
-    flat = _flat(np.arange(n), n)
+    flat = on_flat(np.arange(n), n)
     assert (w[flat] == 1).all()  # no sample of the taper is taken for the flat part
     assert flat.sum() >= (1 - TUKEY) * n - 2  # and the flat part is all of the rest
 

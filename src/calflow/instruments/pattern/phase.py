@@ -49,11 +49,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from calflow.instruments.pattern.spectrum import (
-    TUKEY,
     corners,
     fast_length,
+    on_flat,
     ring,
     scratch,
+    subbin,
     tapered,
     window,
 )
@@ -125,7 +126,7 @@ class PhaseFitter:
         xr, yr = self.xm.ravel(), self.ym.ravel()
         self.A = np.stack([np.ones_like(xr), xr - self.xc, yr - self.yc], axis=1)
         # the coarse samples on the window's flat part, and the box's derivative factors (rad/px)
-        self.flat = (_flat(self.ym, fh) & _flat(self.xm, fw)).ravel().astype(float)
+        self.flat = (on_flat(self.ym, fh) & on_flat(self.xm, fw)).ravel().astype(float)
         self.ddx = (2j * np.pi / w) * self.dj
         self.ddy = (2j * np.pi / h) * self.di
 
@@ -192,7 +193,7 @@ class PhaseFitter:
         for k in range(n):
             for lobe in (0, 1):
                 crops[k, lobe] = self.crop(spec, k, *bins[k, lobe])
-                sub[k, lobe] = _subbin(np.abs(crops[k, lobe]), self.bi, self.bj)
+                sub[k, lobe] = subbin(np.abs(crops[k, lobe]), self.bi, self.bj)
         freq = np.stack(
             [(bins[..., 1] + sub[..., 1]) / self.w, (bins[..., 0] + sub[..., 0]) / self.h], axis=-1
         )
@@ -409,23 +410,3 @@ class PhaseFitter:
         inv = np.linalg.inv(N)
         infl = 1.0 if extra is None else float(inv[0, 0] / np.linalg.inv(N[:3, :3])[0, 0])
         return phase, (gx, gy), inv[:3, :3] * s2, infl
-
-
-def _flat(x: np.ndarray, n: int, alpha: float = TUKEY) -> np.ndarray:
-    """Whether pixel positions ``x`` (continuous) of a side of n pixels lie on the flat part
-    of :func:`~calflow.instruments.pattern.spectrum.tukey`'s window, w = 1, rather than on its taper."""
-    t = np.asarray(x, float) / max(n - 1, 1)
-    return np.minimum(t, 1.0 - t) >= alpha / 2
-
-
-def _subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:
-    """Gaussian (log-parabolic) interpolation of a spectral peak at (ci, cj) of ``mag``."""
-    out = []
-    for m1, m0, p1 in (
-        (mag[ci - 1, cj], mag[ci, cj], mag[ci + 1, cj]),
-        (mag[ci, cj - 1], mag[ci, cj], mag[ci, cj + 1]),
-    ):
-        a, b, c = (math.log(max(float(v), 1e-30)) for v in (m1, m0, p1))
-        den = a - 2 * b + c
-        out.append(0.0 if den >= 0 else max(-0.5, min(0.5, 0.5 * (a - c) / den)))
-    return out[0], out[1]

@@ -1,12 +1,13 @@
 """The windowed frame's half-plane spectrum, its geometry: the Tukey window and where it
 tapers, the bins' radii and directions (sorted once per frame size), a ring of bins around a
-frequency, the corners beyond 0.4 cycle per pixel, FFT lengths — and the reused arrays a
+frequency, the corners beyond 0.4 cycle per pixel, FFT lengths, a peak's sub-bin position — and the reused arrays a
 decoder of single frames windows them in. What depends on the frame's size only, so that a
 plan for a new pixel size (:class:`~calflow.instruments.pattern.phase.PhaseFitter`) costs a
 search rather than a pass over the spectrum."""
 
 from __future__ import annotations
 
+import math
 import threading
 from functools import lru_cache
 
@@ -119,3 +120,23 @@ def fast_length(n: int) -> int:
     import scipy.fft  # here, not at import: the camera model's users need no scipy
 
     return scipy.fft.next_fast_len(int(n), real=False)
+
+
+def on_flat(x: np.ndarray, n: int, alpha: float = TUKEY) -> np.ndarray:
+    """Whether pixel positions ``x`` (continuous) of a side of n pixels lie on the flat part
+    of :func:`tukey`'s window, w = 1, rather than on its taper."""
+    t = np.asarray(x, float) / max(n - 1, 1)
+    return np.minimum(t, 1.0 - t) >= alpha / 2
+
+
+def subbin(mag: np.ndarray, ci: int, cj: int) -> tuple[float, float]:
+    """Gaussian (log-parabolic) interpolation of a spectral peak at (ci, cj) of ``mag``."""
+    out = []
+    for m1, m0, p1 in (
+        (mag[ci - 1, cj], mag[ci, cj], mag[ci + 1, cj]),
+        (mag[ci, cj - 1], mag[ci, cj], mag[ci, cj + 1]),
+    ):
+        a, b, c = (math.log(max(float(v), 1e-30)) for v in (m1, m0, p1))
+        den = a - 2 * b + c
+        out.append(0.0 if den >= 0 else max(-0.5, min(0.5, 0.5 * (a - c) / den)))
+    return out[0], out[1]
