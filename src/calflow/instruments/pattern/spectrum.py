@@ -1,9 +1,10 @@
 """The windowed frame's half-plane spectrum, its geometry: the Tukey window and where it
 tapers, the bins' radii and directions (sorted once per frame size), a ring of bins around a
-frequency, the corners beyond 0.4 cycle per pixel, FFT lengths, a peak's sub-bin position — and the reused arrays a
-decoder of single frames windows them in. What depends on the frame's size only, so that a
-plan for a new pixel size (:class:`~calflow.instruments.pattern.phase.PhaseFitter`) costs a
-search rather than a pass over the spectrum."""
+frequency, the corners beyond 0.4 cycle per pixel, FFT lengths, a peak's sub-bin position —
+and the reused arrays a decoder of single frames windows them in. What depends on the frame's
+size only, so that a plan for a new pixel size
+(:class:`~calflow.instruments.pattern.phase.PhaseFitter`) costs a search rather than a pass
+over the spectrum."""
 
 from __future__ import annotations
 
