@@ -93,7 +93,8 @@ def pytest_collection_modifyitems(config, items):
     # worker waiting for it. Whole files move (--dist loadfile schedules by file).
     # Among them the longest go first (LATE_FIRST), so the last file handed to a worker is a
     # short one and neither worker idles long while the other ends the suite.
-    late = {item.path for item in items if _reads_thesis_run(item)}
+    # (a list in collection order, not a set: the order must be the same in every xdist worker)
+    late = list(dict.fromkeys(item.path for item in items if _reads_thesis_run(item)))
     rank = {name: k for k, name in enumerate(LATE_FIRST)}
     order = sorted(late, key=lambda path: rank.get(path.name, len(rank)))  # stable: the rest as collected
     position = {path: k for k, path in enumerate(order)}
