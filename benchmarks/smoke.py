@@ -39,6 +39,7 @@ SMOKE = {
     "bench_max_coverage.py": ["--seeds", "4", "--trials", "500", "--json"],
     "bench_megarena_vernier.py": ["--smoke", "--json"],
     "bench_megarena_witness.py": ["--smoke", "--json"],
+    "make_distorted_megarena.py": ["{run}/distorted", "--frames", "2", "--size", "256x192"],
     "bench_hpcode_vernier.py": ["--smoke", "--json"],
     "reliability_sigkill.py": ["--smoke", "--json", "--workdir", "{run}/sigkill"],
     "reliability_gcs_campaign.py": ["--smoke", "--json"],
@@ -49,12 +50,15 @@ SMOKE = {
     "bench_workflow_pair.sh": ["--smoke", str(HERE.parent)],  # this tree against itself
 }
 
+#: modules the benchmarks import, run through them (not on their own): module → a benchmark above
+MODULES = {"megarena_estimand.py": "bench_megarena_witness.py"}
+
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", help="run these benchmarks only")
     args = ap.parse_args(argv)
-    known = set(SMOKE) | {"smoke.py"}
+    known = set(SMOKE) | set(MODULES) | {"smoke.py"}
     unknown = sorted(p.name for p in HERE.iterdir() if p.suffix in (".py", ".sh") and p.name not in known)
     if unknown:
         print(f"smoke: no smoke size for {', '.join(unknown)}: add it to benchmarks/smoke.py")
