@@ -149,3 +149,40 @@ def test_the_distorted_frames_are_written_whole_with_their_truth(tmp_path):
     assert float(rows[0]["alpha"]) == pytest.approx(math.radians(12), abs=1e-9)  # no distortion
     frames = [tifffile.imread(out / r["file"]) for r in rows]
     assert frames[0].shape == (128, 160) and not np.array_equal(frames[0], frames[1])  # noise draws
+
+
+def test_a_sloping_background_does_not_move_the_witness(distorted):
+    """The illumination's fall-off under the dots: a ramp and a broad glare added to the frame.
+    The lobes' phase does not see them (no power near the lobes); centroids with a constant
+    background per window are pulled uphill — the witness takes them on the frame less its
+    smooth background, and stays on the truth."""
+    import bench_megarena_witness as bw
+
+    frame, truth, _, pattern = distorted
+    h, w = frame.shape
+    y, x = np.mgrid[0:h, 0:w]
+    contrast = float(np.percentile(frame, 99) - np.percentile(frame, 1))
+    glare = np.exp(-((x - 0.8 * w) ** 2 + (y - 0.3 * h) ** 2) / (2 * (0.3 * w) ** 2))
+    lit = frame + contrast * (0.6 * x / w + 0.8 * glare)
+    est = bw.estimand_pose(lit, pattern.period_um, pattern.depth, truth, boot=100)
+    E, u, raw = est["pose"], est["u"], est["unflattened"]
+    # the same centroids without the background taken off: off the truth, well beyond u
+    moved = max(abs(raw[k] - truth[k]) / (u[k] + 2e-4) for k in ("x", "y"))
+    assert moved > 4
+    assert abs(me._wrap(E["alpha"] - truth["alpha"])) < 4 * u["alpha"] + 1e-6
+    for key in ("x", "y"):
+        assert abs(E[key] - truth[key]) < 4 * u[key] + 2e-4
+
+
+def test_the_background_is_what_lies_under_the_dots():
+    """On a smooth field with no dots the background is the field itself (within the opening's
+    reach of its curvature); the dots of a render are cut off: what is left is nearly flat."""
+    import bench_megarena_witness as bw
+
+    y, x = np.mgrid[0:96, 0:128].astype(float)
+    smooth = 100 + 0.5 * x + 0.2 * y
+    np.testing.assert_allclose(bw.background(smooth, 8.0)[16:-16, 16:-16], smooth[16:-16, 16:-16], atol=0.5)
+    cam = Camera(width=128, height=96, sensor_pixel_um=5.0, magnification=10.0)
+    frame = cam.render(MegarenaPattern(4.0, 6), 300.0, 400.0, 10.0, rng=1).astype(float)
+    bg = bw.background(frame, 8.0)
+    assert np.ptp(bg[16:-16, 16:-16]) < 0.2 * np.ptp(frame[16:-16, 16:-16])
