@@ -98,7 +98,7 @@ def sample_plane(smp: dict, values: np.ndarray, lobe: int, how: dict, p0) -> np.
     """One lobe's plane (value at ``p0``, slopes) of ``values`` (n,) over calflow's samples, by
     ``how``: ``floor`` (fraction of the median |z|, the no-lobe cut), ``shares`` (the region's
     shares, or the samples inside it alike), ``regressors`` (the envelope's), ``weights``
-    ("uniform" or "power")."""
+    ("uniform" or "power"), ``leave_out`` ((2, n) booleans: samples left out per lobe)."""
     pts, power = smp["pts"], smp["power"][lobe]
     if how.get("shares", True):
         region = smp["share"] * smp["flat"]
@@ -110,6 +110,8 @@ def sample_plane(smp: dict, values: np.ndarray, lobe: int, how: dict, p0) -> np.
         region = region * smp["flat"]
     floor = how.get("floor", NO_LOBE) ** 2 * float(np.median(power[region > 0]))
     wgt = region * (power > floor)
+    if "leave_out" in how:
+        wgt = wgt * ~how["leave_out"][lobe]
     if how.get("weights", "uniform") == "power":
         wgt = wgt * power
     A = np.stack([np.ones(len(pts)), pts[:, 0] - p0[0], pts[:, 1] - p0[1]], 1)
@@ -257,6 +259,19 @@ def analyse(
         )
     }
     region = smp["share"] * smp["flat"]
+    # spots (dust, defects): samples whose residual from the map, less its own plane and
+    # envelope, is beyond k robust standard deviations — the map's, so a diagnosis only
+    spots = np.zeros((2, len(region)))
+    for j in (0, 1):
+        u = region > 0
+        A = np.stack([np.ones(u.sum()), *(smp["pts"][u] - p0).T, *smp["grads"][j][:, u]], 1)
+        spots[j, u] = rho[j][u] - A @ np.linalg.lstsq(A, rho[j][u], rcond=None)[0]
+        spots[j] /= 1.4826 * np.median(np.abs(spots[j, u]))
+    for k in (8, 5):
+        out["one_at_a_time"][f"spots_beyond_{k}_mad"] = wit.differences(
+            pose(fitted(dict(base, leave_out=np.abs(spots) > k))), Ep
+        )
+        out[f"spots_beyond_{k}_mad"] = [int(np.sum((region > 0) & (np.abs(spots[j]) > k))) for j in (0, 1)]
     floor = NO_LOBE**2 * np.array([np.median(smp["power"][j][region > 0]) for j in (0, 1)])
     out["floor_left_out"] = [int(np.sum((region > 0) & (smp["power"][j] <= floor[j]))) for j in (0, 1)]
     out["samples_in_region"] = int(np.sum(region > 0))
@@ -297,8 +312,34 @@ def analyse(
             bins = (sig, sig) if sig != "calflow" else (cal_sigma * w, cal_sigma * h)
             est[f"{sig}:{centre}"] = pose(band_pass_plane(frame.astype(float), smp["freq"], bins, centre, E))
     out["band_pass"] = {k: wit.differences(q, Ep) for k, q in est.items()}
-    out["_poses"] = {"E": Ep, "calflow": ours, **{f"band_pass {k}": q for k, q in est.items()}}
+    # the estimand from the centroids on the frame as it is (its background's slope left in them)
+    s0, t0, c0, *_ = wit.dots(frame, depth, region=me.CROP + wit.MARGIN, flatten=False)
+    st0 = np.stack([s0, t0], 1)
+    E0 = me.estimand(c0, st0, frame.shape, me.cv_degree(c0, st0, frame.shape)[0], boot=0)["plane"]
+    E0 = pose(E0 + np.array([offset, 0.0, 0.0]))
+    out["unflattened_minus"] = wit.differences(E0, Ep)
+    out["_poses"] = {
+        "E": Ep,
+        "E unflattened": E0,
+        "calflow": ours,
+        **{f"band_pass {k}": q for k, q in est.items()},
+    }
     return out
+
+
+def with_background(frame: np.ndarray, source: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """``frame`` (float) plus ``source``'s smooth background less its mean, in units of each
+    one's contrast (1st to 99th percentile) times ``scale``; bright dots assumed in both. The
+    frames must have one shape."""
+    source = source.astype(float)
+    frame = frame.astype(float)
+    if source.shape != frame.shape:
+        raise ValueError(f"--background-of: expected a {frame.shape} image, got {source.shape}")
+    plan = _fitter(*source.shape, -116, 1)
+    f0 = fundamental(plan.spectrum(source[None].astype(np.float32))[0], plan.h, plan.w, 6)
+    bg = wit.background(source, 1.0 / f0 if f0 else 10.0)
+    contrast = lambda a: float(np.percentile(a, 99) - np.percentile(a, 1))  # noqa: E731
+    return frame + scale * (bg - bg.mean()) * contrast(frame) / contrast(source)
 
 
 def smoke(folder: Path) -> list[str]:
@@ -333,6 +374,12 @@ def main(argv=None) -> int:
         help="band-pass widths for the library's estimator, bins (comma-separated; calflow: calflow's own)",
     )
     p.add_argument("--boot", type=int, default=100, help="bootstrap replicates of the dots' estimand")
+    p.add_argument(
+        "--background-of",
+        help="an image whose smooth background (bench_megarena_witness.background) is added to every frame, "
+        "scaled to the frame's contrast: a real frame's illumination under frames of known truth",
+    )
+    p.add_argument("--background-scale", type=float, default=1.0)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     sigmas = [v if v == "calflow" else float(v) for v in args.sigma_bins.split(",")]
@@ -342,6 +389,8 @@ def main(argv=None) -> int:
     for path in args.images:
         name = Path(path).name
         frame = read_frames([path])[0][0]
+        if args.background_of:
+            frame = with_background(frame, read_frames([args.background_of])[0][0], args.background_scale)
         lib = library.get(name)
         lib_pose = None
         if lib and lib["found"].strip() in ("1", "true", "True"):
