@@ -54,7 +54,8 @@ from calflow.instruments.pattern.frames import read_frames
 from calflow.instruments.pattern.megarena import MegarenaPattern, decode
 from calflow.instruments.pattern.megarena.decode import _fitter
 from calflow.instruments.pattern.megarena.period import fundamental
-from calflow.instruments.pattern.phase import CROP, GAUSS, NO_LOBE
+from calflow.instruments.pattern.megarena.uniform import ENVELOPE_DEGREE, NO_LOBE, uniform_planes
+from calflow.instruments.pattern.phase import CROP, GAUSS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_megarena_witness as wit  # noqa: E402
@@ -80,7 +81,7 @@ def phase_samples(frame: np.ndarray, depth: int, region: float = REGION) -> dict
         [bins[j, 1] / fitter.w * pts[:, 0] + bins[j, 0] / fitter.h * pts[:, 1] for j in (0, 1)]
     )
     share = fitter.region_share(region)
-    refit = fitter.refit(planes, 0, share, "uniform")
+    refit = uniform_planes(fitter, planes, 0, share)
     return {
         "pts": pts,
         "phase": np.angle(z) / (2 * np.pi) + carrier,
@@ -98,7 +99,8 @@ def sample_plane(smp: dict, values: np.ndarray, lobe: int, how: dict, p0) -> np.
     """One lobe's plane (value at ``p0``, slopes) of ``values`` (n,) over calflow's samples, by
     ``how``: ``floor`` (fraction of the median |z|, the no-lobe cut), ``shares`` (the region's
     shares, or the samples inside it alike), ``regressors`` (the envelope's), ``weights``
-    ("uniform" or "power"), ``leave_out`` ((2, n) booleans: samples left out per lobe)."""
+    ("uniform" or "power"), ``degree`` (of the surface the envelope's coefficient is fitted
+    beside: 1, the plane alone), ``leave_out`` ((2, n) booleans: samples left out per lobe)."""
     pts, power = smp["pts"], smp["power"][lobe]
     if how.get("shares", True):
         region = smp["share"] * smp["flat"]
@@ -115,11 +117,17 @@ def sample_plane(smp: dict, values: np.ndarray, lobe: int, how: dict, p0) -> np.
     if how.get("weights", "uniform") == "power":
         wgt = wgt * power
     A = np.stack([np.ones(len(pts)), pts[:, 0] - p0[0], pts[:, 1] - p0[1]], 1)
-    if how.get("regressors", True):
-        A = np.concatenate([A, smp["grads"][lobe].T], 1)
     u = wgt > 0
+    if how.get("regressors", True):  # ĉ beside a surface of ``degree``, then the plane without it
+        G = smp["grads"][lobe].T
+        scale = max(smp["centre"]) + 0.5
+        X, Y = (pts[:, 0] - p0[0]) / scale, (pts[:, 1] - p0[1]) / scale
+        d = how.get("degree", ENVELOPE_DEGREE)
+        D = np.column_stack([X**a * Y ** (n - a) for n in range(d + 1) for a in range(n, -1, -1)] + [G])
+        Dw = D[u] * wgt[u, None]
+        values = values - G @ np.linalg.solve(D[u].T @ Dw, Dw.T @ values[u])[-G.shape[1] :]
     Aw = A[u] * wgt[u, None]
-    return np.linalg.solve(A[u].T @ Aw, Aw.T @ values[u])[:3]
+    return np.linalg.solve(A[u].T @ Aw, Aw.T @ values[u])
 
 
 def local_demodulation(frame, m: me.LatticeMap, offset: float, pts, sigma_px: float) -> np.ndarray:
@@ -255,7 +263,8 @@ def analyse(
             ("floor_0.3", {"floor": 0.3}),
             ("no_shares", {"shares": False}),
             ("no_regressors", {"regressors": False}),
-            ("power_weights", {"weights": "power"}),
+            ("envelope_beside_the_plane", {"degree": 1}),
+            ("power_weights", {"weights": "power", "degree": 1}),
         )
     }
     region = smp["share"] * smp["flat"]

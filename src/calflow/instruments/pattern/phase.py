@@ -61,8 +61,6 @@ from calflow.instruments.pattern.spectrum import (
 
 CROP = 0.35  # half-width of the band-pass box, as a fraction of the lobe's frequency
 GAUSS = 2.5  # the box half-width in standard deviations of the Gaussian band-pass
-PLANE_WEIGHTS = ("power", "uniform")  # the phase planes' weights (PhaseFitter.refit)
-NO_LOBE = 0.1  # uniform weights: a sample whose lobe amplitude is below this of the median has none
 
 
 @dataclass
@@ -253,21 +251,14 @@ class PhaseFitter:
             )
         return (share[1][:, None] * share[0][None, :]).ravel()
 
-    def refit(self, planes: Planes, k: int, keep: np.ndarray, weights: str = "power"):
+    def refit(self, planes: Planes, k: int, keep: np.ndarray):
         """Frame k's two planes again, from the coarse samples in ``keep`` only (where the
         pattern is seen: not under dust, not beyond its edge). Returns (phase, freq, cov).
 
-        ``weights`` (:data:`PLANE_WEIGHTS`): ``"power"``, each sample weighted by the lobe's
-        power |z|² — the inverse of its phase's noise variance (σ²/2|z|² for additive noise of
-        variance σ²), so the least-variance plane; ``"uniform"``, every sample kept weighted
-        by ``keep`` alone (:meth:`region_share`: each pixel of the region alike) — the mean
-        lattice over the region, the Vernier library's plane,
-        the power used only to leave out samples with no lobe (amplitude below
-        :data:`NO_LOBE` of the median kept). The uniform plane's covariance is the sandwich
-        N⁻¹·Aᵀ·diag(1/|z|²)·A·N⁻¹ (N = AᵀA over the samples kept), scaled by the same noise as
-        the power-weighted one."""
-        if weights not in PLANE_WEIGHTS:
-            raise ValueError(f"weights: expected one of {', '.join(PLANE_WEIGHTS)}, got {weights!r}")
+        Each sample is weighted by the lobe's power |z|² — the inverse of its phase's noise
+        variance (σ²/2|z|² for additive noise of variance σ²), so the least-variance plane. The
+        Vernier library's plane, every pixel of a region alike, is
+        :func:`calflow.instruments.pattern.megarena.uniform.uniform_planes`."""
         phase = np.empty(2)
         freq = np.empty((2, 2))
         cov = np.empty((2, 3, 3))
@@ -276,19 +267,6 @@ class PhaseFitter:
             z = planes.fields[k, lobe].astype(np.complex128)
             wgt = np.abs(z) ** 2
             extra = planes.gradients[k, lobe] if envelope else None
-            if weights == "uniform":
-                region = keep * self.flat if envelope else keep
-                seen = wgt[region > 0]
-                floor = NO_LOBE**2 * float(np.median(seen)) if seen.size else math.inf
-                kept = (region * (wgt > floor)).astype(float)
-                noise = np.divide(1.0, wgt, out=np.zeros_like(wgt), where=wgt > 0)
-                phase[lobe], freq[lobe], c, _ = self._fit(
-                    z, kept, planes.bins[k, lobe], planes.freq[k, lobe], extra, noise=noise
-                )
-                # the noise constant: the power-weighted plane over every sample has var_all
-                n_all = np.linalg.inv(self.A.T @ (self.A * wgt[:, None]))[0, 0]
-                cov[lobe] = c * (planes.var_all[k, lobe] / max(n_all, 1e-300))
-                continue
             if envelope:
                 kept = wgt * keep * self.flat
                 phase[lobe], freq[lobe], c, infl = self._fit(

@@ -38,7 +38,8 @@ from calflow.instruments.pattern.decode import Decoded, _angle, _fail
 from calflow.instruments.pattern.megarena.pattern import MegarenaPattern
 from calflow.instruments.pattern.megarena.period import fundamental, pixel_size
 from calflow.instruments.pattern.megarena.reading import classes, strong_reading
-from calflow.instruments.pattern.phase import PLANE_WEIGHTS, PhaseFitter
+from calflow.instruments.pattern.megarena.uniform import PLANE_WEIGHTS, uniform_planes
+from calflow.instruments.pattern.phase import PhaseFitter
 from calflow.instruments.pattern.spectrum import scratch
 
 MIN_PEAK_RATIO = 100.0  # lobe power over the ring's median (noise alone reaches ~15)
@@ -359,7 +360,8 @@ def _read(
             return _fail(
                 "fov_too_small", f"fewer than 16 phase samples in the central {fit_region:g} of the frame"
             )
-        new_phase, new_freq, cov = fitter.refit(planes, 0, keep, weights)
+        refit = uniform_planes if weights == "uniform" else PhaseFitter.refit
+        new_phase, new_freq, cov = refit(fitter, planes, 0, keep)
         sc += ((sgn_s * (new_phase[si] - phase[si]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
         tc += ((sgn_t * (new_phase[ti] - phase[ti]) / (2 * np.pi)) + 0.5) % 1.0 - 0.5
         ks, kt = sgn_s * new_freq[si], sgn_t * new_freq[ti]
