@@ -150,40 +150,6 @@ def local_demodulation(frame, m: me.LatticeMap, offset: float, pts, sigma_px: fl
     return out
 
 
-def band_pass_plane(frame, freq, sigma, centre: str = "integer", near=None) -> np.ndarray:
-    """The library's estimator: per lobe (``freq`` (2, 2) cycles/px, x then y) a Gaussian
-    band-pass of the unwindowed frame's spectrum about the lobe's peak bin (``centre="integer"``:
-    the largest bin within one of the frequency) or its frequency itself (``"fitted"``), σ
-    ``sigma`` = (bins along x, bins along y); the phase's plane over every pixel of the central
-    half, at (w/2, h/2). (2, 3) as megarena_estimand's planes, each intercept's branch nearest
-    ``near`` (2, 3)."""
-    h, w = frame.shape
-    F = np.fft.fft2(frame - frame.mean())
-    rows, cols, (x0, y0) = me.library_region(h, w)
-    yy, xx = np.mgrid[rows, cols]
-    A = np.stack([np.ones(xx.size), (xx - x0).ravel(), (yy - y0).ravel()], 1)
-    ii, jj = np.fft.fftfreq(h) * h, np.fft.fftfreq(w) * w
-    plane = np.empty((2, 3))
-    for lobe in (0, 1):
-        gx, gy = freq[lobe]
-        ci, cj = gy * h, gx * w
-        if centre == "integer":
-            cand = [(round(ci) + a, round(cj) + b) for a in (-1, 0, 1) for b in (-1, 0, 1)]
-            ci, cj = max(cand, key=lambda q: abs(F[q[0] % h, q[1] % w]))
-        di = (ii[:, None] - ci + h / 2) % h - h / 2
-        dj = (jj[None, :] - cj + w / 2) % w - w / 2
-        z = np.fft.ifft2(F * np.exp(-((dj / sigma[0]) ** 2 + (di / sigma[1]) ** 2) / 2))[rows, cols]
-        carrier = 2 * np.pi * (gx * xx + gy * yy)
-        psi = np.unwrap(np.angle(z * np.exp(-1j * carrier)), axis=1)  # along the rows, then
-        psi += (np.unwrap(psi[:, 0]) - psi[:, 0])[:, None]  # each row onto the first column's branch
-        phi = (psi + carrier) / (2 * np.pi)
-        coef = np.linalg.lstsq(A, phi.ravel(), rcond=None)[0]
-        if near is not None:
-            coef[0] += np.round(near[lobe, 0] - coef[0])
-        plane[lobe] = coef
-    return plane
-
-
 def _quadrants(pts, values, wgt, centre) -> list[float]:
     out = []
     for sy in (-1, 1):
@@ -319,7 +285,9 @@ def analyse(
     for sig in sigmas:
         for centre in ("integer", "fitted"):
             bins = (sig, sig) if sig != "calflow" else (cal_sigma * w, cal_sigma * h)
-            est[f"{sig}:{centre}"] = pose(band_pass_plane(frame.astype(float), smp["freq"], bins, centre, E))
+            est[f"{sig}:{centre}"] = pose(
+                me.band_pass_plane(frame.astype(float), smp["freq"], bins, centre, E)
+            )
     out["band_pass"] = {k: wit.differences(q, Ep) for k, q in est.items()}
     # the estimand from the centroids on the frame as it is (its background's slope left in them)
     s0, t0, c0, *_ = wit.dots(frame, depth, region=me.CROP + wit.MARGIN, flatten=False)
