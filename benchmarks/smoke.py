@@ -51,7 +51,10 @@ SMOKE = {
 }
 
 #: modules the benchmarks import, run through them (not on their own): module → a benchmark above
-MODULES = {"megarena_estimand.py": "bench_megarena_witness.py"}
+MODULES = {
+    "megarena_estimand.py": "bench_megarena_witness.py",
+    "megarena_realmap.py": "make_distorted_megarena.py",
+}
 
 
 def main(argv=None) -> int:
