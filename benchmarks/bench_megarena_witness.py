@@ -385,7 +385,15 @@ def main(argv=None) -> int:
         for key, d in row.get("estimand", {}).items():
             if isinstance(d, dict) and "x_nm" in d:
                 print(f"  {key}: " + ", ".join(f"{k} {v:+.4g}" for k, v in d.items()), file=sys.stderr)
-    print(json.dumps({"region": REGION, "frames": rows}, indent=1 if args.json else None))
+    result = {"region": REGION, "frames": rows}
+    if truth:
+        result["summary"] = me.summary(rows)
+        for who, d in result["summary"].items():
+            print(
+                f"{who}: " + ", ".join(f"{k} {v['mean']:+.4g} ± {v['sd']:.2g}" for k, v in d.items()),
+                file=sys.stderr,
+            )
+    print(json.dumps(result, indent=1 if args.json else None))
     return 0
 
 

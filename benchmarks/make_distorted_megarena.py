@@ -37,6 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import megarena_estimand as me  # noqa: E402
 import megarena_realmap as mr  # noqa: E402
+from bench_megarena_witness import MARGIN  # noqa: E402
 
 from calflow.instruments.pattern import Camera  # noqa: E402
 from calflow.instruments.pattern.megarena import MegarenaPattern  # noqa: E402
@@ -98,7 +99,30 @@ def write_frame(frame: np.ndarray, out: Path, n: int, quality: int | None) -> st
     return name
 
 
+def smoke(out: Path) -> int:
+    """``--smoke OUT``: two small frames through a known radial map, then the first one's view
+    re-rendered through the map its dots give (``--map-from``): the re-render's truth must be
+    the original's — the machinery checked on a case whose answer is known."""
+    import csv
+
+    small = ["--period-um", "9", "--depth", "8", "--size", "512x512"]
+    main([str(out), "--frames", "2", "--k", "0.003", "--seed", "3", *small])
+    main([str(out / "mapped"), "--map-from", str(out / "d00.tiff"), "--frames", "1", "--seed", "4", *small])
+    a, b = (next(csv.DictReader(open(f / "truth.csv"))) for f in (out, out / "mapped"))
+    dx, dy = (1000 * abs(float(a[k]) - float(b[k])) for k in ("x", "y"))
+    da = 1e6 * abs(float(a["alpha"]) - float(b["alpha"]))
+    print(
+        f"--map-from of a known radial map: truth moved by {dx:.2f} / {dy:.2f} nm, {da:.1f} µrad",
+        file=sys.stderr,
+    )
+    return 0 if max(dx, dy) < 5 and da < 50 else 1
+
+
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--smoke" in argv:
+        argv.remove("--smoke")
+        return smoke(Path(argv[0]))
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("out", help="folder for the frames (d00.tiff, …) and truth.csv")
     p.add_argument("--frames", type=int, default=12)
@@ -128,8 +152,9 @@ def main(argv=None) -> int:
     p.add_argument(
         "--map-region",
         type=float,
-        default=1.0,
-        help="the central fraction of IMAGE's sides whose dots fit the map",
+        default=me.CROP + MARGIN,
+        help="the central fraction of IMAGE's sides whose dots fit the map (default: the witness's, so that "
+        "the truth is the witness's estimand of IMAGE; 1: the whole frame)",
     )
     p.add_argument("--bit-depth", type=int, default=12)
     p.add_argument("--dot-diameter-um", type=float, help="the dots' diameter (default: half the period)")

@@ -274,3 +274,21 @@ def true_plane(affine: np.ndarray, qmap, shape, crop: float = CROP) -> np.ndarra
     A = np.stack([np.ones(x.size), (x - x0).ravel(), (y - y0).ravel()], 1)
     L = affine[:, :1] + affine[:, 1:2] * qx + affine[:, 2:3] * qy  # (2, n)
     return np.linalg.lstsq(A, L.T, rcond=None)[0].T
+
+
+def summary(rows: list[dict], keys=("x_nm", "y_nm", "alpha_urad", "pixel_percent")) -> dict:
+    """Over frames of known truth, each ``*_minus_truth`` difference of the rows' ``estimand``
+    (the witness's, calflow's in each convention, the library's): mean, sample sd and count."""
+    out: dict = {}
+    for row in rows:
+        for who, d in row.get("estimand", {}).items():
+            if who.endswith("minus_truth"):
+                for k in keys:
+                    out.setdefault(who, {}).setdefault(k, []).append(d[k])
+    return {
+        who: {
+            k: {"mean": float(np.mean(v)), "sd": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0, "n": len(v)}
+            for k, v in d.items()
+        }
+        for who, d in out.items()
+    }

@@ -39,7 +39,7 @@ SMOKE = {
     "bench_max_coverage.py": ["--seeds", "4", "--trials", "500", "--json"],
     "bench_megarena_vernier.py": ["--smoke", "--json"],
     "bench_megarena_witness.py": ["--smoke", "--json"],
-    "make_distorted_megarena.py": ["{run}/distorted", "--frames", "2", "--size", "256x192"],
+    "make_distorted_megarena.py": ["--smoke", "{run}/distorted"],
     "bench_hpcode_vernier.py": ["--smoke", "--json"],
     "reliability_sigkill.py": ["--smoke", "--json", "--workdir", "{run}/sigkill"],
     "reliability_gcs_campaign.py": ["--smoke", "--json"],
