@@ -87,13 +87,16 @@ def lattice(frame: np.ndarray, depth: int, fields: bool = False):
     return out
 
 
-def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50) -> np.ndarray:
-    """Each dot's Gaussian-weighted centroid (σ a fifth of the period) over the background
-    (the window's 20th percentile), re-centred on itself until it moves less than 1e-5 pixel."""
+def centroids(
+    img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50, sigma_periods: float = 0.2
+) -> np.ndarray:
+    """Each dot's Gaussian-weighted centroid (σ a fifth of the period unless told) over the
+    background (the window's 20th percentile), re-centred on itself until it moves less than
+    1e-5 pixel. A symmetric dot's centroid does not depend on σ; an asymmetric one's does."""
     h, w = img.shape
-    r = int(math.ceil(0.6 * period))
+    r = int(math.ceil(max(0.6, 2.5 * sigma_periods) * period))
     dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
-    sigma = 0.2 * period
+    sigma = sigma_periods * period
     p = xy.copy()
     for _ in range(iterations):
         ix, iy = np.rint(p[:, 0]).astype(int), np.rint(p[:, 1]).astype(int)
@@ -110,7 +113,7 @@ def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 
     return p
 
 
-def dots(frame: np.ndarray, depth: int, region: float = REGION):
+def dots(frame: np.ndarray, depth: int, region: float = REGION, sigma_periods: float = 0.2):
     """The dots within the central ``region`` of the frame's width and height (measured at the
     nodes calflow's coarse lattice predicts): their lattice indices s, t, centroids (n, 2), the
     period in pixels, and whether the dots are bright."""
@@ -133,7 +136,7 @@ def dots(frame: np.ndarray, depth: int, region: float = REGION):
     v = value(nodes) if bright else frame.max() - value(nodes)
     central = np.all(np.abs(nodes - rc) <= region * np.array([w, h]) / 2, axis=1)
     kept = inside & central & (v > 0.5 * (np.percentile(v[inside], 5) + np.percentile(v[inside], 95)))
-    c = centroids(img, nodes[kept], period)
+    c = centroids(img, nodes[kept], period, sigma_periods=sigma_periods)
     ok = np.isfinite(c).all(axis=1) & (np.hypot(*(c - nodes[kept]).T) < 0.25 * period)
     return s[kept][ok], t[kept][ok], c[ok], period, bright
 
@@ -190,6 +193,8 @@ def x_axis(w: dict, theta_x: float) -> tuple[float, float, list[float]]:
 
 
 MARGIN = 0.1  # dots this fraction of the frame beyond the library's region anchor the map at its edge
+#: the estimand again from centroids of a narrower and a wider window (σ in periods; 0.2 the witness's)
+WINDOWS = {"centroid_narrow": 0.12, "centroid_wide": 0.3}
 
 
 def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: dict, boot: int = 200) -> dict:
@@ -213,6 +218,10 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
             me.near(q["y"], reference["y"], period_um),
         )
         return q
+
+    def window(sigma):  # the same map's degree on centroids of another Gaussian window
+        s, t, c, *_ = dots(frame, depth, region=me.CROP + MARGIN, sigma_periods=sigma)
+        return me.estimand(c, np.stack([s, t], 1), frame.shape, degree, boot=0)["plane"]
 
     best = pose(e["plane"])
     reps = [pose(b) for b in e["boot"]]
@@ -239,6 +248,7 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
         "calflow_weights": pose(me.weighted_plane(m, pts, power, frame.shape)),
         "dot_offset_periods": [float(d) for d in delta],
         "dot_asymmetry": pose(shifted),
+        **{name: pose(window(sigma)) for name, sigma in WINDOWS.items()},
     }
 
 
@@ -343,6 +353,7 @@ def main(argv=None) -> int:
                         "calflow_bandpass",
                         "calflow_weights",
                         "dot_asymmetry",
+                        *WINDOWS,
                     )
                 },
             }
