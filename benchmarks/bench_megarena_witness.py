@@ -248,6 +248,7 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
         "calflow_weights": pose(me.weighted_plane(m, pts, power, frame.shape)),
         "dot_offset_periods": [float(d) for d in delta],
         "dot_asymmetry": pose(shifted),
+        "dot_asymmetry_field": pose(e["plane"] - me.dot_phase_plane(img, m, c, st, period_px, frame.shape)),
         **{name: pose(window(sigma)) for name, sigma in WINDOWS.items()},
     }
 
@@ -353,6 +354,7 @@ def main(argv=None) -> int:
                         "calflow_bandpass",
                         "calflow_weights",
                         "dot_asymmetry",
+                        "dot_asymmetry_field",
                         *WINDOWS,
                     )
                 },

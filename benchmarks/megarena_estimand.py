@@ -239,6 +239,43 @@ def dot_phase_offset(
     return np.angle(z) / (2 * np.pi)
 
 
+def dot_phase_plane(
+    img: np.ndarray,
+    m: LatticeMap,
+    xy: np.ndarray,
+    st: np.ndarray,
+    period_px: float,
+    shape,
+    crop: float = CROP,
+) -> np.ndarray:
+    """``dot_phase_offset`` dot by dot, δ_kj = arg Σ_{p ∈ cell k} (I(p) − Ī_k)·exp(2πi·(L_j(p) −
+    st_kj)) / 2π, and its uniform plane over the library's region (least squares over the dots
+    whose centroids lie in it, value at p₀, slopes per pixel): (2, 3) as ``estimand``'s plane.
+    Where the dots' asymmetry varies across the field (off-axis light, coma), the lobes' phase
+    lattice is the centroids' less this plane, not less one mean offset."""
+    h, w = img.shape
+    r = int(math.ceil(0.8 * period_px))
+    dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
+    ix, iy = np.rint(xy[:, 0]).astype(int), np.rint(xy[:, 1]).astype(int)
+    X, Y = ix[:, None, None] + dx, iy[:, None, None] + dy
+    full = ((X >= 0) & (X < w) & (Y >= 0) & (Y < h)).all(axis=(1, 2))
+    X, Y, st, xy = X[full], Y[full], st[full], xy[full]
+    L = m(X, Y) - st[:, None, None, :]
+    cell = np.all(np.abs(L) < 0.5, axis=-1)
+    I = img[Y, X].astype(float)
+    mean = (I * cell).sum(axis=(1, 2)) / np.maximum(cell.sum(axis=(1, 2)), 1)
+    dev = (I - mean[:, None, None]) * cell
+    delta = np.stack(
+        [np.angle((dev * np.exp(2j * np.pi * L[..., j])).sum(axis=(1, 2))) / (2 * np.pi) for j in (0, 1)], 1
+    )
+    rows, cols, (x0, y0) = library_region(*shape, crop)
+    inside = (
+        (xy[:, 0] >= cols.start) & (xy[:, 0] < cols.stop) & (xy[:, 1] >= rows.start) & (xy[:, 1] < rows.stop)
+    )
+    A = np.stack([np.ones(int(inside.sum())), xy[inside, 0] - x0, xy[inside, 1] - y0], 1)
+    return np.linalg.lstsq(A, delta[inside], rcond=None)[0].T
+
+
 def radial_map(shape, centre: tuple[float, float], k: float):
     """A decentred radial distortion q = c + (p − c)·(1 + k·|p − c|²/R²), R the frame's half
     diagonal: the function p ↦ q (pixel arrays), the frame seen through it sampling the
