@@ -56,21 +56,25 @@ def lattice_affine(cam: Camera, pattern: MegarenaPattern, x: float, y: float, th
     return np.linalg.lstsq(A, L, rcond=None)[0].T
 
 
-def distorted_frame(cam: Camera, pattern: MegarenaPattern, pose, centre, k: float, rng, qmap=None):
-    """One frame through the map (k, centre), or through ``qmap`` (p ↦ q) when given, and its
-    truth in the library's convention."""
+def distorted_frame(
+    cam: Camera, pattern: MegarenaPattern, pose, centre, k: float, rng, qmap=None, light=None
+):
+    """One frame through the map (k, centre), or through ``qmap`` (p ↦ q) when given, its
+    expected levels passed through ``light`` when given, and its truth in the library's
+    convention."""
     x, y, theta = pose
     if qmap is None:
         qmap = me.radial_map((cam.height, cam.width), centre, k)
-    frame = cam.expose(me.distort(cam.expectation(pattern, x, y, theta), qmap), rng)
+    expected = me.distort(cam.expectation(pattern, x, y, theta), qmap)
+    frame = cam.expose(light(expected) if light else expected, rng)
     plane = me.true_plane(lattice_affine(cam, pattern, x, y, theta), qmap, frame.shape)
     truth = me.library_pose(plane, pattern.period_um, ((0, 1), (1, 1)), 0.0)
     return frame, truth
 
 
-def real_view(path: str, pattern: MegarenaPattern, degree, region: float):
+def real_view(path: str, pattern: MegarenaPattern, degree, region: float, clamp: bool = False):
     """The real frame's lattice (megarena_realmap) and calflow's decoding of it: its pose
-    (calflow's convention), size (w, h) and pixel size."""
+    (calflow's convention), size (w, h) and pixel size; and the frame itself."""
     from calflow.instruments.pattern.frames import read_frames
     from calflow.instruments.pattern.megarena import decode
 
@@ -80,7 +84,9 @@ def real_view(path: str, pattern: MegarenaPattern, degree, region: float):
         raise SystemExit(f"{path}: calflow does not decode it ({r.reason[0]}): no view to render")
     pose = (float(r.x_um[0]), float(r.y_um[0]), float(r.theta_x_deg[0]))
     real = mr.real_lattice(frame, pattern.depth, degree, region)
-    return real, pose, (frame.shape[1], frame.shape[0]), float(r.pixel_um[0])
+    if region < 1 and not clamp:
+        real.outer = mr.real_lattice(frame, pattern.depth, None, 1.0)
+    return real, pose, (frame.shape[1], frame.shape[0]), float(r.pixel_um[0]), frame
 
 
 def write_frame(frame: np.ndarray, out: Path, n: int, quality: int | None) -> str:
@@ -156,6 +162,18 @@ def main(argv=None) -> int:
         help="the central fraction of IMAGE's sides whose dots fit the map (default: the witness's, so that "
         "the truth is the witness's estimand of IMAGE; 1: the whole frame)",
     )
+    p.add_argument(
+        "--clamp-outside",
+        action="store_true",
+        help="beyond the map's dots, continue its affine part with its non-affine part clamped "
+        "(default: follow the whole frame's map, cross-validated degree, from the box's edge)",
+    )
+    p.add_argument(
+        "--light-from-real",
+        action="store_true",
+        help="with --map-from: the real frame's background and dot-top fields (megarena_realmap.relight) "
+        "instead of the camera's illumination",
+    )
     p.add_argument("--bit-depth", type=int, default=12)
     p.add_argument("--dot-diameter-um", type=float, help="the dots' diameter (default: half the period)")
     p.add_argument("--defocus-um", type=float, default=0.0, help="the pattern's distance from focus (blur)")
@@ -170,8 +188,8 @@ def main(argv=None) -> int:
     width, height = (int(v) for v in args.size.lower().split("x"))
     pixel_um, real = args.pixel_um, None
     if args.map_from:
-        real, view, (width, height), pixel_um = real_view(
-            args.map_from, pattern, args.degree, args.map_region
+        real, view, (width, height), pixel_um, levels = real_view(
+            args.map_from, pattern, args.degree, args.map_region, args.clamp_outside
         )
         args.pose = args.pose or ",".join(repr(v) for v in view)
         print(
@@ -186,7 +204,14 @@ def main(argv=None) -> int:
         magnification=3.75 / pixel_um,
         bit_depth=args.bit_depth,
         defocus_um=args.defocus_um,
+        illumination_nonuniformity=0.0 if args.light_from_real else 0.1,
     )
+    light = None
+    if args.light_from_real:
+        if real is None:
+            p.error("--light-from-real: expected --map-from IMAGE")
+        scale = cam.max_level / (np.iinfo(levels.dtype).max if levels.dtype.kind in "ui" else 1.0)
+        light = lambda e: mr.relight(e, levels, real.period_px, scale)  # noqa: E731
     side = pattern.size_um[0]
     rows = ["file,x,y,alpha,pixelSize,k,cx,cy,map_from,degree"]
     theta, centre = rng.uniform(-180, 180), (rng.uniform(0, cam.width - 1), rng.uniform(0, cam.height - 1))
@@ -200,7 +225,7 @@ def main(argv=None) -> int:
         qmap = None
         if real is not None:
             qmap, R, k = mr.real_warp(real, lattice_affine(cam, pattern, *pose))
-        frame, t = distorted_frame(cam, pattern, pose, centre, args.k, rng, qmap)
+        frame, t = distorted_frame(cam, pattern, pose, centre, args.k, rng, qmap, light)
         name = write_frame(frame, out, n, args.jpeg_quality)
         source = (Path(args.map_from).name, real.map.degree) if real else ("", "")
         rows.append(

@@ -46,6 +46,7 @@ class RealLattice:
     bright: bool
     rms_affine_px: float  # the dots' rms distance from one lattice (pixels)
     rms_px: float  # from the map (pixels)
+    outer: RealLattice | None = None  # a map of the whole frame's dots, for beyond the box
 
     def nonaffine(self, x, y) -> np.ndarray:
         """N(clip(p)) (periods, (..., 2)): the map less its affine part, clamped to the dots' box."""
@@ -58,9 +59,16 @@ class RealLattice:
         return np.stack([a[j, 0] + a[j, 1] * x + a[j, 2] * y for j in (0, 1)], axis=-1)
 
     def __call__(self, x, y) -> np.ndarray:
-        """The clamped map: the affine part everywhere, the non-affine part as ``nonaffine``."""
+        """The map within the dots' box; beyond it, without ``outer``, the affine part continued
+        and the non-affine part clamped (``nonaffine``); with ``outer``, the map at the box's
+        nearest point plus the outer map's change from that point, M(clip(p)) + M_o(p) −
+        M_o(clip(p)) (continuous at the box's edge, the whole frame's curvature beyond it)."""
         x, y = np.asarray(x, float), np.asarray(y, float)
-        return self._affine(x, y) + self.nonaffine(x, y)
+        if self.outer is None:
+            return self._affine(x, y) + self.nonaffine(x, y)
+        x0, x1, y0, y1 = self.box
+        xc, yc = np.clip(x, x0, x1), np.clip(y, y0, y1)
+        return self.map(xc, yc) + self.outer(x, y) - self.outer(xc, yc)
 
 
 def real_lattice(
@@ -128,3 +136,25 @@ def shear_deg(affine: np.ndarray) -> float:
     g = np.linalg.inv(affine[:, 1:])  # columns: the pixel steps of one period along s and t
     c = g[:, 0] @ g[:, 1] / (np.linalg.norm(g[:, 0]) * np.linalg.norm(g[:, 1]))
     return 90.0 - math.degrees(math.acos(abs(c)))
+
+
+def envelope(img: np.ndarray, period_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """A frame's background and dot-top fields (its level's units): the minimum (maximum) over
+    a period, averaged over three periods — what illumination, halo and glare make of the
+    frame's levels, slowly varying, without the dots."""
+    from scipy.ndimage import maximum_filter, minimum_filter, uniform_filter
+
+    n = max(int(round(period_px)), 1)
+    img = np.asarray(img, float)
+    return uniform_filter(minimum_filter(img, n), 3 * n), uniform_filter(maximum_filter(img, n), 3 * n)
+
+
+def relight(expected: np.ndarray, real: np.ndarray, period_px: float, scale: float) -> np.ndarray:
+    """The render's expected frame carried onto the real frame's background B and dot tops T
+    (``envelope`` of each, the real one times ``scale`` to the render's levels):
+    B + (T − B)·(E − b)/(t − b), b and t the render's own fields — the real frame's light, the
+    render's dots."""
+    b, t = envelope(expected, period_px)
+    B, T = envelope(real, period_px)
+    out = scale * (B + (T - B) * (expected - b) / np.maximum(t - b, 1e-6))
+    return np.clip(out, 0, None).astype(np.float32)
