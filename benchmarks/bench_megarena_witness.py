@@ -253,16 +253,6 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
     }
 
 
-def differences(pose: dict, ref: dict) -> dict:
-    """pose − ref in nm, µrad and %."""
-    return {
-        "x_nm": 1000 * (pose["x"] - ref["x"]),
-        "y_nm": 1000 * (pose["y"] - ref["y"]),
-        "alpha_urad": 1e6 * float(_wrap(pose["alpha"] - ref["alpha"])),
-        "pixel_percent": 100 * (pose["pixelSize"] / ref["pixelSize"] - 1),
-    }
-
-
 def smoke(folder: Path) -> list[str]:
     """``--smoke``: two frames calflow's camera renders at known angles, and that truth."""
     import tifffile
@@ -344,10 +334,10 @@ def main(argv=None) -> int:
                     "alpha_urad": 1e6 * est["u"]["alpha"],
                     "pixel_percent": 100 * est["u"]["pixelSize"] / E["pixelSize"],
                 },
-                "calflow_minus": differences(ours_lib, E),
-                **({"library_minus": differences(lib_pose, E)} if lib_pose else {}),
+                "calflow_minus": me.differences(ours_lib, E),
+                **({"library_minus": me.differences(lib_pose, E)} if lib_pose else {}),
                 **{
-                    k + "_minus": differences(est[k], E)
+                    k + "_minus": me.differences(est[k], E)
                     for k in (
                         "next_degree",
                         "library_bandpass",
@@ -364,14 +354,14 @@ def main(argv=None) -> int:
                 q = decode(frame, pattern, fit_region=REGION, plane_weights=mode)
                 if q.status[0] == "ok":
                     reweighted[mode] = {k: float(v[0]) for k, v in q.library_pose().items()}
-                    row["estimand"][f"calflow_{mode}_minus"] = differences(reweighted[mode], E)
+                    row["estimand"][f"calflow_{mode}_minus"] = me.differences(reweighted[mode], E)
             if name in truth and "x" in truth[name]:
                 T = {k: float(truth[name][k]) for k in ("x", "y", "alpha", "pixelSize")}
                 T["x"], T["y"] = (
                     me.near(T["x"], E["x"], args.period_um),
                     me.near(T["y"], E["y"], args.period_um),
                 )
-                row["estimand"]["minus_truth"] = differences(E, T)
+                row["estimand"]["minus_truth"] = me.differences(E, T)
                 row["estimand"]["u_over_error"] = {
                     k: abs(row["estimand"]["minus_truth"][k]) / max(row["estimand"]["u"][k], 1e-300)
                     for k in ("x_nm", "y_nm", "alpha_urad")
@@ -384,7 +374,7 @@ def main(argv=None) -> int:
                             x=me.near(T["x"], q["x"], args.period_um),
                             y=me.near(T["y"], q["y"], args.period_um),
                         )
-                        row["estimand"][f"{who}_minus_truth"] = differences(q, Tq)
+                        row["estimand"][f"{who}_minus_truth"] = me.differences(q, Tq)
             if name in truth:
                 row["witness_minus_truth_urad"] = 1e6 * float(_wrap(angle - float(truth[name]["alpha"])))
                 row["calflow_minus_truth_urad"] = 1e6 * float(_wrap(ours - float(truth[name]["alpha"])))
