@@ -189,13 +189,13 @@ def analyse(
         "dots": int(len(c)),
         "degree": degree,
         "axes": [list(a) for a in axes],
-        "u": wit.differences(
+        "u": me.differences(
             {k: Ep[k] + float(np.std([pose(b + [offset, 0, 0])[k] for b in e["boot"]], ddof=1)) for k in Ep},
             Ep,
         )
         if boot > 1
         else None,
-        "calflow_minus": wit.differences(ours, Ep),
+        "calflow_minus": me.differences(ours, Ep),
     }
     smp = phase_samples(frame, depth)
     L = m(smp["pts"][:, 0], smp["pts"][:, 1]).T + offset  # (2, n)
@@ -214,16 +214,16 @@ def analyse(
     check = float(np.max(np.abs((at_rc - refit_phase / (2 * np.pi) + 0.5) % 1.0 - 0.5)))
     check = max(check, float(np.max(np.abs(mine[:, 1:] - refit_freq))))
     out["refit_check_periods"] = check
-    out["samples_plane_minus"] = wit.differences(pose(mine), Ep)
+    out["samples_plane_minus"] = me.differences(pose(mine), Ep)
     out["decomposition"] = {
-        "sampling": wit.differences(pose(fitted(dict(base, regressors=False), L)), Ep),
-        "regressors_on_map": wit.differences(
+        "sampling": me.differences(pose(fitted(dict(base, regressors=False), L)), Ep),
+        "regressors_on_map": me.differences(
             pose(fitted(base, L)), pose(fitted(dict(base, regressors=False), L))
         ),
-        "residual": wit.differences(pose(E + fitted(base, rho)), Ep),
+        "residual": me.differences(pose(E + fitted(base, rho)), Ep),
     }
     out["one_at_a_time"] = {
-        name: wit.differences(pose(fitted(dict(base, **change))), Ep)
+        name: me.differences(pose(fitted(dict(base, **change))), Ep)
         for name, change in (
             ("no_floor", {"floor": 0.0}),
             ("floor_0.3", {"floor": 0.3}),
@@ -243,7 +243,7 @@ def analyse(
         spots[j, u] = rho[j][u] - A @ np.linalg.lstsq(A, rho[j][u], rcond=None)[0]
         spots[j] /= 1.4826 * np.median(np.abs(spots[j, u]))
     for k in (8, 5):
-        out["one_at_a_time"][f"spots_beyond_{k}_mad"] = wit.differences(
+        out["one_at_a_time"][f"spots_beyond_{k}_mad"] = me.differences(
             pose(fitted(dict(base, leave_out=np.abs(spots) > k))), Ep
         )
         out[f"spots_beyond_{k}_mad"] = [int(np.sum((region > 0) & (np.abs(spots[j]) > k))) for j in (0, 1)]
@@ -288,13 +288,13 @@ def analyse(
             est[f"{sig}:{centre}"] = pose(
                 me.band_pass_plane(frame.astype(float), smp["freq"], bins, centre, E)
             )
-    out["band_pass"] = {k: wit.differences(q, Ep) for k, q in est.items()}
+    out["band_pass"] = {k: me.differences(q, Ep) for k, q in est.items()}
     # the estimand from the centroids on the frame as it is (its background's slope left in them)
     s0, t0, c0, *_ = wit.dots(frame, depth, region=me.CROP + wit.MARGIN, flatten=False)
     st0 = np.stack([s0, t0], 1)
     E0 = me.estimand(c0, st0, frame.shape, me.cv_degree(c0, st0, frame.shape)[0], boot=0)["plane"]
     E0 = pose(E0 + np.array([offset, 0.0, 0.0]))
-    out["unflattened_minus"] = wit.differences(E0, Ep)
+    out["unflattened_minus"] = me.differences(E0, Ep)
     out["_poses"] = {
         "E": Ep,
         "E unflattened": E0,
@@ -375,8 +375,8 @@ def main(argv=None) -> int:
         row = {"file": name, **analyse(frame, args.period_um, args.depth, lib_pose, sigmas, args.boot)}
         poses = row.pop("_poses", {})
         if poses and lib_pose:
-            row["library_minus"] = wit.differences(lib_pose, poses["E"])
-            row["minus_library"] = {k: wit.differences(q, lib_pose) for k, q in poses.items() if k != "E"}
+            row["library_minus"] = me.differences(lib_pose, poses["E"])
+            row["minus_library"] = {k: me.differences(q, lib_pose) for k, q in poses.items() if k != "E"}
         if poses and name in truth:
             T = {k: float(truth[name][k]) for k in ("x", "y", "alpha", "pixelSize")}
             row["minus_truth"] = {}
@@ -384,7 +384,7 @@ def main(argv=None) -> int:
                 Tq = dict(
                     T, x=me.near(T["x"], q["x"], args.period_um), y=me.near(T["y"], q["y"], args.period_um)
                 )
-                row["minus_truth"][k] = wit.differences(q, Tq)
+                row["minus_truth"][k] = me.differences(q, Tq)
         rows.append(row)
         print(f"{name}: dots {row.get('dots')}, degree {row.get('degree')}", file=sys.stderr)
         for key in ("calflow_minus", "samples_plane_minus", "library_minus"):

@@ -91,13 +91,16 @@ def lattice(frame: np.ndarray, depth: int, fields: bool = False):
     return out
 
 
-def centroids(img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50) -> np.ndarray:
-    """Each dot's Gaussian-weighted centroid (σ a fifth of the period) over the background
-    (the window's 20th percentile), re-centred on itself until it moves less than 1e-5 pixel."""
+def centroids(
+    img: np.ndarray, xy: np.ndarray, period: float, iterations: int = 50, sigma_periods: float = 0.2
+) -> np.ndarray:
+    """Each dot's Gaussian-weighted centroid (σ a fifth of the period unless told) over the
+    background (the window's 20th percentile), re-centred on itself until it moves less than
+    1e-5 pixel. A symmetric dot's centroid does not depend on σ; an asymmetric one's does."""
     h, w = img.shape
-    r = int(math.ceil(0.6 * period))
+    r = int(math.ceil(max(0.6, 2.5 * sigma_periods) * period))
     dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
-    sigma = 0.2 * period
+    sigma = sigma_periods * period
     p = xy.copy()
     for _ in range(iterations):
         ix, iy = np.rint(p[:, 0]).astype(int), np.rint(p[:, 1]).astype(int)
@@ -126,7 +129,9 @@ def background(img: np.ndarray, period: float) -> np.ndarray:
     return gaussian_filter(grey_opening(img, size=(n, n)), period)
 
 
-def dots(frame: np.ndarray, depth: int, region: float = REGION, flatten: bool = True):
+def dots(
+    frame: np.ndarray, depth: int, region: float = REGION, flatten: bool = True, sigma_periods: float = 0.2
+):
     """The dots within the central ``region`` of the frame's width and height (measured at the
     nodes calflow's coarse lattice predicts): their lattice indices s, t, centroids (n, 2), the
     period in pixels, and whether the dots are bright. ``flatten``: the centroids are taken on
@@ -152,7 +157,7 @@ def dots(frame: np.ndarray, depth: int, region: float = REGION, flatten: bool = 
     kept = inside & central & (v > 0.5 * (np.percentile(v[inside], 5) + np.percentile(v[inside], 95)))
     if flatten:
         img = img - background(img, period)
-    c = centroids(img, nodes[kept], period)
+    c = centroids(img, nodes[kept], period, sigma_periods=sigma_periods)
     ok = np.isfinite(c).all(axis=1) & (np.hypot(*(c - nodes[kept]).T) < 0.25 * period)
     return s[kept][ok], t[kept][ok], c[ok], period, bright
 
@@ -209,6 +214,8 @@ def x_axis(w: dict, theta_x: float) -> tuple[float, float, list[float]]:
 
 
 MARGIN = 0.1  # dots this fraction of the frame beyond the library's region anchor the map at its edge
+#: the estimand again from centroids of a narrower and a wider window (σ in periods; 0.2 the witness's)
+WINDOWS = {"centroid_narrow": 0.12, "centroid_wide": 0.3}
 
 
 def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: dict, boot: int = 200) -> dict:
@@ -232,6 +239,10 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
             me.near(q["y"], reference["y"], period_um),
         )
         return q
+
+    def window(sigma):  # the same map's degree on centroids of another Gaussian window
+        s, t, c, *_ = dots(frame, depth, region=me.CROP + MARGIN, sigma_periods=sigma)
+        return me.estimand(c, np.stack([s, t], 1), frame.shape, degree, boot=0)["plane"]
 
     best = pose(e["plane"])
     reps = [pose(b) for b in e["boot"]]
@@ -263,16 +274,11 @@ def estimand_pose(frame: np.ndarray, period_um: float, depth: int, reference: di
         "dot_offset_periods": [float(d) for d in delta],
         "dot_asymmetry": pose(shifted),
         "unflattened": pose(unflattened),
-    }
-
-
-def differences(pose: dict, ref: dict) -> dict:
-    """pose − ref in nm, µrad and %."""
-    return {
-        "x_nm": 1000 * (pose["x"] - ref["x"]),
-        "y_nm": 1000 * (pose["y"] - ref["y"]),
-        "alpha_urad": 1e6 * float(_wrap(pose["alpha"] - ref["alpha"])),
-        "pixel_percent": 100 * (pose["pixelSize"] / ref["pixelSize"] - 1),
+        "dot_asymmetry_field": pose(
+            e["plane"]
+            - me.dot_phase_plane(img - background(img, period_px), m, c, st, period_px, frame.shape)
+        ),
+        **{name: pose(window(sigma)) for name, sigma in WINDOWS.items()},
     }
 
 
@@ -357,10 +363,10 @@ def main(argv=None) -> int:
                     "alpha_urad": 1e6 * est["u"]["alpha"],
                     "pixel_percent": 100 * est["u"]["pixelSize"] / E["pixelSize"],
                 },
-                "calflow_minus": differences(ours_lib, E),
-                **({"library_minus": differences(lib_pose, E)} if lib_pose else {}),
+                "calflow_minus": me.differences(ours_lib, E),
+                **({"library_minus": me.differences(lib_pose, E)} if lib_pose else {}),
                 **{
-                    k + "_minus": differences(est[k], E)
+                    k + "_minus": me.differences(est[k], E)
                     for k in (
                         "next_degree",
                         "library_bandpass",
@@ -368,6 +374,8 @@ def main(argv=None) -> int:
                         "calflow_weights",
                         "dot_asymmetry",
                         "unflattened",
+                        "dot_asymmetry_field",
+                        *WINDOWS,
                     )
                 },
             }
@@ -376,14 +384,14 @@ def main(argv=None) -> int:
                 q = decode(frame, pattern, fit_region=REGION, plane_weights=mode)
                 if q.status[0] == "ok":
                     reweighted[mode] = {k: float(v[0]) for k, v in q.library_pose().items()}
-                    row["estimand"][f"calflow_{mode}_minus"] = differences(reweighted[mode], E)
+                    row["estimand"][f"calflow_{mode}_minus"] = me.differences(reweighted[mode], E)
             if name in truth and "x" in truth[name]:
                 T = {k: float(truth[name][k]) for k in ("x", "y", "alpha", "pixelSize")}
                 T["x"], T["y"] = (
                     me.near(T["x"], E["x"], args.period_um),
                     me.near(T["y"], E["y"], args.period_um),
                 )
-                row["estimand"]["minus_truth"] = differences(E, T)
+                row["estimand"]["minus_truth"] = me.differences(E, T)
                 row["estimand"]["u_over_error"] = {
                     k: abs(row["estimand"]["minus_truth"][k]) / max(row["estimand"]["u"][k], 1e-300)
                     for k in ("x_nm", "y_nm", "alpha_urad")
@@ -396,7 +404,7 @@ def main(argv=None) -> int:
                             x=me.near(T["x"], q["x"], args.period_um),
                             y=me.near(T["y"], q["y"], args.period_um),
                         )
-                        row["estimand"][f"{who}_minus_truth"] = differences(q, Tq)
+                        row["estimand"][f"{who}_minus_truth"] = me.differences(q, Tq)
             if name in truth:
                 row["witness_minus_truth_urad"] = 1e6 * float(_wrap(angle - float(truth[name]["alpha"])))
                 row["calflow_minus_truth_urad"] = 1e6 * float(_wrap(ours - float(truth[name]["alpha"])))
@@ -410,7 +418,15 @@ def main(argv=None) -> int:
         for key, d in row.get("estimand", {}).items():
             if isinstance(d, dict) and "x_nm" in d:
                 print(f"  {key}: " + ", ".join(f"{k} {v:+.4g}" for k, v in d.items()), file=sys.stderr)
-    print(json.dumps({"region": REGION, "frames": rows}, indent=1 if args.json else None))
+    result = {"region": REGION, "frames": rows}
+    if truth:
+        result["summary"] = me.summary(rows)
+        for who, d in result["summary"].items():
+            print(
+                f"{who}: " + ", ".join(f"{k} {v['mean']:+.4g} ± {v['sd']:.2g}" for k, v in d.items()),
+                file=sys.stderr,
+            )
+    print(json.dumps(result, indent=1 if args.json else None))
     return 0
 
 

@@ -210,6 +210,26 @@ def weighted_plane(
     return out
 
 
+def _cell_phasors(img: np.ndarray, m: LatticeMap, xy: np.ndarray, st: np.ndarray, period_px: float):
+    """Per dot wholly inside the frame, Σ_{p ∈ cell k} (I(p) − Ī_k)·exp(2πi·(L_j(p) − st_kj))
+    for j = s, t ((n, 2) complex), and those dots' centroids (n, 2): the cell is the pixels
+    whose mapped lattice coordinates lie within half a period of the dot's indices."""
+    h, w = img.shape
+    r = int(math.ceil(0.8 * period_px))
+    dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
+    ix, iy = np.rint(xy[:, 0]).astype(int), np.rint(xy[:, 1]).astype(int)
+    X, Y = ix[:, None, None] + dx, iy[:, None, None] + dy
+    full = ((X >= 0) & (X < w) & (Y >= 0) & (Y < h)).all(axis=(1, 2))
+    X, Y, st = X[full], Y[full], st[full]
+    L = m(X, Y) - st[:, None, None, :]  # (n, box, box, 2)
+    cell = np.all(np.abs(L) < 0.5, axis=-1)
+    I = img[Y, X].astype(float)
+    mean = (I * cell).sum(axis=(1, 2)) / np.maximum(cell.sum(axis=(1, 2)), 1)
+    dev = (I - mean[:, None, None]) * cell
+    z = np.stack([(dev * np.exp(2j * np.pi * L[..., j])).sum(axis=(1, 2)) for j in (0, 1)], 1)
+    return z, xy[full]
+
+
 def dot_phase_offset(
     img: np.ndarray, m: LatticeMap, xy: np.ndarray, st: np.ndarray, period_px: float
 ) -> np.ndarray:
@@ -222,21 +242,32 @@ def dot_phase_offset(
     I the frame with the dots bright, Ī_k its cell's mean. A dot symmetric about its centroid
     gives δ = 0; an asymmetric one (its shape, the illumination's angle, coma) moves the lobes'
     phase, and so both decoders' positions, by P·δ along the lattice from the centroids'."""
-    h, w = img.shape
-    r = int(math.ceil(0.8 * period_px))
-    dy, dx = np.mgrid[-r : r + 1, -r : r + 1]
-    ix, iy = np.rint(xy[:, 0]).astype(int), np.rint(xy[:, 1]).astype(int)
-    X, Y = ix[:, None, None] + dx, iy[:, None, None] + dy
-    inside = (X >= 0) & (X < w) & (Y >= 0) & (Y < h)
-    full = inside.all(axis=(1, 2))
-    X, Y, st = X[full], Y[full], st[full]
-    L = m(X, Y) - st[:, None, None, :]  # (n, box, box, 2)
-    cell = np.all(np.abs(L) < 0.5, axis=-1)
-    I = img[Y, X].astype(float)
-    mean = (I * cell).sum(axis=(1, 2)) / np.maximum(cell.sum(axis=(1, 2)), 1)
-    dev = (I - mean[:, None, None]) * cell
-    z = [(dev * np.exp(2j * np.pi * L[..., j])).sum() for j in (0, 1)]
-    return np.angle(z) / (2 * np.pi)
+    z, _ = _cell_phasors(img, m, xy, st, period_px)
+    return np.angle(z.sum(axis=0)) / (2 * np.pi)
+
+
+def dot_phase_plane(
+    img: np.ndarray,
+    m: LatticeMap,
+    xy: np.ndarray,
+    st: np.ndarray,
+    period_px: float,
+    shape,
+    crop: float = CROP,
+) -> np.ndarray:
+    """``dot_phase_offset`` dot by dot, δ_kj = arg Σ_{p ∈ cell k} (I(p) − Ī_k)·exp(2πi·(L_j(p) −
+    st_kj)) / 2π, and its uniform plane over the library's region (least squares over the dots
+    whose centroids lie in it, value at p₀, slopes per pixel): (2, 3) as ``estimand``'s plane.
+    Where the dots' asymmetry varies across the field (off-axis light, coma), the lobes' phase
+    lattice is the centroids' less this plane, not less one mean offset."""
+    z, xy = _cell_phasors(img, m, xy, st, period_px)
+    delta = np.angle(z) / (2 * np.pi)
+    rows, cols, (x0, y0) = library_region(*shape, crop)
+    inside = (
+        (xy[:, 0] >= cols.start) & (xy[:, 0] < cols.stop) & (xy[:, 1] >= rows.start) & (xy[:, 1] < rows.stop)
+    )
+    A = np.stack([np.ones(int(inside.sum())), xy[inside, 0] - x0, xy[inside, 1] - y0], 1)
+    return np.linalg.lstsq(A, delta[inside], rcond=None)[0].T
 
 
 def radial_map(shape, centre: tuple[float, float], k: float):
@@ -308,3 +339,31 @@ def band_pass_plane(frame, freq, sigma, centre: str = "integer", near=None) -> n
             coef[0] += np.round(near[lobe, 0] - coef[0])
         plane[lobe] = coef
     return plane
+
+
+def differences(pose: dict, ref: dict) -> dict:
+    """pose − ref (library convention, µm and radians) in nm, µrad and %."""
+    return {
+        "x_nm": 1000 * (pose["x"] - ref["x"]),
+        "y_nm": 1000 * (pose["y"] - ref["y"]),
+        "alpha_urad": 1e6 * _wrap(pose["alpha"] - ref["alpha"]),
+        "pixel_percent": 100 * (pose["pixelSize"] / ref["pixelSize"] - 1),
+    }
+
+
+def summary(rows: list[dict], keys=("x_nm", "y_nm", "alpha_urad", "pixel_percent")) -> dict:
+    """Over frames of known truth, each ``*_minus_truth`` difference of the rows' ``estimand``
+    (the witness's, calflow's in each convention, the library's): mean, sample sd and count."""
+    out: dict = {}
+    for row in rows:
+        for who, d in row.get("estimand", {}).items():
+            if who.endswith("minus_truth"):
+                for k in keys:
+                    out.setdefault(who, {}).setdefault(k, []).append(d[k])
+    return {
+        who: {
+            k: {"mean": float(np.mean(v)), "sd": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0, "n": len(v)}
+            for k, v in d.items()
+        }
+        for who, d in out.items()
+    }

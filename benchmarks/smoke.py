@@ -40,7 +40,7 @@ SMOKE = {
     "bench_megarena_vernier.py": ["--smoke", "--json"],
     "bench_megarena_witness.py": ["--smoke", "--json"],
     "bench_megarena_residual.py": ["--smoke", "--json"],
-    "make_distorted_megarena.py": ["{run}/distorted", "--frames", "2", "--size", "256x192"],
+    "make_distorted_megarena.py": ["--smoke", "{run}/distorted"],
     "bench_hpcode_vernier.py": ["--smoke", "--json"],
     "reliability_sigkill.py": ["--smoke", "--json", "--workdir", "{run}/sigkill"],
     "reliability_gcs_campaign.py": ["--smoke", "--json"],
@@ -52,7 +52,10 @@ SMOKE = {
 }
 
 #: modules the benchmarks import, run through them (not on their own): module → a benchmark above
-MODULES = {"megarena_estimand.py": "bench_megarena_witness.py"}
+MODULES = {
+    "megarena_estimand.py": "bench_megarena_witness.py",
+    "megarena_realmap.py": "make_distorted_megarena.py",
+}
 
 
 def main(argv=None) -> int:

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from calflow.instruments.pattern import Camera
@@ -22,6 +22,13 @@ from calflow.instruments.pattern.megarena import MegarenaPattern, decode
 from calflow.instruments.pattern.spectrum import TUKEY, on_flat, tukey
 
 ANGLE_URAD = {0.5: 5.0, 1.0: 15.0}  # largest error of each axis's direction, by fit region
+# Within a few degrees of a pixel axis, at 18–19 pixels a period, the central half's angle is
+# 5–8.5 µrad off (a sweep of θ = ±3° about both axes: 14 of 98 poses beyond 5 µrad at
+# 0.484 µm pixels, 38 of 98 at 0.5 µm, none at 0.45, 0.47 or 0.55; the whole frame 1.9 µrad at
+# most there; docs/instruments.md, "Angle near a pixel axis"): a known bias, not yet explained,
+# held here at its measured size rather than hidden by a looser bound everywhere.
+NEAR_AXIS_DEG = 3.0
+NEAR_AXIS_URAD = {0.5: 10.0, 1.0: 15.0}
 POSITION_NM = {0.5: 0.5, 1.0: 2.0}
 
 
@@ -68,7 +75,13 @@ def test_noise_free_frames_angle_within_a_few_microradians(pixel_um, theta, x, y
     assert d < POSITION_NM[region]
 
 
+def _bound(theta: float, region: float) -> float:
+    near_axis = abs((theta + 45.0) % 90.0 - 45.0) < NEAR_AXIS_DEG
+    return (NEAR_AXIS_URAD if near_axis else ANGLE_URAD)[region]
+
+
 @settings(max_examples=6, deadline=None)
+@example(pixel_um=0.484375, theta=1.0, x=2000.0, y=36882.0, dot=0.5, defocus=0.0)  # a local find: 5.05 µrad
 @given(
     pixel_um=st.floats(0.45, 0.9),
     theta=st.floats(-180.0, 180.0),
@@ -83,7 +96,7 @@ def test_the_angle_holds_whatever_the_dots_size_and_focus(pixel_um, theta, x, y,
         r = decode(frame, pattern, fit_region=region, workers=1)
         assume(r.status[0] == "ok")  # a frame it cannot read gets NaN and a reason (tested apart)
         ex, ey, d = _errors(r, theta, x, y)
-        assert abs(ex) < ANGLE_URAD[region] and abs(ey) < ANGLE_URAD[region], (region, ex, ey)
+        assert abs(ex) < _bound(theta, region) and abs(ey) < _bound(theta, region), (region, ex, ey)
         assert d < POSITION_NM[region]
 
 
@@ -139,3 +152,16 @@ def test_the_fundamental_is_found_below_a_stronger_diagonal_harmonic(pixel_um, t
     r = decode(frame, pattern, workers=1)  # no pixel size given: measured from the frame
     assert r.status[0] == "ok", r.reason[0]
     assert abs(r.pixel_um[0] / pixel_um - 1) < 1e-4 and _errors(r, theta, x, y)[2] < 2.0
+
+
+@pytest.mark.parametrize(("pixel_um", "theta"), [(0.5, 89.375), (0.484375, -0.625)])
+def test_near_a_pixel_axis_the_bias_is_the_central_halfs(pixel_um, theta):
+    """The sweep's worst poses (module's NEAR_AXIS_URAD): the central half within its known
+    bias, the whole frame, over the same lattice, within a few µrad — the bias is the central
+    half's, not the lattice's."""
+    x, y = 20000.0, 36882.0
+    pattern, frame = _frame(pixel_um, theta, x, y)
+    central = _errors(decode(frame, pattern, fit_region=0.5, workers=1), theta, x, y)
+    whole = _errors(decode(frame, pattern, fit_region=1.0, workers=1), theta, x, y)
+    assert max(abs(central[0]), abs(central[1])) < NEAR_AXIS_URAD[0.5], central
+    assert max(abs(whole[0]), abs(whole[1])) < 3.0, whole
