@@ -55,6 +55,7 @@ SMOKE = {
 MODULES = {
     "megarena_estimand.py": "bench_megarena_witness.py",
     "megarena_realmap.py": "make_distorted_megarena.py",
+    "megarena_dots.py": "bench_megarena_witness.py",
 }
 
 
