@@ -19,7 +19,7 @@ the lattice itself; on a distorted one it is the frame's mean lattice over R, eq
 pixel. A decoder's band-pass smooths Φ and calflow weights the samples by the lobe's power:
 each is its own estimator of (1), and where the distortion is strong their estimates part.
 
-The dots' estimate of (1): every dot's centroid c_k (bench_megarena_witness.centroids) with its
+The dots' estimate of (1): every dot's centroid c_k (megarena_dots.centroids) with its
 lattice indices (s_k, t_k), a polynomial map of total degree d from pixels to lattice
 coordinates fitted by least squares, L_j(p) ≈ Σ_m β_jm·ξ^a·η^b (ξ, η the pixel coordinates
 centred on the frame and scaled by half its larger side), then (1) of that polynomial — linear in

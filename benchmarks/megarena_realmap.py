@@ -1,6 +1,6 @@
 """A real Megarena frame's own lattice distortion, carried onto calflow's camera.
 
-The dots' polynomial lattice map of a frame (bench_megarena_witness.dots, its degree by
+The dots' polynomial lattice map of a frame (megarena_dots.dots, its degree by
 megarena_estimand.cv_degree) M(p) = (s, t), p the pixel, is split into its best affine fit over
 the dots, a + J·p, and its non-affine remainder N(p) = M(p) − a − J·p (periods). Outside the
 dots' bounding box a polynomial of degree 4–7 runs away, so N is **clamped**: evaluated at p
