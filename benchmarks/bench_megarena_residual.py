@@ -58,10 +58,9 @@ from calflow.instruments.pattern.megarena.uniform import ENVELOPE_DEGREE, NO_LOB
 from calflow.instruments.pattern.phase import CROP, GAUSS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_megarena_witness as wit  # noqa: E402
+import megarena_dots as md  # noqa: E402
 import megarena_estimand as me  # noqa: E402
-
-REGION = 0.5  # the library's fit region
+from megarena_dots import REGION  # noqa: E402
 
 
 def phase_samples(frame: np.ndarray, depth: int, region: float = REGION) -> dict:
@@ -169,7 +168,7 @@ def analyse(
         return {"calflow_status": str(r.status[0])}
     ours = {k: float(v[0]) for k, v in r.library_pose().items()}
     ref = reference or ours
-    s, t, c, period_px, bright = wit.dots(frame, depth, region=me.CROP + wit.MARGIN)
+    s, t, c, period_px, bright = md.dots(frame, depth, region=me.CROP + md.MARGIN)
     st = np.stack([s, t], 1)
     degree, _ = me.cv_degree(c, st, frame.shape)
     e = me.estimand(c, st, frame.shape, degree, boot=boot)
@@ -290,7 +289,7 @@ def analyse(
             )
     out["band_pass"] = {k: me.differences(q, Ep) for k, q in est.items()}
     # the estimand from the centroids on the frame as it is (its background's slope left in them)
-    s0, t0, c0, *_ = wit.dots(frame, depth, region=me.CROP + wit.MARGIN, flatten=False)
+    s0, t0, c0, *_ = md.dots(frame, depth, region=me.CROP + md.MARGIN, flatten=False)
     st0 = np.stack([s0, t0], 1)
     E0 = me.estimand(c0, st0, frame.shape, me.cv_degree(c0, st0, frame.shape)[0], boot=0)["plane"]
     E0 = pose(E0 + np.array([offset, 0.0, 0.0]))
@@ -314,7 +313,7 @@ def with_background(frame: np.ndarray, source: np.ndarray, scale: float = 1.0) -
         raise ValueError(f"--background-of: expected a {frame.shape} image, got {source.shape}")
     plan = _fitter(*source.shape, -116, 1)
     f0 = fundamental(plan.spectrum(source[None].astype(np.float32))[0], plan.h, plan.w, 6)
-    bg = wit.background(source, 1.0 / f0 if f0 else 10.0)
+    bg = md.background(source, 1.0 / f0 if f0 else 10.0)
     contrast = lambda a: float(np.percentile(a, 99) - np.percentile(a, 1))  # noqa: E731
     return frame + scale * (bg - bg.mean()) * contrast(frame) / contrast(source)
 

@@ -52,7 +52,7 @@ from calflow.instruments.pattern.phase import CROP, GAUSS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import megarena_estimand as me  # noqa: E402
-from megarena_dots import REGION, background, centroids, dots, lattice  # noqa: E402, F401
+from megarena_dots import MARGIN, REGION, background, dots, lattice  # noqa: E402
 
 
 def _wrap(a):
@@ -110,7 +110,6 @@ def x_axis(w: dict, theta_x: float) -> tuple[float, float, list[float]]:
     )
 
 
-MARGIN = 0.1  # dots this fraction of the frame beyond the library's region anchor the map at its edge
 #: the estimand again from centroids of a narrower and a wider window (σ in periods; 0.2 the witness's)
 WINDOWS = {"centroid_narrow": 0.12, "centroid_wide": 0.3}
 

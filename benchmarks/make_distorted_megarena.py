@@ -37,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import megarena_estimand as me  # noqa: E402
 import megarena_realmap as mr  # noqa: E402
-from bench_megarena_witness import MARGIN  # noqa: E402
+from megarena_dots import MARGIN  # noqa: E402
 
 from calflow.instruments.pattern import Camera  # noqa: E402
 from calflow.instruments.pattern.megarena import MegarenaPattern  # noqa: E402

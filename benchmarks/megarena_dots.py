@@ -14,6 +14,7 @@ from calflow.instruments.pattern.megarena.decode import _fitter
 from calflow.instruments.pattern.megarena.period import fundamental
 
 REGION = 0.5  # the central fraction of the width and height (the library's fit region)
+MARGIN = 0.1  # dots this fraction of the frame beyond the library's region anchor the map at its edge
 
 
 def lattice(frame: np.ndarray, depth: int, fields: bool = False):

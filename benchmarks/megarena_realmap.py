@@ -28,7 +28,7 @@ import itertools
 import math
 from dataclasses import dataclass
 
-import bench_megarena_witness as wit
+import megarena_dots
 import megarena_estimand as me
 import numpy as np
 
@@ -76,7 +76,7 @@ def real_lattice(
 ) -> RealLattice:
     """The dots of ``frame`` within the central ``region`` of its sides (1: the whole frame, less
     a period at the edges) and their polynomial map, of ``degree`` or the cross-validated one."""
-    s, t, xy, period_px, bright = wit.dots(frame, depth, region=region)
+    s, t, xy, period_px, bright = megarena_dots.dots(frame, depth, region=region)
     st = np.stack([s, t], 1)
     if degree is None:
         degree, _ = me.cv_degree(xy, st, frame.shape)

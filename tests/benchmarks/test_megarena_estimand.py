@@ -100,10 +100,10 @@ def test_the_witness_recovers_the_distorted_frames_estimand(distorted):
 
 
 def test_symmetric_dots_put_the_phase_at_their_centroids(distorted):
-    import bench_megarena_witness as bw
+    import megarena_dots
 
     frame, truth, _, pattern = distorted
-    s, t, c, period_px, bright = bw.dots(frame, pattern.depth, region=0.6)
+    s, t, c, period_px, bright = megarena_dots.dots(frame, pattern.depth, region=0.6)
     assert bright
     m = me.fit_map(c, np.stack([s, t], 1), 3, frame.shape)
     delta = me.dot_phase_offset(frame.astype(float), m, c, np.stack([s, t], 1), period_px)
@@ -177,14 +177,14 @@ def test_a_sloping_background_does_not_move_the_witness(distorted):
 def test_the_background_is_what_lies_under_the_dots():
     """On a smooth field with no dots the background is the field itself (within the opening's
     reach of its curvature); the dots of a render are cut off: what is left is nearly flat."""
-    import bench_megarena_witness as bw
+    from megarena_dots import background
 
     y, x = np.mgrid[0:96, 0:128].astype(float)
     smooth = 100 + 0.5 * x + 0.2 * y
-    np.testing.assert_allclose(bw.background(smooth, 8.0)[16:-16, 16:-16], smooth[16:-16, 16:-16], atol=0.5)
+    np.testing.assert_allclose(background(smooth, 8.0)[16:-16, 16:-16], smooth[16:-16, 16:-16], atol=0.5)
     cam = Camera(width=128, height=96, sensor_pixel_um=5.0, magnification=10.0)
     frame = cam.render(MegarenaPattern(4.0, 6), 300.0, 400.0, 10.0, rng=1).astype(float)
-    bg = bw.background(frame, 8.0)
+    bg = background(frame, 8.0)
     assert np.ptp(bg[16:-16, 16:-16]) < 0.2 * np.ptp(frame[16:-16, 16:-16])
 
 
