@@ -54,7 +54,10 @@ def uniform_planes(fitter, planes, k: int, keep: np.ndarray):
         noise = np.divide(1.0, wgt, out=np.zeros_like(wgt), where=wgt > 0)
         extra = planes.gradients[k, lobe] if envelope else None
         bin_ = planes.bins[k, lobe]
-        p, f, c, _ = fitter._fit(z, kept, bin_, planes.freq[k, lobe], extra, noise=noise)
+        # with the envelope this first fit only unwraps the samples: its covariance is not kept
+        p, f, c, _ = fitter._fit(
+            z, kept, bin_, planes.freq[k, lobe], extra, covariance=extra is None, noise=noise
+        )
         if extra is not None and math.isfinite(p):
             p, f, c = _envelope_out(fitter, z, kept, bin_, p, f, extra, noise)
         phase[lobe], freq[lobe] = p, f
